@@ -1,0 +1,100 @@
+"""Circuit elements of a node system: grounded and floating (MP) capacitors, resistors, inductors."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["Element", "elements", "mp_capacitance", "laplacian_split", "ZERO_TOL"]
+
+#: Default relative tolerance below which an element value counts as zero.
+ZERO_TOL = 1e-12
+
+_UNITS = {"C": "F", "R": "Ohm", "L": "H"}
+_MEANING = {"C": "mass", "R": "damper", "L": "spring"}
+
+
+@dataclass(frozen=True)
+class Element:
+    """One two-terminal element between node *a* and node *b* (0 is ground).
+
+    *value* is the SPICE value: capacitance [F] = mass, resistance [Ω] = 1/damping,
+    inductance [H] = 1/stiffness. *coefficient* is the mechanical value it came from.
+    """
+
+    kind: str
+    a: int
+    b: int
+    value: float
+    coefficient: float
+
+    @property
+    def name(self) -> str:
+        return f"{self.kind}{self.a}" if self.b == 0 else f"{self.kind}{self.a}_{self.b}"
+
+    @property
+    def floating(self) -> bool:
+        """True for an element between two nodes: a capacitor here is an MP model."""
+        return self.b != 0
+
+    @property
+    def unit(self) -> str:
+        return _UNITS[self.kind]
+
+    @property
+    def meaning(self) -> str:
+        if self.kind == "C" and self.floating:
+            return "MP model"
+        return _MEANING[self.kind]
+
+
+def laplacian_split(matrix: np.ndarray, zero_tol: float = ZERO_TOL):
+    """Split a symmetric node matrix X into grounded x_i = Σ_j X_ij and floating x_ij = −X_ij.
+
+    X is recovered as X_ii = x_i + Σ_{j≠i} x_ij and X_ij = −x_ij; entries with
+    |x| ≤ zero_tol·max|X| are returned as exact zeros.
+
+    Returns
+    -------
+    grounded : ndarray, shape (n,)
+    floating : ndarray, shape (n, n), symmetric with zero diagonal
+    """
+    x = np.asarray(matrix, dtype=float)
+    grounded = x.sum(axis=1)
+    floating = -x.copy()
+    np.fill_diagonal(floating, 0.0)
+    floor = zero_tol * (np.max(np.abs(x)) if x.size else 0.0)
+    grounded[np.abs(grounded) <= floor] = 0.0
+    floating[np.abs(floating) <= floor] = 0.0
+    return grounded, floating
+
+
+def mp_capacitance(node_mass: np.ndarray, zero_tol: float = ZERO_TOL) -> np.ndarray:
+    """Floating capacitances c_ij = −M'_ij: the masses of the MP models between nodes."""
+    return laplacian_split(node_mass, zero_tol)[1]
+
+
+def elements(system, zero_tol: float = ZERO_TOL) -> list[Element]:
+    """All non-zero elements of *system*: per node then per pair, C then R then L.
+
+    Negative values are kept: a negative floating capacitor is legitimate physics
+    (an MP model whose mass opposes the relative acceleration of its terminals).
+    """
+    out: list[Element] = []
+    mats = [("C", system.mass), ("R", system.damping), ("L", system.stiffness)]
+    n = system.dof
+    for kind, mat in mats:
+        if mat is None:
+            continue
+        grounded, floating = laplacian_split(mat, zero_tol)
+        # (node a, node b or 0 for ground, mechanical coefficient)
+        pairs = [(i + 1, 0, grounded[i]) for i in range(n)]
+        pairs += [(i + 1, j + 1, floating[i, j]) for i in range(n) for j in range(i + 1, n)]
+        for a, b, coef in pairs:
+            if coef == 0.0:
+                continue
+            value = coef if kind == "C" else 1.0 / coef
+            out.append(Element(kind, a, b, float(value), float(coef)))
+    order = {"C": 0, "R": 1, "L": 2}
+    return sorted(out, key=lambda e: (order[e.kind], e.b != 0, e.a, e.b))

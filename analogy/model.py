@@ -1,0 +1,226 @@
+"""Mechanical models: a mass matrix M(q) with damping B, stiffness K and gravity G."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from .errors import InputError
+
+__all__ = ["Model", "JointSpace", "check_square_symmetric", "check_vector"]
+
+
+def check_square_symmetric(name: str, matrix, *, n: int | None = None,
+                           definite: bool = False, semidefinite: bool = False,
+                           rtol: float = 1e-10) -> np.ndarray:
+    """Return *matrix* as a float array after checking shape, finiteness and symmetry.
+
+    Raises :class:`InputError` with one sentence naming what is wrong.
+    """
+    try:
+        a = np.array(matrix, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be a numeric matrix") from None
+    if a.ndim != 2 or a.shape[0] != a.shape[1]:
+        raise InputError(f"{name} must be square, got shape {a.shape}")
+    if n is not None and a.shape[0] != n:
+        raise InputError(f"{name} must be {n}x{n} to match the mass matrix, got {a.shape[0]}x{a.shape[1]}")
+    if not np.all(np.isfinite(a)):
+        bad = tuple(int(i) + 1 for i in np.argwhere(~np.isfinite(a))[0])
+        raise InputError(f"{name} has a non-finite entry at row {bad[0]}, column {bad[1]}")
+    scale = float(np.max(np.abs(a))) if a.size else 0.0
+    asym = np.abs(a - a.T)
+    if asym.size and asym.max() > rtol * max(scale, np.finfo(float).tiny):
+        i, j = (int(k) + 1 for k in np.unravel_index(np.argmax(asym), asym.shape))
+        raise InputError(f"{name} is not symmetric: entry ({i},{j}) = {a[i-1, j-1]:.6g} "
+                         f"but ({j},{i}) = {a[j-1, i-1]:.6g}")
+    a = 0.5 * (a + a.T)
+    if definite or semidefinite:
+        w = np.linalg.eigvalsh(a)
+        floor = 0.0 if definite else -1e-12 * max(scale, 1.0)
+        bad = np.flatnonzero(w <= floor) if definite else np.flatnonzero(w < floor)
+        if bad.size:
+            k = int(bad[0])
+            kind = "positive definite" if definite else "positive semidefinite"
+            raise InputError(f"{name} is not {kind}: eigenvalue {k + 1} of {len(w)} "
+                             f"(ascending) is {w[k]:.6g}")
+    return a
+
+
+def check_vector(name: str, values, n: int) -> np.ndarray:
+    """Return *values* as a finite float vector of length *n*."""
+    try:
+        v = np.array(values, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be a list of numbers") from None
+    if v.size != n:
+        raise InputError(f"{name} must have {n} entries (one per joint), got {v.size}")
+    if not np.all(np.isfinite(v)):
+        raise InputError(f"{name} has a non-finite entry at position {int(np.argmin(np.isfinite(v))) + 1}")
+    return v
+
+
+@dataclass(frozen=True)
+class JointSpace:
+    """Numeric joint-space dynamics at one configuration: M·dR/dt + B·R + K·∫R = F − G."""
+
+    mass_matrix: np.ndarray
+    damping: np.ndarray
+    stiffness: np.ndarray | None = None
+    gravity: np.ndarray | None = None
+
+    def __post_init__(self):
+        m = check_square_symmetric("mass matrix M", self.mass_matrix, definite=True)
+        n = m.shape[0]
+        object.__setattr__(self, "mass_matrix", m)
+        object.__setattr__(self, "damping", check_square_symmetric(
+            "damping matrix B", self.damping, n=n, semidefinite=True))
+        if self.stiffness is not None:
+            k = check_square_symmetric("stiffness matrix K", self.stiffness, n=n, semidefinite=True)
+            object.__setattr__(self, "stiffness", None if not np.any(k) else k)
+        if self.gravity is not None:
+            g = check_vector("gravity vector G", self.gravity, n)
+            object.__setattr__(self, "gravity", None if not np.any(g) else g)
+
+    @property
+    def dof(self) -> int:
+        return self.mass_matrix.shape[0]
+
+
+def _as_matrix(value, n, name):
+    if value is None:
+        return None
+    import sympy as sp
+    if isinstance(value, sp.MatrixBase):
+        return value
+    a = np.asarray(value, dtype=object)
+    if a.ndim == 1:
+        if a.size != n:
+            raise InputError(f"{name} must have {n} diagonal entries, got {a.size}")
+        return sp.diag(*[sp.sympify(x) if not isinstance(x, str) else _bad_string(name) for x in a])
+    return sp.Matrix(a.tolist())
+
+
+def _bad_string(name):
+    raise InputError(f"{name}: parse strings with analogy.expressions first")
+
+
+@dataclass
+class Model:
+    """A robot or mechanism: M(q), B(q), K(q), G(q), symbolic or numeric.
+
+    Parameters
+    ----------
+    name : str
+        Short identifier, written into netlist headers.
+    mass_matrix : sympy Matrix or array_like
+        Symmetric positive definite joint-space mass matrix.
+    damping, stiffness : sympy Matrix, array_like or sequence, optional
+        A 1-D sequence is a diagonal.
+    gravity : sequence, optional
+        Joint-space gravity load G(q); it enters as a constant force −G.
+    parameters : mapping of str to float
+        Default numeric values of the model's symbolic parameters.
+    coordinates : sequence of sympy Symbol
+        Joint coordinates q the matrices may depend on.
+    topology : str
+        Default joint-to-node map (``"serial"`` or ``"parallel"``).
+    """
+
+    name: str
+    mass_matrix: object
+    damping: object = None
+    stiffness: object = None
+    gravity: object = None
+    parameters: Mapping[str, float] = field(default_factory=dict)
+    coordinates: Sequence = ()
+    topology: str = "parallel"
+    description: str = ""
+
+    def __post_init__(self):
+        import sympy as sp
+        if isinstance(self.mass_matrix, sp.MatrixBase):
+            m = self.mass_matrix
+        else:
+            m = sp.Matrix(np.asarray(self.mass_matrix, dtype=object).tolist()) \
+                if np.asarray(self.mass_matrix, dtype=object).ndim == 2 else None
+            if m is None:
+                raise InputError("mass matrix must be two-dimensional")
+        if m.rows != m.cols:
+            raise InputError(f"mass matrix must be square, got shape ({m.rows}, {m.cols})")
+        self.mass_matrix = m
+        n = m.rows
+        self.damping = _as_matrix(self.damping, n, "damping") if self.damping is not None else sp.zeros(n)
+        self.stiffness = _as_matrix(self.stiffness, n, "stiffness")
+        if self.gravity is not None:
+            g = sp.Matrix(list(self.gravity))
+            if g.rows != n:
+                raise InputError(f"gravity must have {n} entries, got {g.rows}")
+            self.gravity = g
+        for label, mat in (("damping", self.damping), ("stiffness", self.stiffness)):
+            if mat is not None and mat.shape != (n, n):
+                raise InputError(f"{label} matrix must be {n}x{n}, got {mat.shape[0]}x{mat.shape[1]}")
+        self.coordinates = tuple(self.coordinates)
+        self.parameters = dict(self.parameters)
+        self._compiled = None
+
+    @property
+    def dof(self) -> int:
+        return self.mass_matrix.rows
+
+    @property
+    def symbols(self):
+        """Parameter symbols, by name, that the matrices may contain."""
+        import sympy as sp
+        return {name: sp.Symbol(name, real=True) for name in self.parameters}
+
+    def _compile(self):
+        # Lambdify once per model; evaluation at many configurations reuses it.
+        import sympy as sp
+        params = list(self.symbols.values())
+        args = list(self.coordinates) + params
+        free = set()
+        parts = [self.mass_matrix, self.damping, self.stiffness, self.gravity]
+        for p in parts:
+            if p is not None:
+                free |= p.free_symbols
+        unknown = sorted(str(s) for s in free - set(args))
+        if unknown:
+            raise InputError(f"model {self.name!r} uses symbols with no value: {', '.join(unknown)}")
+        fns = [None if p is None else sp.lambdify(args, p, modules="numpy", cse=True) for p in parts]
+        self._compiled = (fns, [str(s) for s in self.coordinates], list(self.parameters))
+        return self._compiled
+
+    def joint_space(self, q: Sequence[float] | None = None,
+                    parameters: Mapping[str, float] | None = None) -> JointSpace:
+        """Evaluate the model numerically at configuration *q*.
+
+        Parameters
+        ----------
+        q : sequence of float, optional
+            Joint coordinates, one per entry of :attr:`coordinates`.
+        parameters : mapping, optional
+            Overrides of :attr:`parameters` by name.
+        """
+        fns, qnames, pnames = self._compiled or self._compile()
+        q = [] if q is None else list(q)
+        if len(q) != len(qnames):
+            raise InputError(f"model {self.name!r} needs {len(qnames)} joint coordinates "
+                             f"({', '.join(qnames) or 'none'}), got {len(q)}")
+        q = check_vector("configuration q", q, len(qnames)) if qnames else np.zeros(0)
+        values = dict(self.parameters)
+        for key, value in (parameters or {}).items():
+            if key not in values:
+                raise InputError(f"model {self.name!r} has no parameter {key!r} "
+                                 f"(it has: {', '.join(pnames) or 'none'})")
+            values[key] = value
+        pv = check_vector("parameters", [values[k] for k in pnames], len(pnames)) if pnames else []
+        args = list(q) + list(pv)
+
+        def ev(fn):
+            return None if fn is None else np.array(fn(*args), dtype=float)
+
+        m, b, k, g = (ev(f) for f in fns)
+        return JointSpace(m, b, k, None if g is None else g.reshape(-1))

@@ -1,0 +1,61 @@
+"""Named accuracy presets: SPICE step and tolerance options, ODE method and tolerances."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from .errors import InputError
+
+__all__ = ["Preset", "PRESETS", "preset"]
+
+
+@dataclass(frozen=True)
+class Preset:
+    """Solver settings that trade run time for error.
+
+    Attributes
+    ----------
+    spice_options : dict
+        ``.options`` for ngspice (integration method, tolerances).
+    steps : int
+        ``.tran`` print step is t_stop/steps.
+    max_steps : int
+        ``.tran`` maximum internal step is t_stop/max_steps.
+    ode_method, ode_rtol, ode_atol :
+        ``scipy.integrate.solve_ivp`` settings; atol is relative to the response scale.
+    """
+
+    name: str
+    spice_options: dict = field(default_factory=dict)
+    steps: int = 100
+    max_steps: int = 100
+    ode_method: str = "LSODA"
+    ode_rtol: float = 1e-6
+    ode_atol: float = 1e-9
+    description: str = ""
+
+
+PRESETS = {
+    "fast": Preset(
+        "fast",
+        spice_options={"method": "trap", "reltol": 1e-4, "abstol": 1e-12, "vntol": 1e-9,
+                       "chgtol": 1e-16, "trtol": 7},
+        steps=100, max_steps=50, ode_method="LSODA", ode_rtol=1e-6, ode_atol=1e-9,
+        description="about 1e-3 of the peak, lowest run time"),
+    "accurate": Preset(
+        "accurate",
+        spice_options={"method": "gear", "maxord": 2, "reltol": 1e-9, "abstol": 1e-15,
+                       "vntol": 1e-13, "chgtol": 1e-20, "trtol": 1},
+        steps=1000, max_steps=20000, ode_method="DOP853", ode_rtol=1e-12, ode_atol=1e-14,
+        description="better than 1e-6 of the peak"),
+}
+
+
+def preset(name: str | Preset) -> Preset:
+    """Look up a preset by name."""
+    if isinstance(name, Preset):
+        return name
+    try:
+        return PRESETS[name]
+    except (KeyError, TypeError):
+        raise InputError(f"unknown accuracy preset {name!r}: use {', '.join(PRESETS)}") from None

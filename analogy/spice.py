@@ -1,0 +1,275 @@
+"""In-process ngspice through PySpice's shared-library interface, wrapped for robustness."""
+
+from __future__ import annotations
+
+import ctypes.util
+import logging
+import os
+import re
+import shutil
+import tempfile
+import threading
+import time as _time
+from pathlib import Path
+
+import numpy as np
+
+from .errors import SpiceError
+from .trajectory import Trajectory
+
+__all__ = ["NgspiceSession", "session", "run_netlist", "solve_spice", "library_path"]
+
+_INFO_PREFIXES = ("warning", "note", "using", "doing analysis", "reference value",
+                  "circuit:", "no. of data rows")
+_CANARY = "* canary\nI1 0 n1 DC 1\nR1 n1 0 1\nC1 n1 0 1\n.tran 0.1 1 uic\n.end\n"
+
+
+def library_path() -> str:
+    """The ngspice shared library to load: $NGSPICE_LIBRARY_PATH or the system's libngspice."""
+    path = os.environ.get("NGSPICE_LIBRARY_PATH") or ctypes.util.find_library("ngspice")
+    if not path:
+        raise SpiceError("the ngspice shared library was not found: install the Debian package "
+                         "libngspice0 (bash setup.sh does) or set NGSPICE_LIBRARY_PATH")
+    return path
+
+
+def _shared_class():
+    """A PySpice NgSpiceShared subclass that records output instead of judging it."""
+    logging.getLogger("PySpice").setLevel(logging.CRITICAL)  # it logs harmless notes as errors
+    from PySpice.Spice.NgSpice import Shared
+
+    class _Shared(Shared.NgSpiceShared):
+        _cdef_done = False
+
+        def __init__(self, path: str):
+            self._path = path
+            self.lines: list[tuple[str, str]] = []
+            self.exited = False
+            super().__init__(ngspice_id=0, send_data=False, verbose=False)
+
+        @property
+        def library_path(self):
+            return self._path
+
+        def _load_library(self, verbose):
+            import locale
+            locale.setlocale(locale.LC_NUMERIC, "C")   # ngspice parses numbers with the C locale
+            if not _Shared._cdef_done:
+                api = Path(Shared.__file__).with_name("api.h").read_text()
+                Shared.ffi.cdef(api)
+                _Shared._cdef_done = True
+            self._ngspice_shared = Shared.ffi.dlopen(self._path)
+
+        def send_char(self, message, ngspice_id):
+            stream, _, text = message.partition(" ")
+            self.lines.append((stream, text.strip()))
+            return 0
+
+        @staticmethod
+        def _exit(exit_status, immediate_unloading, quit_exit, ngspice_id, user_data):
+            self = Shared.ffi.from_handle(user_data)
+            self.exited = True
+            return exit_status
+
+    return _Shared, Shared.ffi
+
+
+def _is_error(text: str) -> bool:
+    low = text.lower()
+    if low.startswith(_INFO_PREFIXES):
+        return False
+    return ("error" in low or "aborted" in low or "too small" in low or "not parsed" in low
+            or "fatal" in low)
+
+
+def _describe_failure(lines: list[str], stage: str) -> str:
+    text = " ".join(lines)
+    node = None
+    m = re.search(r"(?:check node|trouble with node)\s+\"?([\w#.()-]+)\"?", text, re.I)
+    if m:
+        node = m.group(1)
+    m = re.search(r"timestep too small; time = ([0-9.eE+-]+)", text, re.I)
+    if m:
+        msg = f"ngspice {stage}: time step too small at t = {float(m.group(1)):.6g} s"
+        if "singular" in text.lower():
+            msg += ", singular matrix"
+        return msg + (f" at node {node}" if node else "")
+    if "singular matrix" in text.lower():
+        return f"ngspice {stage}: singular matrix" + (f" at node {node}" if node else "")
+    m = re.search(r"error on line (\d+)[^:]*:\s*(.*)", text, re.I)
+    if m:
+        return f"ngspice {stage}: error on netlist line {m.group(1)}: {m.group(2).strip()}"
+    errors = [ln for ln in lines if _is_error(ln)]
+    detail = errors[0] if errors else (lines[-1] if lines else "no output")
+    return f"ngspice {stage}: {detail}"
+
+
+class NgspiceSession:
+    """One loaded ngspice library: load a netlist, run it, read vectors, free the circuit.
+
+    Each :meth:`run` ends with ``destroy all`` and ``remcirc`` so that memory stays
+    flat over thousands of runs. If ngspice asks to exit or fails its canary after an
+    error, the library is loaded afresh from a private copy, since ngspice keeps
+    global state that a fatal error can leave broken.
+    """
+
+    def __init__(self, path: str | None = None):
+        self._lock = threading.Lock()
+        self._source = path or library_path()
+        self._tmp: tempfile.TemporaryDirectory | None = None
+        self._generation = 0
+        self._open(self._source)
+
+    def _open(self, path: str):
+        cls, self._ffi = _shared_class()
+        try:
+            self._ng = cls(path)
+        except OSError as exc:
+            raise SpiceError(f"cannot load the ngspice shared library {path}: {exc}") from None
+        self._lib = self._ng._ngspice_shared
+        self._command("set nomoremode")
+
+    def _reload(self):
+        # A fresh copy has its own global state; dlopen of the same path would share it.
+        if self._tmp is None:
+            self._tmp = tempfile.TemporaryDirectory(prefix="analogy-ngspice-")
+        src = Path(ctypes.util.find_library("ngspice") and self._resolve(self._source))
+        self._generation += 1
+        dst = Path(self._tmp.name) / f"libngspice-{self._generation}.so"
+        shutil.copy(src, dst)
+        self._open(str(dst))
+
+    @staticmethod
+    def _resolve(name: str) -> str:
+        if os.path.sep in name:
+            return name
+        for d in ("/usr/lib/x86_64-linux-gnu", "/usr/lib/aarch64-linux-gnu", "/usr/lib", "/usr/local/lib"):
+            p = Path(d) / name
+            if p.exists():
+                return str(p)
+        raise SpiceError(f"cannot locate {name} on disk to reload ngspice")
+
+    @property
+    def version(self) -> int | None:
+        return self._ng.ngspice_version
+
+    def _command(self, cmd: str) -> list[tuple[str, str]]:
+        self._ng.lines = []
+        rc = self._lib.ngSpice_Command(cmd.encode("ascii"))
+        if rc:
+            raise SpiceError(f"ngspice rejected the command {cmd!r}")
+        return self._ng.lines
+
+    def _load(self, netlist: str) -> list[tuple[str, str]]:
+        ffi = self._ffi
+        keep = [ffi.new("char[]", line.encode("ascii", "replace")) for line in netlist.splitlines() if line]
+        array = ffi.new("char *[]", keep + [ffi.NULL])
+        self._ng.lines = []
+        rc = self._lib.ngSpice_Circ(array)
+        lines = self._ng.lines
+        if rc:
+            lines = lines + [("stderr", f"error: ngSpice_Circ returned {rc}")]
+        return lines
+
+    def _vectors(self, plot: str) -> dict[str, np.ndarray]:
+        ffi = self._ffi
+        names = self._ng._convert_string_array(self._lib.ngSpice_AllVecs(plot.encode()))
+        out = {}
+        for name in names:
+            info = self._lib.ngGet_Vec_Info(f"{plot}.{name}".encode())
+            if info == ffi.NULL or info.v_realdata == ffi.NULL:
+                continue
+            data = np.frombuffer(ffi.buffer(info.v_realdata, info.v_length * 8), dtype=np.float64).copy()
+            key = name.lower()
+            if key.startswith("v(") and key.endswith(")"):
+                key = key[2:-1]
+            out[key] = data
+        return out
+
+    def _free(self):
+        self._command("destroy all")
+        self._command("remcirc")
+
+    def _healthy(self) -> bool:
+        try:
+            lines = self._load(_CANARY) + self._command("run")
+            ok = not any(_is_error(t) for s, t in lines) and not self._ng.exited
+            ok = ok and self._lib.ngSpice_CurPlot() != self._ffi.NULL and \
+                self._ffi.string(self._lib.ngSpice_CurPlot()).decode().startswith("tran")
+            self._free()
+            return ok
+        except SpiceError:
+            return False
+
+    def run(self, netlist: str, vectors=None) -> dict[str, np.ndarray]:
+        """Run a transient netlist and return ``{"time": …, node: …}``.
+
+        Raises
+        ------
+        SpiceError
+            With one sentence naming the failure and, where ngspice says, the node.
+        """
+        with self._lock:
+            try:
+                return self._run(netlist, vectors)
+            except SpiceError:
+                # Leave a clean instance for the next run, whatever state ngspice is in.
+                if self._ng.exited or not self._healthy():
+                    self._reload()
+                raise
+
+    def _run(self, netlist, vectors):
+        try:
+            netlist.encode("ascii")
+        except UnicodeEncodeError:
+            raise SpiceError("netlist contains non-ASCII characters") from None
+        load = self._load(netlist)
+        errors = [t for s, t in load if _is_error(t)]
+        if errors or self._ng.exited:
+            self._free()
+            raise SpiceError(_describe_failure([t for s, t in load], "could not parse the netlist"))
+        ran = self._command("run")
+        failed = [t for s, t in ran if _is_error(t)]
+        plot_c = self._lib.ngSpice_CurPlot()
+        plot = self._ffi.string(plot_c).decode() if plot_c != self._ffi.NULL else ""
+        if failed or self._ng.exited or not plot.startswith("tran"):
+            self._free()
+            raise SpiceError(_describe_failure([t for s, t in ran], "transient analysis failed"))
+        data = self._vectors(plot)
+        self._free()
+        if "time" not in data:
+            raise SpiceError("ngspice returned no time vector")
+        if vectors is not None:
+            missing = [v for v in vectors if v.lower() not in data]
+            if missing:
+                raise SpiceError(f"ngspice did not save vector {missing[0]!r}")
+            data = {"time": data["time"], **{v: data[v.lower()] for v in vectors}}
+        return data
+
+
+_SESSION: NgspiceSession | None = None
+
+
+def session() -> NgspiceSession:
+    """The process's ngspice session, loaded on first use."""
+    global _SESSION
+    if _SESSION is None:
+        _SESSION = NgspiceSession()
+    return _SESSION
+
+
+def run_netlist(netlist: str, vectors=None) -> dict[str, np.ndarray]:
+    """Run *netlist* in the process's ngspice session."""
+    return session().run(netlist, vectors)
+
+
+def solve_spice(system, preset="accurate", save=None) -> Trajectory:
+    """Simulate *system*'s netlist in ngspice and recover joint rates from node voltages."""
+    from .netlist import netlist as make_netlist
+    text = make_netlist(system, preset, save=save)
+    sess = session()
+    start = _time.perf_counter()
+    data = sess.run(text, system.nodes)
+    elapsed = _time.perf_counter() - start
+    v = np.column_stack([data[n] for n in system.nodes])
+    return Trajectory("spice", data["time"], v, system.joint_rates(v), elapsed)

@@ -1,0 +1,181 @@
+"""The node system: one linear system M'·dv/dt + B'·v + K'·∫v = i(t) read by every consumer."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from .errors import InputError
+from .model import JointSpace, Model, check_vector
+from .topology import Topology, topology as make_topology
+from .waveforms import Step, Waveform, parse_waveform
+
+__all__ = ["NodeSystem", "node_system"]
+
+
+@dataclass(frozen=True, eq=False)
+class NodeSystem:
+    """Linear dynamics in node coordinates v = T·r, driven by joint forces F(t).
+
+    Attributes
+    ----------
+    joint : JointSpace
+        Joint-space M, B, K, G at the chosen configuration.
+    topology : Topology
+        The map T.
+    forces : tuple of tuple of Waveform
+        Per joint, the waveforms whose sum is F_j(t) (gravity included as a constant −G).
+    initial_rates : ndarray
+        Joint rates R(0).
+    t_stop : float
+        End of the simulated interval [s].
+    info : dict
+        Robot name, parameters and configuration, for netlist headers and reports.
+    """
+
+    joint: JointSpace
+    topology: Topology
+    forces: tuple
+    initial_rates: np.ndarray
+    t_stop: float
+    info: Mapping = field(default_factory=dict)
+
+    def __post_init__(self):
+        n = self.joint.dof
+        if self.topology.dof != n:
+            raise InputError(f"topology is {self.topology.dof}x{self.topology.dof} "
+                             f"but the robot has {n} joints")
+        if not (np.isfinite(self.t_stop) and self.t_stop > 0):
+            raise InputError("t_stop must be a positive, finite time")
+        if len(self.forces) != n:
+            raise InputError(f"forces must have {n} entries (one per joint), got {len(self.forces)}")
+        object.__setattr__(self, "initial_rates", check_vector("initial rates r0", self.initial_rates, n))
+        t = self.topology
+        object.__setattr__(self, "mass", t.node_matrix(self.joint.mass_matrix))
+        object.__setattr__(self, "damping", t.node_matrix(self.joint.damping))
+        object.__setattr__(self, "stiffness", None if self.joint.stiffness is None
+                           else t.node_matrix(self.joint.stiffness))
+        object.__setattr__(self, "current_map", t.current_map)
+
+    # M', B', K' and T⁻ᵀ are set in __post_init__ so that every consumer reads the same numbers.
+    mass: np.ndarray = field(init=False, repr=False)
+    damping: np.ndarray = field(init=False, repr=False)
+    stiffness: np.ndarray | None = field(init=False, repr=False)
+    current_map: np.ndarray = field(init=False, repr=False)
+
+    @property
+    def dof(self) -> int:
+        return self.joint.dof
+
+    @property
+    def nodes(self) -> list[str]:
+        """SPICE node names, n1 … nN."""
+        return [f"n{k + 1}" for k in range(self.dof)]
+
+    @property
+    def initial_voltages(self) -> np.ndarray:
+        """Node velocities v(0) = T·R(0)."""
+        return self.topology.matrix @ self.initial_rates
+
+    def joint_rates(self, node_voltages: np.ndarray) -> np.ndarray:
+        """R = T⁻¹·v for node voltages of shape (..., n)."""
+        v = np.asarray(node_voltages, dtype=float)
+        return np.linalg.solve(self.topology.matrix, v.reshape(-1, self.dof).T).T.reshape(v.shape)
+
+    def force(self, t) -> np.ndarray:
+        """Joint forces F(t), shape (len(t), n) for an array of times."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        return np.stack([sum((w(t) for w in ws), np.zeros_like(t)) for ws in self.forces], axis=-1)
+
+    def breakpoints(self) -> np.ndarray:
+        """Segment ends 0 < t_1 < … < t_stop between which every force is smooth."""
+        pts = {self.t_stop}
+        for ws in self.forces:
+            for w in ws:
+                pts.update(b for b in w.breakpoints(self.t_stop) if 0 < b < self.t_stop)
+        return np.array(sorted(pts))
+
+    def segments(self):
+        """Yield (t0, t1) intervals on which all forces are given by one closed form."""
+        t0 = 0.0
+        for t1 in self.breakpoints():
+            yield t0, float(t1)
+            t0 = float(t1)
+
+
+def _waveforms(spec, n) -> tuple:
+    if spec is None:
+        return tuple(() for _ in range(n))
+    if isinstance(spec, (str, Waveform)) or np.isscalar(spec):
+        raise InputError(f"forces must be a list with one entry per joint ({n})")
+    spec = list(spec)
+    if len(spec) != n:
+        raise InputError(f"forces must have {n} entries (one per joint), got {len(spec)}")
+    out = []
+    for item in spec:
+        items = item if isinstance(item, (list, tuple)) else [item]
+        ws = []
+        for w in items:
+            if isinstance(w, Waveform):
+                ws.append(w)
+            elif isinstance(w, str):
+                ws.append(parse_waveform(w))
+            else:
+                try:
+                    value = float(w)
+                except (TypeError, ValueError):
+                    raise InputError(f"cannot use {w!r} as a force") from None
+                if not np.isfinite(value):
+                    raise InputError("forces must be finite")
+                ws.append(Step(value))
+        out.append(tuple(ws))
+    return tuple(out)
+
+
+def node_system(model: Model | JointSpace, q: Sequence[float] | None = None, *,
+                parameters: Mapping[str, float] | None = None,
+                topology: str | Topology | np.ndarray | None = None,
+                forces=None, initial_rates=None, t_stop: float = 1.0,
+                info: Mapping | None = None) -> NodeSystem:
+    """Evaluate *model* at *q* and map it to node coordinates.
+
+    Parameters
+    ----------
+    model : Model or JointSpace
+        Symbolic or numeric dynamics.
+    q : sequence of float, optional
+        Configuration, for models that depend on it.
+    parameters : mapping, optional
+        Parameter overrides.
+    topology : {"serial", "parallel"}, Topology or array_like, optional
+        Joint-to-node map T; defaults to the model's own.
+    forces : sequence, optional
+        One entry per joint: a number (step at t = 0), a waveform, a waveform
+        string such as ``"sine(0, 1, 2)"`` or a list of these to be summed.
+    initial_rates : sequence of float, optional
+        Joint rates at t = 0 (default zero).
+    t_stop : float
+        End of the simulated interval.
+    """
+    if isinstance(model, Model):
+        joint = model.joint_space(q, parameters)
+        top_spec = topology if topology is not None else model.topology
+        values = dict(model.parameters, **(parameters or {}))
+        base_info = {"robot": model.name, "parameters": values,
+                     "configuration": dict(zip((str(c) for c in model.coordinates), q or []))}
+    elif isinstance(model, JointSpace):
+        joint = model
+        top_spec = topology if topology is not None else "parallel"
+        base_info = {"robot": "custom", "parameters": {}, "configuration": {}}
+    else:
+        raise InputError("model must be an analogy Model or JointSpace")
+    n = joint.dof
+    top = make_topology(top_spec, n)
+    ws = _waveforms(forces, n)
+    if joint.gravity is not None:
+        ws = tuple(w + (Step(-g),) if g else w for w, g in zip(ws, joint.gravity))
+    r0 = np.zeros(n) if initial_rates is None else initial_rates
+    base_info.update(info or {})
+    return NodeSystem(joint, top, ws, r0, float(t_stop), base_info)

@@ -1,0 +1,111 @@
+"""Joint-to-node maps v = T·r: serial, parallel or any invertible T."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import InputError
+
+__all__ = ["Topology", "serial", "parallel", "custom", "topology", "TOPOLOGIES", "congruence"]
+
+
+@dataclass(frozen=True)
+class Topology:
+    """Node velocities v = T·r and node currents i = T⁻ᵀ·F.
+
+    Attributes
+    ----------
+    name : str
+        ``"serial"``, ``"parallel"`` or ``"custom"``.
+    matrix : ndarray, shape (n, n)
+        The invertible map T from joint rates to node velocities.
+    """
+
+    name: str
+    matrix: np.ndarray
+
+    def __post_init__(self):
+        t = np.array(self.matrix, dtype=float)
+        if t.ndim != 2 or t.shape[0] != t.shape[1]:
+            raise InputError(f"topology matrix T must be square, got shape {t.shape}")
+        if not np.all(np.isfinite(t)):
+            raise InputError("topology matrix T has a non-finite entry")
+        if t.size and np.linalg.cond(t) > 1e12:
+            raise InputError("topology matrix T is singular (or nearly so): it must be invertible")
+        t.setflags(write=False)
+        object.__setattr__(self, "matrix", t)
+
+    @property
+    def dof(self) -> int:
+        return self.matrix.shape[0]
+
+    @property
+    def inverse(self) -> np.ndarray:
+        """T⁻¹, mapping node velocities back to joint rates."""
+        return np.linalg.inv(self.matrix)
+
+    @property
+    def current_map(self) -> np.ndarray:
+        """T⁻ᵀ, mapping joint forces F to node currents i (power is conserved: Fᵀr = iᵀv)."""
+        return np.linalg.inv(self.matrix).T
+
+    def node_matrix(self, joint_matrix: np.ndarray) -> np.ndarray:
+        """The node-coordinate form T⁻ᵀ·X·T⁻¹ of a joint-space matrix X."""
+        return congruence(joint_matrix, self.matrix)
+
+    def describe(self) -> str:
+        if self.name == "serial":
+            return "serial (v_k = r_1 + ... + r_k)"
+        if self.name == "parallel":
+            return "parallel (v = r)"
+        return "custom (v = T r)"
+
+
+def congruence(x, t):
+    """Return T⁻ᵀ·X·T⁻¹ for numeric arrays or sympy matrices, without forming T⁻¹ for numbers."""
+    try:
+        import sympy as sp
+        if isinstance(x, sp.MatrixBase) or isinstance(t, sp.MatrixBase):
+            ti = sp.Matrix(t).inv()
+            return sp.simplify(ti.T * sp.Matrix(x) * ti)
+    except ImportError:  # pragma: no cover - sympy is a hard dependency
+        pass
+    t = np.asarray(t, dtype=float)
+    y = np.linalg.solve(t.T, np.asarray(x, dtype=float))     # T⁻ᵀ X
+    z = np.linalg.solve(t.T, y.T).T                           # (T⁻ᵀ (T⁻ᵀ X)ᵀ)ᵀ = T⁻ᵀ X T⁻¹
+    return 0.5 * (z + z.T)
+
+
+def serial(n: int) -> Topology:
+    """Serial chain: node k carries the absolute rate v_k = r_1 + … + r_k."""
+    return Topology("serial", np.tril(np.ones((n, n))))
+
+
+def parallel(n: int) -> Topology:
+    """Parallel mechanism: every actuator is grounded, v = r."""
+    return Topology("parallel", np.eye(n))
+
+
+def custom(matrix) -> Topology:
+    """Any invertible joint-to-node map T."""
+    return Topology("custom", matrix)
+
+
+TOPOLOGIES = {"serial": serial, "parallel": parallel}
+
+
+def topology(spec, n: int) -> Topology:
+    """Build a topology from a name (``serial``, ``parallel``), a Topology or a matrix."""
+    if isinstance(spec, Topology):
+        top = spec
+    elif isinstance(spec, str):
+        if spec not in TOPOLOGIES:
+            raise InputError(f"unknown topology {spec!r}: use serial, parallel or a matrix T")
+        top = TOPOLOGIES[spec](n)
+    else:
+        top = custom(spec)
+    if top.dof != n:
+        raise InputError(f"topology is {top.dof}x{top.dof} but the robot has {n} joints")
+    return top

@@ -1,0 +1,241 @@
+"""Force waveforms (step, pulse, sine, piecewise linear) shared by SPICE and the solvers."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from .errors import InputError
+
+__all__ = ["Waveform", "Step", "PWL", "Pulse", "Sine", "Piece", "parse_waveform"]
+
+
+def _num(x: float) -> str:
+    """Full double precision, in a form every SPICE reads."""
+    return repr(float(x))
+
+
+@dataclass(frozen=True)
+class Piece:
+    """On [t0, t0 + h]: u(t0 + τ) = a + b·τ + Σ c_k·exp(s_k·τ)."""
+
+    a: float
+    b: float = 0.0
+    c: tuple = ()
+    s: tuple = ()
+
+
+class Waveform:
+    """A force waveform f(t), t ≥ 0."""
+
+    def spice(self, scale: float, t_stop: float) -> str:
+        """The SPICE source value (``DC …``, ``PWL(…)``, ``SIN(…)``) of scale·f."""
+        raise NotImplementedError
+
+    def breakpoints(self, t_stop: float) -> list[float]:
+        """Times in (0, t_stop) where f or its derivative jumps."""
+        raise NotImplementedError
+
+    def piece(self, t0: float, t1: float) -> Piece:
+        """Closed form of f on a segment that contains no breakpoint."""
+        raise NotImplementedError
+
+    def __call__(self, t):
+        raise NotImplementedError
+
+
+class PWL(Waveform):
+    """Piecewise linear through (t_k, f_k); constant before the first and after the last point."""
+
+    def __init__(self, points: Sequence[tuple[float, float]]):
+        pts = np.array(points, dtype=float)
+        if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 1:
+            raise InputError("pwl needs pairs of time and value")
+        if not np.all(np.isfinite(pts)):
+            raise InputError("pwl points must be finite")
+        if pts[0, 0] < 0 or np.any(np.diff(pts[:, 0]) <= 0):
+            raise InputError("pwl times must start at 0 or later and strictly increase")
+        self.times = pts[:, 0]
+        self.values = pts[:, 1]
+
+    def __repr__(self):
+        return f"PWL({list(zip(self.times.tolist(), self.values.tolist()))})"
+
+    def spice(self, scale, t_stop):
+        if len(self.times) == 1 or np.all(self.values == self.values[0]):
+            return f"DC {_num(scale * self.values[0])}"
+        times, values = self.times, self.values
+        if times[0] > 0:  # SPICE holds the first value before the first point; make it explicit
+            times, values = np.r_[0.0, times], np.r_[values[0], values]
+        body = " ".join(f"{_num(t)} {_num(scale * v)}" for t, v in zip(times, values))
+        return f"PWL({body})"
+
+    def breakpoints(self, t_stop):
+        return [float(t) for t in self.times if 0 < t < t_stop]
+
+    def __call__(self, t):
+        return np.interp(t, self.times, self.values)
+
+    def piece(self, t0, t1):
+        mid = 0.5 * (t0 + t1)
+        k = np.searchsorted(self.times, mid)
+        if k == 0 or k == len(self.times):
+            return Piece(float(self.values[min(k, len(self.values) - 1)]))
+        ta, tb = self.times[k - 1], self.times[k]
+        slope = (self.values[k] - self.values[k - 1]) / (tb - ta)
+        return Piece(float(self.values[k - 1] + slope * (t0 - ta)), float(slope))
+
+
+class Step(PWL):
+    """A step of *amplitude* at *delay*, rising linearly over *rise* (needed when delay > 0)."""
+
+    def __init__(self, amplitude: float, delay: float = 0.0, rise: float = 0.0):
+        self.amplitude, self.delay, self.rise = float(amplitude), float(delay), float(rise)
+        if delay < 0 or rise < 0:
+            raise InputError("step delay and rise must not be negative")
+        if delay == 0 and rise == 0:
+            super().__init__([(0.0, amplitude)])
+        elif rise == 0:
+            raise InputError("a delayed step needs a rise time > 0: SPICE sources cannot jump")
+        else:
+            super().__init__([(0.0, 0.0), (delay, 0.0), (delay + rise, amplitude)]
+                             if delay > 0 else [(0.0, 0.0), (rise, amplitude)])
+
+    def __repr__(self):
+        return f"Step({self.amplitude!r}, delay={self.delay!r}, rise={self.rise!r})"
+
+
+class Pulse(Waveform):
+    """SPICE PULSE(v1 v2 delay rise fall width period); rise and fall must be > 0."""
+
+    def __init__(self, v1, v2, delay=0.0, rise=1e-6, fall=1e-6, width=1.0, period=None):
+        self.v1, self.v2 = float(v1), float(v2)
+        self.delay, self.rise, self.fall, self.width = map(float, (delay, rise, fall, width))
+        if self.rise <= 0 or self.fall <= 0:
+            # SPICE silently replaces a zero edge by the print step; make it explicit instead.
+            raise InputError("pulse rise and fall times must be > 0")
+        if self.delay < 0 or self.width < 0:
+            raise InputError("pulse delay and width must not be negative")
+        self.period = None if period is None else float(period)
+        if self.period is not None and self.period < self.rise + self.width + self.fall:
+            raise InputError("pulse period must be at least rise + width + fall")
+
+    def __repr__(self):
+        return (f"Pulse({self.v1!r}, {self.v2!r}, {self.delay!r}, {self.rise!r}, "
+                f"{self.fall!r}, {self.width!r}, {self.period!r})")
+
+    def _period(self, t_stop):
+        one = self.rise + self.width + self.fall
+        return self.period if self.period is not None else max(2 * (one + self.delay), 2 * t_stop)
+
+    def as_pwl(self, t_stop: float) -> PWL:
+        per = self._period(t_stop)
+        pts = [(0.0, self.v1)] if self.delay > 0 else []
+        start = self.delay
+        while start < t_stop:
+            for dt, v in ((0.0, self.v1), (self.rise, self.v2),
+                          (self.rise + self.width, self.v2), (self.rise + self.width + self.fall, self.v1)):
+                pts.append((start + dt, v))
+            start += per
+        # drop a zero-width plateau duplicate (width == 0)
+        clean = []
+        for t, v in pts:
+            if clean and t <= clean[-1][0]:
+                continue
+            clean.append((t, v))
+        return PWL(clean)
+
+    def spice(self, scale, t_stop):
+        vals = (scale * self.v1, scale * self.v2, self.delay, self.rise, self.fall,
+                self.width, self._period(t_stop))
+        return "PULSE(" + " ".join(_num(v) for v in vals) + ")"
+
+    def breakpoints(self, t_stop):
+        return self.as_pwl(t_stop).breakpoints(t_stop)
+
+    def piece(self, t0, t1):
+        return self._pwl_cache(t1).piece(t0, t1)
+
+    def _pwl_cache(self, t_stop):
+        cache = getattr(self, "_cache", None)
+        if cache is None or cache[0] < t_stop:
+            cache = (max(t_stop, 1.0) * 2, self.as_pwl(max(t_stop, 1.0) * 2))
+            self._cache = cache
+        return cache[1]
+
+    def __call__(self, t):
+        t = np.asarray(t, dtype=float)
+        return self._pwl_cache(float(np.max(t)) if t.size else 1.0)(t)
+
+
+class Sine(Waveform):
+    """SPICE SIN: offset + amplitude·exp(−damping·τ)·sin(2π·frequency·τ + phase), τ = t − delay ≥ 0.
+
+    Before *delay* the value is offset + amplitude·sin(phase); *phase* is in degrees, as in SPICE.
+    """
+
+    def __init__(self, offset, amplitude, frequency, delay=0.0, damping=0.0, phase=0.0):
+        self.offset, self.amplitude, self.frequency = float(offset), float(amplitude), float(frequency)
+        self.delay, self.damping, self.phase = float(delay), float(damping), float(phase)
+        if self.frequency < 0 or self.delay < 0:
+            raise InputError("sine frequency and delay must not be negative")
+
+    def __repr__(self):
+        return (f"Sine({self.offset!r}, {self.amplitude!r}, {self.frequency!r}, "
+                f"delay={self.delay!r}, damping={self.damping!r}, phase={self.phase!r})")
+
+    def spice(self, scale, t_stop):
+        vals = (scale * self.offset, scale * self.amplitude, self.frequency, self.delay,
+                self.damping, self.phase)
+        return "SIN(" + " ".join(_num(v) for v in vals) + ")"
+
+    def breakpoints(self, t_stop):
+        return [self.delay] if 0 < self.delay < t_stop else []
+
+    def __call__(self, t):
+        t = np.asarray(t, dtype=float)
+        phi = math.radians(self.phase)
+        tau = np.maximum(t - self.delay, 0.0)
+        return self.offset + self.amplitude * np.exp(-self.damping * tau) * \
+            np.sin(2 * math.pi * self.frequency * tau + phi)
+
+    def piece(self, t0, t1):
+        phi = math.radians(self.phase)
+        if t1 <= self.delay:
+            return Piece(self.offset + self.amplitude * math.sin(phi))
+        w = 2 * math.pi * self.frequency
+        d = t0 - self.delay
+        s_plus, s_minus = complex(-self.damping, w), complex(-self.damping, -w)
+        # A e^{-θτ} sin(ωτ + φ) = A/(2i)·(e^{s+ τ + iφ} − e^{s− τ − iφ}), shifted to the segment start.
+        c_plus = self.amplitude / 2j * np.exp(s_plus * d + 1j * phi)
+        c_minus = -self.amplitude / 2j * np.exp(s_minus * d - 1j * phi)
+        return Piece(self.offset, 0.0, (complex(c_plus), complex(c_minus)), (s_plus, s_minus))
+
+
+_WAVEFORMS = {
+    "step": Step,
+    "pulse": Pulse,
+    "sine": Sine, "sin": Sine,
+    "pwl": None,
+}
+
+
+def parse_waveform(text: str) -> Waveform:
+    """Parse ``step(1)``, ``pulse(0, 1, 0.1, 1e-3, 1e-3, 0.5, 2)``, ``sine(0, 1, 2)``,
+    ``pwl(0, 0, 1, 1)`` or a bare number (a step at t = 0), without evaluating code."""
+    from .expressions import parse_call, parse_number
+    stripped = text.strip()
+    if "(" not in stripped:
+        return Step(parse_number(stripped))
+    name, args, kwargs = parse_call(stripped, _WAVEFORMS)
+    try:
+        if name == "pwl":
+            if kwargs or len(args) < 2 or len(args) % 2:
+                raise InputError(f"{text!r}: pwl needs time, value pairs")
+            return PWL(list(zip(args[0::2], args[1::2])))
+        return _WAVEFORMS[name](*args, **kwargs)
+    except TypeError as exc:
+        raise InputError(f"{text!r}: wrong arguments for {name} ({exc})") from None
