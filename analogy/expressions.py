@@ -76,6 +76,8 @@ class _Converter:
             name = node.id
             if name.startswith("_"):
                 self.reject(f"name {name!r}")
+            if name.lower() in ("nan", "inf", "infinity"):
+                self.reject(f"numbers must be finite, got {name}")
             if self.symbols is not None and name in self.symbols:
                 return self.symbols[name]
             if name in _CONSTANTS:

@@ -63,7 +63,8 @@ def solve_ode(system, times=None, method: str = "DOP853", rtol: float = 1e-10,
         fmax = max(float(np.max(np.abs(system.force(t)))) if t.size else 0.0, 1e-300)
         scale = max(float(np.max(np.abs(v0))), fmax * float(np.max(np.abs(g))) * system.t_stop)
         atol = rtol * 1e-3 * max(scale, 1e-300)
-    extra_args = {"jac": a} if method in _IMPLICIT else {}
+    # Radau and BDF take a constant Jacobian as an array; LSODA needs a callable.
+    extra_args = {} if method not in _IMPLICIT else {"jac": (lambda tt, yy: a) if method == "LSODA" else a}
     forces = system.forces
 
     def rhs(tt, yy):

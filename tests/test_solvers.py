@@ -1,0 +1,97 @@
+"""Exact solver against 40-digit mpmath, ODE against exact, on every built-in scene."""
+
+import mpmath
+import numpy as np
+import pytest
+
+from analogy import node_system, solve_exact, solve_ode
+from analogy.exact import phi1, phi2
+from analogy.model import JointSpace
+from analogy.ode import ODE_METHODS
+from analogy.reference import solve_reference
+from analogy.robots import random_spd_model
+from analogy.scenes import SCENES, scene
+
+
+def rel_err(a, b):
+    return float(np.max(np.abs(a - b)) / np.max(np.abs(b)))
+
+
+@pytest.mark.parametrize("x", [0, 1e-12, -3e-9 + 2e-9j, 0.3 - 0.7j, -2.5, 4 + 1j, -50 + 20j, 1j * 1e-6])
+def test_phi_functions_to_rounding(x):
+    with mpmath.workdps(40):
+        xm = mpmath.mpc(x)
+        p1 = complex(mpmath.expm1(xm) / xm) if x != 0 else 1.0
+        p2 = complex((mpmath.exp(xm) - 1 - xm) / xm ** 2) if x != 0 else 0.5
+    assert abs(complex(phi1(np.array([x]))[0]) - p1) <= 4e-16 * abs(p1)
+    assert abs(complex(phi2(np.array([x]))[0]) - p2) <= 4e-16 * abs(p2)
+
+
+@pytest.mark.parametrize("name", list(SCENES))
+def test_exact_matches_40_digit_reference(name):
+    """Eigen-decomposition of the pencil vs mpmath.expm of the augmented system: ≤ 1e-12."""
+    s = scene(name).system()
+    t = np.linspace(0.0, s.t_stop, 7)
+    ref = solve_reference(s, t)
+    assert rel_err(solve_exact(s, t).voltages, ref) <= 1e-12
+
+
+def test_exact_with_springs_and_every_waveform_matches_reference():
+    model = random_spd_model(4, seed=3, stiffness=True)
+    forces = ["step(1, 0.5, 0.01)", "pulse(0, 1, 0.2, 0.01, 0.02, 0.5, 1.5)",
+              "pwl(0, 0, 1, 1, 2, -1)", ["sine(0.2, 1, 0.8, 0.3, 0.4, 30)", "step(-0.5)"]]
+    s = node_system(model, forces=forces, initial_rates=[0.3, -0.2, 0.1, 0.0], t_stop=4.0)
+    t = np.linspace(0.0, 4.0, 9)
+    assert rel_err(solve_exact(s, t).voltages, solve_reference(s, t)) <= 1e-12
+
+
+def test_exact_satisfies_the_differential_equation():
+    """M'·dv/dt + B'·v + K'·∫v = i(t), checked by finite differences of the exact solution."""
+    model = random_spd_model(3, seed=5, stiffness=True)
+    s = node_system(model, forces=["sine(0, 1, 0.5)", 1.0, "pwl(0, 0, 3, 1)"], t_stop=3.0)
+    h = 1e-4
+    t = np.array([1.0 - 2 * h, 1.0 - h, 1.0, 1.0 + h, 1.0 + 2 * h])
+    v = solve_exact(s, t).voltages
+    dv = (v[0] - 8 * v[1] + 8 * v[3] - v[4]) / (12 * h)
+    # ∫v from the exact solver on a fine grid (Simpson)
+    tt = np.linspace(0.0, 1.0, 2001)
+    vv = solve_exact(s, tt).voltages
+    w = np.ones(tt.size); w[1:-1:2] = 4; w[2:-1:2] = 2
+    x = (tt[1] - tt[0]) / 3 * (w @ vv)
+    residual = s.mass @ dv + s.damping @ v[2] + s.stiffness @ x - s.current_map @ s.force([1.0])[0]
+    assert np.max(np.abs(residual)) < 1e-8
+
+
+@pytest.mark.parametrize("name", list(SCENES))
+def test_ode_accurate_preset_within_1e9_of_exact(name):
+    s = scene(name).system()
+    t = np.linspace(0.0, s.t_stop, 501)
+    from analogy.presets import PRESETS
+    p = PRESETS["accurate"]
+    ode = solve_ode(s, t, p.ode_method, p.ode_rtol)
+    assert rel_err(ode.rates, solve_exact(s, t).rates) <= 1e-9
+
+
+@pytest.mark.parametrize("method", ODE_METHODS)
+def test_every_ode_method_converges(method):
+    s = scene("serial2").system()
+    t = np.linspace(0.0, s.t_stop, 101)
+    ode = solve_ode(s, t, method, rtol=1e-8)
+    assert rel_err(ode.rates, solve_exact(s, t).rates) <= 1e-5
+
+
+def test_serial_and_parallel_topologies_give_the_same_joint_rates():
+    """The topology changes the circuit, never the mechanics: R(t) is independent of T."""
+    m = random_spd_model(5, seed=11)
+    kw = dict(forces=[1.0, "sine(0, 1, 1)", 0.0, -0.5, 0.2], initial_rates=[0.1, 0, 0, 0, -0.1], t_stop=3.0)
+    t = np.linspace(0.0, 3.0, 31)
+    rs = solve_exact(node_system(m, topology="serial", **kw), t).rates
+    rp = solve_exact(node_system(m, topology="parallel", **kw), t).rates
+    assert rel_err(rs, rp) <= 1e-12
+
+
+def test_undamped_single_mass_is_a_ramp():
+    """M·dR/dt = F with B = 0: R(t) = F·t/M exactly (a zero eigenvalue of the pencil)."""
+    s = node_system(JointSpace([[2.0]], [[0.0]]), forces=[3.0], t_stop=2.0)
+    t = np.linspace(0, 2, 5)
+    np.testing.assert_allclose(solve_exact(s, t).rates[:, 0], 1.5 * t, rtol=1e-15, atol=1e-15)

@@ -1,0 +1,94 @@
+"""ngspice in process: accuracy against the exact solution, failures, stderr notes and memory."""
+
+import numpy as np
+import pytest
+
+from analogy import SpiceError, elements, netlist, node_system, solve_exact
+from analogy.compare import compare
+from analogy.model import JointSpace
+from analogy.scenes import SCENES, scene
+
+pytestmark = pytest.mark.ngspice
+
+
+def rel_err(a, b):
+    return float(np.max(np.abs(a - b)) / np.max(np.abs(b)))
+
+
+@pytest.mark.parametrize("name", list(SCENES))
+def test_accurate_preset_within_1e6_of_peak(name):
+    c = compare(scene(name).system(), "accurate", ["spice"])
+    assert not c.failures
+    assert c.max_relative_error("spice") <= 1e-6
+
+
+@pytest.mark.parametrize("name", list(SCENES))
+def test_fast_preset_within_1e3_of_peak(name):
+    c = compare(scene(name).system(), "fast", ["spice"])
+    assert c.max_relative_error("spice") <= 1e-3
+
+
+def test_negative_mp_capacitor_is_written_and_simulated():
+    """Serial 2-DOF at q2 = 0.3: c12 = −l1·l2·d2·cos(0.3) < 0, and the circuit still matches."""
+    s = scene("default").system()
+    c12 = [e for e in elements(s) if e.kind == "C" and e.floating]
+    assert len(c12) == 1 and c12[0].value == pytest.approx(-0.8 * np.cos(0.3), rel=1e-14)
+    assert f"C1_2 n1 n2 {c12[0].value!r}" in netlist(s)
+    c = compare(s, "accurate", ["spice"])
+    assert c.max_relative_error("spice") <= 1e-6
+
+
+def test_comparison_uses_spice_time_points_without_interpolation():
+    s = scene("default").system()
+    c = compare(s, "fast")
+    assert np.array_equal(c.time, c.results["spice"].time)
+    for tr in c.results.values():
+        assert tr.rates.shape == (c.time.size, 2)
+    np.testing.assert_allclose(c.results["exact"].rates, solve_exact(s, c.time).rates, rtol=0, atol=0)
+
+
+def test_singular_circuit_names_the_failure_and_node():
+    from analogy.spice import run_netlist
+    bad = "* floating\nI1 0 n1 DC 1\nC1 n1 n2 1\nC2 n2 n3 1\n.tran 1e-3 1 uic\n.end\n"
+    with pytest.raises(SpiceError, match=r"time step too small .* node n\d"):
+        run_netlist(bad)
+
+
+def test_parse_error_is_one_exception_and_the_session_recovers():
+    from analogy.spice import run_netlist
+    with pytest.raises(SpiceError, match="netlist line 4"):
+        run_netlist("* bad\nI1 0 n1 DC 1\nR1 n1 0 1\n.tran 0 1 uic\n.end\n")
+    with pytest.raises(SpiceError, match="unknown subckt"):
+        run_netlist("* bad\nX1 n1 0 nothing\nR1 n1 0 1\n.tran 1e-3 1 uic\n.end\n")
+    # the next good run is unaffected
+    c = compare(scene("default").system(), "fast", ["spice"])
+    assert c.max_relative_error("spice") <= 1e-3
+
+
+def test_informational_stderr_is_not_an_error():
+    """A circuit that makes ngspice print warnings still returns its data."""
+    from analogy.spice import run_netlist
+    text = ("* warns\nI1 0 n1 DC 1\nR1 n1 0 1\nC1 n1 0 1\nR2 n9 0 1\n"
+            ".options reltol=1e-6\n.tran 1e-2 1 uic\n.save v(n1)\n.end\n")
+    data = run_netlist(text, ["n1"])
+    np.testing.assert_allclose(data["n1"], 1 - np.exp(-data["time"]), atol=1e-4)
+
+
+def test_memory_stays_flat_over_2000_runs():
+    """destroy + remcirc after every run: resident memory grows by < 5 MB over 2,000 runs."""
+    from analogy.spice import session
+
+    def rss_kb():
+        with open("/proc/self/status") as fh:
+            return next(int(line.split()[1]) for line in fh if line.startswith("VmRSS"))
+
+    s = node_system(JointSpace([[2.0, 0.5], [0.5, 1.0]], np.eye(2)), forces=[1.0, 0.5], t_stop=2.0)
+    text = netlist(s, "fast")
+    sess = session()
+    for _ in range(200):          # warm-up: allocator pools, first-use caches
+        sess.run(text)
+    before = rss_kb()
+    for _ in range(2000):
+        sess.run(text)
+    grown_mb = (rss_kb() - before) / 1024
+    assert grown_mb < 5.0, f"resident memory grew by {grown_mb:.2f} MB"
