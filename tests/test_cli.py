@@ -52,3 +52,13 @@ def test_compare_without_spice_and_help():
     for sub in ("netlist", "compare", "verify", "scenes"):
         assert cli(sub, "--help").returncode == 0
     assert cli("--help").returncode == 0
+
+
+@pytest.mark.ngspice
+def test_lab_runs_headless(tmp_path):
+    from pathlib import Path
+    lab = Path(__file__).resolve().parent.parent / "examples" / "lab_default_scene.py"
+    res = subprocess.run([sys.executable, str(lab), str(tmp_path)], capture_output=True, text=True,
+                         timeout=300, env={"MPLBACKEND": "Agg", "PATH": "/usr/bin:/bin"})
+    assert res.returncode == 0, res.stderr
+    assert (tmp_path / "mp_capacitance_sweep.png").exists()
