@@ -1,33 +1,48 @@
 """analogy: robot dynamics as electric circuits (masses as capacitors, MP models as floating ones)."""
 
-from .compare import Comparison, compare
-from .elements import Element, elements, mp_capacitance
-from .errors import AnalogyError, InputError, SimulationError, SpiceError
-from .exact import solve_exact
-from .model import JointSpace, Model
-from .netlist import netlist
-from .ode import solve_ode
-from .presets import PRESETS, Preset
-from .robots import ROBOTS, planar_serial, point_mass_matrix, robot
-from .scenes import SCENES, Scene, scene
-from .system import NodeSystem, node_system
-from .topology import Topology, parallel, serial
-from .trajectory import Trajectory
-from .waveforms import PWL, Pulse, Sine, Step
+from importlib import import_module
 
 __version__ = "0.1.0"
 
-__all__ = [
-    "Comparison", "compare", "Element", "elements", "mp_capacitance",
-    "AnalogyError", "InputError", "SimulationError", "SpiceError", "solve_exact",
-    "JointSpace", "Model", "netlist", "solve_ode", "PRESETS", "Preset",
-    "ROBOTS", "planar_serial", "point_mass_matrix", "robot", "SCENES", "Scene", "scene",
-    "NodeSystem", "node_system", "Topology", "parallel", "serial", "Trajectory",
-    "PWL", "Pulse", "Sine", "Step", "solve_spice",
-]
+# Public names and the module that defines each. Modules load on first use, so a
+# netlist-only job never imports SPICE, the ODE integrators or matplotlib.
+_EXPORTS = {
+    "Comparison": "compare", "compare": "compare",
+    "Element": "elements", "elements": "elements", "mp_capacitance": "elements",
+    "AnalogyError": "errors", "InputError": "errors", "SimulationError": "errors",
+    "SpiceError": "errors",
+    "solve_exact": "exact",
+    "JointSpace": "model", "Model": "model",
+    "netlist": "netlist",
+    "solve_ode": "ode",
+    "PRESETS": "presets", "Preset": "presets",
+    "ROBOTS": "robots", "planar_serial": "robots", "point_mass_matrix": "robots", "robot": "robots",
+    "SCENES": "scenes", "Scene": "scenes", "scene": "scenes",
+    "solve_spice": "spice",
+    "NodeSystem": "system", "node_system": "system",
+    "Topology": "topology", "parallel": "topology", "serial": "topology",
+    "Trajectory": "trajectory",
+    "PWL": "waveforms", "Pulse": "waveforms", "Sine": "waveforms", "Step": "waveforms",
+}
+
+__all__ = sorted(_EXPORTS)
 
 
-def solve_spice(system, preset="accurate", save=None):
-    """Simulate *system* in ngspice (imported on first use); see :func:`analogy.spice.solve_spice`."""
-    from .spice import solve_spice as _solve
-    return _solve(system, preset, save)
+# Functions named like their modules are bound now: importing the submodule later
+# must not replace the function by the module.
+from .compare import compare  # noqa: E402
+from .elements import elements  # noqa: E402
+from .netlist import netlist  # noqa: E402
+
+
+def __getattr__(name):
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'analogy' has no attribute {name!r}")
+    value = getattr(import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(list(globals()) + __all__)

@@ -74,14 +74,24 @@ def _split_param(text: str):
 
 def _numbers(text: str, what: str) -> list[float]:
     from .expressions import parse_vector
-    items = parse_vector(text, symbols={})
-    out = []
-    for item in items:
-        try:
-            out.append(float(item))
-        except TypeError:
-            raise InputError(f"{what} must be numbers, got {text!r}") from None
-    return out
+    return parse_vector(text, numeric=True)
+
+
+def _numeric_matrix(text: str | None, n: int, what: str):
+    """A numeric matrix, or a diagonal from a vector; None if *text* uses names."""
+    import numpy as np
+
+    from .expressions import parse_matrix, parse_vector
+    if text is None:
+        return None
+    try:
+        if text.strip().startswith("[["):
+            return np.array(parse_matrix(text, numeric=True))
+        return np.diag(parse_vector(text, numeric=True))
+    except InputError as exc:
+        if "unknown name" in str(exc):
+            return None
+        raise
 
 
 def _matrix_or_diagonal(text: str, symbols, what: str):
@@ -103,26 +113,45 @@ def scene_from_args(args):
     params = dict(_split_param(p) for p in args.param)
     changes = {}
     if args.mass is not None:
+        import numpy as np
+
         from .expressions import parse_matrix
-        probe = parse_matrix(args.mass, None)   # names only; checked again below
-        n = probe.rows
-        qs = [sp.Symbol(f"q{k + 1}", real=True) for k in range(n)]
-        names = {str(s) for s in probe.free_symbols} - {str(q) for q in qs}
-        missing = sorted(names - set(params))
-        if missing:
-            raise InputError(f"--mass uses {', '.join(missing)} with no value: add --param NAME=VALUE")
-        symbols = {k: sp.Symbol(k, real=True) for k in params}
-        symbols.update({str(q): q for q in qs})
-        mass = parse_matrix(args.mass, symbols)
-        damping = _matrix_or_diagonal(args.damping, symbols, "--damping") if args.damping else None
-        stiffness = _matrix_or_diagonal(args.stiffness, symbols, "--stiffness") if args.stiffness else None
-        used_q = [q for q in qs if q in mass.free_symbols]
-        model = Model("custom", mass, damping=damping, stiffness=stiffness,
-                      parameters=params, coordinates=qs if used_q else (), topology="parallel")
-        changes.update(parameters={}, q=tuple(0.0 for _ in qs) if used_q else ())
-        if not args.force:
-            changes["forces"] = tuple(1.0 for _ in range(n))
-        changes["initial_rates"] = None
+        from .model import JointSpace
+        mass = _numeric_matrix(args.mass, 0, "--mass")
+        if mass is not None and not params:
+            # A numeric matrix needs no symbolic work at all.
+            n = mass.shape[0] if mass.ndim == 2 else 0
+            damping = _numeric_matrix(args.damping, n, "--damping")
+            stiffness = _numeric_matrix(args.stiffness, n, "--stiffness")
+            if (args.damping and damping is None) or (args.stiffness and stiffness is None):
+                raise InputError("--damping and --stiffness may use names only with a symbolic --mass and --param")
+            model = JointSpace(mass, np.zeros_like(mass) if damping is None else damping, stiffness)
+            changes.update(parameters={}, q=(), initial_rates=None)
+            if not args.force:
+                changes["forces"] = tuple(1.0 for _ in range(n))
+        else:
+            import sympy as sp
+
+            from .model import Model
+            probe = parse_matrix(args.mass, None)   # names only; checked again below
+            n = probe.rows
+            qs = [sp.Symbol(f"q{k + 1}", real=True) for k in range(n)]
+            names = {str(x) for x in probe.free_symbols} - {str(q) for q in qs}
+            missing = sorted(names - set(params))
+            if missing:
+                raise InputError(f"--mass uses {', '.join(missing)} with no value: add --param NAME=VALUE")
+            symbols = {k: sp.Symbol(k, real=True) for k in params}
+            symbols.update({str(q): q for q in qs})
+            mass = parse_matrix(args.mass, symbols)
+            damping = _matrix_or_diagonal(args.damping, symbols, "--damping") if args.damping else None
+            stiffness = _matrix_or_diagonal(args.stiffness, symbols, "--stiffness") if args.stiffness else None
+            used_q = [q for q in qs if q in mass.free_symbols]
+            model = Model("custom", mass, damping=damping, stiffness=stiffness,
+                          parameters=params, coordinates=qs if used_q else (), topology="parallel")
+            changes.update(parameters={}, q=tuple(0.0 for _ in qs) if used_q else ())
+            if not args.force:
+                changes["forces"] = tuple(1.0 for _ in range(n))
+            changes["initial_rates"] = None
     else:
         if args.damping or args.stiffness:
             raise InputError("--damping and --stiffness need --mass (built-in robots have their own)")
@@ -141,7 +170,8 @@ def scene_from_args(args):
         if t in TOPOLOGIES:
             changes["topology"] = t
         elif t.startswith("["):
-            changes["topology"] = [_numbers_row(r) for r in _rows(t)]
+            from .expressions import parse_matrix
+            changes["topology"] = parse_matrix(t, numeric=True)
         else:
             raise InputError(f"unknown topology {t!r}: use serial, parallel or a matrix like [[1, 0], [1, 1]]")
     if args.force:
@@ -153,19 +183,6 @@ def scene_from_args(args):
         changes["t_stop"] = parse_number(args.t_stop)
     sc = sc.replace(**changes)
     return model, sc
-
-
-def _rows(text):
-    from .expressions import parse_matrix
-    m = parse_matrix(text, symbols={})
-    return [[m[i, j] for j in range(m.cols)] for i in range(m.rows)]
-
-
-def _numbers_row(row):
-    try:
-        return [float(x) for x in row]
-    except TypeError:
-        raise InputError("topology matrix entries must be numbers") from None
 
 
 def _cmd_netlist(args) -> int:

@@ -1,34 +1,56 @@
-"""Safe parsing of user expressions into sympy, by a restricted grammar (no eval)."""
+"""Safe parsing of user expressions by a restricted grammar: nothing is evaluated as Python."""
 
 from __future__ import annotations
 
 import ast
 import math
+import operator
 from typing import Iterable, Mapping
-
-import sympy as sp
 
 from .errors import InputError
 
 __all__ = ["parse_expression", "parse_matrix", "parse_vector", "parse_number",
-           "parse_call", "FUNCTIONS", "MAX_LENGTH"]
+           "parse_call", "FUNCTION_NAMES", "MAX_LENGTH"]
 
 #: Longest expression accepted; bounds parser work on hostile input.
 MAX_LENGTH = 20_000
 
-#: Functions an expression may call, by name.
-FUNCTIONS = {
-    "sin": sp.sin, "cos": sp.cos, "tan": sp.tan,
-    "asin": sp.asin, "acos": sp.acos, "atan": sp.atan, "atan2": sp.atan2,
-    "sinh": sp.sinh, "cosh": sp.cosh, "tanh": sp.tanh,
-    "exp": sp.exp, "log": sp.log, "sqrt": sp.sqrt, "abs": sp.Abs,
-}
-_CONSTANTS = {"pi": sp.pi, "e": sp.E}
-_BINOPS = {
-    ast.Add: lambda a, b: a + b, ast.Sub: lambda a, b: a - b,
-    ast.Mult: lambda a, b: a * b, ast.Div: lambda a, b: a / b,
-    ast.Pow: lambda a, b: a ** b,
-}
+#: Functions an expression may call.
+FUNCTION_NAMES = ("sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh", "tanh",
+                  "exp", "log", "sqrt", "abs")
+_OPS = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul,
+        ast.Div: operator.truediv, ast.Pow: operator.pow}
+
+
+class _Numeric:
+    """Backend that computes plain floats with the math module (no sympy import)."""
+
+    constants = {"pi": math.pi, "e": math.e}
+    functions = {name: getattr(math, "fabs" if name == "abs" else name) for name in FUNCTION_NAMES}
+
+    @staticmethod
+    def number(value):
+        return float(value)
+
+    @staticmethod
+    def symbol(name):
+        return None
+
+
+class _Symbolic:
+    """Backend that builds sympy expressions."""
+
+    def __init__(self):
+        import sympy as sp
+        self.sp = sp
+        self.constants = {"pi": sp.pi, "e": sp.E}
+        self.functions = {name: getattr(sp, {"abs": "Abs"}.get(name, name)) for name in FUNCTION_NAMES}
+
+    def number(self, value):
+        return self.sp.Float(value, 17) if isinstance(value, float) else self.sp.Integer(value)
+
+    def symbol(self, name):
+        return self.sp.Symbol(name, real=True)
 
 
 def _syntax_tree(text: str) -> ast.expr:
@@ -50,9 +72,9 @@ def _syntax_tree(text: str) -> ast.expr:
 class _Converter:
     """Walks a syntax tree, accepting only arithmetic on numbers, names and whitelisted calls."""
 
-    def __init__(self, text: str, symbols: Mapping[str, sp.Symbol] | None,
-                 allow_lists: bool):
+    def __init__(self, text: str, backend, symbols: Mapping | None, allow_lists: bool):
         self.text = text
+        self.backend = backend
         self.symbols = symbols
         self.allow_lists = allow_lists
 
@@ -64,14 +86,17 @@ class _Converter:
             return self._convert(node)
         except RecursionError:
             raise InputError(f"expression {self.text!r} is nested too deeply") from None
+        except (OverflowError, ZeroDivisionError, ValueError) as exc:
+            raise InputError(f"expression {self.text!r} cannot be evaluated: {exc}") from None
 
     def _convert(self, node: ast.AST):
+        b = self.backend
         if isinstance(node, ast.Constant):
             if isinstance(node.value, bool) or not isinstance(node.value, (int, float)):
                 self.reject(f"constant {node.value!r} is not a real number")
             if isinstance(node.value, float) and not math.isfinite(node.value):
                 self.reject("numbers must be finite")
-            return sp.Float(node.value, 17) if isinstance(node.value, float) else sp.Integer(node.value)
+            return b.number(node.value)
         if isinstance(node, ast.Name):
             name = node.id
             if name.startswith("_"):
@@ -80,85 +105,91 @@ class _Converter:
                 self.reject(f"numbers must be finite, got {name}")
             if self.symbols is not None and name in self.symbols:
                 return self.symbols[name]
-            if name in _CONSTANTS:
-                return _CONSTANTS[name]
-            if self.symbols is None:
-                return sp.Symbol(name, real=True)
-            self.reject(f"unknown name {name!r} (known: {', '.join(sorted(self.symbols)) or 'none'})")
+            if name in b.constants:
+                return b.constants[name]
+            if self.symbols is None and b.symbol(name) is not None:
+                return b.symbol(name)
+            known = ", ".join(sorted(self.symbols or {})) or "none"
+            self.reject(f"unknown name {name!r} (known: {known})")
         if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.UAdd, ast.USub)):
             value = self._convert(node.operand)
             return -value if isinstance(node.op, ast.USub) else value
-        if isinstance(node, ast.BinOp) and type(node.op) in _BINOPS:
-            return _BINOPS[type(node.op)](self._convert(node.left), self._convert(node.right))
+        if isinstance(node, ast.BinOp) and type(node.op) in _OPS:
+            return _OPS[type(node.op)](self._convert(node.left), self._convert(node.right))
         if isinstance(node, ast.Call):
-            if not isinstance(node.func, ast.Name) or node.func.id not in FUNCTIONS:
-                self.reject(f"only the functions {', '.join(sorted(FUNCTIONS))} may be called")
+            if not isinstance(node.func, ast.Name) or node.func.id not in b.functions:
+                self.reject(f"only the functions {', '.join(FUNCTION_NAMES)} may be called")
             if node.keywords:
                 self.reject("keyword arguments")
-            return FUNCTIONS[node.func.id](*[self._convert(a) for a in node.args])
+            return b.functions[node.func.id](*[self._convert(a) for a in node.args])
         if isinstance(node, (ast.List, ast.Tuple)) and self.allow_lists:
             return [self._convert(e) for e in node.elts]
         self.reject(f"syntax {type(node).__name__}")
 
 
-def parse_expression(text: str, symbols: Mapping[str, sp.Symbol] | None = None) -> sp.Expr:
+def parse_expression(text: str, symbols: Mapping | None = None):
     """Parse an arithmetic expression into sympy without evaluating any Python.
 
     Parameters
     ----------
     text : str
-        Numbers, names, ``+ - * / ** ^``, parentheses and calls to :data:`FUNCTIONS`.
+        Numbers, names, ``+ - * / ** ^``, parentheses and calls to :data:`FUNCTION_NAMES`.
     symbols : mapping, optional
         Allowed names. If omitted, any identifier not starting with ``_``
         becomes a real sympy symbol.
     """
-    tree = _syntax_tree(text)
-    return _Converter(text, symbols, allow_lists=False).convert(tree)
+    return _Converter(text, _Symbolic(), symbols, allow_lists=False).convert(_syntax_tree(text))
 
 
-def parse_number(text: str) -> float:
-    """Parse a constant expression such as ``pi/4`` or ``1e-3`` to a finite float."""
-    value = parse_expression(text, symbols={})
+def _finite(value, text: str) -> float:
     try:
         number = float(value)
-    except TypeError:
+    except (TypeError, ValueError):
         raise InputError(f"{text!r} is not a real number") from None
     if not math.isfinite(number):
         raise InputError(f"{text!r} is not finite")
     return number
 
 
-def _nested(text: str, symbols, depth: int):
-    tree = _syntax_tree(text)
-    value = _Converter(text, symbols, allow_lists=True).convert(tree)
+def parse_number(text: str) -> float:
+    """Parse a constant expression such as ``pi/4`` or ``1e-3`` to a finite float."""
+    return _finite(_Converter(text, _Numeric, {}, allow_lists=False).convert(_syntax_tree(text)), text)
 
-    def level(v):
-        return 1 + level(v[0]) if isinstance(v, list) and v else (1 if isinstance(v, list) else 0)
 
-    if level(value) != depth:
+def _depth(v) -> int:
+    return 1 + _depth(v[0]) if isinstance(v, list) and v else (1 if isinstance(v, list) else 0)
+
+
+def _nested(text: str, symbols, depth: int, numeric: bool):
+    backend = _Numeric if numeric else _Symbolic()
+    value = _Converter(text, backend, {} if numeric else symbols, allow_lists=True).convert(_syntax_tree(text))
+    if _depth(value) != depth:
         kind = "matrix like [[a, b], [c, d]]" if depth == 2 else "vector like [a, b]"
         raise InputError(f"{text!r} is not a {kind}")
     return value
 
 
-def parse_matrix(text: str, symbols: Mapping[str, sp.Symbol] | None = None) -> sp.Matrix:
-    """Parse ``[[a, b], [c, d]]`` (rows of expressions) into a sympy Matrix."""
-    rows = _nested(text, symbols, 2)
+def parse_matrix(text: str, symbols: Mapping | None = None, numeric: bool = False):
+    """Parse ``[[a, b], [c, d]]`` into a sympy Matrix (or, with *numeric*, a list of float rows)."""
+    rows = _nested(text, symbols, 2, numeric)
     if any(not isinstance(r, list) or any(isinstance(e, list) for e in r) for r in rows):
         raise InputError(f"{text!r} is not a matrix like [[a, b], [c, d]]")
     lengths = {len(r) for r in rows}
     if len(lengths) != 1:
         raise InputError(f"matrix {text!r} has rows of different lengths {sorted(lengths)}")
+    if numeric:
+        return [[_finite(x, text) for x in r] for r in rows]
+    import sympy as sp
     return sp.Matrix(rows)
 
 
-def parse_vector(text: str, symbols: Mapping[str, sp.Symbol] | None = None) -> list:
-    """Parse ``[a, b, c]`` or ``a, b, c`` into a list of sympy expressions."""
+def parse_vector(text: str, symbols: Mapping | None = None, numeric: bool = False) -> list:
+    """Parse ``[a, b, c]`` or ``a, b, c`` into a list of sympy expressions (or floats)."""
     stripped = text.strip()
     if not stripped.startswith("["):
         stripped = f"[{stripped}]"
-    items = _nested(stripped, symbols, 1)
-    return items
+    items = _nested(stripped, symbols, 1, numeric)
+    return [_finite(x, text) for x in items] if numeric else items
 
 
 def parse_call(text: str, names: Iterable[str]) -> tuple[str, list[float], dict[str, float]]:
@@ -166,17 +197,10 @@ def parse_call(text: str, names: Iterable[str]) -> tuple[str, list[float], dict[
     tree = _syntax_tree(text)
     allowed = set(names)
     if isinstance(tree, ast.Call) and isinstance(tree.func, ast.Name) and tree.func.id in allowed:
-        conv = _Converter(text, {}, allow_lists=False)
+        conv = _Converter(text, _Numeric, {}, allow_lists=False)
 
         def number(node):
-            value = conv.convert(node)
-            try:
-                result = float(value)
-            except TypeError:
-                raise InputError(f"{text!r}: arguments must be numbers") from None
-            if not math.isfinite(result):
-                raise InputError(f"{text!r}: arguments must be finite")
-            return result
+            return _finite(conv.convert(node), text)
 
         args = [number(a) for a in tree.args]
         kwargs = {}

@@ -11,7 +11,8 @@ from .elements import ZERO_TOL, elements
 from .errors import InputError
 from .presets import Preset, preset as get_preset
 
-__all__ = ["netlist", "source_lines", "comment_text"]
+__all__ = ["netlist", "element_lines", "source_lines", "analysis_lines", "header_lines",
+           "comment_text"]
 
 _SAFE_COMMENT = re.compile(r"[^A-Za-z0-9 _.,:;=+\-*/()\[\]{}<>'#%@!?|~^&$]")
 
@@ -25,11 +26,51 @@ def _num(x: float) -> str:
     return repr(float(x))
 
 
-def _node(k: int) -> str:
-    return "0" if k == 0 else f"n{k}"
+def _node(k: int, prefix: str = "") -> str:
+    return "0" if k == 0 else f"{prefix}n{k}"
 
 
-def source_lines(system, zero_tol: float = ZERO_TOL) -> list[str]:
+def element_lines(system, zero_tol: float = ZERO_TOL, prefix: str = "",
+                  realizable: bool = False) -> tuple[list[str], dict[str, float]]:
+    """SPICE lines of the circuit elements, and initial voltages of any auxiliary nodes.
+
+    With *realizable*, an element with a negative value is built from its positive
+    magnitude behind an ideal inverting coupling (a 1:−1 transformer; mechanically a
+    reversing pulley): a VCVS makes v_x = v_b − v_a, a zero-volt source senses the
+    current of the positive element on x, and a CCCS drives that current from a to b.
+    """
+    lines, ic = [], {}
+    v0 = system.initial_voltages
+    for e in elements(system, zero_tol):
+        name = f"{e.kind}{prefix}{e.name[1:]}"
+        a, b = _node(e.a, prefix), _node(e.b, prefix)
+        if not (realizable and e.value < 0):
+            lines.append(f"{name} {a} {b} {_num(e.value)}")
+            continue
+        x, y = f"{name.lower()}_x", f"{name.lower()}_y"
+        lines += [f"E{name} {x} 0 {b} {a} 1",
+                  f"V{name} {x} {y} DC 0",
+                  f"{name} {y} 0 {_num(-e.value)}",
+                  f"F{name} {a} {b} V{name} 1"]
+        vb = v0[e.b - 1] if e.b else 0.0
+        ic[x] = ic[y] = vb - v0[e.a - 1]
+    return lines, ic
+
+
+def analysis_lines(preset: Preset, t_stop: float, ic: dict, save: Iterable[str],
+                   options: dict | None = None) -> list[str]:
+    """``.ic``, ``.options`` (the preset's, updated by *options*), ``.tran`` (uic) and ``.save``."""
+    p = get_preset(preset)
+    opts = dict(p.spice_options, **(options or {}))
+    return [
+        ".ic " + " ".join(f"v({n})={_num(v)}" for n, v in ic.items()),
+        ".options " + " ".join(f"{k}={v}" for k, v in opts.items()),
+        f".tran {_num(t_stop / p.steps)} {_num(t_stop)} 0 {_num(t_stop / p.max_steps)} uic",
+        ".save " + " ".join(save),
+    ]
+
+
+def source_lines(system, zero_tol: float = ZERO_TOL, prefix: str = "") -> list[str]:
     """Current sources for the joint forces: node currents i = T⁻ᵀ·F.
 
     A joint whose column of T⁻ᵀ is +1 at one node and −1 at another (or at ground)
@@ -49,14 +90,15 @@ def source_lines(system, zero_tol: float = ZERO_TOL) -> list[str]:
         two_terminal = len(plus) == 1 and len(minus) <= 1 and len(nz) == len(plus) + len(minus)
         for w_index, wave in enumerate(waves):
             suffix = "" if len(waves) == 1 else f"_{w_index + 1}"
+            name = f"I{prefix}{j + 1}{suffix}"
             if two_terminal:
                 a = int(plus[0]) + 1
                 b = int(minus[0]) + 1 if len(minus) else 0
                 # 'I n+ n- value' drives current out of n+ and into n-.
-                lines.append(f"I{j + 1}{suffix} {_node(b)} {_node(a)} {wave.spice(1.0, system.t_stop)}")
+                lines.append(f"{name} {_node(b, prefix)} {_node(a, prefix)} {wave.spice(1.0, system.t_stop)}")
             else:
                 for k in nz:
-                    lines.append(f"I{j + 1}{suffix}_n{k + 1} 0 {_node(k + 1)} "
+                    lines.append(f"{name}_n{k + 1} 0 {_node(k + 1, prefix)} "
                                  f"{wave.spice(float(col[k]), system.t_stop)}")
     return lines
 
@@ -66,7 +108,7 @@ def _matrix_text(m: np.ndarray) -> str:
 
 
 def netlist(system, preset: str | Preset = "accurate", save: Iterable[str] | None = None,
-            zero_tol: float = ZERO_TOL, title: str | None = None) -> str:
+            zero_tol: float = ZERO_TOL, title: str | None = None, realizable: bool = False) -> str:
     """Write *system* as a SPICE netlist.
 
     Parameters
@@ -80,8 +122,9 @@ def netlist(system, preset: str | Preset = "accurate", save: Iterable[str] | Non
         Relative tolerance under which an element is left out.
     title : str, optional
         First line of the netlist.
+    realizable : bool
+        Build negative elements from positive ones behind inverting couplings.
     """
-    p = get_preset(preset)
     nodes = system.nodes
     wanted = list(nodes) if save is None else list(save)
     unknown = [s for s in wanted if s not in nodes]
@@ -89,10 +132,23 @@ def netlist(system, preset: str | Preset = "accurate", save: Iterable[str] | Non
         raise InputError(f"cannot save unknown node {unknown[0]!r}: nodes are {', '.join(nodes)}")
     if not wanted:
         raise InputError("nothing to save: name at least one node")
+    body, aux_ic = element_lines(system, zero_tol, realizable=realizable)
+    body += source_lines(system, zero_tol)
+    ic = dict(zip(nodes, system.initial_voltages.tolist()))
+    ic.update(aux_ic)
+    # A capacitor driven by an ideal source makes the trapezoidal rule ring from step to
+    # step, and tight step control then collapses; gear damps it.
+    options = {"method": "gear"} if aux_ic else None
+    tail = analysis_lines(preset, system.t_stop, ic, [f"v({n})" for n in wanted], options) + [".end"]
+    return "\n".join(header_lines(system, title, realizable) + body + tail) + "\n"
+
+
+def header_lines(system, title: str | None = None, realizable: bool = False) -> list[str]:
+    """Comment lines naming the robot, parameters, configuration and topology."""
     info = system.info
     params = ", ".join(f"{k}={v!r}" for k, v in dict(info.get("parameters", {})).items())
     config = ", ".join(f"{k}={v!r}" for k, v in dict(info.get("configuration", {})).items())
-    head = [
+    lines = [
         f"* {comment_text(title or 'analogy equivalent circuit: ' + str(info.get('robot', 'custom')))}",
         f"* robot: {comment_text(info.get('robot', 'custom'))}",
         f"* parameters: {comment_text(params or 'none')}",
@@ -101,17 +157,6 @@ def netlist(system, preset: str | Preset = "accurate", save: Iterable[str] | Non
         "* analogy: force = current [A], velocity = voltage [V], mass = capacitance [F],",
         "* damping = conductance [S], stiffness = 1/inductance [1/H]; floating C = MP model",
     ]
-    body = []
-    for e in elements(system, zero_tol):
-        body.append(f"{e.name} {_node(e.a)} {_node(e.b)} {_num(e.value)}")
-    body += source_lines(system, zero_tol)
-    v0 = system.initial_voltages
-    tail = [
-        ".ic " + " ".join(f"v({n})={_num(v)}" for n, v in zip(nodes, v0)),
-        ".options " + " ".join(f"{k}={v}" for k, v in p.spice_options.items()),
-        f".tran {_num(system.t_stop / p.steps)} {_num(system.t_stop)} 0 "
-        f"{_num(system.t_stop / p.max_steps)} uic",
-        ".save " + " ".join(f"v({n})" for n in wanted),
-        ".end",
-    ]
-    return "\n".join(head + body + tail) + "\n"
+    if realizable:
+        lines.append("* realizable: negative elements sit behind 1:-1 couplings (E, V, F sources)")
+    return lines

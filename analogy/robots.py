@@ -1,17 +1,21 @@
-"""Robot models whose mass matrices are derived from kinematics: M(q) = Σ m·Jᵀ·J."""
+"""Robot models whose mass matrices are derived from kinematics: M(q) = Σ m·Jᵀ·J + I·J_ωᵀ·J_ω."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+from functools import lru_cache
 from typing import Sequence
 
 import numpy as np
 import sympy as sp
 
 from .errors import InputError
+from .linkages import ClosedChainModel, link_mass_matrix
 from .model import Model
 
 __all__ = ["point_mass_matrix", "redundant_actuators", "planar_serial", "serial_2dof",
-           "serial_3dof", "numeric_model", "random_spd_model", "ROBOTS", "robot"]
+           "serial_3dof", "five_bar", "planar_3rrr", "numeric_model", "random_spd_model",
+           "ROBOTS", "robot"]
 
 
 def point_mass_matrix(masses: Sequence, positions: Sequence, q: Sequence) -> sp.Matrix:
@@ -23,12 +27,7 @@ def point_mass_matrix(masses: Sequence, positions: Sequence, q: Sequence) -> sp.
     positions : sequence of sympy column vectors p_k(q), any dimension
     q : sequence of sympy symbols
     """
-    q = sp.Matrix(list(q))
-    m = sp.zeros(len(q))
-    for mass, p in zip(masses, positions):
-        j = sp.Matrix(p).jacobian(q)
-        m += mass * (j.T * j)
-    return m.applyfunc(lambda e: sp.trigsimp(sp.expand(e)))
+    return link_mass_matrix([(m, 0, p, None) for m, p in zip(masses, positions)], q)
 
 
 def _symbols(prefix: str, n: int):
@@ -47,6 +46,19 @@ def redundant_actuators(d1: float = 1.5, d2: float = 1.0, b1: float = 1.0,
                  description="redundant actuators on one axis: point masses d1 (stage 1) and d2 (stage 2)")
 
 
+@lru_cache(maxsize=None)
+def _planar_serial_mass(n: int) -> sp.ImmutableMatrix:
+    # Depends on n only (lengths and masses stay symbolic): derived once per process.
+    q, l, d = _symbols("q", n), _symbols("l", n), _symbols("d", n)
+    positions, x, y, angle = [], 0, 0, 0
+    for k in range(n):
+        angle += q[k]
+        x += l[k] * sp.cos(angle)
+        y += l[k] * sp.sin(angle)
+        positions.append(sp.Matrix([x, y]))
+    return sp.ImmutableMatrix(point_mass_matrix(d, positions, q))
+
+
 def planar_serial(n: int, lengths: Sequence[float] | None = None,
                   masses: Sequence[float] | None = None,
                   dampings: Sequence[float] | None = None,
@@ -55,12 +67,6 @@ def planar_serial(n: int, lengths: Sequence[float] | None = None,
     if n < 1:
         raise InputError("a serial arm needs at least one joint")
     q, l, d, b = _symbols("q", n), _symbols("l", n), _symbols("d", n), _symbols("b", n)
-    positions, x, y, angle = [], 0, 0, 0
-    for k in range(n):
-        angle += q[k]
-        x += l[k] * sp.cos(angle)
-        y += l[k] * sp.sin(angle)
-        positions.append(sp.Matrix([x, y]))
     lengths = list(lengths) if lengths is not None else [1.0 - 0.2 * k / max(n - 1, 1) for k in range(n)]
     masses = list(masses) if masses is not None else [2.0 / (k + 1) for k in range(n)]
     dampings = list(dampings) if dampings is not None else [1.0 / (k + 1) for k in range(n)]
@@ -75,7 +81,7 @@ def planar_serial(n: int, lengths: Sequence[float] | None = None,
         k_syms = _symbols("k", n)
         params.update({str(s): float(v) for s, v in zip(k_syms, stiffnesses)})
         stiffness = k_syms
-    return Model(f"serial{n}" if n != 2 else "serial2", point_mass_matrix(d, positions, q),
+    return Model(f"serial{n}" if n != 2 else "serial2", _planar_serial_mass(n),
                  damping=b, stiffness=stiffness, parameters=params, coordinates=q,
                  topology="serial",
                  description=f"planar {n}R serial arm, point masses d_k at the end of link k")
@@ -115,23 +121,170 @@ def random_spd_model(n: int, seed: int = 0, topology: str = "serial",
                          description=f"random SPD {n}-DOF (seed {seed})")
 
 
-def _parallel_2dof() -> Model:
-    # Stated numbers for a five-bar at one pose; deriving M(q) from its kinematics is separate work.
-    return numeric_model("parallel2", [[0.30, 0.08], [0.08, 0.25]], [0.1, 0.1],
-                         description="2-DOF parallel five-bar, stated numeric M at one pose")
+def _unit(angle):
+    return sp.Matrix([sp.cos(angle), sp.sin(angle)])
 
 
-def _parallel_3dof() -> Model:
-    return numeric_model("parallel3", [[1.2, 0.3, -0.2], [0.3, 0.9, 0.25], [-0.2, 0.25, 0.8]],
-                         [0.6, 0.5, 0.4], [2.0, 1.5, 1.0],
-                         description="3-DOF parallel mechanism, stated numeric M, with joint springs")
+def _two_link_ik(base, target, proximal: float, distal: float, elbow: int):
+    """Absolute angles (proximal, distal) of a two-link leg from *base* to *target*.
+
+    ``elbow = +1`` turns the proximal link counterclockwise from the base-target
+    line, ``-1`` clockwise.
+    """
+    base, target = np.asarray(base, dtype=float), np.asarray(target, dtype=float)
+    dx, dy = target - base
+    r = float(np.hypot(dx, dy))
+    c = (proximal ** 2 + r ** 2 - distal ** 2) / (2.0 * proximal * r)
+    if not -1.0 < c < 1.0:
+        raise ValueError("target out of reach")
+    q = np.arctan2(dy, dx) + elbow * np.arccos(c)
+    elbow_point = base + proximal * np.array([np.cos(q), np.sin(q)])
+    ex, ey = target - elbow_point
+    return float(q), float(np.arctan2(ey, ex))
+
+
+def _leg_links(base, q, psi, la, lb, ma, mb, ja, jb):
+    """Proximal and distal links of an RR leg (COM at mid-length), and the leg's tip."""
+    base = sp.Matrix(base)
+    elbow = base + la * _unit(q)
+    return [(ma, ja, base + la / 2 * _unit(q), q),
+            (mb, jb, elbow + lb / 2 * _unit(psi), psi)], elbow + lb * _unit(psi)
+
+
+def _with_values(template: ClosedChainModel, names, values, dampings, stiffnesses):
+    """A copy of *template* with parameter values, joint dampers b_k and optional springs k_k."""
+    n = template.dof
+    for label, vals in (("dampings", dampings), ("stiffnesses", stiffnesses)):
+        if vals is not None and len(vals) != n:
+            raise InputError(f"{label} must have {n} entries, got {len(vals)}")
+    params = {k: float(v) for k, v in zip(names, values)}
+    b = _symbols("b", n)
+    params.update({str(s): float(v) for s, v in zip(b, dampings)})
+    k = None
+    if stiffnesses is not None:
+        k = _symbols("k", n)
+        params.update({str(s): float(v) for s, v in zip(k, stiffnesses)})
+    return replace(template, parameters=params, damping=b, stiffness=k)
+
+
+_FIVE_BAR = ("d", "la", "lb", "ma", "mb", "ja", "jb", "me")
+
+
+@lru_cache(maxsize=None)
+def _five_bar_chain() -> ClosedChainModel:
+    q = _symbols("q", 2)
+    psi = _symbols("psi", 2)
+    s = {k: sp.Symbol(k, real=True) for k in _FIVE_BAR}
+    bases = ([-s["d"] / 2, 0], [s["d"] / 2, 0])
+    links, tips = [], []
+    for i in range(2):
+        leg, tip = _leg_links(bases[i], q[i], psi[i], s["la"], s["lb"], s["ma"], s["mb"],
+                              s["ja"], s["jb"])
+        links += leg
+        tips.append(tip)
+    links.append((s["me"], 0, tips[0], None))
+
+    def reference(v):
+        # End effector on the symmetry axis with both elbows at a right angle.
+        h = np.sqrt(v["la"] ** 2 + v["lb"] ** 2 - v["d"] ** 2 / 4)
+        legs = [_two_link_ik((side * v["d"] / 2, 0.0), (0.0, h), v["la"], v["lb"], -side)
+                for side in (-1, 1)]
+        return [a for a, _ in legs], [p for _, p in legs]
+
+    return ClosedChainModel.from_links(
+        "parallel2", links, q, psi, tips[0] - tips[1], reference,
+        parameters=dict.fromkeys(_FIVE_BAR, 1.0), topology="parallel",
+        description="2-DOF parallel five-bar (haptic pantograph), elbows out, M(q) from kinematics")
+
+
+def five_bar(d: float = 0.06, la: float = 0.12, lb: float = 0.15, ma: float = 0.10,
+             mb: float = 0.08, ja: float = 1.2e-4, jb: float = 1.5e-4,
+             me: float = 0.02, dampings: Sequence[float] = (4e-3, 4e-3),
+             stiffnesses: Sequence[float] | None = None) -> ClosedChainModel:
+    """Planar five-bar (haptic pantograph of Hayward et al. 1994), actuated at both base joints.
+
+    Base joints A1 = (−d/2, 0) and A2 = (d/2, 0); q1, q2 are the absolute angles
+    of the proximal links (length la, mass ma) from the x axis; the distal links
+    (lb, mb) have absolute angles psi1, psi2 and meet at the end effector P,
+    which carries a point mass me. Links have their COM at mid-length and
+    centroidal inertias ja, jb (defaults m·l²/12: uniform bars).
+
+    Assembly mode: P to the left of E1→E2, beyond the elbows seen from the base,
+    which is sin(psi1 − psi2) < 0; it is reached from the elbows-out reference
+    P = (0, √(la² + lb² − d²/4)) (E1 left of A1→P, E2 right of A2→P, both
+    elbows right angles). The scene and the tests stay in the elbows-out region.
+    Units: m, kg, kg·m², N·m·s/rad (b1, b2), N·m/rad (k1, k2).
+    """
+    return _with_values(_five_bar_chain(), _FIVE_BAR, (d, la, lb, ma, mb, ja, jb, me),
+                        dampings, stiffnesses)
+
+
+_THREE_RRR = ("rb", "rp", "la", "lb", "ma", "mb", "mp", "ja", "jb", "jp")
+#: Directions of the base joints (and of the platform joints at phi = 0) of the 3-RRR.
+_ALPHAS = (-sp.pi / 2, sp.pi / 6, 5 * sp.pi / 6)
+
+
+@lru_cache(maxsize=None)
+def _three_rrr_chain() -> ClosedChainModel:
+    q = _symbols("q", 3)
+    psi = _symbols("psi", 3)
+    x, y, phi = (sp.Symbol(n, real=True) for n in ("x", "y", "phi"))
+    s = {k: sp.Symbol(k, real=True) for k in _THREE_RRR}
+    centre = sp.Matrix([x, y])
+    links, residual = [], []
+    for i, alpha in enumerate(_ALPHAS):
+        leg, tip = _leg_links(s["rb"] * _unit(alpha), q[i], psi[i], s["la"], s["lb"], s["ma"],
+                              s["mb"], s["ja"], s["jb"])
+        links += leg
+        residual += list(tip - centre - s["rp"] * _unit(alpha + phi))
+    links.append((s["mp"], s["jp"], centre, phi))
+
+    def reference(v):
+        legs = []
+        for alpha in (float(a) for a in _ALPHAS):
+            u = np.array([np.cos(alpha), np.sin(alpha)])
+            legs.append(_two_link_ik(v["rb"] * u, v["rp"] * u, v["la"], v["lb"], 1))
+        return [a for a, _ in legs], [p for _, p in legs] + [0.0, 0.0, 0.0]
+
+    return ClosedChainModel.from_links(
+        "parallel3", links, q, psi + [x, y, phi], residual, reference,
+        parameters=dict.fromkeys(_THREE_RRR, 1.0), topology="parallel",
+        description="3-DOF planar 3-RRR parallel mechanism, M(q) from kinematics")
+
+
+def planar_3rrr(rb: float = 0.20, rp: float = 0.05, la: float = 0.12, lb: float = 0.12,
+                ma: float = 0.15, mb: float = 0.10, mp: float = 0.20, ja: float = 1.8e-4,
+                jb: float = 1.2e-4, jp: float = 1.25e-4,
+                dampings: Sequence[float] = (7e-3, 7e-3, 7e-3),
+                stiffnesses: Sequence[float] | None = None) -> ClosedChainModel:
+    """Planar 3-RRR parallel mechanism, actuated at the three base joints.
+
+    Base joints A_i = rb·(cos α_i, sin α_i) with α_i = −90°, 30°, 150°; the
+    platform is an equilateral triangle (mass mp, centroidal inertia jp,
+    default mp·rp²/4: uniform plate) with COM at its centre (x, y),
+    orientation phi and joints C_i = (x, y) + rp·(cos(α_i + phi), sin(α_i + phi)).
+    Leg i: proximal link (la, ma) at absolute angle q_i, distal link (lb, mb) at
+    absolute angle psi_i; COM at mid-length, centroidal inertias ja, jb
+    (defaults m·l²/12: uniform bars).
+
+    Working mode: every elbow turned counterclockwise from its line A_i→C_i;
+    the assembly mode is the one reached from the home pose x = y = phi = 0.
+    Units: m, kg, kg·m², N·m·s/rad (b_i), N·m/rad (k_i).
+    """
+    return _with_values(_three_rrr_chain(), _THREE_RRR, (rb, rp, la, lb, ma, mb, mp, ja, jb, jp),
+                        dampings, stiffnesses)
+
+
+def _parallel_3dof() -> ClosedChainModel:
+    # Return springs at the base joints, so that the paper's 3-DOF example has inductors.
+    return planar_3rrr(stiffnesses=(0.01, 0.01, 0.01))
 
 
 #: Built-in models by name.
 ROBOTS = {
     "redundant": redundant_actuators,
     "serial2": serial_2dof,
-    "parallel2": _parallel_2dof,
+    "parallel2": five_bar,
     "serial3": serial_3dof,
     "parallel3": _parallel_3dof,
 }

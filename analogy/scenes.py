@@ -67,15 +67,21 @@ SCENES = {
         initial_rates=(0.0, 0.2), t_stop=10.0,
         description="2-DOF serial arm (eqs. 17-20) at q2 = 0.3 rad: negative MP capacitance"),
     "parallel2": Scene(
-        "parallel2", "parallel2", forces=("pulse(0, 1, 0.5, 0.01, 0.01, 2, 5)", "step(-0.5)"),
-        t_stop=10.0, description="2-DOF parallel five-bar (eq. 24), stated numeric M"),
+        "parallel2", "parallel2", q=(2.1, 0.9),
+        forces=("pulse(0, 0.01, 0.5, 0.01, 0.01, 2, 5)", "step(-0.005)"), t_stop=10.0,
+        description="2-DOF parallel five-bar (eq. 24), M(q) from its kinematics, at "
+                    "q = (2.1, 0.9) rad (end effector at (12.6, 212.5) mm, elbows out), "
+                    "b = 4e-3 N m s, M/B about 0.5-0.6 s"),
     "serial3": Scene(
         "serial3", "serial3", q=(0.0, 0.4, -0.7),
         forces=("step(1)", "step(0.5)", "sine(0, 0.3, 1)"), t_stop=8.0,
         description="3-DOF planar serial arm (eqs. 29-34)"),
     "parallel3": Scene(
-        "parallel3", "parallel3", forces=("step(1)", "sine(0, 0.5, 0.5)", "pwl(0, 0, 2, 1)"),
-        t_stop=10.0, description="3-DOF parallel mechanism with joint springs (eq. 35), stated numeric M"),
+        "parallel3", "parallel3", q=(2.6, -1.7, 0.35),
+        forces=("step(0.005)", "sine(0, 0.0025, 0.5)", "pwl(0, 0, 2, 0.005)"), t_stop=10.0,
+        description="3-DOF planar 3-RRR with joint springs (eq. 35), M(q) from its kinematics, "
+                    "at q = (2.6, -1.7, 0.35) rad (platform at (-5.5, -9.1) mm, -0.152 rad), "
+                    "b = 7e-3 N m s, k = 0.01 N m/rad, M/B about 0.5-0.7 s"),
     "random10": Scene(
         "random10", lambda: random_spd_model(10, seed=1), forces=tuple(
             ["sine(0, 1, 0.7)"] + [f"step({1.0 / (k + 1)!r})" for k in range(1, 10)]),

@@ -1,0 +1,261 @@
+"""Closed kinematic chains: M(q) = Sᵀ·M_θ(q, p)·S with passive coordinates p(q) from loop closure."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable, Mapping, Sequence
+
+import numpy as np
+import sympy as sp
+from sympy.simplify.fu import TR8
+
+from .errors import InputError
+from .model import Model
+
+__all__ = ["link_mass_matrix", "ClosedChainModel"]
+
+
+def link_mass_matrix(links: Sequence, coordinates: Sequence) -> sp.Matrix:
+    """Mass matrix of planar links: Σ m·J_cᵀ·J_c + I·J_φᵀ·J_φ.
+
+    Parameters
+    ----------
+    links : sequence of (mass, inertia, position, angle)
+        Mass, rotational inertia about the centre of mass, centre-of-mass
+        position (sympy column vector, any dimension) and absolute angle of
+        each link; a point mass has inertia 0 and angle None.
+    coordinates : sequence of sympy Symbol
+        The coordinates θ the positions and angles depend on.
+    """
+    theta = sp.Matrix(list(coordinates))
+    m = sp.zeros(len(theta))
+    for mass, inertia, position, angle in links:
+        jc = sp.Matrix(position).jacobian(theta)
+        m += mass * (jc.T * jc)
+        if angle is not None and inertia != 0:
+            jw = sp.Matrix([angle]).jacobian(theta)
+            m += inertia * (jw.T * jw)
+    # Product-to-sum turns l²·(sin²θ + cos²θ) into l² and cross terms into cos(θi − θj),
+    # exactly and far faster than trigsimp (which takes minutes for a 4R arm); pulling
+    # out common factors, d3·l3·(…), saves roundings when the entry is evaluated.
+    return m.applyfunc(lambda e: sp.factor_terms(sp.expand(TR8(sp.expand(e)))))
+
+
+@dataclass
+class ClosedChainModel(Model):
+    """A mechanism whose passive coordinates p are fixed by loop-closure constraints Φ(q, p) = 0.
+
+    :attr:`mass_matrix` is M = Sᵀ·M_θ·S with S = [I; G], where M_θ is the mass
+    matrix in all coordinates (q, p) and G = ∂p/∂q = −Φ_p⁻¹·Φ_q is held by the
+    symbols :attr:`rates`. Evaluating at q solves Φ = 0 for p, computes G from
+    the symbolic Jacobians Φ_p, Φ_q, and evaluates M; everything is compiled
+    once per model.
+
+    The assembly mode is the one reached from ``reference(parameters)``, a valid
+    assembly (q_ref, p_ref), by continuation along the segment from q_ref to q
+    (predictor ∂p/∂q, Newton corrector). A segment that crosses a singular
+    configuration (det Φ_p changes sign) or leaves the workspace is an error.
+
+    Parameters
+    ----------
+    passive : sequence of sympy Symbol
+        Passive coordinates p.
+    rates : sympy Matrix
+        Symbols standing for ∂p_i/∂q_j, shape (len(p), len(q)).
+    constraints : sympy Matrix
+        Loop-closure residual Φ(q, p), one entry per passive coordinate.
+    reference : callable
+        Maps a dict of parameter values to (q_ref, p_ref) in the working mode.
+    """
+
+    passive: Sequence = ()
+    rates: object = None
+    constraints: object = None
+    reference: Callable | None = None
+
+    #: Largest first Newton correction (rad, or m) accepted in one continuation step.
+    max_correction = 0.2
+    #: Condition number of Φ_p above which q counts as singular.
+    max_condition = 1e10
+
+    def __post_init__(self):
+        super().__post_init__()
+        self.passive = tuple(self.passive)
+        self.constraints = sp.ImmutableMatrix(self.constraints)
+        self.rates = sp.ImmutableMatrix(self.rates)
+        m, n = len(self.passive), len(self.coordinates)
+        if self.constraints.shape != (m, 1) or self.rates.shape != (m, n) or self.dof != n:
+            raise InputError(f"closed chain {self.name!r}: need {m} constraints, {m}x{n} rates "
+                             f"and an {n}x{n} mass matrix")
+        if self.reference is None:
+            raise InputError(f"closed chain {self.name!r} needs a reference assembly")
+
+    @classmethod
+    def from_links(cls, name: str, links: Sequence, coordinates: Sequence, passive: Sequence,
+                   constraints, reference: Callable, **kw) -> "ClosedChainModel":
+        """Build M = Sᵀ·M_θ·S from planar links over (q, p); see :func:`link_mass_matrix`."""
+        q, p = list(coordinates), list(passive)
+        rates = sp.Matrix(len(p), len(q), lambda i, j: sp.Symbol(f"d{p[i]}_d{q[j]}", real=True))
+        s = sp.eye(len(q)).col_join(rates)
+        full = link_mass_matrix(links, q + p)
+        mass = sp.ImmutableMatrix((s.T * full * s).applyfunc(sp.expand))
+        return cls(name, mass, coordinates=q, passive=p, rates=rates,
+                   constraints=sp.Matrix(constraints), reference=reference, **kw)
+
+    def _compile(self):
+        # Lambdify once per model; every evaluation reuses these functions.
+        q, p = list(self.coordinates), list(self.passive)
+        g = list(self.rates)
+        params = list(self.symbols.values())
+        full_args = q + p + g + params
+        phi = self.constraints
+        unknown = set(phi.free_symbols) - set(q + p + params)
+        parts = [self.mass_matrix, self.damping, self.stiffness, self.gravity]
+        for part in parts:
+            if part is not None:
+                unknown |= part.free_symbols - set(full_args)
+        if unknown:
+            raise InputError(f"model {self.name!r} uses symbols with no value: "
+                             f"{', '.join(sorted(map(str, unknown)))}")
+
+        def lam(expr, args):
+            return sp.lambdify(args, expr, modules="numpy", cse=True)
+
+        kin_args = q + p + params
+        kin = (lam(phi, kin_args), lam(phi.jacobian(p), kin_args), lam(phi.jacobian(q), kin_args))
+        fns = [None if part is None else lam(part, full_args) for part in parts]
+        n, pnames = len(q), list(self.parameters)
+        solve = _AssemblySolver(self, kin, n, pnames)
+
+        def wrap(fn):
+            if fn is None:
+                return None
+
+            def evaluate(*args):
+                pv, gv = solve(args)
+                return fn(*args[:n], *pv, *gv.reshape(-1), *args[n:])
+            return evaluate
+
+        self._assembly = solve
+        self._compiled = ([wrap(f) for f in fns], [str(s) for s in q], pnames)
+        return self._compiled
+
+    def assemble(self, q: Sequence[float], parameters: Mapping[str, float] | None = None):
+        """Passive coordinates p(q) and rates G = ∂p/∂q in the model's assembly mode.
+
+        Returns
+        -------
+        p : ndarray, shape (m,)
+        rates : ndarray, shape (m, n)
+        """
+        if self._compiled is None:
+            self._compile()
+        values = dict(self.parameters)
+        for key, value in (parameters or {}).items():
+            if key not in values:
+                raise InputError(f"model {self.name!r} has no parameter {key!r}")
+            values[key] = value
+        q = np.asarray(q, dtype=float).reshape(-1)
+        if q.size != self.dof:
+            raise InputError(f"model {self.name!r} needs {self.dof} joint coordinates, got {q.size}")
+        p, rates = self._assembly(tuple(q) + tuple(float(values[k]) for k in self.parameters))
+        return p.copy(), rates.copy()
+
+
+class _AssemblySolver:
+    """Numeric loop closure by continuation from the reference assembly; remembers the last answer."""
+
+    def __init__(self, model: ClosedChainModel, kin, n: int, pnames: list[str]):
+        self.model, self.n, self.pnames = model, n, pnames
+        self.residual, self.jac_p, self.jac_q = kin
+        self.last = (None, None)
+        self.references = {}
+
+    def __call__(self, args):
+        key = tuple(float(a) for a in args)
+        if self.last[0] == key:
+            return self.last[1]
+        q, params = np.array(key[:self.n]), key[self.n:]
+        q0, p0 = self._reference(params)
+        p = self._continue(q0, p0, q, params)
+        jp = self._jp(q, p, params)
+        if np.linalg.cond(jp) > self.model.max_condition:
+            raise InputError(f"model {self.model.name!r} is singular at q = {_fmt(q)}")
+        rates = -np.linalg.solve(jp, self._jq(q, p, params))
+        self.last = (key, (p, rates))
+        return p, rates
+
+    def _r(self, q, p, params):
+        return np.asarray(self.residual(*q, *p, *params), dtype=float).reshape(-1)
+
+    def _jp(self, q, p, params):
+        return np.asarray(self.jac_p(*q, *p, *params), dtype=float)
+
+    def _jq(self, q, p, params):
+        return np.asarray(self.jac_q(*q, *p, *params), dtype=float)
+
+    def _reference(self, params):
+        if params not in self.references:
+            values = dict(zip(self.pnames, params))
+            try:
+                q0, p0 = (np.asarray(a, dtype=float).reshape(-1) for a in self.model.reference(values))
+                p0 = self._newton(q0, p0, params)
+            except (ValueError, ZeroDivisionError, FloatingPointError, np.linalg.LinAlgError):
+                p0 = None
+            if p0 is None:
+                raise InputError(f"model {self.model.name!r} has no reference assembly "
+                                 f"with these parameters")
+            self.references[params] = (q0, p0)
+        return self.references[params]
+
+    def _newton(self, q, p, params):
+        # Quadratic convergence is required: a slow or growing correction means the
+        # predictor was too far from this branch, and the caller shortens the step.
+        p = np.array(p, dtype=float)
+        previous = np.inf
+        for k in range(30):
+            if not np.all(np.isfinite(p)):
+                return None
+            delta = np.linalg.solve(self._jp(q, p, params), self._r(q, p, params))
+            size = float(np.max(np.abs(delta))) if delta.size else 0.0
+            if not np.isfinite(size) or (k == 0 and size > self.model.max_correction):
+                return None
+            p -= delta
+            if size <= 1e-12:
+                p -= np.linalg.solve(self._jp(q, p, params), self._r(q, p, params))
+                return p
+            if size > 0.5 * previous:
+                return None
+            previous = size
+        return None
+
+    def _continue(self, q0, p0, q1, params):
+        dq = q1 - q0
+
+        def at(s):
+            return q1 if s == 1.0 else q0 + s * dq
+
+        sign = np.sign(np.linalg.det(self._jp(q0, p0, params)))
+        s, h, p = 0.0, 1.0, p0
+        while s < 1.0:
+            # s and h stay dyadic, so the last step lands on s = 1 exactly.
+            h = min(h, 1.0 - s)
+            qs = at(s)
+            try:
+                tangent = -np.linalg.solve(self._jp(qs, p, params), self._jq(qs, p, params) @ dq)
+                trial = self._newton(at(s + h), p + h * tangent, params)
+            except np.linalg.LinAlgError:
+                trial = None
+            if trial is not None and np.sign(np.linalg.det(self._jp(at(s + h), trial, params))) == sign:
+                p, s, h = trial, s + h, 2.0 * h
+                continue
+            h *= 0.5
+            if h < 1e-6:
+                raise InputError(f"model {self.model.name!r} does not assemble at q = {_fmt(q1)} "
+                                 f"in its working mode (continuation from q = {_fmt(q0)} fails "
+                                 f"near q = {_fmt(qs)})")
+        return p
+
+
+def _fmt(q) -> str:
+    return "(" + ", ".join(f"{x:.6g}" for x in q) + ")"
