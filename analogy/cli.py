@@ -61,6 +61,26 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--preset", default="accurate")
     p.add_argument("--scenes", default=None, help="comma-separated scene names (default: all)")
     sub.add_parser("scenes", help="list the built-in scenes")
+    p = sub.add_parser("draw", help="draw the equivalent circuit and the mechanical system (SVG and PNG)")
+    _scene_options(p)
+    p.add_argument("-o", "--output-dir", default=".", help="folder for the drawings (default: .)")
+    p.add_argument("--stem", help="file name stem (default: the scene name)")
+    p = sub.add_parser("run", help="run a scene file (TOML): exactly what it asks for")
+    p.add_argument("scene_file", help="path to a .toml scene")
+    p.add_argument("--output-dir", help="folder for the scene's output files (default: next to it)")
+    p.add_argument("--no-plot", action="store_true", help="skip plots even if the scene asks for one")
+    p = sub.add_parser("bench", help="run time against error: ngspice settings, ODE methods, exact solver")
+    p.add_argument("--repeats", type=int, default=5, help="timed runs per setting (median; default 5)")
+    p.add_argument("--full", action="store_true", help="the full ngspice grid (method x reltol x trtol x max step)")
+    p.add_argument("--csv", default="bench.csv", help="CSV output (default: bench.csv)")
+    p.add_argument("--plot", default="bench.png", help="work-precision plot (default: bench.png)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p = sub.add_parser("throughput", help="scenes per second: batched ngspice runs against per-scene loops")
+    p.add_argument("-n", type=int, default=10_000, help="number of 2-DOF scenes (default 10000)")
+    p.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
+    p.add_argument("--group-size", type=int, default=250, help="scenes per ngspice run (default 250)")
+    p.add_argument("--baseline", type=int, default=500, help="scenes for the per-scene loops (default 500)")
+    p.add_argument("--preset", default="fast")
     return parser
 
 
@@ -109,7 +129,10 @@ def scene_from_args(args):
     from .scenes import scene
     from .topology import TOPOLOGIES
 
-    sc = scene(args.scene)
+    from .scenes import SCENES
+    # A robot with a scene of its own starts from that scene (a configuration that assembles).
+    start = args.robot if args.robot in SCENES and args.scene == "default" else args.scene
+    sc = scene(start)
     params = dict(_split_param(p) for p in args.param)
     changes = {}
     if args.mass is not None:
@@ -256,6 +279,51 @@ def _cmd_verify(args) -> int:
     return worst
 
 
+def _cmd_draw(args) -> int:
+    from .diagram import draw
+    model, sc = scene_from_args(args)
+    system = sc.system(model)
+    out = Path(args.output_dir)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"cannot create {out}: {exc.strerror}") from None
+    for path in draw(system, out, args.stem or sc.name):
+        print(f"wrote {path}")
+    return EXIT_OK
+
+
+def _cmd_run(args) -> int:
+    from .scenefile import main_run
+    return main_run(args.scene_file, output_dir=args.output_dir, no_plot=args.no_plot)
+
+
+def _positive(value: int, what: str) -> int:
+    if value < 1:
+        raise InputError(f"{what} must be at least 1")
+    return value
+
+
+def _cmd_bench(args) -> int:
+    from .bench import bench
+    result = bench(repeats=_positive(args.repeats, "--repeats"), full=args.full,
+                   progress=not args.no_progress)
+    print(result.table())
+    result.to_csv(args.csv)
+    result.plot(args.plot)
+    print(f"wrote {args.csv} and {args.plot}")
+    return EXIT_OK
+
+
+def _cmd_throughput(args) -> int:
+    from .bench import throughput
+    print(throughput(n=_positive(args.n, "-n"), preset=args.preset,
+                     group_size=_positive(args.group_size, "--group-size"),
+                     workers=_positive(args.workers, "--workers"),
+                     baseline_n=_positive(args.baseline, "--baseline")))
+    return EXIT_OK
+
+
 def _cmd_scenes(args) -> int:
     from .scenes import SCENES
     for name, sc in SCENES.items():
@@ -272,7 +340,8 @@ def main(argv=None) -> int:
         if args.command is None:
             args = parser.parse_args(["compare"])
         handler = {"netlist": _cmd_netlist, "compare": _cmd_compare, "verify": _cmd_verify,
-                   "scenes": _cmd_scenes}[command]
+                   "scenes": _cmd_scenes, "draw": _cmd_draw, "run": _cmd_run, "bench": _cmd_bench,
+                   "throughput": _cmd_throughput}[command]
         return handler(args)
     except InputError as exc:
         print(f"analogy: error: {exc}", file=sys.stderr)

@@ -100,7 +100,7 @@ def modal_form(system) -> _Modes:
     return _Modes(lam, vec, lambda y: la.lu_solve(vec_lu, y.astype(complex)), force_map, n, True)
 
 
-def solve_exact(system, times=None) -> Trajectory:
+def solve_exact(system, times=None, positions: bool = False) -> Trajectory:
     """Exact node voltages and joint rates of *system* at *times*.
 
     Forces are piecewise closed forms (constant, linear, damped sine) between the
@@ -111,6 +111,9 @@ def solve_exact(system, times=None) -> Trajectory:
     system : NodeSystem
     times : array_like, optional
         Sorted times in [0, t_stop]; default 1001 uniform points.
+    positions : bool
+        Also return the node positions x = ∫v (:attr:`Trajectory.positions`) when the
+        system has springs; they are part of its state, so this costs nothing extra.
     """
     start = _time.perf_counter()
     t = np.linspace(0.0, system.t_stop, 1001) if times is None else np.asarray(times, dtype=float)
@@ -123,6 +126,7 @@ def solve_exact(system, times=None) -> Trajectory:
     z = modes.to_modal(y0.astype(complex))
     lam = modes.lam
     out = np.empty((t.size, n))
+    pos = np.empty((t.size, n)) if positions and modes.has_position else None
     seg_start = 0.0
     for t0, t1 in system.segments():
         last = t1 >= system.t_stop
@@ -144,9 +148,11 @@ def solve_exact(system, times=None) -> Trajectory:
                     zt += c * beta[None, :] * _forced(lam, s, taus)
         y = (zt @ modes.vectors.T).real
         out[mask] = y[:-1, n:] if modes.has_position else y[:-1]
+        if pos is not None:
+            pos[mask] = y[:-1, :n]
         z = zt[-1]
         seg_start = t1
     del seg_start
     voltages = out
     elapsed = _time.perf_counter() - start
-    return Trajectory("exact", t, voltages, system.joint_rates(voltages), elapsed)
+    return Trajectory("exact", t, voltages, system.joint_rates(voltages), elapsed, pos)

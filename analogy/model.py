@@ -38,11 +38,19 @@ def check_square_symmetric(name: str, matrix, *, n: int | None = None,
                          f"but ({j},{i}) = {a[j-1, i-1]:.6g}")
     a = 0.5 * (a + a.T)
     if definite or semidefinite:
-        w = np.linalg.eigvalsh(a)
         floor = 0.0 if definite else -1e-12 * max(scale, 1.0)
+        if definite:
+            try:        # Cholesky is the cheap test; eigenvalues only to explain a failure
+                np.linalg.cholesky(a)
+                return a
+            except np.linalg.LinAlgError:
+                pass
+        elif not np.any(a - np.diag(np.diagonal(a))) and np.all(np.diagonal(a) >= floor):
+            return a
+        w = np.linalg.eigvalsh(a)
         bad = np.flatnonzero(w <= floor) if definite else np.flatnonzero(w < floor)
-        if bad.size:
-            k = int(bad[0])
+        if bad.size or definite:
+            k = int(bad[0]) if bad.size else 0
             kind = "positive definite" if definite else "positive semidefinite"
             raise InputError(f"{name} is not {kind}: eigenvalue {k + 1} of {len(w)} "
                              f"(ascending) is {w[k]:.6g}")
@@ -189,7 +197,10 @@ class Model:
         unknown = sorted(str(s) for s in free - set(args))
         if unknown:
             raise InputError(f"model {self.name!r} uses symbols with no value: {', '.join(unknown)}")
-        fns = [None if p is None else sp.lambdify(args, p, modules="numpy", cse=True) for p in parts]
+        # Common-subexpression elimination pays off for large matrices only; it costs
+        # ~0.1 s even on a 2x2 one.
+        fns = [None if p is None else sp.lambdify(args, p, modules="numpy", cse=sp.count_ops(p) > 400)
+               for p in parts]
         self._compiled = (fns, [str(s) for s in self.coordinates], list(self.parameters))
         return self._compiled
 

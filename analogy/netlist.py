@@ -12,7 +12,7 @@ from .errors import InputError
 from .presets import Preset, preset as get_preset
 
 __all__ = ["netlist", "element_lines", "source_lines", "analysis_lines", "header_lines",
-           "comment_text"]
+           "comment_text", "save_vectors"]
 
 _SAFE_COMMENT = re.compile(r"[^A-Za-z0-9 _.,:;=+\-*/()\[\]{}<>'#%@!?|~^&$]")
 
@@ -82,11 +82,12 @@ def source_lines(system, zero_tol: float = ZERO_TOL, prefix: str = "") -> list[s
     for j, waves in enumerate(system.forces):
         if not waves:
             continue
-        col = c[:, j].copy()
-        col[np.abs(col) <= zero_tol * np.max(np.abs(col))] = 0.0
-        plus = np.flatnonzero(np.isclose(col, 1.0, rtol=0, atol=zero_tol))
-        minus = np.flatnonzero(np.isclose(col, -1.0, rtol=0, atol=zero_tol))
-        nz = np.flatnonzero(col)
+        col = c[:, j].tolist()
+        floor = zero_tol * max(abs(x) for x in col)
+        col = [0.0 if abs(x) <= floor else x for x in col]
+        plus = [k for k, x in enumerate(col) if abs(x - 1.0) <= zero_tol]
+        minus = [k for k, x in enumerate(col) if abs(x + 1.0) <= zero_tol]
+        nz = [k for k, x in enumerate(col) if x != 0.0]
         two_terminal = len(plus) == 1 and len(minus) <= 1 and len(nz) == len(plus) + len(minus)
         for w_index, wave in enumerate(waves):
             suffix = "" if len(waves) == 1 else f"_{w_index + 1}"
@@ -107,6 +108,38 @@ def _matrix_text(m: np.ndarray) -> str:
     return "[" + ", ".join("[" + ", ".join(f"{x:.6g}" for x in row) + "]" for row in m) + "]"
 
 
+def save_vectors(system, save: Iterable[str] | None = None, zero_tol: float = ZERO_TOL,
+                 realizable: bool = False) -> list[str]:
+    """The ``.save`` vectors for node and element names.
+
+    A node name (``n1`` …) gives its voltage ``v(n1)``; an element name of
+    :func:`analogy.elements.elements` (``C1``, ``C1_2``, ``R1``, ``L2_3`` …) gives its
+    current ``@c1_2[i]``, flowing from its first terminal through it to its second, as
+    SPICE reports a device ``name a b value``. With *realizable*, a negative element is
+    built behind an inverting coupling and its current is that of the coupling's
+    current source ``F<name>``, which carries it from a to b. Names are checked against
+    the system's nodes and elements, so nothing else can reach the netlist.
+    """
+    nodes = system.nodes
+    wanted = list(nodes) if save is None else list(save)
+    if not wanted:
+        raise InputError("nothing to save: name at least one node")
+    found = {e.name.lower(): e for e in elements(system, zero_tol)}
+    out = []
+    for item in wanted:
+        if isinstance(item, str) and item in nodes:
+            out.append(f"v({item})")
+            continue
+        e = found.get(item.lower()) if isinstance(item, str) else None
+        if e is None:
+            names = ", ".join(e.name for e in found.values()) or "none"
+            raise InputError(f"cannot save unknown node or element {item!r}: nodes are "
+                             f"{', '.join(nodes)}; elements are {names}")
+        device = f"F{e.name}" if realizable and e.value < 0 else e.name
+        out.append(f"@{device.lower()}[i]")
+    return list(dict.fromkeys(out))
+
+
 def netlist(system, preset: str | Preset = "accurate", save: Iterable[str] | None = None,
             zero_tol: float = ZERO_TOL, title: str | None = None, realizable: bool = False) -> str:
     """Write *system* as a SPICE netlist.
@@ -117,7 +150,8 @@ def netlist(system, preset: str | Preset = "accurate", save: Iterable[str] | Non
     preset : str or Preset
         Accuracy preset for ``.options`` and ``.tran``.
     save : iterable of str, optional
-        Node names (``n1`` …) to save; default all nodes.
+        Node names (``n1`` …) whose voltages to save and element names (``C1_2``,
+        ``R1`` …) whose currents to save (see :func:`save_vectors`); default all nodes.
     zero_tol : float
         Relative tolerance under which an element is left out.
     title : str, optional
@@ -126,12 +160,7 @@ def netlist(system, preset: str | Preset = "accurate", save: Iterable[str] | Non
         Build negative elements from positive ones behind inverting couplings.
     """
     nodes = system.nodes
-    wanted = list(nodes) if save is None else list(save)
-    unknown = [s for s in wanted if s not in nodes]
-    if unknown:
-        raise InputError(f"cannot save unknown node {unknown[0]!r}: nodes are {', '.join(nodes)}")
-    if not wanted:
-        raise InputError("nothing to save: name at least one node")
+    vectors = save_vectors(system, save, zero_tol, realizable)
     body, aux_ic = element_lines(system, zero_tol, realizable=realizable)
     body += source_lines(system, zero_tol)
     ic = dict(zip(nodes, system.initial_voltages.tolist()))
@@ -139,7 +168,7 @@ def netlist(system, preset: str | Preset = "accurate", save: Iterable[str] | Non
     # A capacitor driven by an ideal source makes the trapezoidal rule ring from step to
     # step, and tight step control then collapses; gear damps it.
     options = {"method": "gear"} if aux_ic else None
-    tail = analysis_lines(preset, system.t_stop, ic, [f"v({n})" for n in wanted], options) + [".end"]
+    tail = analysis_lines(preset, system.t_stop, ic, vectors, options) + [".end"]
     return "\n".join(header_lines(system, title, realizable) + body + tail) + "\n"
 
 

@@ -35,7 +35,7 @@ def state_matrices(system):
 
 
 def solve_ode(system, times=None, method: str = "DOP853", rtol: float = 1e-10,
-              atol: float | None = None) -> Trajectory:
+              atol: float | None = None, positions: bool = False) -> Trajectory:
     """Integrate *system* with ``scipy.integrate.solve_ivp``, restarting at every force breakpoint.
 
     Parameters
@@ -47,6 +47,9 @@ def solve_ode(system, times=None, method: str = "DOP853", rtol: float = 1e-10,
         One of :data:`ODE_METHODS`.
     rtol, atol : float
         Tolerances; *atol* defaults to ``rtol * 1e-3`` times the response scale.
+    positions : bool
+        Also return the node positions x = ∫v (:attr:`Trajectory.positions`) when the
+        system has springs (they are then part of the integrated state).
     """
     from scipy.integrate import solve_ivp
 
@@ -72,6 +75,7 @@ def solve_ode(system, times=None, method: str = "DOP853", rtol: float = 1e-10,
         return a @ yy + g @ f
 
     out = np.empty((t.size, n))
+    pos = np.empty((t.size, n)) if positions and system.stiffness is not None else None
     for t0, t1 in system.segments():
         last = t1 >= system.t_stop
         mask = (t >= t0) & ((t <= t1) if last else (t < t1))
@@ -84,6 +88,8 @@ def solve_ode(system, times=None, method: str = "DOP853", rtol: float = 1e-10,
             raise SimulationError(f"ODE solver {method} failed at t = {at:.6g}: {sol.message}")
         if te.size:
             out[mask] = sol.y[-n:, :te.size].T
+            if pos is not None:
+                pos[mask] = sol.y[:n, :te.size].T
         y = sol.y[:, -1]
     elapsed = _time.perf_counter() - start
-    return Trajectory("ode", t, out, system.joint_rates(out), elapsed)
+    return Trajectory("ode", t, out, system.joint_rates(out), elapsed, pos)

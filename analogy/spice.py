@@ -17,11 +17,24 @@ import numpy as np
 from .errors import SpiceError
 from .trajectory import Trajectory
 
-__all__ = ["NgspiceSession", "session", "run_netlist", "solve_spice", "library_path"]
+__all__ = ["NgspiceSession", "session", "run_netlist", "solve_spice", "library_path", "vector_key"]
 
 _INFO_PREFIXES = ("warning", "note", "using", "doing analysis", "reference value",
                   "circuit:", "no. of data rows")
 _CANARY = "* canary\nI1 0 n1 DC 1\nR1 n1 0 1\nC1 n1 0 1\n.tran 0.1 1 uic\n.end\n"
+
+
+def vector_key(name: str) -> str:
+    """The key of a vector in :meth:`NgspiceSession.run`'s result.
+
+    ngspice names device vectors in lower case, so keys are lower case, and a node
+    voltage ``v(n1)`` is keyed by its node, ``n1``; a device current ``@C1_2[i]`` is
+    ``@c1_2[i]``.
+    """
+    key = name.strip().lower()
+    if key.startswith("v(") and key.endswith(")"):
+        key = key[2:-1]
+    return key
 
 
 def library_path() -> str:
@@ -180,10 +193,7 @@ class NgspiceSession:
             if info == ffi.NULL or info.v_realdata == ffi.NULL:
                 continue
             data = np.frombuffer(ffi.buffer(info.v_realdata, info.v_length * 8), dtype=np.float64).copy()
-            key = name.lower()
-            if key.startswith("v(") and key.endswith(")"):
-                key = key[2:-1]
-            out[key] = data
+            out[vector_key(name)] = data
         return out
 
     def _free(self):
@@ -203,6 +213,9 @@ class NgspiceSession:
 
     def run(self, netlist: str, vectors=None) -> dict[str, np.ndarray]:
         """Run a transient netlist and return ``{"time": …, node: …}``.
+
+        With *vectors*, return only those, keyed as given; each is looked up by
+        :func:`vector_key`, so ``n1``, ``v(n1)`` and ``@c1_2[i]`` all work.
 
         Raises
         ------
@@ -240,10 +253,10 @@ class NgspiceSession:
         if "time" not in data:
             raise SpiceError("ngspice returned no time vector")
         if vectors is not None:
-            missing = [v for v in vectors if v.lower() not in data]
+            missing = [v for v in vectors if vector_key(v) not in data]
             if missing:
                 raise SpiceError(f"ngspice did not save vector {missing[0]!r}")
-            data = {"time": data["time"], **{v: data[v.lower()] for v in vectors}}
+            data = {"time": data["time"], **{v: data[vector_key(v)] for v in vectors}}
         return data
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -78,11 +79,13 @@ def congruence(x, t):
     return 0.5 * (z + z.T)
 
 
+@lru_cache(maxsize=64)
 def serial(n: int) -> Topology:
     """Serial chain: node k carries the absolute rate v_k = r_1 + … + r_k."""
     return Topology("serial", np.tril(np.ones((n, n))))
 
 
+@lru_cache(maxsize=64)
 def parallel(n: int) -> Topology:
     """Parallel mechanism: every actuator is grounded, v = r."""
     return Topology("parallel", np.eye(n))

@@ -24,6 +24,9 @@ class Trajectory:
         Joint rates R = T⁻¹·v.
     run_time : float
         Wall-clock seconds spent in the solver.
+    positions : ndarray, shape (N, n), or None
+        Node positions x = ∫v (the inductor fluxes), when the solver was asked for
+        them and the system has springs; None otherwise.
     """
 
     solver: str
@@ -31,3 +34,4 @@ class Trajectory:
     voltages: np.ndarray
     rates: np.ndarray
     run_time: float = float("nan")
+    positions: np.ndarray | None = None

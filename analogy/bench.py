@@ -1,0 +1,333 @@
+"""Benchmarks: run time against error for SPICE settings, ODE methods and the exact solver."""
+
+from __future__ import annotations
+
+import csv
+import statistics
+import time as _time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .errors import AnalogyError
+
+__all__ = ["BenchRow", "BenchResult", "bench", "bench_scenes", "throughput", "spice_grid", "ode_grid"]
+
+ODE_BENCH_METHODS = ("LSODA", "Radau", "BDF", "RK45", "DOP853")
+
+
+@dataclass
+class BenchRow:
+    """One solver setting on one scene: median run time and max error / peak."""
+
+    scene: str
+    dof: int
+    solver: str
+    setting: str
+    tolerance: float
+    median_s: float
+    error: float
+    points: int
+    status: str = "ok"
+
+
+@dataclass
+class BenchResult:
+    """All rows of a benchmark, with CSV and work-precision plot."""
+
+    rows: list = field(default_factory=list)
+    repeats: int = 5
+    wall_s: float = 0.0
+
+    def to_csv(self, path) -> Path:
+        path = Path(path)
+        with path.open("w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["scene", "dof", "solver", "setting", "tolerance", "median_s",
+                        "error_over_peak", "points", "status"])
+            for r in self.rows:
+                w.writerow([r.scene, r.dof, r.solver, r.setting, repr(r.tolerance), repr(r.median_s),
+                            repr(r.error), r.points, r.status])
+        return path
+
+    def table(self) -> str:
+        lines = [f"{'scene':<10}{'dof':>4}  {'solver':<12}{'setting':<34}{'median [ms]':>12}"
+                 f"{'error/peak':>12}  status"]
+        for r in self.rows:
+            lines.append(f"{r.scene:<10}{r.dof:>4}  {r.solver:<12}{r.setting:<34}{r.median_s * 1e3:>12.3f}"
+                         f"{r.error:>12.2e}  {r.status}")
+        lines.append(f"{len(self.rows)} rows, {sum(r.status != 'ok' for r in self.rows)} failed, "
+                     f"median of {self.repeats} warm runs each, {self.wall_s:.1f} s in all")
+        return "\n".join(lines)
+
+    def __str__(self):
+        return self.table()
+
+    def plot(self, path=None):
+        """Work-precision diagram: median run time against max error / peak, log-log, per scene."""
+        from matplotlib.figure import Figure
+        scenes = list(dict.fromkeys(r.scene for r in self.rows))
+        fig = Figure(figsize=(5.0 * len(scenes), 4.6), layout="constrained")
+        axes = np.atleast_1d(fig.subplots(1, len(scenes), sharey=True))
+        markers = {"spice": "o", "ode": "s", "exact": "*"}
+        for ax, sc in zip(axes, scenes):
+            rows = [r for r in self.rows if r.scene == sc]
+            families = dict.fromkeys((r.solver, r.setting.split(" ")[0]) for r in rows)
+            for solver, family in families:
+                sel = [r for r in rows if r.solver == solver and r.setting.split(" ")[0] == family
+                       and r.status == "ok" and np.isfinite(r.error)]
+                if not sel:
+                    continue
+                sel.sort(key=lambda r: r.error)
+                ax.loglog([max(r.error, 1e-17) for r in sel], [r.median_s for r in sel],
+                          marker=markers[solver], ms=8 if solver == "exact" else 4,
+                          ls="-" if solver != "exact" else "none", label=f"{solver} {family}")
+            failed = [r for r in rows if r.status != "ok"]
+            if failed:
+                ax.text(0.02, 0.02, f"{len(failed)} settings failed", transform=ax.transAxes,
+                        fontsize="small", color="tab:red")
+            ax.set_title(f"{sc} ({rows[0].dof} DOF)")
+            ax.set_xlabel("max error / peak (vs exact)")
+            ax.grid(True, which="both", alpha=0.3)
+            ax.legend(fontsize="x-small", ncol=2)
+        axes[0].set_ylabel(f"median run time [s] ({self.repeats} warm runs)")
+        if path is not None:
+            fig.savefig(path, dpi=110)
+        return fig
+
+
+def bench_scenes():
+    """The benchmark's scenes: 2, 10 and 50 DOF."""
+    from .robots import random_spd_model
+    from .scenes import Scene, scene
+    big = Scene("random50", lambda: random_spd_model(50, seed=2),
+                forces=tuple(["sine(0, 1, 0.7)"] + [f"step({1.0 / (k + 1)!r})" for k in range(1, 50)]),
+                t_stop=5.0, description="random SPD 50-DOF (seed 2), serial topology")
+    return [scene("default"), scene("random10"), big]
+
+
+def spice_grid(full: bool = False):
+    """(label, options, max_steps) for ngspice: method, reltol, trtol and maximum step."""
+    from .presets import PRESETS
+    grid = []
+    reltols = (1e-3, 1e-5, 1e-7, 1e-9)
+    trtols = (7, 1)
+    max_steps = (50, 1000, 20000) if full else (50,)
+    for method in ("trap", "gear"):
+        for rt in reltols:
+            for tr in trtols:
+                for ms in max_steps:
+                    opts = {"method": method, "reltol": rt, "abstol": 1e-15, "vntol": 1e-13,
+                            "chgtol": 1e-20, "trtol": tr}
+                    grid.append((f"{method} reltol={rt:g} trtol={tr} tmax=T/{ms}", opts, ms, rt))
+    if not full:
+        acc = PRESETS["accurate"].spice_options
+        for ms in (1000, 20000):
+            grid.append((f"trap reltol=1e-09 trtol=1 tmax=T/{ms}", dict(acc), ms, 1e-9))
+    for name, p in PRESETS.items():
+        grid.append((f"preset-{name}", dict(p.spice_options), p.max_steps, p.spice_options["reltol"]))
+    return grid
+
+
+def ode_grid():
+    """(method, rtol) pairs: rtol from 1e-3 to 1e-10."""
+    return [(m, 10.0 ** -k) for m in ODE_BENCH_METHODS for k in range(3, 11)]
+
+
+def _median_time(fn, repeats: int):
+    fn()                                   # warm-up: caches, first-call costs
+    times, result = [], None
+    for _ in range(repeats):
+        result, seconds = fn()
+        times.append(seconds)
+    return statistics.median(times), result
+
+
+def bench(repeats: int = 5, full: bool = False, scenes=None, progress: bool = True,
+          ode_budget_s: float = 2.0) -> BenchResult:
+    """Time every solver setting on every scene and measure its error against the exact solution.
+
+    Only the solver call is timed (netlist text and the exact reference are built
+    outside). A setting that raises, or whose time step collapses, is a failure row.
+    ODE settings whose single run exceeds *ode_budget_s* are timed once (noted).
+    """
+    from .exact import solve_exact
+    from .netlist import netlist
+    from .ode import solve_ode
+    from .presets import Preset
+    from .spice import session
+
+    start = _time.perf_counter()
+    result = BenchResult(repeats=repeats)
+    scenes = bench_scenes() if scenes is None else scenes
+    jobs = []
+    for sc in scenes:
+        system = sc.system()
+        jobs += [("spice", sc, system, g) for g in spice_grid(full)]
+        jobs += [("ode", sc, system, g) for g in ode_grid()]
+        jobs.append(("exact", sc, system, None))
+    bar = None
+    if progress:
+        from tqdm import tqdm
+        bar = tqdm(total=len(jobs), unit="setting", leave=False)
+    sess = session()
+    for kind, sc, system, g in jobs:
+        n = system.dof
+        try:
+            if kind == "spice":
+                label, opts, ms, tol = g
+                text = netlist(system, Preset("bench", opts, steps=100, max_steps=ms))
+
+                def run():
+                    t0 = _time.perf_counter()
+                    data = sess.run(text, system.nodes)
+                    return data, _time.perf_counter() - t0
+
+                med, data = _median_time(run, repeats)
+                t = data["time"]
+                v = np.column_stack([data[k] for k in system.nodes])
+                rates = system.joint_rates(v)
+            elif kind == "ode":
+                method, tol = g
+                label = f"{method} rtol={tol:g}"
+                t = np.linspace(0.0, system.t_stop, 201)
+
+                def run():
+                    tr = solve_ode(system, t, method, tol)
+                    return tr, tr.run_time
+
+                first = solve_ode(system, t, method, tol)
+                if first.run_time > ode_budget_s:
+                    med, tr, label = first.run_time, first, label + " (1 run)"
+                else:
+                    med, tr = _median_time(run, repeats)
+                rates = tr.rates
+            else:
+                label, tol = "modal", 0.0
+                t = np.linspace(0.0, system.t_stop, 201)
+
+                def run():
+                    tr = solve_exact(system, t)
+                    return tr, tr.run_time
+
+                med, tr = _median_time(run, repeats)
+                rates = tr.rates
+            ref = solve_exact(system, t).rates
+            err = float(np.max(np.abs(rates - ref)) / np.max(np.abs(ref)))
+            if kind == "exact":
+                from .reference import solve_reference
+                probe = np.linspace(0.0, system.t_stop, 5)
+                mp = solve_reference(system, probe) if n <= 10 else None
+                if mp is not None:
+                    ex = solve_exact(system, probe).voltages
+                    err = float(np.max(np.abs(ex - mp)) / np.max(np.abs(mp)))
+            result.rows.append(BenchRow(sc.name, n, kind, label, tol, med, err, len(t)))
+        except (AnalogyError, ArithmeticError, ValueError) as exc:
+            label = g[0] if kind == "spice" else (f"{g[0]} rtol={g[1]:g}" if kind == "ode" else "modal")
+            tol = g[3] if kind == "spice" else (g[1] if kind == "ode" else 0.0)
+            result.rows.append(BenchRow(sc.name, n, kind, label, tol, float("nan"), float("nan"), 0,
+                                        f"failed: {str(exc).splitlines()[0][:120]}"))
+        if bar is not None:
+            bar.update()
+    if bar is not None:
+        bar.close()
+    result.wall_s = _time.perf_counter() - start
+    return result
+
+
+def _pyspice_loop(payload):
+    """A plain PySpice loop: build a Circuit and call simulator().transient() per scene."""
+    import logging
+    import os
+
+    from .spice import library_path
+    os.environ.setdefault("NGSPICE_LIBRARY_PATH", library_path())
+    logging.getLogger("PySpice").setLevel(logging.CRITICAL)
+    from PySpice.Spice.Netlist import Circuit
+
+    from .elements import elements
+    from .exact import solve_exact
+    from .presets import preset as get_preset
+    items, preset_name = payload
+    p = get_preset(preset_name)
+    start = _time.perf_counter()
+    worst = 0.0
+    for item in items:
+        from .batch import _system
+        s = _system(item)
+        c = Circuit("scene")
+        for e in elements(s):
+            getattr(c, e.kind)(e.name[1:], f"n{e.a}", c.gnd if e.b == 0 else f"n{e.b}", e.value)
+        for j, waves in enumerate(s.forces):
+            col = s.current_map[:, j]
+            a = int(np.argmax(col > 0.5)) + 1
+            b = int(np.argmax(col < -0.5)) + 1 if np.any(col < -0.5) else 0
+            c.I(str(j + 1), c.gnd if b == 0 else f"n{b}", f"n{a}", float(waves[0].values[0]))
+        sim = c.simulator(simulator="ngspice-shared")
+        sim.initial_condition(**{n: float(v) for n, v in zip(s.nodes, s.initial_voltages)})
+        sim.options(**p.spice_options)
+        analysis = sim.transient(step_time=s.t_stop / p.steps, end_time=s.t_stop,
+                                 max_time=s.t_stop / p.max_steps, use_initial_condition=True)
+        t = np.array(analysis.time)
+        v = np.column_stack([np.array(analysis[n]) for n in s.nodes])
+        ex = solve_exact(s, t).rates
+        worst = max(worst, float(np.max(np.abs(s.joint_rates(v) - ex)) / np.max(np.abs(ex))))
+    return _time.perf_counter() - start, worst
+
+
+def _solo_loop(payload):
+    """One ngspice run per scene through the wrapped session, with the same comparison."""
+    from .batch import _system
+    from .exact import solve_exact
+    from .spice import solve_spice
+    items, preset_name = payload
+    start = _time.perf_counter()
+    worst, solves = 0.0, []
+    for item in items:
+        s = _system(item)
+        tr = solve_spice(s, preset_name)
+        solves.append(tr.run_time)
+        ex = solve_exact(s, tr.time).rates
+        worst = max(worst, float(np.max(np.abs(tr.rates - ex)) / np.max(np.abs(ex))))
+    return _time.perf_counter() - start, worst, statistics.median(solves)
+
+
+def throughput(n: int = 10_000, preset: str = "fast", group_size: int = 250, workers: int = 2,
+               baseline_n: int = 500, seed: int = 0) -> str:
+    """Scenes per second: batched (grouped runs on *workers* processes) against per-scene paths.
+
+    The scenes are the default 2-DOF serial arm at random q2 in [−π, π]. Each path builds
+    its systems, runs SPICE and compares with the exact solution. The per-scene paths
+    run on *baseline_n* scenes in a fresh worker process each, side by side in this run.
+    """
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    from .batch import run_batch
+    from .scenes import scene
+    base = scene("default")
+    q2 = np.random.default_rng(seed).uniform(-np.pi, np.pi, n)
+    items = [base.replace(q=(0.0, float(x))) for x in q2]
+    ctx = multiprocessing.get_context("forkserver")
+    lines = [f"throughput: default 2-DOF serial arm, random q2 in [-pi, pi], preset {preset}, "
+             f"SPICE + comparison with the exact solution"]
+    with ProcessPoolExecutor(1, mp_context=ctx) as ex:
+        solo_s, solo_err, solo_med = ex.submit(_solo_loop, (items[:baseline_n], preset)).result()
+    with ProcessPoolExecutor(1, mp_context=ctx) as ex:
+        py_s, py_err = ex.submit(_pyspice_loop, (items[:baseline_n], preset)).result()
+    res = run_batch(items, preset, group_size=group_size, workers=workers)
+    rate = res.throughput
+    solo_rate, py_rate = baseline_n / solo_s, baseline_n / py_s
+    lines += [
+        f"  batched, {workers} workers, {group_size} scenes per ngspice run: {n} scenes in "
+        f"{res.wall_time:.2f} s = {rate:,.0f} scenes/s, worst error/peak {np.nanmax(res.errors):.2e}, "
+        f"{len(res.failures)} failed",
+        f"  one ngspice run per scene (1 process): {baseline_n} scenes in {solo_s:.2f} s = "
+        f"{solo_rate:,.0f} scenes/s, worst error/peak {solo_err:.2e}, median SPICE solve "
+        f"{solo_med * 1e3:.3f} ms",
+        f"  plain PySpice loop (Circuit + simulator().transient(), 1 process): {baseline_n} scenes in "
+        f"{py_s:.2f} s = {py_rate:,.0f} scenes/s, worst error/peak {py_err:.2e}",
+        f"  speed-up: batched/PySpice = {rate / py_rate:.1f}x, batched/per-scene = {rate / solo_rate:.1f}x",
+    ]
+    return "\n".join(lines)
