@@ -50,6 +50,8 @@ def build_parser() -> argparse.ArgumentParser:
     _scene_options(p)
     p.add_argument("-o", "--output", help="file to write (default: stdout)")
     p.add_argument("--save", metavar="NODES", help="nodes to save, e.g. 'n1, n2' (default: all)")
+    p.add_argument("--realizable", action="store_true",
+                   help="no negative values: negative elements behind 1:-1 couplings")
     p = sub.add_parser("compare", help="run SPICE, ODE and exact solvers and compare them")
     _scene_options(p)
     p.add_argument("--solvers", default="spice,ode,exact", help="comma-separated: spice, ode, exact")
@@ -122,10 +124,7 @@ def _matrix_or_diagonal(text: str, symbols, what: str):
 
 
 def scene_from_args(args):
-    """Build (model, scene) from the CLI options."""
-    import sympy as sp
-
-    from .model import Model
+    """Build (model, scene) from the CLI options; model None means the scene's own."""
     from .scenes import scene
     from .topology import TOPOLOGIES
 
@@ -178,11 +177,14 @@ def scene_from_args(args):
     else:
         if args.damping or args.stiffness:
             raise InputError("--damping and --stiffness need --mass (built-in robots have their own)")
-        from .robots import robot
-        model = sc.build_model() if args.robot is None else robot(args.robot)
+        model = None                 # the scene's own, compiled once and cached on disk
         if args.robot is not None and args.robot != sc.model:
-            n = model.dof
-            changes.update(q=tuple(0.0 for _ in model.coordinates), parameters={},
+            from .robots import robot
+            robot(args.robot)        # fails early, with one line, on an unknown name
+            changes["model"] = args.robot
+            m = sc.replace(model=args.robot).numeric_model()
+            n = m.dof
+            changes.update(q=tuple(0.0 for _ in m.coordinates), parameters={},
                            forces=tuple(1.0 for _ in range(n)), initial_rates=None)
         if params:
             changes["parameters"] = params
@@ -213,7 +215,7 @@ def _cmd_netlist(args) -> int:
     model, sc = scene_from_args(args)
     system = sc.system(model)
     save = None if args.save is None else [s.strip() for s in args.save.split(",") if s.strip()]
-    text = netlist(system, args.preset, save=save,
+    text = netlist(system, args.preset, save=save, realizable=args.realizable,
                    title=f"analogy {sc.name}: {sc.description}" if sc.description else None)
     if args.output:
         try:

@@ -11,7 +11,6 @@ import numpy as np
 
 from .errors import AnalogyError, InputError
 from .presets import preset as get_preset
-from .trajectory import Trajectory
 
 __all__ = ["Comparison", "compare", "SOLVERS"]
 

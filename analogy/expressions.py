@@ -84,6 +84,8 @@ class _Converter:
     def convert(self, node: ast.AST):
         try:
             return self._convert(node)
+        except InputError:
+            raise
         except RecursionError:
             raise InputError(f"expression {self.text!r} is nested too deeply") from None
         except (OverflowError, ZeroDivisionError, ValueError) as exc:

@@ -8,7 +8,6 @@ from typing import Callable, Mapping, Sequence
 
 from .errors import InputError
 from .model import Model
-from .robots import random_spd_model, robot
 from .system import NodeSystem, node_system
 
 __all__ = ["Scene", "SCENES", "PAPER_EXAMPLES", "scene", "write_netlists"]
@@ -40,17 +39,37 @@ class Scene:
     description: str = ""
 
     def build_model(self) -> Model:
-        return robot(self.model) if isinstance(self.model, str) else self.model()
+        if isinstance(self.model, str):
+            from .robots import robot    # sympy loads only when a robot is built
+            return robot(self.model)
+        return self.model()
 
-    def system(self, model: Model | None = None) -> NodeSystem:
+    def numeric_model(self):
+        """The scene's model for evaluation: a built-in robot comes compiled from the
+        on-disk cache when it is there (no sympy import), and is compiled into it otherwise."""
+        if not isinstance(self.model, str):
+            return self.model()
+        from .compiled import compile_model, load_compiled
+        cached = load_compiled(self.model)
+        if cached is not None:
+            return cached
+        model = self.build_model()
+        return compile_model(model, self.model) or model
+
+    def system(self, model=None) -> NodeSystem:
         """The scene's node system (evaluating *model*, or the scene's own)."""
-        m = model if model is not None else self.build_model()
+        m = model if model is not None else self.numeric_model()
         return node_system(m, list(self.q) if self.q else None, parameters=dict(self.parameters),
                            topology=self.topology, forces=list(self.forces),
                            initial_rates=self.initial_rates, t_stop=self.t_stop)
 
     def replace(self, **changes) -> "Scene":
         return replace(self, **changes)
+
+
+def _random_spd_model(n: int, seed: int) -> Model:
+    from .robots import random_spd_model
+    return random_spd_model(n, seed=seed)
 
 
 SCENES = {
@@ -83,7 +102,7 @@ SCENES = {
                     "at q = (2.6, -1.7, 0.35) rad (platform at (-5.5, -9.1) mm, -0.152 rad), "
                     "b = 7e-3 N m s, k = 0.01 N m/rad, M/B about 0.5-0.7 s"),
     "random10": Scene(
-        "random10", lambda: random_spd_model(10, seed=1), forces=tuple(
+        "random10", lambda: _random_spd_model(10, seed=1), forces=tuple(
             ["sine(0, 1, 0.7)"] + [f"step({1.0 / (k + 1)!r})" for k in range(1, 10)]),
         t_stop=5.0, description="random SPD 10-DOF mass matrix (seed 1), serial topology"),
 }

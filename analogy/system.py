@@ -143,8 +143,8 @@ def node_system(model: Model | JointSpace, q: Sequence[float] | None = None, *,
 
     Parameters
     ----------
-    model : Model or JointSpace
-        Symbolic or numeric dynamics.
+    model : Model, CompiledModel or JointSpace
+        Symbolic, compiled or numeric dynamics.
     q : sequence of float, optional
         Configuration, for models that depend on it.
     parameters : mapping, optional
@@ -159,7 +159,7 @@ def node_system(model: Model | JointSpace, q: Sequence[float] | None = None, *,
     t_stop : float
         End of the simulated interval.
     """
-    if isinstance(model, Model):
+    if isinstance(model, Model) or hasattr(model, "joint_space"):   # Model or CompiledModel
         joint = model.joint_space(q, parameters)
         top_spec = topology if topology is not None else model.topology
         values = dict(model.parameters, **(parameters or {}))

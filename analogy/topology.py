@@ -66,13 +66,11 @@ class Topology:
 
 def congruence(x, t):
     """Return T⁻ᵀ·X·T⁻¹ for numeric arrays or sympy matrices, without forming T⁻¹ for numbers."""
-    try:
-        import sympy as sp
+    if not (isinstance(x, np.ndarray) and isinstance(t, np.ndarray)):
+        import sympy as sp        # symbolic congruence; numbers never import sympy
         if isinstance(x, sp.MatrixBase) or isinstance(t, sp.MatrixBase):
             ti = sp.Matrix(t).inv()
             return sp.simplify(ti.T * sp.Matrix(x) * ti)
-    except ImportError:  # pragma: no cover - sympy is a hard dependency
-        pass
     t = np.asarray(t, dtype=float)
     y = np.linalg.solve(t.T, np.asarray(x, dtype=float))     # T⁻ᵀ X
     z = np.linalg.solve(t.T, y.T).T                           # (T⁻ᵀ (T⁻ᵀ X)ᵀ)ᵀ = T⁻ᵀ X T⁻¹

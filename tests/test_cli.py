@@ -62,3 +62,17 @@ def test_lab_runs_headless(tmp_path):
                          timeout=300, env={"MPLBACKEND": "Agg", "PATH": "/usr/bin:/bin"})
     assert res.returncode == 0, res.stderr
     assert (tmp_path / "mp_capacitance_sweep.png").exists()
+
+
+@pytest.mark.parametrize("args, absent", [
+    (["netlist"], ["PySpice", "scipy.integrate", "matplotlib"]),
+    (["netlist", "--mass", "[[2, 0.5], [0.5, 1]]", "--damping", "[1, 1]"],
+     ["PySpice", "scipy", "matplotlib", "sympy"]),
+    (["compare", "--solvers", "ode,exact", "--no-plot"], ["PySpice", "matplotlib"]),
+])
+def test_jobs_import_only_what_they_need(args, absent):
+    code = ("import sys\nfrom analogy.cli import main\nrc = main(%r)\n"
+            "print(sorted(m for m in %r if m in sys.modules))\nsys.exit(rc)" % (args, absent))
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.strip().splitlines()[-1] == "[]"

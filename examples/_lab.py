@@ -1,0 +1,197 @@
+"""Helpers shared by the labs: output folder, printing, the solver check, sweeps and plots.
+
+The labs import this module as ``_lab`` (Python puts the script's own folder,
+examples/, first on the import path). Everything here is plain bookkeeping; the
+physics is in the labs themselves.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import sympy as sp
+
+import analogy
+from analogy.errors import InputError
+from analogy.topology import congruence
+
+#: Tolerances every paper lab asserts, relative to the peak exact joint rate.
+SPICE_TOL = 1e-6
+ODE_TOL = 1e-9
+
+#: Label for mass-like quantities: a capacitance in the circuit is a mass (or
+#: a rotational inertia, for revolute joints) in the mechanism.
+MASS_AXIS = "capacitance [F] = mass [kg m^2]"
+
+
+def output_folder(default: str = "lab-output") -> Path:
+    """The folder named by the first command-line argument (default *default*), created."""
+    out = Path(sys.argv[1] if len(sys.argv) > 1 else default)
+    out.mkdir(parents=True, exist_ok=True)
+    return out
+
+
+def section(title: str) -> None:
+    print(f"\n=== {title} ===")
+
+
+def print_matrix(name: str, matrix) -> None:
+    """A numeric matrix, one row per line."""
+    rows = np.atleast_2d(np.asarray(matrix, dtype=float))
+    print(f"{name} =")
+    for row in rows:
+        print("   [" + "  ".join(f"{x:+.6e}" for x in row) + "]")
+
+
+def print_symbolic(name: str, matrix: sp.Matrix) -> None:
+    """A symmetric sympy matrix, one upper-triangle entry per line (long entries stay readable)."""
+    print(f"{name} (symmetric; upper triangle):")
+    for i in range(matrix.rows):
+        for j in range(i, matrix.cols):
+            print(f"   {name}[{i + 1},{j + 1}] = {matrix[i, j]}")
+
+
+def symbolic_node_matrix(model, system) -> sp.Matrix:
+    """M' = T^-T M(q) T^-1 with the symbolic M(q) of *model* and the system's topology T."""
+    t = sp.Matrix(np.rint(system.topology.matrix).astype(int).tolist())
+    assert np.array_equal(np.asarray(t, dtype=float), system.topology.matrix), "T must be an integer matrix"
+    return congruence(model.mass_matrix, t)
+
+
+def symbolic_split(node_mass: sp.Matrix):
+    """The element split done by hand: grounded m'_i = sum_j M'_ij, floating p'_ij = -M'_ij.
+
+    Returns ({"m'1": expr, ...}, {"p'1_2": expr, ...}), every expression simplified; the
+    names are those of the diagrams (the paper writes p'12).
+    """
+    n = node_mass.rows
+    grounded = {f"m'{i + 1}": sp.simplify(sum(node_mass.row(i))) for i in range(n)}
+    floating = {f"p'{i + 1}_{j + 1}": sp.simplify(-node_mass[i, j])
+                for i in range(n) for j in range(i + 1, n)}
+    return grounded, floating
+
+
+def print_elements(system) -> None:
+    """Every circuit element: netlist name, what it is mechanically, SPICE value and unit."""
+    mech = {"C": "m'", "R": "b'", "L": "k'"}
+    print(f"  {'name':<7}{'meaning':<10}{'value':>15}  {'unit':<5} mechanical coefficient")
+    for e in analogy.elements(system):
+        symbol = "p'" if e.meaning == "MP model" else mech[e.kind]
+        print(f"  {e.name:<7}{e.meaning:<10}{e.value:>+15.6e}  {e.unit:<5} {symbol}{e.name[1:]} = {e.coefficient:+.6g}")
+
+
+def check_solvers(system, out: Path, stem: str):
+    """Run SPICE, ODE and exact with the accurate preset, write <stem>.csv/.png and assert the errors."""
+    result = analogy.compare(system, "accurate")
+    print(result.table())
+    assert not result.failures, result.failures
+    result.to_csv(out / f"{stem}.csv")
+    result.plot(out / f"{stem}.png")
+    spice, ode = result.max_relative_error("spice"), result.max_relative_error("ode")
+    print(f"SPICE error / peak = {spice:.2e} (limit {SPICE_TOL:g}), ODE error / peak = {ode:.2e} "
+          f"(limit {ODE_TOL:g})")
+    assert spice <= SPICE_TOL, f"SPICE error {spice:.3e} of the peak exceeds {SPICE_TOL:g}"
+    assert ode <= ODE_TOL, f"ODE error {ode:.3e} of the peak exceeds {ODE_TOL:g}"
+    return result
+
+
+def draw_diagrams(system, out: Path, stem: str) -> list[Path]:
+    """Circuit and mechanism diagrams (SVG and PNG) of *system*."""
+    from analogy.diagram import draw
+    paths = draw(system, out, stem)
+    print("diagrams:", ", ".join(p.name for p in paths))
+    return paths
+
+
+def sweep(scene, model, joint: int, values):
+    """Node mass matrices M'(q) with joint *joint* (0-based) set to each of *values*.
+
+    A closed chain does not assemble everywhere: a pose that does not assemble
+    (or is singular) raises InputError and is skipped.
+
+    Returns
+    -------
+    x : ndarray, the values that assembled
+    node_mass : ndarray, shape (len(x), n, n)
+    skipped : list of float
+    """
+    x, mats, skipped, reasons = [], [], [], []
+    for value in values:
+        q = list(scene.q)
+        q[joint] = float(value)
+        try:
+            mats.append(scene.replace(q=tuple(q)).system(model).mass)
+            x.append(float(value))
+        except InputError as exc:
+            skipped.append(float(value))
+            reasons.append(str(exc))
+    print(f"swept q{joint + 1} over [{min(values):.4g}, {max(values):.4g}] rad: {len(x)} poses assembled, "
+          f"{len(skipped)} skipped" + (f"; the first skipped one: {reasons[0]}" if reasons else ""))
+    return np.array(x), np.array(mats), skipped
+
+
+def split(node_mass: np.ndarray):
+    """Numeric element split of a stack of node mass matrices, shape (..., n, n).
+
+    Returns grounded (..., n) and floating {(i, j): (...,)} with p'_ij = -M'_ij.
+    """
+    n = node_mass.shape[-1]
+    grounded = node_mass.sum(axis=-1)
+    floating = {(i, j): -node_mass[..., i, j] for i in range(n) for j in range(i + 1, n)}
+    return grounded, floating
+
+
+def figure(rows: int = 1, cols: int = 1, size=(7, 4)):
+    """A matplotlib Figure outside pyplot (works headless, keeps no global state) and its axes."""
+    from matplotlib.figure import Figure
+    fig = Figure(figsize=size, layout="constrained")
+    return fig, fig.subplots(rows, cols, squeeze=False)
+
+
+def plot_sweep(ax, x, curves: dict, *, xlabel: str, ylabel: str = MASS_AXIS, title: str = "",
+               here: float | None = None, skipped=(), scale: float = 1.0) -> None:
+    """Curves over a swept joint angle, with zero line, the scene's pose and skipped poses marked.
+
+    *curves* maps a legend label to (values, style dict). Values are multiplied by *scale*
+    (say so in *ylabel*).
+    """
+    for label, (y, style) in curves.items():
+        ax.plot(x, np.asarray(y) * scale, label=label, **style)
+    ax.axhline(0.0, color="k", lw=0.6)
+    if here is not None:
+        ax.axvline(here, color="gray", ls="--", lw=0.8, label="scene pose")
+    if len(skipped):
+        ax.plot(skipped, np.zeros(len(skipped)), "x", color="gray", label="does not assemble")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    if title:
+        ax.set_title(title)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize="small")
+
+
+def save(fig, path: Path) -> Path:
+    fig.savefig(path, dpi=110)
+    print(f"wrote {path}")
+    return path
+
+
+def check_loop_closure_rates(model, q, step: float = 1e-6, tol: float = 1e-7) -> float:
+    """Compare the closed chain's rates G = dp/dq with central differences of its assembly p(q).
+
+    M(q) = S^T M_theta S uses G, so this checks the kinematics the mass matrix is built on.
+    Returns the largest difference relative to max |G|.
+    """
+    q = np.asarray(q, dtype=float)
+    _, rates = model.assemble(q)
+    fd = np.empty_like(rates)
+    for j in range(q.size):
+        dq = np.zeros_like(q)
+        dq[j] = step
+        fd[:, j] = (model.assemble(q + dq)[0] - model.assemble(q - dq)[0]) / (2 * step)
+    err = float(np.max(np.abs(fd - rates)) / np.max(np.abs(rates)))
+    print(f"loop-closure rates dp/dq vs central differences: max difference / max |dp/dq| = {err:.1e}")
+    assert err <= tol, f"rates disagree with finite differences by {err:.2e}"
+    return err

@@ -1,0 +1,106 @@
+"""Lab: the 2-DOF serial arm (paper eqs. 17-23, Figs. 10-12) and its configuration-dependent MP model.
+
+Run:  python examples/lab_serial2.py [output-folder]
+
+Physics. A planar arm with two revolute joints carries a point mass d1 at the
+elbow and d2 at the tip (links l1, l2). Its kinetic energy T = 1/2 r^T M(q) r
+defines the mass matrix M(q); the joints have dampers b1, b2. In the serial
+topology the circuit's node voltages are the absolute angular velocities of the
+links, v1 = r1 and v2 = r1 + r2 (v = T r), and actuator 2 acts between the two
+links, so it is a current source between n1 and n2. The node mass matrix is
+M' = T^-T M T^-1. Each node gets a grounded capacitor m'_i (row sum of M': a
+mass) and the pair gets a floating capacitor p'12 = -M'12: an MP model, the
+mass/pulley device of Fig. 5 whose mass is driven by the difference v2 - v1.
+
+Steps
+1. Print M(q) symbolically, derive M'(q) and the element values symbolically.
+   (The paper prints M'11 = m1 + m2 and m'1 = m1 + m3 in eqs. 22-23; the
+   derivation below gives M'11 = m1 + m2 - 2 m3 and m'1 = m1 - m3.)
+2. Evaluate at the scene's pose q2 = 0.3 rad, print M' and the circuit elements.
+3. Simulate the circuit in ngspice and check it against the ODE and exact
+   solutions (step torque on joint 1, sine torque on joint 2, r2(0) = 0.2 rad/s).
+4. Draw the circuit and the mechanism.
+5. Sweep q2 over a full turn: p'12 = -l1 l2 d2 cos(q2) is negative for
+   |q2| < pi/2, zero at +-pi/2 (the paper's M' diagonal case) and positive beyond.
+"""
+
+import numpy as np
+import sympy as sp
+
+import _lab
+import analogy
+
+out = _lab.output_folder()
+
+# 1. Symbolic model: M(q) comes from the kinematics, M = sum d_k J_k^T J_k.
+scene = analogy.scene("serial2")
+model = scene.build_model()
+system = scene.system(model)
+_lab.section("mass matrix M(q), derived from the kinematics")
+_lab.print_symbolic("M", model.mass_matrix)
+
+node_mass = _lab.symbolic_node_matrix(model, system)
+_lab.print_symbolic("M'", node_mass)
+grounded, floating = _lab.symbolic_split(node_mass)
+for name, expr in {**grounded, **floating}.items():
+    print(f"   {name} = {expr}")
+
+q2, l1, l2, d1, d2 = sp.symbols("q2 l1 l2 d1 d2", real=True)
+# M'11 is what node 1 feels when link 2 does not rotate (v2 = 0): then the tip mass
+# only translates with the elbow, so M'11 = l1^2 (d1 + d2), whatever q2 is.
+assert sp.simplify(node_mass[0, 0] - l1**2 * (d1 + d2)) == 0
+assert sp.simplify(floating["p'1_2"] + l1 * l2 * d2 * sp.cos(q2)) == 0
+
+# 2. Numbers at the scene's pose.
+_lab.section(f"node system at q = {scene.q} rad (serial topology, v = T r)")
+_lab.print_matrix("M(q)", system.joint.mass_matrix)
+_lab.print_matrix("M' = T^-T M T^-1", system.mass)
+_lab.print_elements(system)
+
+# 3. Three solvers, one answer.
+_lab.section("SPICE vs ODE vs exact (accurate preset)")
+_lab.check_solvers(system, out, "serial2")
+
+# 4. Circuit and mechanism side by side: same topology, element for element.
+_lab.draw_diagrams(system, out, "serial2")
+
+# 5. Sweep q2 through the package (numbers), and compare with the symbolic formulas.
+_lab.section("sweep q2")
+q2_values = np.linspace(-np.pi, np.pi, 121)
+x, mats, skipped = _lab.sweep(scene, model, 1, q2_values)
+assert not skipped, "an open chain assembles at every pose"
+m_ground, p_float = _lab.split(mats)
+p12 = p_float[0, 1]
+
+values = model.parameters
+formula = sp.lambdify(q2, floating["p'1_2"].subs({model.symbols[k]: v for k, v in values.items()}))
+assert np.allclose(p12, formula(x), rtol=0, atol=1e-12), "numeric sweep disagrees with the formula"
+assert np.allclose(mats[:, 0, 0], values["l1"] ** 2 * (values["d1"] + values["d2"]), rtol=1e-12)
+
+# The MP capacitance changes sign exactly at q2 = +-pi/2 ...
+inside = np.abs(x) < np.pi / 2 - 1e-9
+outside = np.abs(x) > np.pi / 2 + 1e-9
+assert np.all(p12[inside] < 0) and np.all(p12[outside] > 0)
+for edge in (-np.pi / 2, np.pi / 2):
+    m_edge = scene.replace(q=(0.0, edge)).system(model).mass
+    assert abs(m_edge[0, 1]) <= 1e-12 * np.abs(m_edge).max(), "M' is diagonal at q2 = +-pi/2"
+# ... the grounded m'2 = d2 l2 (l2 + l1 cos q2) turns negative when the arm folds back
+# far enough (cos q2 < -l2/l1), yet M' stays positive definite: the arm is passive.
+assert np.any(m_ground[:, 1] < 0)
+assert np.all(np.linalg.eigvalsh(mats)[:, 0] > 0)
+print(f"p'12 < 0 for |q2| < pi/2 and > 0 beyond; m'2 < 0 for |q2| > "
+      f"{np.arccos(-values['l2'] / values['l1']):.4f} rad; M' positive definite at all {x.size} poses")
+
+fig, axes = _lab.figure(size=(7, 4.2))
+ax = axes[0, 0]
+for k, edge in enumerate((-np.pi / 2, np.pi / 2)):
+    ax.axvline(edge, color="C3", ls=":", lw=0.8, label=None if k else "q2 = -+pi/2 (p'12 = 0)")
+_lab.plot_sweep(ax, x, {
+    "m'1 (grounded C1: mass)": (m_ground[:, 0], dict(color="C0")),
+    "m'2 (grounded C2: mass)": (m_ground[:, 1], dict(color="C1")),
+    "p'12 (floating C1_2: MP model)": (p12, dict(color="C3", lw=2)),
+    "M'11 = m'1 + p'12 = l1^2 (d1 + d2)": (mats[:, 0, 0], dict(color="k", ls=":")),
+}, xlabel="q2 [rad]", title="2-DOF serial arm: element values over the elbow angle",
+    here=scene.q[1])
+ax.set_xticks(np.linspace(-np.pi, np.pi, 5), ["-pi", "-pi/2", "0", "pi/2", "pi"])
+_lab.save(fig, out / "serial2_sweep.png")
