@@ -109,7 +109,7 @@ class Comparison:
                 continue
             for j in range(self.system.dof):
                 ax.plot(tr.time, tr.rates[:, j], color=f"C{j}", label=f"r{j + 1} {name}", **styles[name])
-        ax.set_ylabel("joint rate")
+        ax.set_ylabel("joint rate [rad/s or m/s]")
         ax.set_title(f"{self.system.info.get('robot', 'custom')}: SPICE, ODE and exact "
                      f"(preset {self.preset})")
         ax.legend(ncol=3, fontsize="small")

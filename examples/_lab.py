@@ -53,11 +53,24 @@ def print_symbolic(name: str, matrix: sp.Matrix) -> None:
             print(f"   {name}[{i + 1},{j + 1}] = {matrix[i, j]}")
 
 
-def symbolic_node_matrix(model, system) -> sp.Matrix:
-    """M' = T^-T M(q) T^-1 with the symbolic M(q) of *model* and the system's topology T."""
+def symbolic_node_matrix(mass_matrix: sp.Matrix, system) -> sp.Matrix:
+    """M' = T^-T M T^-1 for a symbolic M, with the topology T of *system*."""
     t = sp.Matrix(np.rint(system.topology.matrix).astype(int).tolist())
     assert np.array_equal(np.asarray(t, dtype=float), system.topology.matrix), "T must be an integer matrix"
-    return congruence(model.mass_matrix, t)
+    return congruence(mass_matrix, t)
+
+
+def paper_mass_matrix(n: int) -> sp.Matrix:
+    """A general symmetric mass matrix in the paper's labels: m1 ... mn on the diagonal, then
+    the upper off-diagonal entries row by row (n = 2: m3 = M12; n = 3: m4 = M12, m5 = M13, m6 = M23)."""
+    m = sp.symbols(f"m1:{n * (n + 1) // 2 + 1}", real=True)
+    matrix = sp.diag(*m[:n])
+    k = n
+    for i in range(n):
+        for j in range(i + 1, n):
+            matrix[i, j] = matrix[j, i] = m[k]
+            k += 1
+    return matrix
 
 
 def symbolic_split(node_mass: sp.Matrix):
@@ -79,7 +92,8 @@ def print_elements(system) -> None:
     print(f"  {'name':<7}{'meaning':<10}{'value':>15}  {'unit':<5} mechanical coefficient")
     for e in analogy.elements(system):
         symbol = "p'" if e.meaning == "MP model" else mech[e.kind]
-        print(f"  {e.name:<7}{e.meaning:<10}{e.value:>+15.6e}  {e.unit:<5} {symbol}{e.name[1:]} = {e.coefficient:+.6g}")
+        print(f"  {e.name:<7}{e.meaning:<10}{e.value:>+15.6e}  {e.unit:<5} "
+              f"{symbol}{e.name[1:]} = {e.coefficient:+.6g}")
 
 
 def check_solvers(system, out: Path, stem: str):

@@ -97,7 +97,8 @@ regular = x <= 2.7
 for ax, data in ((axes[0, 0], m_ground), (axes[0, 1], np.array(list(p_float.values())).T)):
     lo, hi = 1e3 * data[regular].min(), 1e3 * data[regular].max()
     ax.set_ylim(lo - 0.25 * (hi - lo), hi + 0.25 * (hi - lo))
-    ax.axvline((x.max() + min(skipped)) / 2, color="k", ls="-.", lw=0.8, label="singular pose: values grow without bound")
+    ax.axvline((x.max() + min(skipped)) / 2, color="k", ls="-.", lw=0.8,
+               label="singular pose: values grow without bound")
     ax.legend(fontsize="small")
 fig.suptitle(f"3-RRR: element values over q1 (q2 = {scene.q[1]}, q3 = {scene.q[2]} rad)")
 _lab.save(fig, out / "parallel3_sweep.png")

@@ -46,8 +46,8 @@ print("M does not depend on q: the element values are the same in every configur
 
 serial = scene.system(model)                                  # the model's own topology: serial
 parallel = scene.replace(topology="parallel").system(model)   # v = r
-serial_node_mass = _lab.symbolic_node_matrix(model, serial)
-parallel_node_mass = _lab.symbolic_node_matrix(model, parallel)
+serial_node_mass = _lab.symbolic_node_matrix(model.mass_matrix, serial)
+parallel_node_mass = _lab.symbolic_node_matrix(model.mass_matrix, parallel)
 _lab.print_symbolic("M' (serial)", serial_node_mass)
 _lab.print_symbolic("M' (parallel)", parallel_node_mass)
 assert serial_node_mass == sp.diag(d1, d2), "serial nodes: each stage is a grounded mass"

@@ -39,7 +39,7 @@ system = scene.system(model)
 _lab.section("mass matrix M(q), derived from the kinematics")
 _lab.print_symbolic("M", model.mass_matrix)
 
-node_mass = _lab.symbolic_node_matrix(model, system)
+node_mass = _lab.symbolic_node_matrix(model.mass_matrix, system)
 _lab.print_symbolic("M'", node_mass)
 grounded, floating = _lab.symbolic_split(node_mass)
 for name, expr in {**grounded, **floating}.items():
@@ -50,6 +50,15 @@ q2, l1, l2, d1, d2 = sp.symbols("q2 l1 l2 d1 d2", real=True)
 # only translates with the elbow, so M'11 = l1^2 (d1 + d2), whatever q2 is.
 assert sp.simplify(node_mass[0, 0] - l1**2 * (d1 + d2)) == 0
 assert sp.simplify(floating["p'1_2"] + l1 * l2 * d2 * sp.cos(q2)) == 0
+
+# The same split for a general symmetric M = [[m1, m3], [m3, m2]] (the paper's labels):
+# m'1 = m1 - m3, m'2 = m3, p'12 = m2 - m3. The paper's eq. 23 prints m'1 = m1 + m3.
+general = _lab.paper_mass_matrix(2)
+m1, m2, m3 = sorted(general.free_symbols, key=str)
+g_ground, g_float = _lab.symbolic_split(_lab.symbolic_node_matrix(general, system))
+assert [g_ground["m'1"], g_ground["m'2"], g_float["p'1_2"]] == [m1 - m3, m3, m2 - m3]
+assert sp.simplify(g_ground["m'1"] - (m1 + m3)) != 0, "eq. 23's m'1 = m1 + m3 is a misprint"
+print("general M: m'1 =", g_ground["m'1"], " m'2 =", g_ground["m'2"], " p'12 =", g_float["p'1_2"])
 
 # 2. Numbers at the scene's pose.
 _lab.section(f"node system at q = {scene.q} rad (serial topology, v = T r)")

@@ -40,7 +40,7 @@ model = scene.build_model()
 system = scene.system(model)
 _lab.section("mass matrix M(q), derived from the kinematics")
 _lab.print_symbolic("M", model.mass_matrix)
-node_mass = _lab.symbolic_node_matrix(model, system)
+node_mass = _lab.symbolic_node_matrix(model.mass_matrix, system)
 _lab.print_symbolic("M'", node_mass)
 grounded, floating = _lab.symbolic_split(node_mass)
 for name, expr in {**grounded, **floating}.items():
@@ -55,6 +55,16 @@ for name, expr in expected.items():
     assert sp.simplify(floating[name] - expr) == 0, name
 for k, beyond in enumerate((d1 + d2 + d3, d2 + d3, d3)):
     assert sp.simplify(node_mass[k, k] - (l1, l2, l3)[k] ** 2 * beyond) == 0
+
+# The same split for a general symmetric M in the paper's labels (m4 = M12, m5 = M13,
+# m6 = M23) reproduces the paper's eq. 34 for the serial topology.
+general = _lab.paper_mass_matrix(3)
+m1, m2, m3, m4, m5, m6 = sorted(general.free_symbols, key=str)
+g_ground, g_float = _lab.symbolic_split(_lab.symbolic_node_matrix(general, system))
+derived = [*g_ground.values(), g_float["p'1_2"], g_float["p'2_3"], g_float["p'1_3"]]
+eq34 = [m1 - m4, m4 - m5, m5, m2 + m5 - m4 - m6, m3 - m6, m6 - m5]
+assert all(sp.simplify(a - b) == 0 for a, b in zip(derived, eq34))
+print("eq. 34 [m'1, m'2, m'3, p'12, p'23, p'13] =", derived, "(holds)")
 
 # 2. Numbers at the scene's pose.
 _lab.section(f"node system at q = {scene.q} rad (serial topology)")

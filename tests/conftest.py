@@ -3,8 +3,12 @@
 import ctypes.util
 import os
 import shutil
+import tempfile
 
 import pytest
+
+# Compiled models go to a cache of the test run's own, never the user's.
+os.environ.setdefault("ANALOGY_CACHE_DIR", tempfile.mkdtemp(prefix="analogy-test-cache-"))
 
 HAVE_LIBRARY = bool(os.environ.get("NGSPICE_LIBRARY_PATH") or ctypes.util.find_library("ngspice"))
 HAVE_EXECUTABLE = shutil.which("ngspice") is not None

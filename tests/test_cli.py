@@ -54,16 +54,6 @@ def test_compare_without_spice_and_help():
     assert cli("--help").returncode == 0
 
 
-@pytest.mark.ngspice
-def test_lab_runs_headless(tmp_path):
-    from pathlib import Path
-    lab = Path(__file__).resolve().parent.parent / "examples" / "lab_default_scene.py"
-    res = subprocess.run([sys.executable, str(lab), str(tmp_path)], capture_output=True, text=True,
-                         timeout=300, env={"MPLBACKEND": "Agg", "PATH": "/usr/bin:/bin"})
-    assert res.returncode == 0, res.stderr
-    assert (tmp_path / "mp_capacitance_sweep.png").exists()
-
-
 @pytest.mark.parametrize("args, absent", [
     (["netlist"], ["PySpice", "scipy.integrate", "matplotlib"]),
     (["netlist", "--mass", "[[2, 0.5], [0.5, 1]]", "--damping", "[1, 1]"],
