@@ -125,7 +125,7 @@ def _system(item):
     key = item.model if isinstance(item.model, str) else id(item.model)
     model = _MODELS.get(key)
     if model is None:
-        model = _MODELS[key] = item.build_model()
+        model = _MODELS[key] = item.numeric_model()
     return item.system(model)
 
 
@@ -180,8 +180,10 @@ def run_batch(systems: Sequence, preset="fast", *, group_size: int = 100, worker
         from concurrent.futures import ProcessPoolExecutor
         # forkserver: workers start clean, each with its own ngspice library state.
         ctx = multiprocessing.get_context("forkserver")
+        # Imports done once in the server are shared by every worker forked from it.
         ctx.set_forkserver_preload(["analogy.batch", "analogy.spice", "analogy.exact",
-                                    "analogy.robots", "analogy.scenes"])
+                                    "analogy.netlist", "analogy.compiled", "analogy.scenes",
+                                    "PySpice.Spice.NgSpice.Shared"])
         executor = own = ProcessPoolExecutor(workers, mp_context=ctx)
     try:
         outputs = executor.map(_group, payloads) if executor is not None else map(_group, payloads)
@@ -249,10 +251,9 @@ def _exact_part(systems, t, n, no_springs):
         sym = np.linalg.solve(chol, np.swapaxes(half, 1, 2))
         mu, psi = np.linalg.eigh(0.5 * (sym + np.swapaxes(sym, 1, 2)))
         vec = np.linalg.solve(np.swapaxes(chol, 1, 2), psi)        # M'-orthonormal modes
-        lam = (-mu).astype(complex)
-        z = np.einsum("sji,sjk,sk->si", vec, m, v0).astype(complex)
-        beta = np.einsum("sji,sjk->sik", vec, cmap).astype(complex)
-        vec = vec.astype(complex)
+        lam = -mu                   # real rates: real arithmetic unless a sine forces
+        z = np.einsum("sji,sjk,sk->si", vec, m, v0)
+        beta = np.einsum("sji,sjk->sik", vec, cmap)
     else:
         k = np.stack([s.stiffness for s in systems])
         mk, mb, mc = (np.linalg.solve(m, x) for x in (k, b, cmap))
@@ -286,6 +287,8 @@ def _exact_part(systems, t, n, no_springs):
             zt += np.einsum("smj,sj->sm", beta, a_coef)[:, None, :] * tau * phi1(x)
         if np.any(b_coef):
             zt += np.einsum("smj,sj->sm", beta, b_coef)[:, None, :] * tau ** 2 * phi2(x)
+        if exps and not np.iscomplexobj(zt):
+            zt = zt.astype(complex)
         for i, j, c, sv in exps:
             zt[i] += (c * beta[i, :, j])[None, :] * _forced_many(lam_[i], sv, tau[0])
         y = np.einsum("stm,sym->sty", zt, vec).real

@@ -14,8 +14,9 @@ __all__ = ["solve_exact", "modal_form", "phi1", "phi2"]
 
 
 def _expm1(x: np.ndarray) -> np.ndarray:
-    """exp(x) − 1 without cancellation, for complex x."""
-    x = np.asarray(x, dtype=complex)
+    """exp(x) − 1 without cancellation, for real or complex x."""
+    if not np.iscomplexobj(x):
+        return np.expm1(x)
     a, b = x.real, x.imag
     real = np.expm1(a) * np.cos(b) - 2.0 * np.sin(0.5 * b) ** 2
     imag = np.exp(a) * np.sin(b)
@@ -23,8 +24,9 @@ def _expm1(x: np.ndarray) -> np.ndarray:
 
 
 def phi1(x: np.ndarray) -> np.ndarray:
-    """φ₁(x) = (eˣ − 1)/x, with φ₁(0) = 1."""
-    x = np.asarray(x, dtype=complex)
+    """φ₁(x) = (eˣ − 1)/x, with φ₁(0) = 1; real in, real out."""
+    x = np.asarray(x)
+    x = x.astype(complex if np.iscomplexobj(x) else float, copy=False)
     out = np.ones_like(x)
     nz = x != 0
     out[nz] = _expm1(x[nz]) / x[nz]
@@ -33,7 +35,8 @@ def phi1(x: np.ndarray) -> np.ndarray:
 
 def phi2(x: np.ndarray) -> np.ndarray:
     """φ₂(x) = (eˣ − 1 − x)/x², with φ₂(0) = 1/2; a Taylor series near 0 avoids cancellation."""
-    x = np.asarray(x, dtype=complex)
+    x = np.asarray(x)
+    x = x.astype(complex if np.iscomplexobj(x) else float, copy=False)
     out = np.empty_like(x)
     small = np.abs(x) < 1.0
     xs = x[small]

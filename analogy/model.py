@@ -31,12 +31,13 @@ def check_square_symmetric(name: str, matrix, *, n: int | None = None,
         bad = tuple(int(i) + 1 for i in np.argwhere(~np.isfinite(a))[0])
         raise InputError(f"{name} has a non-finite entry at row {bad[0]}, column {bad[1]}")
     scale = float(np.max(np.abs(a))) if a.size else 0.0
-    asym = np.abs(a - a.T)
-    if asym.size and asym.max() > rtol * max(scale, np.finfo(float).tiny):
-        i, j = (int(k) + 1 for k in np.unravel_index(np.argmax(asym), asym.shape))
-        raise InputError(f"{name} is not symmetric: entry ({i},{j}) = {a[i-1, j-1]:.6g} "
-                         f"but ({j},{i}) = {a[j-1, i-1]:.6g}")
-    a = 0.5 * (a + a.T)
+    if not np.array_equal(a, a.T):          # exact symmetry, the usual case, needs no more
+        asym = np.abs(a - a.T)
+        if asym.max() > rtol * max(scale, np.finfo(float).tiny):
+            i, j = (int(k) + 1 for k in np.unravel_index(np.argmax(asym), asym.shape))
+            raise InputError(f"{name} is not symmetric: entry ({i},{j}) = {a[i-1, j-1]:.6g} "
+                             f"but ({j},{i}) = {a[j-1, i-1]:.6g}")
+        a = 0.5 * (a + a.T)
     if definite or semidefinite:
         floor = 0.0 if definite else -1e-12 * max(scale, 1.0)
         if definite:

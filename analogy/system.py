@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -81,8 +82,7 @@ class NodeSystem:
 
     def joint_rates(self, node_voltages: np.ndarray) -> np.ndarray:
         """R = T⁻¹·v for node voltages of shape (..., n)."""
-        v = np.asarray(node_voltages, dtype=float)
-        return np.linalg.solve(self.topology.matrix, v.reshape(-1, self.dof).T).T.reshape(v.shape)
+        return self.topology.joint_rates(node_voltages)
 
     def force(self, t) -> np.ndarray:
         """Joint forces F(t), shape (len(t), n) for an array of times."""
@@ -103,6 +103,12 @@ class NodeSystem:
         for t1 in self.breakpoints():
             yield t0, float(t1)
             t0 = float(t1)
+
+
+@lru_cache(maxsize=1024)
+def _step(value: float) -> Step:
+    # Waveforms are immutable; a batch of scenes shares its constant forces.
+    return Step(value)
 
 
 def _waveforms(spec, n) -> tuple:
@@ -129,7 +135,7 @@ def _waveforms(spec, n) -> tuple:
                     raise InputError(f"cannot use {w!r} as a force") from None
                 if not np.isfinite(value):
                     raise InputError("forces must be finite")
-                ws.append(Step(value))
+                ws.append(_step(value))
         out.append(tuple(ws))
     return tuple(out)
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cached_property, lru_cache
 
 import numpy as np
 
@@ -42,19 +42,36 @@ class Topology:
     def dof(self) -> int:
         return self.matrix.shape[0]
 
-    @property
+    @cached_property
     def inverse(self) -> np.ndarray:
         """T⁻¹, mapping node velocities back to joint rates."""
-        return np.linalg.inv(self.matrix)
+        inv = np.linalg.inv(self.matrix)
+        inv.setflags(write=False)
+        return inv
+
+    @cached_property
+    def exact_inverse(self) -> bool:
+        """True when T·T⁻¹ = I holds exactly in floating point (serial, parallel, integer maps)."""
+        return bool(np.array_equal(self.matrix @ self.inverse, np.eye(self.dof)))
 
     @property
     def current_map(self) -> np.ndarray:
         """T⁻ᵀ, mapping joint forces F to node currents i (power is conserved: Fᵀr = iᵀv)."""
-        return np.linalg.inv(self.matrix).T
+        return self.inverse.T
 
     def node_matrix(self, joint_matrix: np.ndarray) -> np.ndarray:
         """The node-coordinate form T⁻ᵀ·X·T⁻¹ of a joint-space matrix X."""
+        if self.exact_inverse:      # products with an exact inverse: no solves, same numbers
+            z = self.inverse.T @ np.asarray(joint_matrix, dtype=float) @ self.inverse
+            return 0.5 * (z + z.T)
         return congruence(joint_matrix, self.matrix)
+
+    def joint_rates(self, node_voltages) -> np.ndarray:
+        """R = T⁻¹·v for node voltages of shape (..., n)."""
+        v = np.asarray(node_voltages, dtype=float)
+        if self.exact_inverse:
+            return v @ self.inverse.T
+        return np.linalg.solve(self.matrix, v.reshape(-1, self.dof).T).T.reshape(v.shape)
 
     def describe(self) -> str:
         if self.name == "serial":
