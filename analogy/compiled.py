@@ -9,8 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
-from .model import JointSpace, check_vector
+from .model import JointSpace, evaluation_arguments
 
 __all__ = ["CompiledModel", "cache_dir", "compile_model", "load_compiled"]
 
@@ -57,18 +56,7 @@ class CompiledModel:
 
     def joint_space(self, q=None, parameters=None) -> JointSpace:
         """Evaluate at configuration *q*; same contract as :meth:`analogy.model.Model.joint_space`."""
-        q = [] if q is None else list(q)
-        if len(q) != len(self.coordinates):
-            raise InputError(f"model {self.name!r} needs {len(self.coordinates)} joint coordinates "
-                             f"({', '.join(self.coordinates) or 'none'}), got {len(q)}")
-        values = dict(self.parameters)
-        for k, v in (parameters or {}).items():
-            if k not in values:
-                raise InputError(f"model {self.name!r} has no parameter {k!r} "
-                                 f"(it has: {', '.join(values) or 'none'})")
-            values[k] = v
-        args = list(check_vector("configuration q", q, len(q)) if q else [])
-        args += list(check_vector("parameters", list(values.values()), len(values)) if values else [])
+        args = evaluation_arguments(self.name, self.coordinates, self.parameters, q, parameters)
         parts = [None if f is None else np.array(f(*args), dtype=float)
                  for f in (self._m.mass_matrix, self._m.damping, self._m.stiffness, self._m.gravity)]
         return JointSpace(parts[0], parts[1], parts[2], None if parts[3] is None else parts[3].reshape(-1))

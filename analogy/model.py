@@ -9,7 +9,7 @@ import numpy as np
 
 from .errors import InputError
 
-__all__ = ["Model", "JointSpace", "check_square_symmetric", "check_vector"]
+__all__ = ["Model", "JointSpace", "check_square_symmetric", "check_vector", "evaluation_arguments"]
 
 
 def check_square_symmetric(name: str, matrix, *, n: int | None = None,
@@ -69,6 +69,23 @@ def check_vector(name: str, values, n: int) -> np.ndarray:
     if not np.all(np.isfinite(v)):
         raise InputError(f"{name} has a non-finite entry at position {int(np.argmin(np.isfinite(v))) + 1}")
     return v
+
+
+def evaluation_arguments(name: str, coordinates, defaults: Mapping[str, float], q=None,
+                         overrides: Mapping[str, float] | None = None) -> list[float]:
+    """Checked numeric arguments (q…, parameters…) for a model's compiled functions."""
+    q = [] if q is None else list(q)
+    if len(q) != len(coordinates):
+        raise InputError(f"model {name!r} needs {len(coordinates)} joint coordinates "
+                         f"({', '.join(coordinates) or 'none'}), got {len(q)}")
+    values = dict(defaults)
+    for key, value in (overrides or {}).items():
+        if key not in values:
+            raise InputError(f"model {name!r} has no parameter {key!r} "
+                             f"(it has: {', '.join(values) or 'none'})")
+        values[key] = value
+    args = list(check_vector("configuration q", q, len(q))) if q else []
+    return args + (list(check_vector("parameters", list(values.values()), len(values))) if values else [])
 
 
 @dataclass(frozen=True)
@@ -217,19 +234,7 @@ class Model:
             Overrides of :attr:`parameters` by name.
         """
         fns, qnames, pnames = self._compiled or self._compile()
-        q = [] if q is None else list(q)
-        if len(q) != len(qnames):
-            raise InputError(f"model {self.name!r} needs {len(qnames)} joint coordinates "
-                             f"({', '.join(qnames) or 'none'}), got {len(q)}")
-        q = check_vector("configuration q", q, len(qnames)) if qnames else np.zeros(0)
-        values = dict(self.parameters)
-        for key, value in (parameters or {}).items():
-            if key not in values:
-                raise InputError(f"model {self.name!r} has no parameter {key!r} "
-                                 f"(it has: {', '.join(pnames) or 'none'})")
-            values[key] = value
-        pv = check_vector("parameters", [values[k] for k in pnames], len(pnames)) if pnames else []
-        args = list(q) + list(pv)
+        args = evaluation_arguments(self.name, qnames, self.parameters, q, parameters)
 
         def ev(fn):
             return None if fn is None else np.array(fn(*args), dtype=float)
