@@ -82,6 +82,19 @@ def test_accurate_preset_on_every_example(name):
     assert result.comparison.max_relative_error("spice") <= 1e-6
 
 
+@pytest.mark.ngspice
+@pytest.mark.parametrize("name", EXAMPLES)
+def test_fast_preset_on_every_example(name):
+    """The fast preset: every output SPICE gives is within 1e-3 of its peak."""
+    job = load_scene(SCENES_DIR / name)
+    job = job.replace(solvers=("spice", "exact"), preset="fast", errors=True, joint_rates=True,
+                      netlist=False, netlist_file=None, csv_file=None, plot_file=None)
+    result = run_scene(job)
+    assert result.ok, result.failures
+    for quantity, by_solver in result.errors().items():
+        assert by_solver["spice"][1] <= 1e-3, (name, quantity, by_solver["spice"])
+
+
 def test_default_scene_file_matches_builtin_default():
     from analogy.scenes import scene
     job = load_scene(SCENES_DIR / "default.toml")
