@@ -99,15 +99,15 @@ def _numbers(text: str, what: str) -> list[float]:
     return parse_vector(text, numeric=True)
 
 
-def _numeric_matrix(text: str | None, n: int, what: str):
-    """A numeric matrix, or a diagonal from a vector; None if *text* uses names."""
+def _numeric_matrix(text: str | None, n: int, what: str, diagonal: bool = True):
+    """A numeric matrix, or (if *diagonal*) a diagonal from a vector; None if *text* uses names."""
     import numpy as np
 
     from .expressions import parse_matrix, parse_vector
     if text is None:
         return None
     try:
-        if text.strip().startswith("[["):
+        if text.strip().startswith("[[") or not diagonal:
             return np.array(parse_matrix(text, numeric=True))
         return np.diag(parse_vector(text, numeric=True))
     except InputError as exc:
@@ -139,7 +139,7 @@ def scene_from_args(args):
 
         from .expressions import parse_matrix
         from .model import JointSpace
-        mass = _numeric_matrix(args.mass, 0, "--mass")
+        mass = _numeric_matrix(args.mass, 0, "--mass", diagonal=False)
         if mass is not None and not params:
             # A numeric matrix needs no symbolic work at all.
             n = mass.shape[0] if mass.ndim == 2 else 0
