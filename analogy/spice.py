@@ -21,6 +21,7 @@ __all__ = ["NgspiceSession", "session", "run_netlist", "solve_spice", "library_p
 
 _INFO_PREFIXES = ("warning", "note", "using", "doing analysis", "reference value",
                   "circuit:", "no. of data rows")
+_CDEF_DONE = False
 _CANARY = "* canary\nI1 0 n1 DC 1\nR1 n1 0 1\nC1 n1 0 1\n.tran 0.1 1 uic\n.end\n"
 
 
@@ -52,7 +53,6 @@ def _shared_class():
     from PySpice.Spice.NgSpice import Shared
 
     class _Shared(Shared.NgSpiceShared):
-        _cdef_done = False
 
         def __init__(self, path: str):
             self._path = path
@@ -67,10 +67,11 @@ def _shared_class():
         def _load_library(self, verbose):
             import locale
             locale.setlocale(locale.LC_NUMERIC, "C")   # ngspice parses numbers with the C locale
-            if not _Shared._cdef_done:
+            global _CDEF_DONE
+            if not _CDEF_DONE:        # PySpice's one ffi object takes the declarations once
                 api = Path(Shared.__file__).with_name("api.h").read_text()
                 Shared.ffi.cdef(api)
-                _Shared._cdef_done = True
+                _CDEF_DONE = True
             self._ngspice_shared = Shared.ffi.dlopen(self._path)
 
         def send_char(self, message, ngspice_id):
@@ -146,7 +147,7 @@ class NgspiceSession:
         # A fresh copy has its own global state; dlopen of the same path would share it.
         if self._tmp is None:
             self._tmp = tempfile.TemporaryDirectory(prefix="analogy-ngspice-")
-        src = Path(ctypes.util.find_library("ngspice") and self._resolve(self._source))
+        src = Path(self._resolve(self._source))
         self._generation += 1
         dst = Path(self._tmp.name) / f"libngspice-{self._generation}.so"
         shutil.copy(src, dst)

@@ -92,3 +92,19 @@ def test_memory_stays_flat_over_2000_runs():
         sess.run(text)
     grown_mb = (rss_kb() - before) / 1024
     assert grown_mb < 5.0, f"resident memory grew by {grown_mb:.2f} MB"
+
+
+def test_a_broken_library_is_reloaded_from_a_private_copy():
+    """If ngspice asks to exit (its global state is then unusable), the next run gets a fresh copy."""
+    from analogy.spice import session
+    s = scene("default").system()
+    text = netlist(s, "fast")
+    sess = session()
+    before = sess.run(text)
+    generation = sess._generation
+    sess._ng.exited = True                      # what ngspice's exit callback records
+    with pytest.raises(SpiceError):
+        sess.run("* bad\nI1 0 n1 DC 1\nR1 n1 0 1\n.tran 0 1 uic\n.end\n")
+    assert sess._generation == generation + 1 and not sess._ng.exited
+    after = sess.run(text)
+    np.testing.assert_array_equal(before["n1"], after["n1"])
