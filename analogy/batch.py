@@ -226,7 +226,7 @@ def solve_exact_many(systems: Sequence, times) -> list[np.ndarray]:
     force segment integrated exactly), with numpy's stacked linear algebra. Systems are
     split by size, springs and force breakpoints, each part solved at once.
     """
-    t = np.asarray(times, dtype=float)
+    t = systems[0].time_points(times) if systems else np.asarray(times, dtype=float)
     parts: dict = {}
     for k, s in enumerate(systems):
         key = (s.dof, s.stiffness is None, tuple(s.breakpoints().tolist()))

@@ -162,6 +162,15 @@ def scene_from_args(args):
             missing = sorted(names - set(params))
             if missing:
                 raise InputError(f"--mass uses {', '.join(missing)} with no value: add --param NAME=VALUE")
+            used = set(names)
+            for text in (args.damping, args.stiffness):
+                if text:
+                    value = _matrix_or_diagonal(text, None, "")
+                    items = value if isinstance(value, list) else [value]
+                    used |= {str(x) for item in items for x in getattr(item, "free_symbols", ())}
+            unused = sorted(set(params) - used)
+            if unused:
+                raise InputError(f"--param {unused[0]} is not used by --mass, --damping or --stiffness")
             symbols = {k: sp.Symbol(k, real=True) for k in params}
             symbols.update({str(q): q for q in qs})
             mass = parse_matrix(args.mass, symbols)
@@ -232,8 +241,16 @@ def _cmd_compare(args) -> int:
     model, sc = scene_from_args(args)
     system = sc.system(model)
     solvers = [s.strip() for s in args.solvers.split(",") if s.strip()]
+    if not solvers:
+        raise InputError("--solvers names no solver: use spice, ode and/or exact")
     if args.no_plot and args.plot:
         raise InputError("--plot and --no-plot contradict each other")
+    # Output paths are checked before any work, so nothing computed is lost to a typo.
+    if args.plot:
+        from .compare import check_plot_path
+        check_plot_path(args.plot)
+    for path in (args.csv, args.plot):
+        _check_writable(path)
     result = compare(system, args.preset, solvers)
     print(result.table())
     # Results already computed are written even when a solver failed.
@@ -290,7 +307,10 @@ def _cmd_draw(args) -> int:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise InputError(f"cannot create {out}: {exc.strerror}") from None
-    for path in draw(system, out, args.stem or sc.name):
+    stem = args.stem or sc.name
+    if Path(stem).name != stem or stem in (".", ".."):
+        raise InputError(f"--stem {stem!r} must be a plain file name (the folder is -o)")
+    for path in draw(system, out, stem):
         print(f"wrote {path}")
     return EXIT_OK
 
@@ -306,8 +326,21 @@ def _positive(value: int, what: str) -> int:
     return value
 
 
+def _check_writable(path):
+    import os
+    if path is None:
+        return
+    folder = Path(path).resolve().parent
+    if not folder.is_dir() or not os.access(folder, os.W_OK):
+        raise InputError(f"cannot write {path}: folder {folder} does not exist or is not writable")
+
+
 def _cmd_bench(args) -> int:
     from .bench import bench
+    from .compare import check_plot_path
+    check_plot_path(args.plot)
+    _check_writable(args.csv)
+    _check_writable(args.plot)
     result = bench(repeats=_positive(args.repeats, "--repeats"), full=args.full,
                    progress=not args.no_progress)
     print(result.table())

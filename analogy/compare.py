@@ -12,9 +12,21 @@ import numpy as np
 from .errors import AnalogyError, InputError
 from .presets import preset as get_preset
 
-__all__ = ["Comparison", "compare", "SOLVERS"]
+__all__ = ["Comparison", "compare", "SOLVERS", "check_plot_path"]
 
 SOLVERS = ("spice", "ode", "exact")
+
+
+_PLOT_FORMATS = ("png", "svg", "pdf", "jpg", "jpeg", "eps", "ps", "tif", "tiff", "webp")
+
+
+def check_plot_path(path) -> Path:
+    """*path* as a Path if matplotlib can write its format; checked before any work is done."""
+    path = Path(path)
+    if path.suffix.lower().lstrip(".") not in _PLOT_FORMATS:
+        raise InputError(f"cannot plot to {str(path)!r}: use one of "
+                         f"{', '.join('.' + f for f in _PLOT_FORMATS[:4])}")
+    return path
 
 
 @dataclass(eq=False)

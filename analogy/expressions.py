@@ -88,7 +88,8 @@ class _Converter:
             raise
         except RecursionError:
             raise InputError(f"expression {self.text!r} is nested too deeply") from None
-        except (OverflowError, ZeroDivisionError, ValueError) as exc:
+        except (OverflowError, ZeroDivisionError, ValueError, TypeError) as exc:
+            # e.g. atan2(1) or sin(1, 2): wrong arguments; (-8)**0.5: not a real number
             raise InputError(f"expression {self.text!r} cannot be evaluated: {exc}") from None
 
     def _convert(self, node: ast.AST):

@@ -237,7 +237,15 @@ class Model:
         args = evaluation_arguments(self.name, qnames, self.parameters, q, parameters)
 
         def ev(fn):
-            return None if fn is None else np.array(fn(*args), dtype=float)
+            if fn is None:
+                return None
+            value = np.asarray(fn(*args))
+            if np.iscomplexobj(value):
+                if np.any(value.imag != 0):
+                    raise InputError(f"model {self.name!r} evaluates to complex numbers at this "
+                                     "configuration (e.g. the square root of a negative number)")
+                value = value.real
+            return np.array(value, dtype=float)
 
         m, b, k, g = (ev(f) for f in fns)
         return JointSpace(m, b, k, None if g is None else g.reshape(-1))

@@ -56,7 +56,7 @@ def solve_ode(system, times=None, method: str = "DOP853", rtol: float = 1e-10,
     if method not in ODE_METHODS:
         raise InputError(f"unknown ODE method {method!r}: use {', '.join(ODE_METHODS)}")
     start = _time.perf_counter()
-    t = np.linspace(0.0, system.t_stop, 1001) if times is None else np.asarray(times, dtype=float)
+    t = system.time_points(times)
     a, g = state_matrices(system)
     n = system.dof
     v0 = system.initial_voltages
@@ -79,17 +79,17 @@ def solve_ode(system, times=None, method: str = "DOP853", rtol: float = 1e-10,
     for t0, t1 in system.segments():
         last = t1 >= system.t_stop
         mask = (t >= t0) & ((t <= t1) if last else (t < t1))
-        te = t[mask]
+        te, back = np.unique(t[mask], return_inverse=True)   # solve_ivp wants distinct times
         extra = not te.size or te[-1] < t1     # also evaluate at t1 to carry the state on
         sol = solve_ivp(rhs, (t0, t1), y, method=method, t_eval=np.append(te, t1) if extra else te,
                         rtol=rtol, atol=atol, **extra_args)
         if sol.status < 0:
-            at = sol.t[-1] if sol.t.size else t0
+            at = sol.t[-1] if len(sol.t) else t0
             raise SimulationError(f"ODE solver {method} failed at t = {at:.6g}: {sol.message}")
         if te.size:
-            out[mask] = sol.y[-n:, :te.size].T
+            out[mask] = sol.y[-n:, back].T
             if pos is not None:
-                pos[mask] = sol.y[:n, :te.size].T
+                pos[mask] = sol.y[:n, back].T
         y = sol.y[:, -1]
     elapsed = _time.perf_counter() - start
     return Trajectory("ode", t, out, system.joint_rates(out), elapsed, pos)

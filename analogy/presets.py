@@ -21,8 +21,8 @@ class Preset:
         ``.tran`` print step is t_stop/steps.
     max_steps : int
         ``.tran`` maximum internal step is t_stop/max_steps.
-    ode_method, ode_rtol, ode_atol :
-        ``scipy.integrate.solve_ivp`` settings; atol is relative to the response scale.
+    ode_method, ode_rtol :
+        ``scipy.integrate.solve_ivp`` settings; atol follows from rtol and the response scale.
     """
 
     name: str
@@ -31,7 +31,6 @@ class Preset:
     max_steps: int = 100
     ode_method: str = "LSODA"
     ode_rtol: float = 1e-6
-    ode_atol: float = 1e-9
     description: str = ""
 
 
@@ -44,7 +43,7 @@ PRESETS = {
         # costs time without gaining accuracy.
         spice_options={"method": "trap", "reltol": 1e-5, "abstol": 1e-12, "vntol": 1e-9,
                        "chgtol": 1e-16, "trtol": 1},
-        steps=100, max_steps=50, ode_method="LSODA", ode_rtol=1e-6, ode_atol=1e-9,
+        steps=100, max_steps=50, ode_method="LSODA", ode_rtol=1e-6,
         description="about 1e-3 of the peak, lowest run time"),
     "accurate": Preset(
         "accurate",
@@ -52,7 +51,7 @@ PRESETS = {
         # peak. The step cap t_stop/20000 dominates; gear-2 at the same cap gives 7.6e-7.
         spice_options={"method": "trap", "reltol": 1e-9, "abstol": 1e-15,
                        "vntol": 1e-13, "chgtol": 1e-20, "trtol": 1},
-        steps=1000, max_steps=20000, ode_method="DOP853", ode_rtol=1e-12, ode_atol=1e-14,
+        steps=1000, max_steps=20000, ode_method="DOP853", ode_rtol=1e-12,
         description="better than 1e-6 of the peak"),
 }
 

@@ -40,7 +40,7 @@ def solve_reference(system, times, digits: int = 40) -> np.ndarray:
             a, g = -mb, mc
             y = mp.matrix(list(system.initial_voltages))
         dim = a.rows
-        t = np.asarray(times, dtype=float)
+        t = system.time_points(times)
         out = np.empty((t.size, n))
         for t0, t1 in system.segments():
             last = t1 >= system.t_stop

@@ -296,4 +296,4 @@ def robot(name: str) -> Model:
         return ROBOTS[name]()
     if name.startswith("serial") and name[6:].isdigit() and 1 <= int(name[6:]) <= 50:
         return planar_serial(int(name[6:]))
-    raise InputError(f"unknown robot {name!r}: use {', '.join(ROBOTS)} or serialN")
+    raise InputError(f"unknown robot {name!r}: use {', '.join(ROBOTS)} or serial<N> (N = 1 to 50)")

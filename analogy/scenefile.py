@@ -405,8 +405,6 @@ class SceneJob:
     def path(self, name: str, output_dir=None) -> Path:
         """Where an output file named *name* goes."""
         p = Path(name)
-        if p.is_absolute():
-            return p
         if output_dir is not None:
             return Path(output_dir) / p
         return (self.source.parent if self.source is not None else Path.cwd()) / p
@@ -768,7 +766,7 @@ def _outputs(ctx, data) -> dict:
         if isinstance(value, bool):
             out["netlist"] = value
         elif isinstance(value, str) and value.strip():
-            out["netlist"], out["netlist_file"] = True, value
+            out["netlist"], out["netlist_file"] = True, _relative_file(ctx, "netlist", value)
         else:
             raise ctx.error("[outputs] netlist", f"expected true or a file name, got {_kind(value)}")
     for key in ("csv", "plot"):
@@ -776,11 +774,26 @@ def _outputs(ctx, data) -> dict:
             value = table[key]
             if not isinstance(value, str) or not value.strip():
                 raise ctx.error(f"[outputs] {key}", f"expected a file name, got {_kind(value)}")
-            out[key] = value
+            out[key] = _relative_file(ctx, key, value)
+    if out["plot"] is not None:
+        from .compare import check_plot_path
+        try:
+            check_plot_path(out["plot"])
+        except InputError as exc:
+            raise ctx.error("[outputs] plot", str(exc)) from None
     if not (out["joint_rates"] or out["node_voltages"] or out["element_currents"] or out["netlist"]):
         raise ctx.error("[outputs]", "asks for nothing: give joint_rates, node_voltages, "
                                      "element_currents or netlist")
     return out
+
+
+def _relative_file(ctx, key: str, value: str) -> str:
+    # A scene file may come from anyone: its outputs stay inside the output folder.
+    p = Path(value)
+    if p.is_absolute() or ".." in p.parts:
+        raise ctx.error(f"[outputs] {key}", f"{value!r} must be a relative path inside the "
+                                            "output folder (no absolute path, no '..')")
+    return value
 
 
 def _solvers(ctx, data) -> dict:

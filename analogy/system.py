@@ -9,7 +9,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from .errors import InputError
-from .model import JointSpace, Model, check_vector
+from .model import JointSpace, Model, check_square_symmetric, check_vector
 from .topology import Topology, topology as make_topology
 from .waveforms import Step, Waveform, parse_waveform
 
@@ -48,8 +48,8 @@ class NodeSystem:
         if self.topology.dof != n:
             raise InputError(f"topology is {self.topology.dof}x{self.topology.dof} "
                              f"but the robot has {n} joints")
-        if not (np.isfinite(self.t_stop) and self.t_stop > 0):
-            raise InputError("t_stop must be a positive, finite time")
+        if not (np.isfinite(self.t_stop) and 1e-9 <= self.t_stop <= 1e9):
+            raise InputError("t_stop must be a time between 1e-9 s and 1e9 s")
         if len(self.forces) != n:
             raise InputError(f"forces must have {n} entries (one per joint), got {len(self.forces)}")
         object.__setattr__(self, "initial_rates", check_vector("initial rates r0", self.initial_rates, n))
@@ -59,6 +59,9 @@ class NodeSystem:
         object.__setattr__(self, "stiffness", None if self.joint.stiffness is None
                            else t.node_matrix(self.joint.stiffness))
         object.__setattr__(self, "current_map", t.current_map)
+        # T can be well conditioned yet scale M' out of floating-point range.
+        check_square_symmetric("node mass matrix M'", self.mass, definite=True)
+        self.breakpoints()          # checks every waveform against t_stop before any solver runs
 
     # M', B', K' and T⁻ᵀ are set in __post_init__ so that every consumer reads the same numbers.
     mass: np.ndarray = field(init=False, repr=False)
@@ -83,6 +86,17 @@ class NodeSystem:
     def joint_rates(self, node_voltages: np.ndarray) -> np.ndarray:
         """R = T⁻¹·v for node voltages of shape (..., n)."""
         return self.topology.joint_rates(node_voltages)
+
+    def time_points(self, times=None, default: int = 1001) -> np.ndarray:
+        """Sorted output times in [0, t_stop] (default: uniform); a time a rounding past
+        t_stop, as SPICE's last point can be, is taken as t_stop."""
+        if times is None:
+            return np.linspace(0.0, self.t_stop, default)
+        t = np.asarray(times, dtype=float).reshape(-1)
+        if t.size and (np.any(np.diff(t) < 0) or t[0] < 0 or t[-1] > self.t_stop * (1 + 1e-9)
+                       or not np.all(np.isfinite(t))):
+            raise InputError("output times must be sorted and within [0, t_stop]")
+        return np.minimum(t, self.t_stop)
 
     def force(self, t) -> np.ndarray:
         """Joint forces F(t), shape (len(t), n) for an array of times."""

@@ -28,6 +28,10 @@ class Piece:
     s: tuple = ()
 
 
+#: Most pulse periods expanded within one simulation (bounds memory for tiny periods).
+_MAX_PERIODS = 100_000
+
+
 class Waveform:
     """A force waveform f(t), t ≥ 0."""
 
@@ -131,6 +135,12 @@ class Pulse(Waveform):
         one = self.rise + self.width + self.fall
         return self.period if self.period is not None else max(2 * (one + self.delay), 2 * t_stop)
 
+    def _check(self, t_stop: float):
+        per = self._period(t_stop)
+        if (t_stop - self.delay) / per > _MAX_PERIODS:
+            raise InputError(f"pulse period {per:g} s is too short for t_stop = {t_stop:g} s "
+                             f"(more than {_MAX_PERIODS} periods)")
+
     def as_pwl(self, t_stop: float) -> PWL:
         per = self._period(t_stop)
         pts = [(0.0, self.v1)] if self.delay > 0 else []
@@ -149,11 +159,16 @@ class Pulse(Waveform):
         return PWL(clean)
 
     def spice(self, scale, t_stop):
+        self._check(t_stop)
+        if self.width == 0:     # SPICE reads a zero width as t_stop: write the corners instead
+            pwl = self.as_pwl(t_stop)
+            return PWL(list(zip(pwl.times, scale * pwl.values))).spice(1.0, t_stop)
         vals = (scale * self.v1, scale * self.v2, self.delay, self.rise, self.fall,
                 self.width, self._period(t_stop))
         return "PULSE(" + " ".join(_num(v) for v in vals) + ")"
 
     def breakpoints(self, t_stop):
+        self._check(t_stop)
         return self.as_pwl(t_stop).breakpoints(t_stop)
 
     def piece(self, t0, t1):
@@ -162,7 +177,9 @@ class Pulse(Waveform):
     def _pwl_cache(self, t_stop):
         cache = getattr(self, "_cache", None)
         if cache is None or cache[0] < t_stop:
-            cache = (max(t_stop, 1.0) * 2, self.as_pwl(max(t_stop, 1.0) * 2))
+            # doubling the horizon keeps re-expansion rare as segments advance
+            horizon = 2.0 * max(t_stop, self.delay + self.rise + self.width + self.fall)
+            cache = (horizon, self.as_pwl(horizon))
             self._cache = cache
         return cache[1]
 
@@ -180,8 +197,10 @@ class Sine(Waveform):
     def __init__(self, offset, amplitude, frequency, delay=0.0, damping=0.0, phase=0.0):
         self.offset, self.amplitude, self.frequency = float(offset), float(amplitude), float(frequency)
         self.delay, self.damping, self.phase = float(delay), float(damping), float(phase)
-        if self.frequency < 0 or self.delay < 0:
-            raise InputError("sine frequency and delay must not be negative")
+        if self.frequency <= 0 or self.delay < 0:
+            # SPICE reads a zero frequency as 1/t_stop; a constant force is a step.
+            raise InputError("sine frequency must be > 0 (use step() for a constant) "
+                             "and its delay must not be negative")
 
     def __repr__(self):
         return (f"Sine({self.offset!r}, {self.amplitude!r}, {self.frequency!r}, "

@@ -521,3 +521,12 @@ def test_relative_outputs_next_to_the_scene(tmp_path):
     assert r.written == [tmp_path / "sub" / "n" / "x.cir"]
     r = run_scene(load_scene(p), output_dir=tmp_path / "elsewhere")
     assert r.written == [tmp_path / "elsewhere" / "n" / "x.cir"]
+
+
+@pytest.mark.parametrize("where", ["/tmp/elsewhere.cir", "../escaped.cir", "out/../../x.cir"])
+def test_scene_outputs_stay_inside_the_output_folder(where, tmp_path):
+    path = tmp_path / "hostile.toml"
+    path.write_text(f'[model]\nrobot = "serial2"\n[configuration]\nq = [0, 0.3]\n'
+                    f'[inputs]\nforces = [1, 0]\n[outputs]\nnetlist = "{where}"\n')
+    with pytest.raises(InputError, match="relative path inside the output folder"):
+        load_scene(path)

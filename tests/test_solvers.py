@@ -95,3 +95,39 @@ def test_undamped_single_mass_is_a_ramp():
     s = node_system(JointSpace([[2.0]], [[0.0]]), forces=[3.0], t_stop=2.0)
     t = np.linspace(0, 2, 5)
     np.testing.assert_allclose(solve_exact(s, t).rates[:, 0], 1.5 * t, rtol=1e-15, atol=1e-15)
+
+
+WAVES = ["step(0.7)", "step(1, 0.3, 0.01)", "pwl(0, 0, 1, 1, 1.5, -0.5, 2, 0)",
+         "pulse(0, 1, 0.2, 0.05, 0.1, 0.3, 1)", "pulse(0, 1, 0, 0.1, 0.1, 0)",
+         "sine(0.2, 1, 0.3, 0.5, 0.2, 40)", "sine(0, 1, 2)"]
+
+
+@pytest.mark.parametrize("text", WAVES)
+def test_waveform_closed_form_pieces_equal_the_waveform(text):
+    """On every segment, a + b·τ + Σ c·exp(sτ) reproduces f(t) (what SPICE sees)."""
+    from analogy.waveforms import parse_waveform
+    w = parse_waveform(text)
+    t_stop = 4.0
+    edges = [0.0] + sorted(b for b in w.breakpoints(t_stop) if 0 < b < t_stop) + [t_stop]
+    for t0, t1 in zip(edges[:-1], edges[1:]):
+        p = w.piece(t0, t1)
+        tau = np.linspace(0.0, t1 - t0, 9)[1:-1]
+        closed = p.a + p.b * tau + sum((c * np.exp(s * tau) for c, s in zip(p.c, p.s)), 0 * tau)
+        np.testing.assert_allclose(np.real(closed), w(t0 + tau), rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("text", WAVES)
+def test_ode_and_exact_agree_for_every_waveform(text):
+    """The ODE solver samples f(t) directly, independently of the closed forms."""
+    s = node_system(random_spd_model(3, seed=6, stiffness=True), forces=[text, 0.5, text],
+                    initial_rates=[0.1, 0.0, -0.1], t_stop=4.0)
+    t = np.linspace(0.0, 4.0, 201)
+    assert rel_err(solve_ode(s, t, "DOP853", 1e-12).rates, solve_exact(s, t).rates) <= 1e-9
+
+
+def test_times_a_rounding_past_t_stop_are_t_stop():
+    s = scene("default").system()
+    t = [0.0, 5.0, 10.0, 10.0 * (1 + 5e-13)]
+    ex = solve_exact(s, t).rates
+    np.testing.assert_array_equal(ex[-1], ex[-2])
+    np.testing.assert_array_equal(solve_ode(s, t).rates[-1], solve_ode(s, t).rates[-2])

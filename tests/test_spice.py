@@ -108,3 +108,31 @@ def test_a_broken_library_is_reloaded_from_a_private_copy():
     assert sess._generation == generation + 1 and not sess._ng.exited
     after = sess.run(text)
     np.testing.assert_array_equal(before["n1"], after["n1"])
+
+
+@pytest.mark.parametrize("t_stop", [0.3, 3.3, 7.77])
+def test_spice_last_point_a_rounding_past_t_stop(t_stop):
+    """ngspice's last time can be t_stop + 1 ulp; every solver still reports that row."""
+    s = scene("default").replace(t_stop=t_stop).system()
+    c = compare(s, "accurate")
+    assert not c.failures
+    assert c.max_relative_error("spice") <= 1e-6 and c.max_relative_error("ode") <= 1e-9
+
+
+def test_custom_topology_sources_are_simulated_correctly():
+    """A T that is neither serial nor parallel: each joint force is a set of scaled grounded sources."""
+    from analogy.robots import random_spd_model
+    t = [[2.0, 0.5, 0.0], [1.0, 1.0, 0.0], [0.3, -0.2, 1.5]]
+    s = node_system(random_spd_model(3, seed=4), topology=t, forces=[1.0, "sine(0, 0.5, 1)", -0.3],
+                    initial_rates=[0.2, -0.1, 0.05], t_stop=5.0)
+    assert "_n1 0 n1" in netlist(s)          # the general (grounded, scaled) source path
+    assert compare(s, "accurate", ["spice"]).max_relative_error("spice") <= 1e-6
+
+
+@pytest.mark.parametrize("forces", [
+    ["pulse(0, 1, 0, 0.1, 0.1, 0)", "pulse(1, -1, 0, 0.1, 0.2, 0, 1)"],     # zero width
+    ["sine(0.2, 1, 0.3, 0.5, 0.2, 40)", "pwl(0, 0, 1, 1, 1.5, -0.5)"],       # delay, damping, phase
+])
+def test_every_waveform_means_the_same_to_spice_and_the_solvers(forces):
+    s = scene("default").replace(forces=tuple(forces), t_stop=8.0).system()
+    assert compare(s, "accurate", ["spice"]).max_relative_error("spice") <= 1e-6

@@ -76,6 +76,15 @@ def test_expression_grammar_accepts_formulas():
     (["--param", "l1=__import__('os').system('touch /tmp/analogy-pwned')"], "not allowed"),
     (["--force", "step(__import__('os'))", "--force", "1"], "not allowed"),
     (["--bogus"], "unrecognized arguments"),
+    (["--t-stop", "atan2(1)"], "cannot be evaluated"),
+    (["--t-stop", "sin((-8)**0.5)"], "cannot be evaluated"),
+    (["--t-stop", "1e-300"], "between 1e-9 s and 1e9 s"),
+    (["--topology", "[[1e308, 0], [0, 1e308]]"], "node mass matrix M' is not positive definite"),
+    (["--mass", "[[a + 0*q1, 0], [0, (-1)**0.5 + a]]", "--param", "a=1"], "complex numbers"),
+    (["--mass", "[[a, 0], [0, a]]", "--param", "a=1", "--param", "zz=2"], "--param zz is not used"),
+    (["--force", "sine(1, 1, 0)", "--force", "1"], "frequency must be > 0"),
+    (["--force", "pulse(0, 1, 0, 1e-6, 1e-6, 0, 3e-6)", "--force", "1"], "too short"),
+    (["--robot", "serialN"], "unknown robot"),
 ])
 def test_cli_bad_input_is_one_line_exit_2(args, fragment, tmp_path):
     marker = "/tmp/analogy-pwned"
@@ -96,3 +105,19 @@ def test_names_cannot_smuggle_spice_control_lines():
     assert directives == [".ic", ".options", ".tran", ".save", ".end"]
     with pytest.raises(InputError, match="unknown node"):
         netlist(s, save=["n1\n.control"])
+
+
+@pytest.mark.parametrize("args, fragment", [
+    (["compare", "--plot", "x.txt"], "cannot plot"),
+    (["compare", "--solvers", ""], "names no solver"),
+    (["compare", "--csv", "/nonexistent/c.csv"], "cannot write"),
+    (["bench", "--csv", "/nonexistent/b.csv"], "cannot write"),
+    (["bench", "--repeats", "0"], "at least 1"),
+    (["throughput", "-n", "0"], "at least 1"),
+    (["draw", "--stem", "../../x"], "plain file name"),
+])
+def test_other_commands_reject_bad_input_before_working(args, fragment):
+    res = cli(*args)
+    assert res.returncode == 2, res.stderr
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and fragment in lines[0] and "Traceback" not in res.stderr
