@@ -14,7 +14,7 @@ import numpy as np
 from .errors import AnalogyError, InputError
 from .presets import preset as get_preset
 
-__all__ = ["batch_netlist", "solve_spice_group", "solve_exact_many", "BatchResult", "run_batch"]
+__all__ = ["batch_netlist", "solve_spice_group", "BatchResult", "run_batch"]
 
 
 def batch_netlist(systems: Sequence, preset="fast") -> str:
@@ -141,6 +141,7 @@ def _group(payload):
     except AnalogyError as exc:
         return [np.nan] * len(systems), 0.0, str(exc), None, None
     errors, rates = [], []
+    from .exact import solve_exact_many
     exact = solve_exact_many(systems, t) if compare_exact else [None] * len(systems)
     for s, v, ev in zip(systems, volts, exact):
         r = s.joint_rates(v)
@@ -207,91 +208,3 @@ def run_batch(systems: Sequence, preset="fast", *, group_size: int = 100, worker
     wall = _time.perf_counter() - start
     return BatchResult(errors, wall, spice_seconds, failures,
                        times if keep_rates else None, rates if keep_rates else None)
-
-
-def _forced_many(lam, s, tau):
-    """∫₀^τ e^{λ(τ−σ)}·e^{sσ} dσ, broadcast over systems, times and modes."""
-    from .exact import phi1
-    w = (s - lam) * tau
-    near = np.abs(w) < 1.0
-    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        far = (np.exp(s * tau) - np.exp(lam * tau)) / np.where(near, 1.0, s - lam)
-    return np.where(near, np.exp(lam * tau) * tau * phi1(np.where(near, w, 0)), far)
-
-
-def solve_exact_many(systems: Sequence, times) -> list[np.ndarray]:
-    """Exact node voltages of many systems at the same *times*, vectorised over the systems.
-
-    The same closed form as :func:`analogy.exact.solve_exact` (modes of the pencil, each
-    force segment integrated exactly), with numpy's stacked linear algebra. Systems are
-    split by size, springs and force breakpoints, each part solved at once.
-    """
-    t = systems[0].time_points(times) if systems else np.asarray(times, dtype=float)
-    parts: dict = {}
-    for k, s in enumerate(systems):
-        key = (s.dof, s.stiffness is None, tuple(s.breakpoints().tolist()))
-        parts.setdefault(key, []).append(k)
-    out: list = [None] * len(systems)
-    for (n, no_springs, _), idx in parts.items():
-        for k, v in zip(idx, _exact_part([systems[k] for k in idx], t, n, no_springs)):
-            out[k] = v
-    return out
-
-
-def _exact_part(systems, t, n, no_springs):
-    from .exact import phi1, phi2
-    m = np.stack([s.mass for s in systems])
-    b = np.stack([s.damping for s in systems])
-    cmap = np.stack([s.current_map for s in systems])
-    v0 = np.stack([s.initial_voltages for s in systems])
-    if no_springs:
-        # B'φ = μM'φ through the Cholesky factor: a stack of symmetric eigenproblems.
-        chol = np.linalg.cholesky(m)
-        half = np.linalg.solve(chol, b)
-        sym = np.linalg.solve(chol, np.swapaxes(half, 1, 2))
-        mu, psi = np.linalg.eigh(0.5 * (sym + np.swapaxes(sym, 1, 2)))
-        vec = np.linalg.solve(np.swapaxes(chol, 1, 2), psi)        # M'-orthonormal modes
-        lam = -mu                   # real rates: real arithmetic unless a sine forces
-        z = np.einsum("sji,sjk,sk->si", vec, m, v0)
-        beta = np.einsum("sji,sjk->sik", vec, cmap)
-    else:
-        k = np.stack([s.stiffness for s in systems])
-        mk, mb, mc = (np.linalg.solve(m, x) for x in (k, b, cmap))
-        eye, zero = np.broadcast_to(np.eye(n), mk.shape), np.zeros_like(mk)
-        a = np.concatenate([np.concatenate([zero, eye], 2), np.concatenate([-mk, -mb], 2)], 1)
-        lam, vec = np.linalg.eig(a)
-        z = np.linalg.solve(vec, np.concatenate([np.zeros_like(v0), v0], 1)[..., None].astype(complex))[..., 0]
-        beta = np.linalg.solve(vec, np.concatenate([np.zeros_like(mc), mc], 1).astype(complex))
-    count = len(systems)
-    volts = np.empty((count, t.size, n))
-    first = systems[0]
-    lam_ = lam[:, None, :]
-    for t0, t1 in first.segments():
-        last = t1 >= first.t_stop
-        mask = (t >= t0) & ((t <= t1) if last else (t < t1))
-        tau = np.concatenate([t[mask] - t0, [t1 - t0]])[None, :, None]
-        x = lam_ * tau
-        zt = np.exp(x) * z[:, None, :]
-        joints = cmap.shape[2]
-        a_coef = np.zeros((count, joints))
-        b_coef = np.zeros((count, joints))
-        exps = []                                   # (system, joint, c, s)
-        for i, s in enumerate(systems):
-            for j, waves in enumerate(s.forces):
-                for w in waves:
-                    p = w.piece(t0, t1)
-                    a_coef[i, j] += p.a
-                    b_coef[i, j] += p.b
-                    exps += [(i, j, c, sv) for c, sv in zip(p.c, p.s)]
-        if np.any(a_coef):
-            zt += np.einsum("smj,sj->sm", beta, a_coef)[:, None, :] * tau * phi1(x)
-        if np.any(b_coef):
-            zt += np.einsum("smj,sj->sm", beta, b_coef)[:, None, :] * tau ** 2 * phi2(x)
-        if exps and not np.iscomplexobj(zt):
-            zt = zt.astype(complex)
-        for i, j, c, sv in exps:
-            zt[i] += (c * beta[i, :, j])[None, :] * _forced_many(lam_[i], sv, tau[0])
-        y = np.einsum("stm,sym->sty", zt, vec).real
-        volts[:, mask] = y[:, :-1, -n:]
-        z = zt[:, -1, :]
-    return list(volts)

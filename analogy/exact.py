@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import time as _time
 
+from typing import Sequence
+
 import numpy as np
-import scipy.linalg as la
 
 from .errors import SimulationError
 from .trajectory import Trajectory
 
-__all__ = ["solve_exact", "modal_form", "phi1", "phi2"]
+__all__ = ["solve_exact", "solve_exact_many", "phi1", "phi2"]
 
 
 def _expm1(x: np.ndarray) -> np.ndarray:
@@ -51,62 +52,116 @@ def phi2(x: np.ndarray) -> np.ndarray:
     return out
 
 
-def _forced(lam: np.ndarray, s: complex, tau: np.ndarray) -> np.ndarray:
-    """∫₀^τ e^{λ(τ−σ)}·e^{sσ} dσ for every λ (columns) and τ (rows)."""
-    lam = lam[None, :]
-    tau = tau[:, None]
+def _forced(lam, s, tau):
+    """∫₀^τ e^{λ(τ−σ)}·e^{sσ} dσ, broadcast over λ and τ."""
     w = (s - lam) * tau
     near = np.abs(w) < 1.0
-    with np.errstate(over="ignore", invalid="ignore"):
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         far = (np.exp(s * tau) - np.exp(lam * tau)) / np.where(near, 1.0, s - lam)
     return np.where(near, np.exp(lam * tau) * tau * phi1(np.where(near, w, 0)), far)
 
 
-class _Modes:
-    """State y = V·z with decoupled modes z' = λ·z + β·F(t)."""
+def _modes(systems, n: int, springs: bool):
+    """Stacked modal decomposition: rates λ, modes V, modal state z(0) and force map β.
 
-    def __init__(self, lam, vectors, to_modal, force_map, n, has_position):
-        self.lam = lam                  # (m,)
-        self.vectors = vectors          # (state, m)
-        self.to_modal = to_modal        # callable y -> z
-        self.force_map = force_map      # (m, joints)
-        self.n = n
-        self.has_position = has_position
-
-
-def modal_form(system) -> _Modes:
-    """Eigen-decomposition of the pencil of *system*.
-
-    Without springs, M'·v' = −B'·v + i is a symmetric-definite pencil: ``eigh(B', M')``
-    gives real rates and M'-orthonormal modes, so the transform is perfectly conditioned.
-    With springs, the first-order pencil (A, E) on y = [x, v] is decomposed by ``eig``.
+    Without springs, M'·v' = −B'·v + i is a symmetric-definite pencil; through the
+    Cholesky factor of M' it becomes a stack of symmetric eigenproblems with real rates
+    and M'-orthonormal modes, so the transform is perfectly conditioned. With springs
+    the first-order system on y = [x, v] is decomposed by ``eig``.
     """
-    m, b, k, c = system.mass, system.damping, system.stiffness, system.current_map
-    n = system.dof
-    if k is None:
-        mu, phi = la.eigh(b, m)
-        return _Modes((-mu).astype(complex), phi.astype(complex),
-                      lambda y: phi.T @ (m @ y), (phi.T @ c).astype(complex), n, False)
-    e = la.block_diag(np.eye(n), m)
-    a = np.block([[np.zeros((n, n)), np.eye(n)], [-k, -b]])
-    lam, vec = la.eig(a, e)
+    m = np.stack([s.mass for s in systems])
+    b = np.stack([s.damping for s in systems])
+    cmap = np.stack([s.current_map for s in systems])
+    v0 = np.stack([s.initial_voltages for s in systems])
+    if not springs:
+        chol = np.linalg.cholesky(m)
+        half = np.linalg.solve(chol, b)
+        sym = np.linalg.solve(chol, np.swapaxes(half, 1, 2))
+        mu, psi = np.linalg.eigh(0.5 * (sym + np.swapaxes(sym, 1, 2)))
+        vec = np.linalg.solve(np.swapaxes(chol, 1, 2), psi)
+        z = np.einsum("sji,sjk,sk->si", vec, m, v0)
+        beta = np.einsum("sji,sjk->sik", vec, cmap)
+        return -mu, vec, z, beta          # real: real arithmetic unless a sine forces
+    k = np.stack([s.stiffness for s in systems])
+    mk, mb, mc = (np.linalg.solve(m, x) for x in (k, b, cmap))
+    eye, zero = np.broadcast_to(np.eye(n), mk.shape), np.zeros_like(mk)
+    a = np.concatenate([np.concatenate([zero, eye], 2), np.concatenate([-mk, -mb], 2)], 1)
+    lam, vec = np.linalg.eig(a)
     if not np.all(np.isfinite(lam)):
-        raise SimulationError("the system pencil has infinite eigenvalues")
-    ev = e @ vec
-    lu = la.lu_factor(ev)
+        raise SimulationError("the system has infinite or undefined modal rates")
     cond = np.linalg.cond(vec)
-    if cond > 1e10:
-        raise SimulationError(f"the modes are nearly defective (condition number {cond:.2g}); "
+    if np.any(cond > 1e10):
+        raise SimulationError(f"the modes are nearly defective (condition number {cond.max():.2g}); "
                               "the exact solver cannot resolve them accurately")
-    force_map = la.lu_solve(lu, np.vstack([np.zeros((n, c.shape[1])), c]))
-    vec_lu = la.lu_factor(vec)
-    return _Modes(lam, vec, lambda y: la.lu_solve(vec_lu, y.astype(complex)), force_map, n, True)
+    y0 = np.concatenate([np.zeros_like(v0), v0], 1).astype(complex)
+    z = np.linalg.solve(vec, y0[..., None])[..., 0]
+    beta = np.linalg.solve(vec, np.concatenate([np.zeros_like(mc), mc], 1).astype(complex))
+    return lam, vec, z, beta
+
+
+def _states(systems, t, n: int, springs: bool) -> np.ndarray:
+    """States y(t) (x and v with springs, else v) of systems sharing size and breakpoints."""
+    lam, vec, z, beta = _modes(systems, n, springs)
+    count, joints = len(systems), beta.shape[2]
+    states = np.empty((count, t.size, vec.shape[1]))
+    first = systems[0]
+    lam_ = lam[:, None, :]
+    for t0, t1 in first.segments():
+        last = t1 >= first.t_stop
+        mask = (t >= t0) & ((t <= t1) if last else (t < t1))
+        tau = np.concatenate([t[mask] - t0, [t1 - t0]])[None, :, None]
+        x = lam_ * tau
+        zt = np.exp(x) * z[:, None, :]
+        a_coef, b_coef, exps = np.zeros((count, joints)), np.zeros((count, joints)), []
+        for i, s in enumerate(systems):
+            for j, waves in enumerate(s.forces):
+                for w in waves:
+                    p = w.piece(t0, t1)
+                    a_coef[i, j] += p.a
+                    b_coef[i, j] += p.b
+                    exps += [(i, j, c, sv) for c, sv in zip(p.c, p.s)]
+        # u(t0 + τ) = a + b·τ + Σ c·e^{sτ}, each term integrated exactly against e^{λτ}
+        if np.any(a_coef):
+            zt = zt + np.einsum("smj,sj->sm", beta, a_coef)[:, None, :] * tau * phi1(x)
+        if np.any(b_coef):
+            zt = zt + np.einsum("smj,sj->sm", beta, b_coef)[:, None, :] * tau ** 2 * phi2(x)
+        if exps and not np.iscomplexobj(zt):
+            zt = zt.astype(complex)
+        for i, j, c, sv in exps:
+            zt[i] += (c * beta[i, :, j])[None, :] * _forced(lam_[i], sv, tau[0])
+        states[:, mask] = np.einsum("stm,sym->sty", zt, vec).real[:, :-1]
+        z = zt[:, -1, :]
+    return states
+
+
+def _solve(systems, t) -> list[np.ndarray]:
+    parts: dict = {}
+    for k, s in enumerate(systems):
+        key = (s.dof, s.stiffness is not None, tuple(s.breakpoints().tolist()))
+        parts.setdefault(key, []).append(k)
+    out: list = [None] * len(systems)
+    for (n, springs, _), idx in parts.items():
+        for k, y in zip(idx, _states([systems[k] for k in idx], t, n, springs)):
+            out[k] = y
+    return out
+
+
+def solve_exact_many(systems: Sequence, times) -> list[np.ndarray]:
+    """Exact node voltages of many systems at the same *times*, vectorised over the systems.
+
+    Systems are split by size, springs and force breakpoints, and each part is solved
+    at once with numpy's stacked linear algebra.
+    """
+    if not systems:
+        return []
+    t = systems[0].time_points(times)
+    return [y[:, -s.dof:] for s, y in zip(systems, _solve(systems, t))]
 
 
 def solve_exact(system, times=None, positions: bool = False) -> Trajectory:
     """Exact node voltages and joint rates of *system* at *times*.
 
-    Forces are piecewise closed forms (constant, linear, damped sine) between the
+    Forces are piecewise closed forms (constant, ramp, damped sine) between the
     system's breakpoints; each segment is integrated exactly in modal coordinates.
 
     Parameters
@@ -120,40 +175,9 @@ def solve_exact(system, times=None, positions: bool = False) -> Trajectory:
     """
     start = _time.perf_counter()
     t = system.time_points(times)
-    modes = modal_form(system)
+    y = _solve([system], t)[0]
     n = system.dof
-    v0 = system.initial_voltages
-    y0 = np.concatenate([np.zeros(n), v0]) if modes.has_position else v0
-    z = modes.to_modal(y0.astype(complex))
-    lam = modes.lam
-    out = np.empty((t.size, n))
-    pos = np.empty((t.size, n)) if positions and modes.has_position else None
-    seg_start = 0.0
-    for t0, t1 in system.segments():
-        last = t1 >= system.t_stop
-        mask = (t >= t0) & ((t <= t1) if last else (t < t1))
-        taus = np.concatenate([t[mask] - t0, [t1 - t0]])
-        zt = np.exp(np.outer(taus, lam)) * z[None, :]
-        for j, waves in enumerate(system.forces):
-            beta = modes.force_map[:, j]
-            if not np.any(beta) or not waves:
-                continue
-            for w in waves:
-                p = w.piece(t0, t1)
-                x = np.outer(taus, lam)
-                if p.a:
-                    zt += p.a * beta[None, :] * taus[:, None] * phi1(x)
-                if p.b:
-                    zt += p.b * beta[None, :] * taus[:, None] ** 2 * phi2(x)
-                for c, s in zip(p.c, p.s):
-                    zt += c * beta[None, :] * _forced(lam, s, taus)
-        y = (zt @ modes.vectors.T).real
-        out[mask] = y[:-1, n:] if modes.has_position else y[:-1]
-        if pos is not None:
-            pos[mask] = y[:-1, :n]
-        z = zt[-1]
-        seg_start = t1
-    del seg_start
-    voltages = out
+    voltages = y[:, -n:]
+    pos = y[:, :n] if positions and system.stiffness is not None else None
     elapsed = _time.perf_counter() - start
     return Trajectory("exact", t, voltages, system.joint_rates(voltages), elapsed, pos)

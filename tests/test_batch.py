@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 import analogy
-from analogy.batch import batch_netlist, run_batch, solve_exact_many, solve_spice_group
-from analogy.exact import solve_exact
+from analogy.batch import batch_netlist, run_batch, solve_spice_group
+from analogy.exact import solve_exact, solve_exact_many
 from analogy.scenes import SCENES, scene
 
 
