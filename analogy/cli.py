@@ -316,8 +316,17 @@ def _cmd_draw(args) -> int:
 
 
 def _cmd_run(args) -> int:
-    from .scenefile import main_run
-    return main_run(args.scene_file, output_dir=args.output_dir, no_plot=args.no_plot)
+    from .scenefile import load_scene, run_scene
+    job = load_scene(args.scene_file)
+    if args.no_plot:
+        job = job.replace(plot_file=None)
+    result = run_scene(job, args.output_dir)
+    print(result.table())
+    if job.netlist and not job.netlist_file:
+        sys.stdout.write(result.netlist)
+    for written in result.written:
+        print(f"wrote {written}")
+    return EXIT_FAILED if result.failures else EXIT_OK
 
 
 def _positive(value: int, what: str) -> int:

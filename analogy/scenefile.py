@@ -99,7 +99,6 @@ from __future__ import annotations
 import csv
 import math
 import re
-import sys
 import time as _time
 import tomllib
 from contextlib import contextmanager
@@ -124,7 +123,6 @@ OUTPUTS = ("joint_rates", "node_voltages", "element_currents")
 #: Solvers, in the order they run.
 SOLVERS = ("spice", "ode", "exact")
 
-EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
 
 _TABLES = {
     "model": ("robot", "mass", "damping", "stiffness", "gravity"),
@@ -560,16 +558,12 @@ def _system(ctx: _Context, data: dict, name: str):
 
 
 def _numeric_matrix(value, n):
-    rows = _matrix_shape(value, n, "matrix")
     out = []
-    for i, r in enumerate(rows):
-        row = []
-        for j, x in enumerate(r):
-            try:
-                row.append(_number(x))
-            except InputError as exc:
-                raise InputError(f"row {i + 1}, column {j + 1}: {exc}") from None
-        out.append(row)
+    for i, row in enumerate(_matrix_shape(value, n, "matrix")):
+        try:
+            out.append(_numbers(row))
+        except InputError as exc:
+            raise InputError(f"row {i + 1}, {exc}") from None
     return out
 
 
@@ -1161,26 +1155,12 @@ class SceneResult:
 
 
 def main_run(path, output_dir=None, no_plot: bool = False) -> int:
-    """Run the scene file *path*, print the result and return the exit code.
+    """Run the scene file *path* as ``analogy run`` does: print the result, return the exit code.
 
     0: success; 1: a solver failed (the other results are still printed and written);
     2: bad input (one line on stderr). *no_plot* skips a plot the scene asks for, so the
     plotting library is never imported.
     """
-    try:
-        job = load_scene(path)
-        if no_plot:
-            job = job.replace(plot_file=None)
-        result = run_scene(job, output_dir)
-    except InputError as exc:
-        print(f"analogy: error: {exc}", file=sys.stderr)
-        return EXIT_USAGE
-    except AnalogyError as exc:
-        print(f"analogy: simulation failed: {exc}", file=sys.stderr)
-        return EXIT_FAILED
-    print(result.table())
-    if job.netlist and not job.netlist_file:
-        sys.stdout.write(result.netlist)
-    for written in result.written:
-        print(f"wrote {written}")
-    return EXIT_FAILED if result.failures else EXIT_OK
+    from .cli import main
+    args = ["run", str(path)] + (["--output-dir", str(output_dir)] if output_dir is not None else [])
+    return main(args + (["--no-plot"] if no_plot else []))
