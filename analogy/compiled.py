@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .model import JointSpace, evaluation_arguments
+from .model import JointSpace, JointStack, configuration_stack, evaluate_entries, evaluation_arguments
 
 __all__ = ["CompiledModel", "cache_dir", "compile_model", "load_compiled"]
 
@@ -57,9 +57,17 @@ class CompiledModel:
     def joint_space(self, q=None, parameters=None) -> JointSpace:
         """Evaluate at configuration *q*; same contract as :meth:`analogy.model.Model.joint_space`."""
         args = evaluation_arguments(self.name, self.coordinates, self.parameters, q, parameters)
-        parts = [None if f is None else np.array(f(*args), dtype=float)
-                 for f in (self._m.mass_matrix, self._m.damping, self._m.stiffness, self._m.gravity)]
-        return JointSpace(parts[0], parts[1], parts[2], None if parts[3] is None else parts[3].reshape(-1))
+        return JointSpace(*(evaluate_entries(self.name, f, args, shape) for f, shape in self._parts()))
+
+    def joint_stack(self, qs, parameters=None) -> JointStack:
+        """Evaluate at every row of *qs* at once; same contract as :meth:`analogy.model.Model.joint_stack`."""
+        q = configuration_stack(self.name, self.coordinates, qs)
+        args = list(q.T) + evaluation_arguments(self.name, (), self.parameters, None, parameters)
+        return JointStack(*(evaluate_entries(self.name, f, args, shape, len(q)) for f, shape in self._parts()))
+
+    def _parts(self):
+        n, m = self.dof, self._m
+        return ((m.mass_matrix, (n, n)), (m.damping, (n, n)), (m.stiffness, (n, n)), (m.gravity, (n,)))
 
 
 def _module_source(model) -> str:
@@ -79,7 +87,8 @@ def _module_source(model) -> str:
         if expr is None:
             lines += [f"{label} = None", ""]
             continue
-        fn = sp.lambdify(args, expr, modules="numpy", dummify=False)
+        # Entries come out flat, so that arrays of configurations broadcast.
+        fn = sp.lambdify(args, list(expr), modules="numpy", dummify=False)
         src = inspect.getsource(fn).replace("def _lambdifygenerated(", f"def {label}(", 1)
         lines += [src, ""]
     del names

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Element", "elements", "mp_capacitance", "laplacian_split", "ZERO_TOL"]
+__all__ = ["Element", "elements", "element_table", "mp_capacitance", "laplacian_split", "ZERO_TOL"]
 
 #: Default relative tolerance below which an element value counts as zero.
 ZERO_TOL = 1e-12
@@ -53,19 +53,21 @@ def laplacian_split(matrix: np.ndarray, zero_tol: float = ZERO_TOL):
     """Split a symmetric node matrix X into grounded x_i = Σ_j X_ij and floating x_ij = −X_ij.
 
     X is recovered as X_ii = x_i + Σ_{j≠i} x_ij and X_ij = −x_ij; entries with
-    |x| ≤ zero_tol·max|X| are returned as exact zeros.
+    |x| ≤ zero_tol·max|X| are returned as exact zeros. A stack of matrices
+    (..., n, n) is split matrix by matrix.
 
     Returns
     -------
-    grounded : ndarray, shape (n,)
-    floating : ndarray, shape (n, n), symmetric with zero diagonal
+    grounded : ndarray, shape (..., n)
+    floating : ndarray, shape (..., n, n), symmetric with zero diagonal
     """
     x = np.asarray(matrix, dtype=float)
-    grounded = x.sum(axis=1)
-    floating = -x.copy()
-    np.fill_diagonal(floating, 0.0)
-    floor = zero_tol * (np.max(np.abs(x)) if x.size else 0.0)
-    grounded[np.abs(grounded) <= floor] = 0.0
+    n = x.shape[-1]
+    grounded = x.sum(axis=-1)
+    floating = -x
+    floating[..., range(n), range(n)] = 0.0
+    floor = zero_tol * (np.abs(x).max(axis=(-2, -1), keepdims=True) if x.size else np.zeros(x.shape[:-2] + (1, 1)))
+    grounded[np.abs(grounded) <= floor[..., 0]] = 0.0
     floating[np.abs(floating) <= floor] = 0.0
     return grounded, floating
 
@@ -75,26 +77,31 @@ def mp_capacitance(node_mass: np.ndarray, zero_tol: float = ZERO_TOL) -> np.ndar
     return laplacian_split(node_mass, zero_tol)[1]
 
 
+def element_table(mass, damping, stiffness=None, zero_tol: float = ZERO_TOL):
+    """Every element position of a stack of node matrices, in netlist order.
+
+    Returns a list of (kind, a, b, coefficients): per node then per pair, C then R
+    then L, with the mechanical coefficient of each system in the stack (shape (count,),
+    exactly 0 where the element is absent).
+    """
+    table = []
+    for kind, mat in (("C", mass), ("R", damping), ("L", stiffness)):
+        if mat is None:
+            continue
+        grounded, floating = laplacian_split(mat, zero_tol)
+        n = grounded.shape[-1]
+        table += [(kind, i + 1, 0, grounded[:, i]) for i in range(n)]
+        table += [(kind, i + 1, j + 1, floating[:, i, j]) for i in range(n) for j in range(i + 1, n)]
+    return table
+
+
 def elements(system, zero_tol: float = ZERO_TOL) -> list[Element]:
     """All non-zero elements of *system*: per node then per pair, C then R then L.
 
     Negative values are kept: a negative floating capacitor is legitimate physics
     (an MP model whose mass opposes the relative acceleration of its terminals).
     """
-    out: list[Element] = []
-    mats = [("C", system.mass), ("R", system.damping), ("L", system.stiffness)]
-    n = system.dof
-    for kind, mat in mats:
-        if mat is None:
-            continue
-        grounded, floating = laplacian_split(mat, zero_tol)
-        # (node a, node b or 0 for ground, mechanical coefficient)
-        pairs = [(i + 1, 0, grounded[i]) for i in range(n)]
-        pairs += [(i + 1, j + 1, floating[i, j]) for i in range(n) for j in range(i + 1, n)]
-        for a, b, coef in pairs:
-            if coef == 0.0:
-                continue
-            value = coef if kind == "C" else 1.0 / coef
-            out.append(Element(kind, a, b, float(value), float(coef)))
-    order = {"C": 0, "R": 1, "L": 2}
-    return sorted(out, key=lambda e: (order[e.kind], e.b != 0, e.a, e.b))
+    k = None if system.stiffness is None else system.stiffness[None]
+    return [Element(kind, a, b, float(c[0] if kind == "C" else 1.0 / c[0]), float(c[0]))
+            for kind, a, b, c in element_table(system.mass[None], system.damping[None], k, zero_tol)
+            if c[0] != 0.0]

@@ -10,7 +10,7 @@ import sympy as sp
 from sympy.simplify.fu import TR8
 
 from .errors import InputError
-from .model import Model
+from .model import JointStack, Model, configuration_stack
 
 __all__ = ["link_mass_matrix", "ClosedChainModel"]
 
@@ -101,6 +101,11 @@ class ClosedChainModel(Model):
         mass = sp.ImmutableMatrix((s.T * full * s).applyfunc(sp.expand))
         return cls(name, mass, coordinates=q, passive=p, rates=rates,
                    constraints=sp.Matrix(constraints), reference=reference, **kw)
+
+    def joint_stack(self, qs, parameters=None) -> JointStack:
+        """Evaluate configuration by configuration: each needs its own assembly solve."""
+        q = configuration_stack(self.name, [str(c) for c in self.coordinates], qs)
+        return JointStack.of([self.joint_space(row, parameters) for row in q])
 
     def _compile(self):
         # Lambdify once per model; every evaluation reuses these functions.

@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Mapping, Sequence
+from typing import Mapping, NamedTuple, Sequence
 
 import numpy as np
 
 from .errors import InputError
 
-__all__ = ["Model", "JointSpace", "check_square_symmetric", "check_vector", "evaluation_arguments"]
+__all__ = ["Model", "JointSpace", "JointStack", "check_square_symmetric", "check_vector",
+           "evaluation_arguments", "configuration_stack", "evaluate_entries"]
 
 
 def check_square_symmetric(name: str, matrix, *, n: int | None = None,
@@ -86,6 +87,66 @@ def evaluation_arguments(name: str, coordinates, defaults: Mapping[str, float], 
         values[key] = value
     args = list(check_vector("configuration q", q, len(q))) if q else []
     return args + (list(check_vector("parameters", list(values.values()), len(values))) if values else [])
+
+
+def configuration_stack(name: str, coordinates, qs) -> np.ndarray:
+    """*qs* as a finite float array of shape (count, len(coordinates))."""
+    try:
+        q = np.array(qs, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError("configurations must be numbers, one row per configuration") from None
+    q = q.reshape(len(q), -1) if q.ndim == 1 and len(coordinates) == 1 else q
+    if q.ndim != 2 or q.shape[1] != len(coordinates) or not len(q):
+        raise InputError(f"model {name!r} needs rows of {len(coordinates)} joint coordinates, "
+                         f"got an array of shape {q.shape}")
+    if not np.all(np.isfinite(q)):
+        raise InputError(f"configuration {int(np.argwhere(~np.isfinite(q))[0, 0]) + 1} "
+                         "has a non-finite entry")
+    return q
+
+
+def evaluate_entries(name: str, fn, args, shape, count: int | None = None):
+    """A compiled part (a function returning its entries flat) at *args*, as a float array.
+
+    With *count*, the arguments may be arrays of that length and the result has shape
+    (count, *shape); constant entries are broadcast.
+    """
+    if fn is None:
+        return None
+    entries = fn(*args)
+    if count is None:
+        value = np.asarray(entries)
+    else:
+        kind = complex if any(np.iscomplexobj(e) for e in entries) else float
+        value = np.empty((count, len(entries)), dtype=kind)
+        for i, e in enumerate(entries):
+            value[:, i] = e
+    if np.iscomplexobj(value):
+        if np.any(value.imag != 0):
+            raise InputError(f"model {name!r} evaluates to complex numbers at this "
+                             "configuration (e.g. the square root of a negative number)")
+        value = value.real
+    return np.array(value, dtype=float).reshape(shape if count is None else (count, *shape))
+
+
+class JointStack(NamedTuple):
+    """Joint-space M, B, K, G at many configurations, stacked on a leading axis (unchecked)."""
+
+    mass_matrix: np.ndarray
+    damping: np.ndarray
+    stiffness: np.ndarray | None
+    gravity: np.ndarray | None
+
+    @classmethod
+    def of(cls, spaces: Sequence["JointSpace"]) -> "JointStack":
+        """Stack joint spaces evaluated one by one (absent K or G as zeros, if any has one)."""
+        def stack(parts, shape):
+            if all(p is None for p in parts):
+                return None
+            return np.stack([np.zeros(shape) if p is None else p for p in parts])
+        n = spaces[0].dof
+        return cls(np.stack([s.mass_matrix for s in spaces]), np.stack([s.damping for s in spaces]),
+                   stack([s.stiffness for s in spaces], (n, n)), stack([s.gravity for s in spaces], (n,)))
 
 
 @dataclass(frozen=True)
@@ -217,10 +278,16 @@ class Model:
             raise InputError(f"model {self.name!r} uses symbols with no value: {', '.join(unknown)}")
         # Common-subexpression elimination pays off for large matrices only; it costs
         # ~0.1 s even on a 2x2 one.
-        fns = [None if p is None else sp.lambdify(args, p, modules="numpy", cse=sp.count_ops(p) > 400)
+        # Each part returns its entries flat, so that arrays of configurations broadcast.
+        fns = [None if p is None else sp.lambdify(args, list(p), modules="numpy",
+                                                  cse=sp.count_ops(p) > 400)
                for p in parts]
         self._compiled = (fns, [str(s) for s in self.coordinates], list(self.parameters))
         return self._compiled
+
+    def _shapes(self):
+        n = self.dof
+        return ((n, n), (n, n), (n, n), (n,))
 
     def joint_space(self, q: Sequence[float] | None = None,
                     parameters: Mapping[str, float] | None = None) -> JointSpace:
@@ -235,17 +302,17 @@ class Model:
         """
         fns, qnames, pnames = self._compiled or self._compile()
         args = evaluation_arguments(self.name, qnames, self.parameters, q, parameters)
+        m, b, k, g = (evaluate_entries(self.name, f, args, shape) for f, shape in zip(fns, self._shapes()))
+        return JointSpace(m, b, k, g)
 
-        def ev(fn):
-            if fn is None:
-                return None
-            value = np.asarray(fn(*args))
-            if np.iscomplexobj(value):
-                if np.any(value.imag != 0):
-                    raise InputError(f"model {self.name!r} evaluates to complex numbers at this "
-                                     "configuration (e.g. the square root of a negative number)")
-                value = value.real
-            return np.array(value, dtype=float)
+    def joint_stack(self, qs, parameters: Mapping[str, float] | None = None) -> JointStack:
+        """Evaluate at every row of *qs* at once (vectorised over configurations).
 
-        m, b, k, g = (ev(f) for f in fns)
-        return JointSpace(m, b, k, None if g is None else g.reshape(-1))
+        The values are not checked; :func:`analogy.system.node_systems` checks the stack.
+        """
+        fns, qnames, pnames = self._compiled or self._compile()
+        q = configuration_stack(self.name, qnames, qs)
+        args = list(q.T) + evaluation_arguments(self.name, (), self.parameters, None, parameters)
+        return JointStack(*(evaluate_entries(self.name, f, args, shape, len(q))
+                            for f, shape in zip(fns, self._shapes())))
+

@@ -11,7 +11,8 @@ from .elements import ZERO_TOL, elements
 from .errors import InputError
 from .presets import Preset, preset as get_preset
 
-__all__ = ["netlist", "element_lines", "source_lines", "analysis_lines", "header_lines",
+__all__ = ["netlist", "element_lines", "circuit_lines", "source_lines", "source_terms",
+           "analysis_lines", "header_lines",
            "comment_text", "save_vectors"]
 
 _SAFE_COMMENT = re.compile(r"[^A-Za-z0-9 _.,:;=+\-*/()\[\]{}<>'#%@!?|~^&$]")
@@ -39,21 +40,30 @@ def element_lines(system, zero_tol: float = ZERO_TOL, prefix: str = "",
     reversing pulley): a VCVS makes v_x = v_b − v_a, a zero-volt source senses the
     current of the positive element on x, and a CCCS drives that current from a to b.
     """
+    return circuit_lines([(e.kind, e.a, e.b, e.value) for e in elements(system, zero_tol)],
+                         prefix, system.initial_voltages if realizable else None)
+
+
+def circuit_lines(parts, prefix: str = "", realizable_from=None) -> tuple[list[str], dict[str, float]]:
+    """Lines of elements given as (kind, a, b, SPICE value); see :func:`element_lines`.
+
+    *realizable_from* holds the node voltages at t = 0 when negative values are to be
+    realized; None writes them as they are.
+    """
     lines, ic = [], {}
-    v0 = system.initial_voltages
-    for e in elements(system, zero_tol):
-        name = f"{e.kind}{prefix}{e.name[1:]}"
-        a, b = _node(e.a, prefix), _node(e.b, prefix)
-        if not (realizable and e.value < 0):
-            lines.append(f"{name} {a} {b} {_num(e.value)}")
+    for kind, na, nb, value in parts:
+        name = f"{kind}{prefix}{na}" if nb == 0 else f"{kind}{prefix}{na}_{nb}"
+        a, b = f"{prefix}n{na}", _node(nb, prefix)
+        if realizable_from is None or value >= 0:
+            lines.append(f"{name} {a} {b} {_num(value)}")
             continue
         x, y = f"{name.lower()}_x", f"{name.lower()}_y"
         lines += [f"E{name} {x} 0 {b} {a} 1",
                   f"V{name} {x} {y} DC 0",
-                  f"{name} {y} 0 {_num(-e.value)}",
+                  f"{name} {y} 0 {_num(-value)}",
                   f"F{name} {a} {b} V{name} 1"]
-        vb = v0[e.b - 1] if e.b else 0.0
-        ic[x] = ic[y] = vb - v0[e.a - 1]
+        v0 = realizable_from
+        ic[x] = ic[y] = (v0[nb - 1] if nb else 0.0) - v0[na - 1]
     return lines, ic
 
 
@@ -77,8 +87,15 @@ def source_lines(system, zero_tol: float = ZERO_TOL, prefix: str = "") -> list[s
     is one source between the two, as an actuator acting across two links;
     otherwise it is one grounded source per node, scaled by the column entry.
     """
+    return [f"I{prefix}{name} {_node(b, prefix)} {_node(a, prefix)} {spec}"
+            for name, a, b, spec in source_terms(system, zero_tol)]
+
+
+def source_terms(system, zero_tol: float = ZERO_TOL) -> list[tuple[str, int, int, str]]:
+    """The sources of :func:`source_lines` as (name, node a, node b, SPICE source text):
+    each drives its current into node a and out of node b (0 is ground)."""
     c = system.current_map
-    lines = []
+    terms = []
     for j, waves in enumerate(system.forces):
         if not waves:
             continue
@@ -91,17 +108,14 @@ def source_lines(system, zero_tol: float = ZERO_TOL, prefix: str = "") -> list[s
         two_terminal = len(plus) == 1 and len(minus) <= 1 and len(nz) == len(plus) + len(minus)
         for w_index, wave in enumerate(waves):
             suffix = "" if len(waves) == 1 else f"_{w_index + 1}"
-            name = f"I{prefix}{j + 1}{suffix}"
             if two_terminal:
-                a = int(plus[0]) + 1
-                b = int(minus[0]) + 1 if len(minus) else 0
                 # 'I n+ n- value' drives current out of n+ and into n-.
-                lines.append(f"{name} {_node(b, prefix)} {_node(a, prefix)} {wave.spice(1.0, system.t_stop)}")
+                b = int(minus[0]) + 1 if len(minus) else 0
+                terms.append((f"{j + 1}{suffix}", int(plus[0]) + 1, b, wave.spice(1.0, system.t_stop)))
             else:
-                for k in nz:
-                    lines.append(f"{name}_n{k + 1} 0 {_node(k + 1, prefix)} "
-                                 f"{wave.spice(float(col[k]), system.t_stop)}")
-    return lines
+                terms += [(f"{j + 1}{suffix}_n{k + 1}", k + 1, 0, wave.spice(float(col[k]), system.t_stop))
+                          for k in nz]
+    return terms
 
 
 def _matrix_text(m: np.ndarray) -> str:

@@ -63,6 +63,24 @@ class Scene:
                            topology=self.topology, forces=list(self.forces),
                            initial_rates=self.initial_rates, t_stop=self.t_stop)
 
+    def systems(self, qs, model=None) -> list[NodeSystem]:
+        """The scene's node systems at every configuration in *qs*, built as one stack."""
+        from .system import node_systems
+        m = model if model is not None else self.numeric_model()
+        return node_systems(m, qs, parameters=dict(self.parameters), topology=self.topology,
+                            forces=list(self.forces), initial_rates=self.initial_rates,
+                            t_stop=self.t_stop)
+
+    def family(self):
+        """What the scene shares with others that differ only in q (None if unhashable)."""
+        key = (self.model, tuple(sorted(self.parameters.items())), self.topology, self.forces,
+               self.initial_rates, self.t_stop, len(self.q))
+        try:
+            hash(key)
+        except TypeError:
+            return None
+        return key
+
     def replace(self, **changes) -> "Scene":
         return replace(self, **changes)
 

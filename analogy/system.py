@@ -9,11 +9,11 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from .errors import InputError
-from .model import JointSpace, Model, check_square_symmetric, check_vector
+from .model import JointSpace, JointStack, Model, check_square_symmetric, check_vector, configuration_stack
 from .topology import Topology, topology as make_topology
 from .waveforms import Step, Waveform, parse_waveform
 
-__all__ = ["NodeSystem", "node_system"]
+__all__ = ["NodeSystem", "node_system", "node_systems"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -199,3 +199,82 @@ def node_system(model: Model | JointSpace, q: Sequence[float] | None = None, *,
     r0 = np.zeros(n) if initial_rates is None else initial_rates
     base_info.update(info or {})
     return NodeSystem(joint, top, ws, r0, float(t_stop), base_info)
+
+
+def _assembled(cls, **values):
+    """An instance of a frozen dataclass whose values were already checked as part of a stack."""
+    obj = object.__new__(cls)
+    for name, value in values.items():
+        object.__setattr__(obj, name, value)
+    return obj
+
+
+def _stack_fault(stack: JointStack, node_mass: np.ndarray) -> bool:
+    """True unless every configuration passes the checks of JointSpace and NodeSystem."""
+    m, b, k, g = stack
+    parts = [x for x in (m, b, k, g) if x is not None]
+    if not all(np.all(np.isfinite(x)) for x in parts):
+        return True
+    for x in (m, b, k):
+        if x is not None and not np.array_equal(x, np.swapaxes(x, 1, 2)):
+            return True         # rare (rounding in a model's own expressions): checked one by one
+    try:
+        np.linalg.cholesky(m)
+        np.linalg.cholesky(node_mass)
+    except np.linalg.LinAlgError:
+        return True
+    for x in (b, k):
+        if x is not None:
+            floor = -1e-12 * np.maximum(np.abs(x).max(axis=(1, 2)), 1.0)
+            if np.any(np.linalg.eigvalsh(x)[:, 0] < floor):
+                return True
+    return False
+
+
+def node_systems(model, qs, *, parameters: Mapping[str, float] | None = None,
+                 topology=None, forces=None, initial_rates=None, t_stop: float = 1.0,
+                 info: Mapping | None = None) -> list[NodeSystem]:
+    """:func:`node_system` at every row of *qs*, evaluated and checked as one stack.
+
+    The configurations share everything else (parameters, topology, forces, initial
+    rates, t_stop), so those are checked once, and M(q), B(q), K(q), G(q) are evaluated
+    vectorised over the rows and checked with stacked factorizations. The systems are
+    the ones :func:`node_system` builds, with the same numbers; a configuration that
+    fails a check raises the error :func:`node_system` gives for it, naming its row.
+    """
+    if not hasattr(model, "joint_stack"):
+        raise InputError("node_systems needs a Model or CompiledModel that depends on q")
+    q = configuration_stack(model.name, [str(c) for c in model.coordinates], qs)
+    kw = dict(parameters=parameters, topology=topology, forces=forces,
+              initial_rates=initial_rates, t_stop=t_stop, info=info)
+    first = node_system(model, list(q[0]), **kw)        # everything the rows share is checked here
+    stack = model.joint_stack(q, parameters)
+    top = first.topology
+    m, b, kk = (None if x is None else 0.5 * (x + np.swapaxes(x, 1, 2)) for x in stack[:3])
+    node_mass = top.node_matrix(m)
+    if _stack_fault(stack, node_mass):
+        for k, row in enumerate(q):                     # find the row, for its own message
+            try:
+                node_system(model, list(row), **kw)
+            except InputError as exc:
+                raise InputError(f"configuration {k + 1}: {exc}") from None
+    node_damping = top.node_matrix(b)
+    node_stiffness = None if kk is None else top.node_matrix(kk)
+    shared_forces = first.forces if stack.gravity is None else _waveforms(forces, first.dof)
+    values = dict(model.parameters, **(parameters or {}))
+    coords = [str(c) for c in model.coordinates]
+    r0, cmap, t_end = first.initial_rates, top.current_map, first.t_stop
+    out = []
+    for k, row in enumerate(q):
+        stiff = None if kk is None or not np.any(kk[k]) else kk[k]
+        grav = None if stack.gravity is None or not np.any(stack.gravity[k]) else stack.gravity[k]
+        ws = shared_forces if grav is None else \
+            tuple(w + (Step(-x),) if x else w for w, x in zip(shared_forces, grav))
+        joint = _assembled(JointSpace, mass_matrix=m[k], damping=b[k],
+                           stiffness=stiff, gravity=grav)
+        item_info = {"robot": model.name, "parameters": values,
+                     "configuration": dict(zip(coords, row.tolist())), **(info or {})}
+        out.append(_assembled(NodeSystem, joint=joint, topology=top, forces=ws, initial_rates=r0,
+                              t_stop=t_end, info=item_info, mass=node_mass[k], damping=node_damping[k],
+                              stiffness=None if stiff is None else node_stiffness[k], current_map=cmap))
+    return out

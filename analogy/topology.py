@@ -60,10 +60,10 @@ class Topology:
         return self.inverse.T
 
     def node_matrix(self, joint_matrix: np.ndarray) -> np.ndarray:
-        """The node-coordinate form T⁻ᵀ·X·T⁻¹ of a joint-space matrix X."""
+        """The node-coordinate form T⁻ᵀ·X·T⁻¹ of a joint-space matrix X, or of a stack (..., n, n)."""
         if self.exact_inverse:      # products with an exact inverse: no solves, same numbers
             z = self.inverse.T @ np.asarray(joint_matrix, dtype=float) @ self.inverse
-            return 0.5 * (z + z.T)
+            return 0.5 * (z + np.swapaxes(z, -1, -2))
         return congruence(joint_matrix, self.matrix)
 
     def joint_rates(self, node_voltages) -> np.ndarray:
@@ -82,7 +82,8 @@ class Topology:
 
 
 def congruence(x, t):
-    """Return T⁻ᵀ·X·T⁻¹ for numeric arrays or sympy matrices, without forming T⁻¹ for numbers."""
+    """Return T⁻ᵀ·X·T⁻¹ for numeric arrays (or stacks of them) or sympy matrices, without
+    forming T⁻¹ for numbers."""
     if not (isinstance(x, np.ndarray) and isinstance(t, np.ndarray)):
         import sympy as sp        # symbolic congruence; numbers never import sympy
         if isinstance(x, sp.MatrixBase) or isinstance(t, sp.MatrixBase):
@@ -90,8 +91,8 @@ def congruence(x, t):
             return sp.simplify(ti.T * sp.Matrix(x) * ti)
     t = np.asarray(t, dtype=float)
     y = np.linalg.solve(t.T, np.asarray(x, dtype=float))     # T⁻ᵀ X
-    z = np.linalg.solve(t.T, y.T).T                           # (T⁻ᵀ (T⁻ᵀ X)ᵀ)ᵀ = T⁻ᵀ X T⁻¹
-    return 0.5 * (z + z.T)
+    z = np.swapaxes(np.linalg.solve(t.T, np.swapaxes(y, -1, -2)), -1, -2)   # T⁻ᵀ X T⁻¹
+    return 0.5 * (z + np.swapaxes(z, -1, -2))
 
 
 @lru_cache(maxsize=64)
