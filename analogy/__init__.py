@@ -19,7 +19,7 @@ _EXPORTS = {
     "ROBOTS": "robots", "planar_serial": "robots", "point_mass_matrix": "robots", "robot": "robots",
     "SCENES": "scenes", "Scene": "scenes", "scene": "scenes",
     "solve_spice": "spice",
-    "NodeSystem": "system", "node_system": "system",
+    "NodeSystem": "system", "node_system": "system", "node_systems": "system",
     "Topology": "topology", "parallel": "topology", "serial": "topology",
     "Trajectory": "trajectory",
     "PWL": "waveforms", "Pulse": "waveforms", "Sine": "waveforms", "Step": "waveforms",

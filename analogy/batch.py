@@ -20,22 +20,42 @@ __all__ = ["batch_netlist", "solve_spice_group", "BatchResult", "run_batch"]
 def batch_netlist(systems: Sequence, preset="fast") -> str:
     """One netlist holding every system as an independent sub-circuit (prefix ``x<k>_``).
 
-    All systems must share t_stop, so that one ``.tran`` serves them all.
+    All systems must share t_stop, so that one ``.tran`` serves them all. Element values
+    come from one :func:`~analogy.elements.element_table` per size of system, and the
+    sources of systems that share forces and topology are derived once.
     """
-    from .netlist import analysis_lines, element_lines, source_lines
+    from .elements import element_table
+    from .netlist import analysis_lines, circuit_lines, source_lines, source_terms
     if not systems:
         raise InputError("a batch needs at least one system")
     t_stop = systems[0].t_stop
     if any(s.t_stop != t_stop for s in systems):
         raise InputError("systems in one ngspice run must share t_stop")
-    lines, ic, save = [f"* analogy batch of {len(systems)} independent circuits"], {}, []
+    parts: list = [None] * len(systems)
+    kinds: dict = {}
+    for k, s in enumerate(systems):
+        kinds.setdefault((s.dof, s.stiffness is None), []).append(k)
+    for (_, no_springs), idx in kinds.items():
+        stack = [np.stack([getattr(systems[k], a) for k in idx]) for a in ("mass", "damping")]
+        springs = None if no_springs else np.stack([systems[k].stiffness for k in idx])
+        table = element_table(*stack, springs)
+        values = []
+        for kind, _, _, coef in table:
+            v = coef if kind == "C" else np.divide(1.0, coef, out=np.zeros_like(coef), where=coef != 0)
+            values.append(np.where(coef != 0, v, np.nan).tolist())
+        for j, k in enumerate(idx):
+            parts[k] = [(kind, a, b, vs[j]) for (kind, a, b, _), vs in zip(table, values) if vs[j] == vs[j]]
+    lines, ic, save, sources = [f"* analogy batch of {len(systems)} independent circuits"], {}, [], {}
     for k, s in enumerate(systems):
         prefix = f"x{k}_"
-        body, aux = element_lines(s, prefix=prefix)
-        lines += body + source_lines(s, prefix=prefix)
-        nodes = [f"{prefix}{n}" for n in s.nodes]
+        key = (id(s.forces), id(s.current_map))
+        terms = sources.get(key)
+        if terms is None:
+            terms = sources[key] = source_terms(s)
+        lines += circuit_lines(parts[k], prefix)[0]
+        lines += source_lines(s, prefix=prefix, terms=terms)
+        nodes = [f"{prefix}n{j + 1}" for j in range(s.dof)]
         ic.update(zip(nodes, s.initial_voltages.tolist()))
-        ic.update(aux)
         save += [f"v({n})" for n in nodes]
     return "\n".join(lines + analysis_lines(preset, t_stop, ic, save) + [".end"]) + "\n"
 
@@ -117,42 +137,117 @@ class BatchResult:
 _MODELS: dict = {}
 
 
-def _system(item):
-    """A NodeSystem from a NodeSystem or a Scene (its model built once per process)."""
-    from .scenes import Scene
-    if not isinstance(item, Scene):
-        return item
-    key = item.model if isinstance(item.model, str) else id(item.model)
+def _model(sc):
+    """A scene's evaluable model, derived (or loaded compiled) once per process."""
+    key = sc.model if isinstance(sc.model, str) else id(sc.model)
     model = _MODELS.get(key)
     if model is None:
-        model = _MODELS[key] = item.numeric_model()
-    return item.system(model)
+        model = _MODELS[key] = sc.numeric_model()
+    return model
+
+
+def _system(item):
+    """A NodeSystem from a NodeSystem or a Scene."""
+    from .scenes import Scene
+    return item.system(_model(item)) if isinstance(item, Scene) else item
+
+
+def _systems(task) -> tuple[list, dict]:
+    """Build a task's systems; return them (None where a build failed) and the failures.
+
+    A task is ("family", scene, configurations), scenes that differ only in q and are
+    built as one stack, or ("items", [Scene or NodeSystem, ...]).
+    """
+    kind, *rest = task
+    if kind == "family":
+        base, qs = rest
+        try:
+            return base.systems(qs, _model(base)), {}
+        except AnalogyError:            # one row is bad: build row by row to keep the others
+            items = [base.replace(q=tuple(row)) for row in np.asarray(qs).tolist()]
+    else:
+        items = rest[0]
+    systems, failures = [], {}
+    for k, item in enumerate(items):
+        try:
+            systems.append(_system(item))
+        except AnalogyError as exc:
+            systems.append(None)
+            failures[k] = str(exc)
+    return systems, failures
+
+
+def _relative_errors(systems, volts, exact) -> np.ndarray:
+    """max |R − R_exact| / max |R_exact| per system, stacked over systems sharing a topology."""
+    errors = np.empty(len(systems))
+    by_map: dict = {}
+    for k, s in enumerate(systems):
+        by_map.setdefault(id(s.topology), []).append(k)
+    for idx in by_map.values():
+        top = systems[idx[0]].topology
+        r = top.joint_rates(np.stack([volts[k] for k in idx]))
+        ex = top.joint_rates(np.stack([exact[k] for k in idx]))
+        errors[idx] = np.abs(r - ex).max(axis=(1, 2)) / np.abs(ex).max(axis=(1, 2))
+    return errors
 
 
 def _group(payload):
-    """Worker: one ngspice run for a group, then each scene against its exact solution."""
-    items, preset, compare_exact, keep = payload
-    try:
-        systems = [_system(x) for x in items]
-    except AnalogyError as exc:
-        return [np.nan] * len(items), 0.0, str(exc), None, None
-    try:
-        t, volts, spice_seconds = solve_spice_group(systems, preset)
-    except AnalogyError as exc:
-        return [np.nan] * len(systems), 0.0, str(exc), None, None
-    errors, rates = [], []
-    from .exact import solve_exact_many
-    exact = solve_exact_many(systems, t) if compare_exact else [None] * len(systems)
-    for s, v, ev in zip(systems, volts, exact):
-        r = s.joint_rates(v)
-        if ev is not None:
-            ex = s.joint_rates(ev)
-            errors.append(float(np.max(np.abs(r - ex)) / np.max(np.abs(ex))))
-        else:
-            errors.append(np.nan)
+    """Worker: one ngspice run for a group, then each scene against its exact solution.
+
+    If the shared run fails, each scene is run alone, so that one scene's failure is
+    reported as its own and does not take the others with it.
+    """
+    task, preset, compare_exact, keep = payload
+    built, failures = _systems(task)
+    ok = [k for k, s in enumerate(built) if s is not None]
+    systems = [built[k] for k in ok]
+    errors = np.full(len(built), np.nan)
+    rates: list = [None] * len(built)
+    spice_seconds, t = 0.0, None
+    runs = [(ok, systems)]
+    while runs:
+        idx, group = runs.pop()
+        if not group:
+            continue
+        try:
+            t, volts, sec = solve_spice_group(group, preset)
+        except AnalogyError as exc:
+            if len(group) == 1:
+                failures[idx[0]] = str(exc)
+            else:
+                runs += [([k], [s]) for k, s in zip(idx, group)]
+            continue
+        spice_seconds += sec
+        if compare_exact:
+            from .exact import solve_exact_many
+            errors[idx] = _relative_errors(group, volts, solve_exact_many(group, t))
         if keep:
-            rates.append(r)
-    return errors, spice_seconds, None, (t if keep else None), (rates if keep else None)
+            for k, s, v in zip(idx, group, volts):
+                rates[k] = (t, s.joint_rates(v))
+    return errors, spice_seconds, failures, (rates if keep else None)
+
+
+def _tasks(systems, group_size: int) -> list[tuple[list[int], tuple]]:
+    """Split *systems* into (indices, task) groups of at most *group_size* with one time grid.
+
+    Scenes that differ only in their configuration form one family, built as a stack.
+    """
+    from .scenes import Scene
+    kinds: dict = {}
+    for k, item in enumerate(systems):
+        family = item.family() if isinstance(item, Scene) else None
+        key = ("family", family) if family is not None else ("grid", item.t_stop)
+        kinds.setdefault(key, []).append(k)
+    tasks = []
+    for (kind, _), idx in kinds.items():
+        for i in range(0, len(idx), group_size):
+            chunk = idx[i:i + group_size]
+            if kind == "family":
+                qs = np.array([systems[k].q for k in chunk], dtype=float).reshape(len(chunk), -1)
+                tasks.append((chunk, ("family", systems[chunk[0]], qs)))
+            else:
+                tasks.append((chunk, ("items", [systems[k] for k in chunk])))
+    return tasks
 
 
 def run_batch(systems: Sequence, preset="fast", *, group_size: int = 100, workers: int = 2,
@@ -160,23 +255,20 @@ def run_batch(systems: Sequence, preset="fast", *, group_size: int = 100, worker
               keep_rates: bool = False, progress: bool = False) -> BatchResult:
     """Simulate many systems: groups of *group_size* share one ngspice run.
 
-    *systems* holds NodeSystems or Scenes; Scenes are built in the workers (a
-    built-in model is derived and compiled once per worker process).
-    Systems are grouped by t_stop (their time grids must agree), split into groups,
-    and the groups are spread over *workers* processes (or any
+    *systems* holds NodeSystems or Scenes. Scenes are built in the workers; those that
+    differ only in q are built as one stack (:func:`analogy.system.node_systems`), and a
+    built-in model is derived and compiled once per worker process. Groups share one
+    time grid (t_stop) and are spread over *workers* processes (or any
     ``concurrent.futures.Executor``, e.g. a Dask client's ``get_executor()``).
     """
     p = get_preset(preset)
     if group_size < 1 or workers < 1:
         raise InputError("group_size and workers must be at least 1")
     start = _time.perf_counter()
-    by_grid: dict[float, list[int]] = {}
-    for k, s in enumerate(systems):
-        by_grid.setdefault(s.t_stop, []).append(k)
-    groups = [idx[i:i + group_size] for idx in by_grid.values() for i in range(0, len(idx), group_size)]
-    payloads = [([systems[k] for k in g], p, compare_exact, keep_rates) for g in groups]
+    tasks = _tasks(systems, group_size)
+    payloads = [(task, p, compare_exact, keep_rates) for _, task in tasks]
     own = None
-    if executor is None and workers > 1 and len(groups) > 1:
+    if executor is None and workers > 1 and len(tasks) > 1:
         import multiprocessing
         from concurrent.futures import ProcessPoolExecutor
         # forkserver: workers start clean, each with its own ngspice library state.
@@ -194,17 +286,16 @@ def run_batch(systems: Sequence, preset="fast", *, group_size: int = 100, worker
         errors = np.full(len(systems), np.nan)
         failures, times, rates = {}, [None] * len(systems), [None] * len(systems)
         spice_seconds = 0.0
-        for g, (errs, sec, failure, t, r) in zip(groups, outputs):
+        for (idx, _), (errs, sec, failed, kept) in zip(tasks, outputs):
             spice_seconds += sec
-            errors[g] = errs
-            for j, k in enumerate(g):
-                if failure:
-                    failures[k] = failure
-                if t is not None:
-                    times[k], rates[k] = t, r[j]
+            errors[idx] = errs
+            failures.update((idx[j], why) for j, why in failed.items())
+            for j, k in enumerate(idx):
+                if kept is not None and kept[j] is not None:
+                    times[k], rates[k] = kept[j]
     finally:
         if own is not None:
             own.shutdown()
     wall = _time.perf_counter() - start
-    return BatchResult(errors, wall, spice_seconds, failures,
+    return BatchResult(errors, wall, spice_seconds, dict(sorted(failures.items())),
                        times if keep_rates else None, rates if keep_rates else None)

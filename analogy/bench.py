@@ -303,7 +303,7 @@ def _solo_loop(payload):
     return _time.perf_counter() - start, worst, statistics.median(solves)
 
 
-def throughput(n: int = 10_000, preset: str = "fast", group_size: int = 250, workers: int = 2,
+def throughput(n: int = 10_000, preset: str = "fast", group_size: int = 100, workers: int = 2,
                baseline_n: int = 500, seed: int = 0) -> str:
     """Scenes per second: batched (grouped runs on *workers* processes) against per-scene paths.
 

@@ -80,7 +80,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("throughput", help="scenes per second: batched ngspice runs against per-scene loops")
     p.add_argument("-n", type=int, default=10_000, help="number of 2-DOF scenes (default 10000)")
     p.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
-    p.add_argument("--group-size", type=int, default=250, help="scenes per ngspice run (default 250)")
+    p.add_argument("--group-size", type=int, default=100, help="scenes per ngspice run (default 100)")
     p.add_argument("--baseline", type=int, default=500, help="scenes for the per-scene loops (default 500)")
     p.add_argument("--preset", default="fast")
     return parser

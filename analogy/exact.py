@@ -30,7 +30,7 @@ def phi1(x: np.ndarray) -> np.ndarray:
     x = x.astype(complex if np.iscomplexobj(x) else float, copy=False)
     out = np.ones_like(x)
     nz = x != 0
-    out[nz] = _expm1(x[nz]) / x[nz]
+    np.divide(_expm1(x), x, out=out, where=nz)
     return out
 
 
@@ -105,39 +105,44 @@ def _states(systems, t, n: int, springs: bool) -> np.ndarray:
     count, joints = len(systems), beta.shape[2]
     states = np.empty((count, t.size, vec.shape[1]))
     first = systems[0]
-    lam_ = lam[:, None, :]
+    lam_ = lam[:, :, None]          # time runs along the last axis: long inner loops
+    shared: dict = {}               # systems of one family share their forces
+    for i, s in enumerate(systems):
+        shared.setdefault(id(s.forces), (s.forces, []))[1].append(i)
     for t0, t1 in first.segments():
         last = t1 >= first.t_stop
         mask = (t >= t0) & ((t <= t1) if last else (t < t1))
-        tau = np.concatenate([t[mask] - t0, [t1 - t0]])[None, :, None]
+        tau = np.concatenate([t[mask] - t0, [t1 - t0]])
         x = lam_ * tau
-        zt = np.exp(x) * z[:, None, :]
+        zt = np.exp(x) * z[:, :, None]
         a_coef, b_coef, exps = np.zeros((count, joints)), np.zeros((count, joints)), []
-        for i, s in enumerate(systems):
-            for j, waves in enumerate(s.forces):
-                for w in waves:
-                    p = w.piece(t0, t1)
-                    a_coef[i, j] += p.a
-                    b_coef[i, j] += p.b
-                    exps += [(i, j, c, sv) for c, sv in zip(p.c, p.s)]
+        for forces, idx in shared.values():
+            pieces = [[w.piece(t0, t1) for w in ws] for ws in forces]
+            a_coef[idx] = [sum(p.a for p in ps) for ps in pieces]
+            b_coef[idx] = [sum(p.b for p in ps) for ps in pieces]
+            exps += [(idx, j, c, sv) for j, ps in enumerate(pieces) for p in ps for c, sv in zip(p.c, p.s)]
         # u(t0 + τ) = a + b·τ + Σ c·e^{sτ}, each term integrated exactly against e^{λτ}
         if np.any(a_coef):
-            zt = zt + np.einsum("smj,sj->sm", beta, a_coef)[:, None, :] * tau * phi1(x)
+            zt = zt + np.einsum("smj,sj->sm", beta, a_coef)[:, :, None] * tau * phi1(x)
         if np.any(b_coef):
-            zt = zt + np.einsum("smj,sj->sm", beta, b_coef)[:, None, :] * tau ** 2 * phi2(x)
+            zt = zt + np.einsum("smj,sj->sm", beta, b_coef)[:, :, None] * tau ** 2 * phi2(x)
         if exps and not np.iscomplexobj(zt):
             zt = zt.astype(complex)
-        for i, j, c, sv in exps:
-            zt[i] += (c * beta[i, :, j])[None, :] * _forced(lam_[i], sv, tau[0])
-        states[:, mask] = np.einsum("stm,sym->sty", zt, vec).real[:, :-1]
-        z = zt[:, -1, :]
+        for idx, j, c, sv in exps:
+            zt[idx] += (c * beta[idx, :, j])[:, :, None] * _forced(lam_[idx], sv, tau)
+        states[:, mask] = np.swapaxes((vec @ zt).real[:, :, :-1], 1, 2)
+        z = zt[:, :, -1]
     return states
 
 
 def _solve(systems, t) -> list[np.ndarray]:
     parts: dict = {}
+    breaks: dict = {}
     for k, s in enumerate(systems):
-        key = (s.dof, s.stiffness is not None, tuple(s.breakpoints().tolist()))
+        b = breaks.get((id(s.forces), s.t_stop))
+        if b is None:
+            b = breaks[id(s.forces), s.t_stop] = tuple(s.breakpoints().tolist())
+        key = (s.dof, s.stiffness is not None, b)
         parts.setdefault(key, []).append(k)
     out: list = [None] * len(systems)
     for (n, springs, _), idx in parts.items():

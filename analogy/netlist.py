@@ -80,15 +80,16 @@ def analysis_lines(preset: Preset, t_stop: float, ic: dict, save: Iterable[str],
     ]
 
 
-def source_lines(system, zero_tol: float = ZERO_TOL, prefix: str = "") -> list[str]:
+def source_lines(system, zero_tol: float = ZERO_TOL, prefix: str = "", terms=None) -> list[str]:
     """Current sources for the joint forces: node currents i = T⁻ᵀ·F.
 
     A joint whose column of T⁻ᵀ is +1 at one node and −1 at another (or at ground)
     is one source between the two, as an actuator acting across two links;
     otherwise it is one grounded source per node, scaled by the column entry.
+    *terms*, if given, are the system's :func:`source_terms`, derived once for many.
     """
-    return [f"I{prefix}{name} {_node(b, prefix)} {_node(a, prefix)} {spec}"
-            for name, a, b, spec in source_terms(system, zero_tol)]
+    terms = source_terms(system, zero_tol) if terms is None else terms
+    return [f"I{prefix}{name} {_node(b, prefix)} {_node(a, prefix)} {spec}" for name, a, b, spec in terms]
 
 
 def source_terms(system, zero_tol: float = ZERO_TOL) -> list[tuple[str, int, int, str]]:
