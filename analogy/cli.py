@@ -82,6 +82,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
     p.add_argument("--group-size", type=int, default=100, help="scenes per ngspice run (default 100)")
     p.add_argument("--baseline", type=int, default=500, help="scenes for the per-scene loops (default 500)")
+    p.add_argument("--repeats", type=int, default=3, help="turns of every path; medians are reported (default 3)")
     p.add_argument("--preset", default="fast")
     return parser
 
@@ -364,7 +365,8 @@ def _cmd_throughput(args) -> int:
     print(throughput(n=_positive(args.n, "-n"), preset=args.preset,
                      group_size=_positive(args.group_size, "--group-size"),
                      workers=_positive(args.workers, "--workers"),
-                     baseline_n=_positive(args.baseline, "--baseline")))
+                     baseline_n=_positive(args.baseline, "--baseline"),
+                     repeats=_positive(args.repeats, "--repeats")))
     return EXIT_OK
 
 

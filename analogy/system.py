@@ -248,16 +248,22 @@ def node_systems(model, qs, *, parameters: Mapping[str, float] | None = None,
     kw = dict(parameters=parameters, topology=topology, forces=forces,
               initial_rates=initial_rates, t_stop=t_stop, info=info)
     first = node_system(model, list(q[0]), **kw)        # everything the rows share is checked here
-    stack = model.joint_stack(q, parameters)
-    top = first.topology
-    m, b, kk = (None if x is None else 0.5 * (x + np.swapaxes(x, 1, 2)) for x in stack[:3])
-    node_mass = top.node_matrix(m)
-    if _stack_fault(stack, node_mass):
-        for k, row in enumerate(q):                     # find the row, for its own message
+    try:
+        stack = model.joint_stack(q, parameters)
+        top = first.topology
+        m, b, kk = (None if x is None else 0.5 * (x + np.swapaxes(x, 1, 2)) for x in stack[:3])
+        node_mass = top.node_matrix(m)
+        fault = _stack_fault(stack, node_mass)
+    except InputError:
+        fault = True
+    if fault:               # one at a time: a bad row raises its own error, with its number
+        out = []
+        for k, row in enumerate(q):
             try:
-                node_system(model, list(row), **kw)
+                out.append(node_system(model, list(row), **kw))
             except InputError as exc:
                 raise InputError(f"configuration {k + 1}: {exc}") from None
+        return out
     node_damping = top.node_matrix(b)
     node_stiffness = None if kk is None else top.node_matrix(kk)
     shared_forces = first.forces if stack.gravity is None else _waveforms(forces, first.dof)

@@ -1,0 +1,131 @@
+"""Many configurations at once: a stack of node systems holds the numbers of one-at-a-time evaluation."""
+
+import numpy as np
+import pytest
+import sympy as sp
+
+import analogy
+from analogy import batch
+from analogy.batch import batch_netlist, run_batch
+from analogy.elements import element_table, elements
+from analogy.model import Model
+from analogy.netlist import element_lines, source_lines
+from analogy.robots import robot
+from analogy.scenes import scene
+from analogy.system import node_system, node_systems
+
+EPS = np.finfo(float).eps
+
+
+def assert_rounding_equal(a, b):
+    """Equal up to a few roundings of the largest entry."""
+    np.testing.assert_allclose(a, b, rtol=0, atol=4 * EPS * np.abs(b).max())
+
+
+def sprung_model() -> Model:
+    """A symbolic 2-DOF model whose M, K and G all depend on q."""
+    q1, q2, k, g = sp.symbols("q1 q2 k g", real=True)
+    mass = sp.Matrix([[3 + sp.cos(q2), 0.5 * sp.cos(q2)], [0.5 * sp.cos(q2), 1]])
+    return Model("sprung", mass, damping=[1, 0.5], stiffness=sp.Matrix([[k, 0], [0, k * (1 + sp.sin(q1) ** 2)]]),
+                 gravity=[g * sp.cos(q1), 0], parameters={"k": 2.0, "g": 9.81}, coordinates=(q1, q2),
+                 topology="serial")
+
+
+CASES = {
+    "serial2": (lambda: scene("default").numeric_model(), 2, dict(forces=(1.0, 0.5), t_stop=10.0)),
+    "serial3": (lambda: robot("serial3"), 3, dict(forces=(1.0, "sine(0, 1, 2)", 0.0), t_stop=5.0)),
+    "parallel2": (lambda: robot("parallel2"), 2, dict(forces=(0.01, -0.005), t_stop=5.0)),
+    "sprung": (sprung_model, 2, dict(forces=(1.0, 0.0), initial_rates=(0.1, 0.0), t_stop=4.0)),
+}
+
+
+@pytest.mark.parametrize("name", CASES)
+def test_stack_equals_one_at_a_time(name):
+    """M', B', K', T⁻ᵀ, forces and R(0) of every row equal node_system's at that q."""
+    make, n, kw = CASES[name]
+    model = make()
+    centre = {"parallel2": [2.1, 0.9]}.get(name, np.zeros(n))
+    qs = centre + np.random.default_rng(5).uniform(-0.3, 0.3, (12, n))
+    for s, q in zip(node_systems(model, qs, **kw), qs):
+        ref = node_system(model, list(q), **kw)
+        for attr in ("mass", "damping", "current_map", "initial_rates"):
+            assert_rounding_equal(getattr(s, attr), getattr(ref, attr))
+        assert (s.stiffness is None) == (ref.stiffness is None)
+        if ref.stiffness is not None:
+            assert_rounding_equal(s.stiffness, ref.stiffness)
+        assert_rounding_equal(s.joint.mass_matrix, ref.joint.mass_matrix)
+        assert repr(s.forces) == repr(ref.forces) and s.t_stop == ref.t_stop and s.info == ref.info
+
+
+def test_gravity_enters_each_row_as_its_own_constant_force():
+    qs = np.array([[0.0, 0.2], [np.pi / 3, 0.2], [np.pi / 2, 0.2]])
+    systems = node_systems(sprung_model(), qs, forces=(1.0, 0.0))
+    # F_1 = 1 − g·cos q1: the step of −G sums with the applied step
+    for s, q in zip(systems, qs):
+        assert s.force([0.5])[0, 0] == pytest.approx(1.0 - 9.81 * np.cos(q[0]), abs=1e-12)
+    assert systems[2].joint.gravity is None or abs(systems[2].joint.gravity[0]) < 1e-12
+
+
+def test_joint_stack_of_symbolic_and_compiled_models_agree():
+    qs = np.random.default_rng(2).uniform(-np.pi, np.pi, (50, 3))
+    symbolic, compiled = robot("serial3"), scene("serial3").numeric_model()
+    a, b = symbolic.joint_stack(qs), compiled.joint_stack(qs)
+    assert a.mass_matrix.shape == (50, 3, 3) and a.damping.shape == (50, 3, 3)
+    assert_rounding_equal(a.mass_matrix, b.mass_matrix)
+    # constant entries (damping) broadcast over the rows
+    np.testing.assert_array_equal(b.damping, np.broadcast_to(compiled.joint_space(qs[0]).damping, (50, 3, 3)))
+
+
+def test_bad_row_is_named():
+    qs = [[2.1, 0.9], [2.0, 1.0], [0.0, np.pi]]       # the last cannot assemble
+    with pytest.raises(analogy.InputError, match=r"^configuration 3: model 'parallel2' does not assemble"):
+        node_systems(robot("parallel2"), qs, forces=(0.0, 0.0))
+    with pytest.raises(analogy.InputError, match="rows of 2 joint coordinates"):
+        node_systems(robot("serial2"), [[0.0, 0.1, 0.2]], forces=(0.0, 0.0))
+
+
+def test_element_table_of_a_stack_lists_each_systems_elements():
+    systems = scene("serial3").systems(np.random.default_rng(1).uniform(-2, 2, (6, 3)))
+    table = element_table(np.stack([s.mass for s in systems]), np.stack([s.damping for s in systems]))
+    for k, s in enumerate(systems):
+        listed = [(kind, a, b, c[k]) for kind, a, b, c in table if c[k] != 0]
+        assert listed == [(e.kind, e.a, e.b, e.coefficient) for e in elements(s)]
+
+
+def test_batch_netlist_is_each_systems_own_circuit_under_a_prefix():
+    """The stacked writer gives, line for line, what the one-system writer gives."""
+    systems = scene("serial2").systems(np.column_stack([np.zeros(5), np.linspace(-3, 3, 5)]))
+    systems.append(scene("serial3").replace(t_stop=10.0).system())
+    text = batch_netlist(systems)
+    expected = []
+    for k, s in enumerate(systems):
+        expected += element_lines(s, prefix=f"x{k}_")[0] + source_lines(s, prefix=f"x{k}_")
+    body = [ln for ln in text.splitlines()[1:] if not ln.startswith(".")]
+    assert body == expected
+
+
+@pytest.mark.ngspice
+def test_one_bad_configuration_fails_alone():
+    base = scene("parallel2").replace(t_stop=2.0)
+    qs = [(2.1, 0.9), (2.0, 1.0), (0.0, np.pi), (2.2, 0.8)]
+    res = run_batch([base.replace(q=q) for q in qs], "fast", workers=1)
+    assert list(res.failures) == [2] and "does not assemble" in res.failures[2]
+    assert np.all(res.errors[[0, 1, 3]] <= 1e-3) and np.isnan(res.errors[2])
+
+
+@pytest.mark.ngspice
+def test_a_failing_ngspice_run_is_retried_scene_by_scene(monkeypatch):
+    """If the shared run fails, each scene runs alone and only the culprit is a failure."""
+    run = batch.solve_spice_group
+    culprit = 0.7
+
+    def failing(systems, preset):
+        if any(s.info["configuration"]["q2"] == culprit for s in systems):
+            raise analogy.SpiceError("ngspice transient analysis failed: time step too small")
+        return run(systems, preset)
+
+    monkeypatch.setattr(batch, "solve_spice_group", failing)
+    items = [scene("default").replace(q=(0.0, q), t_stop=2.0) for q in (0.1, culprit, 1.3)]
+    res = run_batch(items, "fast", workers=1)
+    assert list(res.failures) == [1] and "time step too small" in res.failures[1]
+    assert np.all(res.errors[[0, 2]] <= 1e-3)
