@@ -262,14 +262,16 @@ class NgspiceSession:
 
 
 _SESSION: NgspiceSession | None = None
+_SESSION_LOCK = threading.Lock()
 
 
 def session() -> NgspiceSession:
-    """The process's ngspice session, loaded on first use."""
+    """The process's ngspice session, loaded on first use (once, whichever thread asks)."""
     global _SESSION
-    if _SESSION is None:
-        _SESSION = NgspiceSession()
-    return _SESSION
+    with _SESSION_LOCK:
+        if _SESSION is None:
+            _SESSION = NgspiceSession()
+        return _SESSION
 
 
 def run_netlist(netlist: str, vectors=None) -> dict[str, np.ndarray]:

@@ -49,3 +49,14 @@ def test_run_batch_over_workers_and_groups():
     assert not one.failures and not two.failures
     assert np.all(one.errors <= 1e-3) and np.all(two.errors <= 1e-3)
     assert one.throughput > 0
+
+
+@pytest.mark.ngspice
+def test_any_executor_runs_the_groups_with_the_same_results():
+    from concurrent.futures import ThreadPoolExecutor
+    items = [scene("default").replace(q=(0.0, q), t_stop=3.0) for q in np.linspace(-2, 2, 9)]
+    plain = run_batch(items, "fast", group_size=4, workers=1)
+    with ThreadPoolExecutor(2) as ex:       # the session's lock serialises ngspice
+        pooled = run_batch(items, "fast", group_size=4, executor=ex)
+    np.testing.assert_array_equal(pooled.errors, plain.errors)
+    assert not pooled.failures and np.all(pooled.errors <= 1e-3)
