@@ -21,8 +21,9 @@ def batch_netlist(systems: Sequence, preset="fast") -> str:
     """One netlist holding every system as an independent sub-circuit (prefix ``x<k>_``).
 
     All systems must share t_stop, so that one ``.tran`` serves them all. Element values
-    come from one :func:`~analogy.elements.element_table` per size of system, and the
-    sources of systems that share forces and topology are derived once.
+    come from one :func:`~analogy.elements.element_table` per size of system (with or
+    without springs), and the sources of systems that share forces and topology are
+    derived once.
     """
     from .elements import element_table
     from .netlist import analysis_lines, circuit_lines, source_lines, source_terms
@@ -80,7 +81,7 @@ class BatchResult:
     errors : ndarray
         Max |R_spice − R_exact| / peak |R_exact| per scene (NaN where not compared).
     failures : dict of int to str
-        Scenes whose group failed, with the reason.
+        Scenes that could not be built or simulated, with the reason.
     wall_time : float
         Seconds for the whole batch, workers included.
     rates : list of ndarray or None
@@ -191,6 +192,23 @@ def _relative_errors(systems, volts, exact) -> np.ndarray:
     return errors
 
 
+def _exact_errors(systems, volts, t, failures: dict, idx) -> np.ndarray:
+    """Errors against the exact solution, solved for the group at once or, if that
+    fails, system by system so that only a system the exact solver cannot take fails."""
+    from .exact import solve_exact_many
+    try:
+        return _relative_errors(systems, volts, solve_exact_many(systems, t))
+    except AnalogyError:
+        pass
+    errors = np.full(len(systems), np.nan)
+    for j, (s, v) in enumerate(zip(systems, volts)):
+        try:
+            errors[j] = _relative_errors([s], [v], solve_exact_many([s], t))[0]
+        except AnalogyError as exc:
+            failures[idx[j]] = f"exact solution: {exc}"
+    return errors
+
+
 def _group(payload):
     """Worker: one ngspice run for a group, then each scene against its exact solution.
 
@@ -203,7 +221,7 @@ def _group(payload):
     systems = [built[k] for k in ok]
     errors = np.full(len(built), np.nan)
     rates: list = [None] * len(built)
-    spice_seconds, t = 0.0, None
+    spice_seconds = 0.0
     runs = [(ok, systems)]
     while runs:
         idx, group = runs.pop()
@@ -219,8 +237,7 @@ def _group(payload):
             continue
         spice_seconds += sec
         if compare_exact:
-            from .exact import solve_exact_many
-            errors[idx] = _relative_errors(group, volts, solve_exact_many(group, t))
+            errors[idx] = _exact_errors(group, volts, t, failures, idx)
         if keep:
             for k, s, v in zip(idx, group, volts):
                 rates[k] = (t, s.joint_rates(v))

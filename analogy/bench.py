@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import AnalogyError
+from .errors import AnalogyError, InputError
 
 __all__ = ["BenchRow", "BenchResult", "bench", "bench_scenes", "throughput", "spice_grid", "ode_grid"]
 
@@ -319,6 +319,8 @@ def throughput(n: int = 10_000, preset: str = "fast", group_size: int = 100, wor
 
     from .batch import run_batch
     from .scenes import scene
+    if min(n, baseline_n, repeats, workers, group_size) < 1:
+        raise InputError("n, baseline_n, repeats, workers and group_size must be at least 1")
     base = scene("default")
     q2 = np.random.default_rng(seed).uniform(-np.pi, np.pi, n)
     items = [base.replace(q=(0.0, float(x))) for x in q2]
@@ -338,7 +340,9 @@ def throughput(n: int = 10_000, preset: str = "fast", group_size: int = 100, wor
         for key, w in (("batched", workers), ("one", 1)):
             res = run_batch(items, preset, group_size=group_size, workers=w)
             rates[key].append(res.throughput)
-            worst[key] = max(worst[key], float(np.nanmax(res.errors)))
+            # a run with no finite error (all failed) makes the worst error NaN, not hidden
+            ok = res.errors[np.isfinite(res.errors)]
+            worst[key] = max(worst[key], float(ok.max())) if ok.size else float("nan")
             failed += len(res.failures)
     med = {k: statistics.median(v) for k, v in rates.items()}
     ratio = statistics.median(b / p for b, p in zip(rates["batched"], rates["pyspice"]))

@@ -95,8 +95,10 @@ def configuration_stack(name: str, coordinates, qs) -> np.ndarray:
         q = np.array(qs, dtype=float)
     except (TypeError, ValueError):
         raise InputError("configurations must be numbers, one row per configuration") from None
-    q = q.reshape(len(q), -1) if q.ndim == 1 and len(coordinates) == 1 else q
-    if q.ndim != 2 or q.shape[1] != len(coordinates) or not len(q):
+    if q.ndim >= 1 and not len(q):
+        raise InputError("at least one configuration is needed")
+    q = q.reshape(len(q), 1) if q.ndim == 1 and len(coordinates) == 1 else q
+    if q.ndim != 2 or q.shape[1] != len(coordinates):
         raise InputError(f"model {name!r} needs rows of {len(coordinates)} joint coordinates, "
                          f"got an array of shape {q.shape}")
     if not np.all(np.isfinite(q)):
@@ -310,7 +312,7 @@ class Model:
 
         The values are not checked; :func:`analogy.system.node_systems` checks the stack.
         """
-        fns, qnames, pnames = self._compiled or self._compile()
+        fns, qnames, _ = self._compiled or self._compile()
         q = configuration_stack(self.name, qnames, qs)
         args = list(q.T) + evaluation_arguments(self.name, (), self.parameters, None, parameters)
         return JointStack(*(evaluate_entries(self.name, f, args, shape, len(q))

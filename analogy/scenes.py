@@ -6,6 +6,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable, Mapping, Sequence
 
+import numpy as np
+
 from .errors import InputError
 from .model import Model
 from .system import NodeSystem, node_system
@@ -72,12 +74,19 @@ class Scene:
                             t_stop=self.t_stop)
 
     def family(self):
-        """What the scene shares with others that differ only in q (None if unhashable)."""
-        key = (self.model, tuple(sorted(self.parameters.items())), self.topology, self.forces,
-               self.initial_rates, self.t_stop, len(self.q))
+        """What the scene shares with scenes that differ only in q, as a hashable key.
+
+        None when the scene cannot join a stack: q is not a flat tuple of real numbers,
+        or a field (a matrix topology, say) is unhashable.
+        """
+        if not all(isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(x, bool)
+                   for x in self.q):
+            return None
         try:
+            key = (self.model, tuple(sorted(self.parameters.items())), self.topology, self.forces,
+                   self.initial_rates, self.t_stop, len(self.q))
             hash(key)
-        except TypeError:
+        except (TypeError, AttributeError):
             return None
         return key
 

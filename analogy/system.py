@@ -212,7 +212,7 @@ def _assembled(cls, **values):
 def _stack_fault(stack: JointStack, node_mass: np.ndarray) -> bool:
     """True unless every configuration passes the checks of JointSpace and NodeSystem."""
     m, b, k, g = stack
-    parts = [x for x in (m, b, k, g) if x is not None]
+    parts = [x for x in (m, b, k, g, node_mass) if x is not None]
     if not all(np.all(np.isfinite(x)) for x in parts):
         return True
     for x in (m, b, k):
@@ -239,15 +239,20 @@ def node_systems(model, qs, *, parameters: Mapping[str, float] | None = None,
     The configurations share everything else (parameters, topology, forces, initial
     rates, t_stop), so those are checked once, and M(q), B(q), K(q), G(q) are evaluated
     vectorised over the rows and checked with stacked factorizations. The systems are
-    the ones :func:`node_system` builds, with the same numbers; a configuration that
-    fails a check raises the error :func:`node_system` gives for it, naming its row.
+    the ones :func:`node_system` builds, to rounding (the same numbers on the platforms
+    tested); a configuration that fails a check raises the error :func:`node_system`
+    gives for it, naming its row. The systems' matrices are read-only views of the stack.
     """
     if not hasattr(model, "joint_stack"):
-        raise InputError("node_systems needs a Model or CompiledModel that depends on q")
+        raise InputError("node_systems needs a Model or CompiledModel, not a JointSpace")
     q = configuration_stack(model.name, [str(c) for c in model.coordinates], qs)
     kw = dict(parameters=parameters, topology=topology, forces=forces,
               initial_rates=initial_rates, t_stop=t_stop, info=info)
-    first = node_system(model, list(q[0]), **kw)        # everything the rows share is checked here
+    try:
+        model.joint_space(q[0].tolist(), parameters)
+    except InputError as exc:
+        raise InputError(f"configuration 1: {exc}") from None
+    first = node_system(model, q[0].tolist(), **kw)     # everything the rows share is checked here
     try:
         stack = model.joint_stack(q, parameters)
         top = first.topology
@@ -260,12 +265,15 @@ def node_systems(model, qs, *, parameters: Mapping[str, float] | None = None,
         out = []
         for k, row in enumerate(q):
             try:
-                out.append(node_system(model, list(row), **kw))
+                out.append(node_system(model, row.tolist(), **kw))
             except InputError as exc:
                 raise InputError(f"configuration {k + 1}: {exc}") from None
         return out
     node_damping = top.node_matrix(b)
     node_stiffness = None if kk is None else top.node_matrix(kk)
+    for x in (m, b, kk, node_mass, node_damping, node_stiffness):
+        if x is not None:
+            x.setflags(write=False)     # rows are views: no system may change another
     shared_forces = first.forces if stack.gravity is None else _waveforms(forces, first.dof)
     values = dict(model.parameters, **(parameters or {}))
     coords = [str(c) for c in model.coordinates]
@@ -278,9 +286,9 @@ def node_systems(model, qs, *, parameters: Mapping[str, float] | None = None,
             tuple(w + (Step(-x),) if x else w for w, x in zip(shared_forces, grav))
         joint = _assembled(JointSpace, mass_matrix=m[k], damping=b[k],
                            stiffness=stiff, gravity=grav)
-        item_info = {"robot": model.name, "parameters": values,
+        item_info = {"robot": model.name, "parameters": dict(values),
                      "configuration": dict(zip(coords, row.tolist())), **(info or {})}
-        out.append(_assembled(NodeSystem, joint=joint, topology=top, forces=ws, initial_rates=r0,
+        out.append(_assembled(NodeSystem, joint=joint, topology=top, forces=ws, initial_rates=r0.copy(),
                               t_stop=t_end, info=item_info, mass=node_mass[k], damping=node_damping[k],
                               stiffness=None if stiff is None else node_stiffness[k], current_map=cmap))
     return out

@@ -22,12 +22,18 @@ def assert_rounding_equal(a, b):
     np.testing.assert_allclose(a, b, rtol=0, atol=4 * EPS * np.abs(b).max())
 
 
-def sprung_model() -> Model:
-    """A symbolic 2-DOF model whose M, K and G all depend on q."""
+def sprung_model(skew: float = 0.0) -> Model:
+    """A symbolic 2-DOF model whose M, K and G depend on q; K and G vanish at q1 = 0.
+
+    *skew* makes M symmetric only to within a relative *skew*, as rounding in a
+    model's own expressions can.
+    """
     q1, q2, k, g = sp.symbols("q1 q2 k g", real=True)
-    mass = sp.Matrix([[3 + sp.cos(q2), 0.5 * sp.cos(q2)], [0.5 * sp.cos(q2), 1]])
-    return Model("sprung", mass, damping=[1, 0.5], stiffness=sp.Matrix([[k, 0], [0, k * (1 + sp.sin(q1) ** 2)]]),
-                 gravity=[g * sp.cos(q1), 0], parameters={"k": 2.0, "g": 9.81}, coordinates=(q1, q2),
+    m12 = 0.5 * sp.cos(q2)
+    mass = sp.Matrix([[3 + sp.cos(q2), m12], [m12 * (1 + skew), 1]])
+    spring = k * sp.sin(q1) ** 2
+    return Model("sprung", mass, damping=[1, 0.5], stiffness=sp.Matrix([[spring, 0], [0, 2 * spring]]),
+                 gravity=[g * sp.sin(q1), 0], parameters={"k": 2.0, "g": 9.81}, coordinates=(q1, q2),
                  topology="serial")
 
 
@@ -57,13 +63,44 @@ def test_stack_equals_one_at_a_time(name):
         assert repr(s.forces) == repr(ref.forces) and s.t_stop == ref.t_stop and s.info == ref.info
 
 
-def test_gravity_enters_each_row_as_its_own_constant_force():
+def test_gravity_and_springs_follow_each_row_and_vanish_where_they_vanish():
     qs = np.array([[0.0, 0.2], [np.pi / 3, 0.2], [np.pi / 2, 0.2]])
     systems = node_systems(sprung_model(), qs, forces=(1.0, 0.0))
-    # F_1 = 1 − g·cos q1: the step of −G sums with the applied step
+    # F_1 = 1 − g·sin q1: the step of −G sums with the applied step
     for s, q in zip(systems, qs):
-        assert s.force([0.5])[0, 0] == pytest.approx(1.0 - 9.81 * np.cos(q[0]), abs=1e-12)
-    assert systems[2].joint.gravity is None or abs(systems[2].joint.gravity[0]) < 1e-12
+        assert s.force([0.5])[0, 0] == pytest.approx(1.0 - 9.81 * np.sin(q[0]), abs=1e-12)
+    assert systems[0].joint.gravity is None and systems[0].stiffness is None
+    assert systems[1].stiffness is not None and [e.kind for e in elements(systems[1])].count("L") == 2
+    assert elements(systems[0]) == elements(node_system(sprung_model(), [0.0, 0.2], forces=(1.0, 0.0)))
+
+
+def test_nearly_symmetric_stack_is_built_one_at_a_time_with_the_same_result():
+    model, qs = sprung_model(skew=1e-13), [[0.1, 0.2], [0.3, -1.0]]
+    for s, q in zip(node_systems(model, qs, forces=(1.0, 0.0)), qs):
+        ref = node_system(model, q, forces=(1.0, 0.0))
+        np.testing.assert_array_equal(s.mass, ref.mass)
+        assert s.info["configuration"] == {"q1": q[0], "q2": q[1]}
+        assert all(type(v) is float for v in s.info["configuration"].values())
+
+
+def test_stack_shapes_for_one_joint_and_for_no_coordinates():
+    q = sp.Symbol("q", real=True)
+    pendulum = Model("pendulum", sp.Matrix([[2 + sp.cos(q)]]), damping=[1], coordinates=(q,))
+    systems = node_systems(pendulum, [0.0, 1.0, 2.0], forces=(1.0,))      # a flat list of q
+    assert [float(s.mass[0, 0]) for s in systems] == [2 + np.cos(x) for x in (0.0, 1.0, 2.0)]
+    fixed = Model("fixed", [[2.0, 0.5], [0.5, 1.0]], damping=[1, 1])
+    assert len(node_systems(fixed, np.zeros((3, 0)), forces=(1.0, 0.0))) == 3
+    with pytest.raises(analogy.InputError, match="at least one configuration"):
+        node_systems(pendulum, [], forces=(1.0,))
+
+
+def test_rows_of_a_stack_cannot_change_each_other():
+    systems = scene("default").systems([[0.0, 0.1], [0.0, 0.2]])
+    with pytest.raises(ValueError):
+        systems[0].mass[0, 0] = 1.0
+    systems[0].initial_rates[0] = 5.0
+    systems[0].info["parameters"]["l1"] = 7.0
+    assert systems[1].initial_rates[0] == 0.0 and systems[1].info["parameters"]["l1"] == 1.0
 
 
 def test_joint_stack_of_symbolic_and_compiled_models_agree():
@@ -80,6 +117,10 @@ def test_bad_row_is_named():
     qs = [[2.1, 0.9], [2.0, 1.0], [0.0, np.pi]]       # the last cannot assemble
     with pytest.raises(analogy.InputError, match=r"^configuration 3: model 'parallel2' does not assemble"):
         node_systems(robot("parallel2"), qs, forces=(0.0, 0.0))
+    with pytest.raises(analogy.InputError, match=r"^configuration 1: model 'parallel2' does not assemble"):
+        node_systems(robot("parallel2"), qs[::-1], forces=(0.0, 0.0))
+    with pytest.raises(analogy.InputError, match=r"^forces must have 2 entries"):    # shared: no row
+        node_systems(robot("parallel2"), qs[:2], forces=(0.0,))
     with pytest.raises(analogy.InputError, match="rows of 2 joint coordinates"):
         node_systems(robot("serial2"), [[0.0, 0.1, 0.2]], forces=(0.0, 0.0))
 
@@ -111,6 +152,32 @@ def test_one_bad_configuration_fails_alone():
     res = run_batch([base.replace(q=q) for q in qs], "fast", workers=1)
     assert list(res.failures) == [2] and "does not assemble" in res.failures[2]
     assert np.all(res.errors[[0, 1, 3]] <= 1e-3) and np.isnan(res.errors[2])
+
+
+@pytest.mark.ngspice
+def test_a_malformed_configuration_fails_alone():
+    items = [scene("default").replace(q=q, t_stop=2.0) for q in ((0.0, 0.1), ("x", 0.2), ((0.0, 0.1),))]
+    res = run_batch(items, "fast", workers=1)
+    assert sorted(res.failures) == [1, 2] and "list of numbers" in res.failures[1]
+    assert "needs 2 joint coordinates" in res.failures[2]
+    assert res.errors[0] <= 1e-3
+
+
+@pytest.mark.ngspice
+def test_a_system_the_exact_solver_cannot_take_fails_alone(monkeypatch):
+    from analogy import exact
+    solve = exact.solve_exact_many
+
+    def refusing(systems, t):
+        if any(s.info["configuration"]["q2"] == 0.7 for s in systems):
+            raise analogy.SimulationError("the modes are nearly defective")
+        return solve(systems, t)
+
+    monkeypatch.setattr(exact, "solve_exact_many", refusing)
+    items = [scene("default").replace(q=(0.0, q), t_stop=2.0) for q in (0.1, 0.7, 1.3)]
+    res = run_batch(items, "fast", workers=1)
+    assert list(res.failures) == [1] and "nearly defective" in res.failures[1]
+    assert np.all(res.errors[[0, 2]] <= 1e-3) and np.isnan(res.errors[1])
 
 
 @pytest.mark.ngspice
