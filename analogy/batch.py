@@ -267,6 +267,26 @@ def _tasks(systems, group_size: int) -> list[tuple[list[int], tuple]]:
     return tasks
 
 
+def _worker_context():
+    """How worker processes start.
+
+    Fork when this process runs no other thread: workers start at once, with the
+    modules and models already loaded, and the caller's script is not imported again
+    (a lab without an ``if __name__ == "__main__"`` guard still works). Forking a
+    process with threads can deadlock, so then a fork server starts them clean.
+    """
+    import multiprocessing
+    import threading
+    if threading.active_count() == 1 and "fork" in multiprocessing.get_all_start_methods():
+        return multiprocessing.get_context("fork")
+    ctx = multiprocessing.get_context("forkserver")
+    # Imports done once in the server are shared by every worker forked from it.
+    ctx.set_forkserver_preload(["analogy.batch", "analogy.spice", "analogy.exact",
+                                "analogy.netlist", "analogy.compiled", "analogy.scenes",
+                                "PySpice.Spice.NgSpice.Shared"])
+    return ctx
+
+
 def run_batch(systems: Sequence, preset="fast", *, group_size: int = 100, workers: int = 2,
               executor: Executor | None = None, compare_exact: bool = True,
               keep_rates: bool = False, progress: bool = False) -> BatchResult:
@@ -286,15 +306,8 @@ def run_batch(systems: Sequence, preset="fast", *, group_size: int = 100, worker
     payloads = [(task, p, compare_exact, keep_rates) for _, task in tasks]
     own = None
     if executor is None and workers > 1 and len(tasks) > 1:
-        import multiprocessing
         from concurrent.futures import ProcessPoolExecutor
-        # forkserver: workers start clean, each with its own ngspice library state.
-        ctx = multiprocessing.get_context("forkserver")
-        # Imports done once in the server are shared by every worker forked from it.
-        ctx.set_forkserver_preload(["analogy.batch", "analogy.spice", "analogy.exact",
-                                    "analogy.netlist", "analogy.compiled", "analogy.scenes",
-                                    "PySpice.Spice.NgSpice.Shared"])
-        executor = own = ProcessPoolExecutor(workers, mp_context=ctx)
+        executor = own = ProcessPoolExecutor(workers, mp_context=_worker_context())
     try:
         outputs = executor.map(_group, payloads) if executor is not None else map(_group, payloads)
         if progress:
