@@ -25,7 +25,7 @@ def batch_netlist(systems: Sequence, preset="fast") -> str:
     without springs), and the sources of systems that share forces and topology are
     derived once.
     """
-    from .elements import element_table
+    from .elements import element_table, spice_value
     from .netlist import analysis_lines, circuit_lines, source_lines, source_terms
     if not systems:
         raise InputError("a batch needs at least one system")
@@ -37,15 +37,13 @@ def batch_netlist(systems: Sequence, preset="fast") -> str:
     for k, s in enumerate(systems):
         kinds.setdefault((s.dof, s.stiffness is None), []).append(k)
     for (_, no_springs), idx in kinds.items():
-        stack = [np.stack([getattr(systems[k], a) for k in idx]) for a in ("mass", "damping")]
-        springs = None if no_springs else np.stack([systems[k].stiffness for k in idx])
-        table = element_table(*stack, springs)
-        values = []
-        for kind, _, _, coef in table:
-            v = coef if kind == "C" else np.divide(1.0, coef, out=np.zeros_like(coef), where=coef != 0)
-            values.append(np.where(coef != 0, v, np.nan).tolist())
+        def stack(attr):
+            return np.stack([getattr(systems[k], attr) for k in idx])
+        table = element_table(stack("mass"), stack("damping"), None if no_springs else stack("stiffness"))
+        # per element: its SPICE value and whether it is present, in every system of the stack
+        columns = [(kind, a, b, spice_value(kind, c).tolist(), (c != 0).tolist()) for kind, a, b, c in table]
         for j, k in enumerate(idx):
-            parts[k] = [(kind, a, b, vs[j]) for (kind, a, b, _), vs in zip(table, values) if vs[j] == vs[j]]
+            parts[k] = [(kind, a, b, values[j]) for kind, a, b, values, present in columns if present[j]]
     lines, ic, save, sources = [f"* analogy batch of {len(systems)} independent circuits"], {}, [], {}
     for k, s in enumerate(systems):
         prefix = f"x{k}_"
@@ -55,7 +53,7 @@ def batch_netlist(systems: Sequence, preset="fast") -> str:
             terms = sources[key] = source_terms(s)
         lines += circuit_lines(parts[k], prefix)[0]
         lines += source_lines(s, prefix=prefix, terms=terms)
-        nodes = [f"{prefix}n{j + 1}" for j in range(s.dof)]
+        nodes = [f"{prefix}{n}" for n in s.nodes]
         ic.update(zip(nodes, s.initial_voltages.tolist()))
         save += [f"v({n})" for n in nodes]
     return "\n".join(lines + analysis_lines(preset, t_stop, ic, save) + [".end"]) + "\n"

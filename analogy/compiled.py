@@ -9,7 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .model import JointSpace, JointStack, configuration_stack, evaluate_entries, evaluation_arguments
+from .model import (JointSpace, JointStack, configuration_stack, evaluate_entries, evaluation_arguments,
+                    part_shapes)
 
 __all__ = ["CompiledModel", "cache_dir", "compile_model", "load_compiled"]
 
@@ -66,8 +67,8 @@ class CompiledModel:
         return JointStack(*(evaluate_entries(self.name, f, args, shape, len(q)) for f, shape in self._parts()))
 
     def _parts(self):
-        n, m = self.dof, self._m
-        return ((m.mass_matrix, (n, n)), (m.damping, (n, n)), (m.stiffness, (n, n)), (m.gravity, (n,)))
+        m = self._m
+        return zip((m.mass_matrix, m.damping, m.stiffness, m.gravity), part_shapes(self.dof))
 
 
 def _module_source(model) -> str:

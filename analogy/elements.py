@@ -6,7 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Element", "elements", "element_table", "mp_capacitance", "laplacian_split", "ZERO_TOL"]
+__all__ = ["Element", "elements", "element_table", "spice_value", "mp_capacitance", "laplacian_split",
+           "ZERO_TOL"]
 
 #: Default relative tolerance below which an element value counts as zero.
 ZERO_TOL = 1e-12
@@ -95,6 +96,17 @@ def element_table(mass, damping, stiffness=None, zero_tol: float = ZERO_TOL):
     return table
 
 
+def spice_value(kind: str, coefficient):
+    """The SPICE value of a mechanical coefficient: C = mass, R = 1/damping, L = 1/stiffness.
+
+    Works on arrays; a zero coefficient (no element) gives 0.
+    """
+    c = np.asarray(coefficient, dtype=float)
+    if kind == "C":
+        return c
+    return np.divide(1.0, c, out=np.zeros_like(c), where=c != 0)
+
+
 def elements(system, zero_tol: float = ZERO_TOL) -> list[Element]:
     """All non-zero elements of *system*: per node then per pair, C then R then L.
 
@@ -102,6 +114,6 @@ def elements(system, zero_tol: float = ZERO_TOL) -> list[Element]:
     (an MP model whose mass opposes the relative acceleration of its terminals).
     """
     k = None if system.stiffness is None else system.stiffness[None]
-    return [Element(kind, a, b, float(c[0] if kind == "C" else 1.0 / c[0]), float(c[0]))
+    return [Element(kind, a, b, float(spice_value(kind, c[0])), float(c[0]))
             for kind, a, b, c in element_table(system.mass[None], system.damping[None], k, zero_tol)
             if c[0] != 0.0]

@@ -10,7 +10,7 @@ import numpy as np
 from .errors import InputError
 
 __all__ = ["Model", "JointSpace", "JointStack", "check_square_symmetric", "check_vector",
-           "evaluation_arguments", "configuration_stack", "evaluate_entries"]
+           "evaluation_arguments", "configuration_stack", "evaluate_entries", "part_shapes"]
 
 
 def check_square_symmetric(name: str, matrix, *, n: int | None = None,
@@ -105,6 +105,11 @@ def configuration_stack(name: str, coordinates, qs) -> np.ndarray:
         raise InputError(f"configuration {int(np.argwhere(~np.isfinite(q))[0, 0]) + 1} "
                          "has a non-finite entry")
     return q
+
+
+def part_shapes(n: int) -> tuple:
+    """Shapes of M, B, K and G for *n* joints."""
+    return ((n, n), (n, n), (n, n), (n,))
 
 
 def evaluate_entries(name: str, fn, args, shape, count: int | None = None):
@@ -288,8 +293,7 @@ class Model:
         return self._compiled
 
     def _shapes(self):
-        n = self.dof
-        return ((n, n), (n, n), (n, n), (n,))
+        return part_shapes(self.dof)
 
     def joint_space(self, q: Sequence[float] | None = None,
                     parameters: Mapping[str, float] | None = None) -> JointSpace:

@@ -53,7 +53,7 @@ def circuit_lines(parts, prefix: str = "", realizable_from=None) -> tuple[list[s
     lines, ic = [], {}
     for kind, na, nb, value in parts:
         name = f"{kind}{prefix}{na}" if nb == 0 else f"{kind}{prefix}{na}_{nb}"
-        a, b = f"{prefix}n{na}", _node(nb, prefix)
+        a, b = _node(na, prefix), _node(nb, prefix)
         if realizable_from is None or value >= 0:
             lines.append(f"{name} {a} {b} {_num(value)}")
             continue

@@ -179,6 +179,11 @@ def node_system(model: Model | JointSpace, q: Sequence[float] | None = None, *,
     t_stop : float
         End of the simulated interval.
     """
+    return _mapped(*_evaluated(model, q, parameters, topology), forces, initial_rates, t_stop, info)
+
+
+def _evaluated(model, q, parameters, topology):
+    """The joint space of *model* at *q*, the topology to use and the report fields."""
     if isinstance(model, Model) or hasattr(model, "joint_space"):   # Model or CompiledModel
         joint = model.joint_space(q, parameters)
         top_spec = topology if topology is not None else model.topology
@@ -191,6 +196,11 @@ def node_system(model: Model | JointSpace, q: Sequence[float] | None = None, *,
         base_info = {"robot": "custom", "parameters": {}, "configuration": {}}
     else:
         raise InputError("model must be an analogy Model or JointSpace")
+    return joint, top_spec, base_info
+
+
+def _mapped(joint, top_spec, base_info, forces, initial_rates, t_stop, info) -> NodeSystem:
+    """A joint space mapped to node coordinates, with its forces and initial rates."""
     n = joint.dof
     top = make_topology(top_spec, n)
     ws = _waveforms(forces, n)
@@ -249,10 +259,10 @@ def node_systems(model, qs, *, parameters: Mapping[str, float] | None = None,
     kw = dict(parameters=parameters, topology=topology, forces=forces,
               initial_rates=initial_rates, t_stop=t_stop, info=info)
     try:
-        model.joint_space(q[0].tolist(), parameters)
+        evaluated = _evaluated(model, q[0].tolist(), parameters, topology)
     except InputError as exc:
         raise InputError(f"configuration 1: {exc}") from None
-    first = node_system(model, q[0].tolist(), **kw)     # everything the rows share is checked here
+    first = _mapped(*evaluated, forces, initial_rates, t_stop, info)    # checks what the rows share
     try:
         stack = model.joint_stack(q, parameters)
         top = first.topology
@@ -275,7 +285,6 @@ def node_systems(model, qs, *, parameters: Mapping[str, float] | None = None,
         if x is not None:
             x.setflags(write=False)     # rows are views: no system may change another
     shared_forces = first.forces if stack.gravity is None else _waveforms(forces, first.dof)
-    values = dict(model.parameters, **(parameters or {}))
     coords = [str(c) for c in model.coordinates]
     r0, cmap, t_end = first.initial_rates, top.current_map, first.t_stop
     out = []
@@ -286,8 +295,8 @@ def node_systems(model, qs, *, parameters: Mapping[str, float] | None = None,
             tuple(w + (Step(-x),) if x else w for w, x in zip(shared_forces, grav))
         joint = _assembled(JointSpace, mass_matrix=m[k], damping=b[k],
                            stiffness=stiff, gravity=grav)
-        item_info = {"robot": model.name, "parameters": dict(values),
-                     "configuration": dict(zip(coords, row.tolist())), **(info or {})}
+        item_info = {**first.info, "parameters": dict(first.info["parameters"]),
+                     "configuration": dict(zip(coords, row.tolist()))}
         out.append(_assembled(NodeSystem, joint=joint, topology=top, forces=ws, initial_rates=r0.copy(),
                               t_stop=t_end, info=item_info, mass=node_mass[k], damping=node_damping[k],
                               stiffness=None if stiff is None else node_stiffness[k], current_map=cmap))
