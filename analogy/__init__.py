@@ -7,22 +7,30 @@ __version__ = "0.1.0"
 # Public names and the module that defines each. Modules load on first use, so a
 # netlist-only job never imports SPICE, the ODE integrators or matplotlib.
 _EXPORTS = {
-    "Comparison": "compare", "compare": "compare",
-    "Element": "elements", "elements": "elements", "mp_capacitance": "elements",
+    "Comparison": "results.comparison", "compare": "results.comparison",
+    "compare_many": "results.comparison",
+    "Trajectory": "results.trajectory", "SolverStats": "results.trajectory",
+    "relative_error": "results.metrics",
+    "Element": "circuit.elements", "elements": "circuit.elements", "mp_capacitance": "circuit.elements",
+    "Circuit": "circuit.description", "circuit": "circuit.description",
     "AnalogyError": "errors", "InputError": "errors", "SimulationError": "errors",
-    "SpiceError": "errors",
-    "solve_exact": "exact",
-    "JointSpace": "model", "Model": "model",
-    "netlist": "netlist",
-    "solve_ode": "ode",
+    "SpiceError": "errors", "AccuracyError": "errors",
+    "solve_exact": "solvers.exact", "solve_ode": "solvers.ode", "solve_spice": "solvers.spice",
+    "solve_reference": "solvers.reference", "solver": "solvers.registry", "SOLVER_NAMES": "solvers.registry",
+    "JointSpace": "model.joint", "Model": "model.symbolic", "NodeDynamics": "model.dynamics",
+    "christoffel_symbols": "model.symbolic", "velocity_terms": "model.symbolic",
+    "netlist": "circuit.netlist",
     "PRESETS": "presets", "Preset": "presets",
-    "ROBOTS": "robots", "planar_serial": "robots", "point_mass_matrix": "robots", "robot": "robots",
-    "SCENES": "scenes", "Scene": "scenes", "scene": "scenes",
-    "solve_spice": "spice",
-    "NodeSystem": "system", "node_system": "system", "node_systems": "system",
-    "Topology": "topology", "parallel": "topology", "serial": "topology",
-    "Trajectory": "trajectory",
+    "ROBOTS": "model.robots", "planar_serial": "model.robots", "point_mass_matrix": "model.robots",
+    "robot": "model.robots",
+    "SCENES": "scenes.builtin", "Scene": "scenes.scene", "scene": "scenes.builtin",
+    "load_scene": "scenes.toml", "run_scene": "scenes.run",
+    "NodeSystem": "circuit.node_system", "node_system": "circuit.node_system",
+    "node_systems": "circuit.node_system",
+    "NonlinearNodeSystem": "circuit.nonlinear", "nonlinear_system": "circuit.nonlinear",
+    "Topology": "circuit.topology", "parallel": "circuit.topology", "serial": "circuit.topology",
     "PWL": "waveforms", "Pulse": "waveforms", "Sine": "waveforms", "Step": "waveforms",
+    "run_batch": "batch.run",
 }
 
 __all__ = sorted(_EXPORTS)
@@ -30,9 +38,10 @@ __all__ = sorted(_EXPORTS)
 
 # Functions named like their modules are bound now: importing the submodule later
 # must not replace the function by the module.
-from .compare import compare  # noqa: E402
-from .elements import elements  # noqa: E402
-from .netlist import netlist  # noqa: E402
+from .circuit.description import circuit  # noqa: E402
+from .circuit.elements import elements  # noqa: E402
+from .circuit.netlist import netlist  # noqa: E402
+from .results.comparison import compare  # noqa: E402
 
 
 def __getattr__(name):

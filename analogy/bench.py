@@ -10,7 +10,17 @@ from pathlib import Path
 
 import numpy as np
 
+from .batch.run import _system, run_batch
+from .circuit.description import circuit
+from .circuit.netlist import netlist
 from .errors import AnalogyError, InputError
+from .presets import PRESETS, Preset, preset as get_preset
+from .results.metrics import relative_error
+from .scenes.builtin import scene
+from .scenes.scene import ModelSpec, Scene
+from .solvers.exact import solve_exact
+from .solvers.reference import solve_reference
+from .solvers.spice import library_path, session, solve_spice
 
 __all__ = ["BenchRow", "BenchResult", "bench", "bench_scenes", "throughput", "spice_grid", "ode_grid"]
 
@@ -105,17 +115,14 @@ class BenchResult:
 
 def bench_scenes():
     """The benchmark's scenes: 2, 10 and 50 DOF."""
-    from .robots import random_spd_model
-    from .scenes import Scene, scene
-    big = Scene("random50", lambda: random_spd_model(50, seed=2),
-                forces=tuple(["sine(0, 1, 0.7)"] + [f"step({1.0 / (k + 1)!r})" for k in range(1, 50)]),
-                t_stop=2.0, description="random SPD 50-DOF (seed 2), serial topology")
+    big = Scene.of("random50", ModelSpec(robot="random50", seed=2), topology="serial",
+                   forces=tuple(["sine(0, 1, 0.7)"] + [f"step({1.0 / (k + 1)!r})" for k in range(1, 50)]),
+                   t_stop=2.0, description="random SPD 50-DOF (seed 2), serial topology")
     return [scene("default"), scene("random10"), big]
 
 
 def spice_grid(full: bool = False):
     """(label, options, max_steps) for ngspice: method, reltol, trtol and maximum step."""
-    from .presets import PRESETS
     grid = []
     reltols = (1e-3, 1e-5, 1e-7, 1e-9)
     trtols = (7, 1)
@@ -158,11 +165,7 @@ def bench(repeats: int = 5, full: bool = False, scenes=None, progress: bool = Tr
     outside). A setting that raises, or whose time step collapses, is a failure row.
     A setting slower than 1 s per run gets fewer timed runs; each row records how many.
     """
-    from .exact import solve_exact
-    from .netlist import netlist
-    from .ode import solve_ode
-    from .presets import Preset
-    from .spice import session
+    from .solvers.ode import solve_ode
 
     start = _time.perf_counter()
     result = BenchResult(repeats=repeats)
@@ -216,9 +219,8 @@ def bench(repeats: int = 5, full: bool = False, scenes=None, progress: bool = Tr
                 med, tr, runs = _median_time(run, repeats)
                 rates = tr.rates
             ref = solve_exact(system, t).rates
-            err = float(np.max(np.abs(rates - ref)) / np.max(np.abs(ref)))
+            err = relative_error(rates, ref)
             if kind == "exact":
-                from .reference import solve_reference
                 probe = np.linspace(0.0, system.t_stop, 5)
                 # The exact solver's own error is measured against 40-digit mpmath where
                 # that is affordable; above 10 DOF it has no independent reference here.
@@ -226,7 +228,7 @@ def bench(repeats: int = 5, full: bool = False, scenes=None, progress: bool = Tr
                 if n <= 10:
                     mp = solve_reference(system, probe)
                     ex = solve_exact(system, probe).voltages
-                    err = float(np.max(np.abs(ex - mp)) / np.max(np.abs(mp)))
+                    err = relative_error(ex, mp)
             result.rows.append(BenchRow(sc.name, n, kind, label, tol, med, err, len(t), runs=runs))
         except (AnalogyError, ArithmeticError, ValueError) as exc:
             label = g[0] if kind == "spice" else (f"{g[0]} rtol={g[1]:g}" if kind == "ode" else "modal")
@@ -246,15 +248,10 @@ def _pyspice_loop(payload):
     import logging
     import os
 
-    from .spice import library_path
     os.environ.setdefault("NGSPICE_LIBRARY_PATH", library_path())
     logging.getLogger("PySpice").setLevel(logging.CRITICAL)
     from PySpice.Spice.Netlist import Circuit
 
-    from .elements import elements
-    from .exact import solve_exact
-    from .presets import preset as get_preset
-    from .batch import _system
     items, preset_name = payload
     p = get_preset(preset_name)
     worst = 0.0
@@ -264,13 +261,12 @@ def _pyspice_loop(payload):
             start = _time.perf_counter()
         s = _system(item)
         c = Circuit("scene")
-        for e in elements(s):
+        desc = circuit(s)
+        for e in desc.elements:
             getattr(c, e.kind)(e.name[1:], f"n{e.a}", c.gnd if e.b == 0 else f"n{e.b}", e.value)
-        for j, waves in enumerate(s.forces):
-            col = s.current_map[:, j]
-            a = int(np.argmax(col > 0.5)) + 1
-            b = int(np.argmax(col < -0.5)) + 1 if np.any(col < -0.5) else 0
-            c.I(str(j + 1), c.gnd if b == 0 else f"n{b}", f"n{a}", float(waves[0].values[0]))
+        for src in desc.sources:        # constant forces: 'I n+ n- value' drives current into n-
+            c.I(src.name[1:], c.gnd if src.b == 0 else f"n{src.b}", f"n{src.a}",
+                src.scale * float(src.waveform.values[0]))
         sim = c.simulator(simulator="ngspice-shared")
         sim.initial_condition(**{n: float(v) for n, v in zip(s.nodes, s.initial_voltages)})
         sim.options(**p.spice_options)
@@ -279,15 +275,12 @@ def _pyspice_loop(payload):
         t = np.array(analysis.time)
         v = np.column_stack([np.array(analysis[n]) for n in s.nodes])
         ex = solve_exact(s, t).rates
-        worst = max(worst, float(np.max(np.abs(s.joint_rates(v) - ex)) / np.max(np.abs(ex))))
+        worst = max(worst, relative_error(s.joint_rates(v), ex))
     return _time.perf_counter() - start, worst
 
 
 def _solo_loop(payload):
     """One ngspice run per scene through the wrapped session, with the same comparison."""
-    from .batch import _system
-    from .exact import solve_exact
-    from .spice import solve_spice
     items, preset_name = payload
     worst, solves = 0.0, []
     start = None
@@ -299,7 +292,7 @@ def _solo_loop(payload):
         tr = solve_spice(s, preset_name)
         solves.append(tr.run_time)
         ex = solve_exact(s, tr.time).rates
-        worst = max(worst, float(np.max(np.abs(tr.rates - ex)) / np.max(np.abs(ex))))
+        worst = max(worst, relative_error(tr.rates, ex))
     return _time.perf_counter() - start, worst, statistics.median(solves)
 
 
@@ -317,8 +310,6 @@ def throughput(n: int = 10_000, preset: str = "fast", group_size: int = 100, wor
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 
-    from .batch import run_batch
-    from .scenes import scene
     if min(n, baseline_n, repeats, workers, group_size) < 1:
         raise InputError("n, baseline_n, repeats, workers and group_size must be at least 1")
     base = scene("default")

@@ -1,16 +1,33 @@
-"""Command-line interface: a thin layer over the analogy API."""
+"""Command-line interface: argument parsing and printing over the analogy API."""
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
-from .errors import AnalogyError, InputError, SimulationError
+from . import __version__
+from .errors import AccuracyError, AnalogyError, InputError, SimulationError
+from .model.catalog import MAX_SERIAL, ROBOT_NAMES
+from .model.expressions import parse_matrix, parse_number, parse_vector, split_entries
+from .circuit.netlist import netlist
+from .presets import PRESETS
+from .results.comparison import compare
+from .results.metrics import relative_error
+from .results.output import check_plot_path
+from .scenes.build import scene_model
+from .scenes.builtin import SCENES, scene
+from .scenes.run import run_scene
+from .scenes.scene import ModelSpec, Scene
+from .scenes.toml import load_scene
+from .solvers.exact import solve_exact
 
-__all__ = ["main", "build_parser"]
+__all__ = ["main", "build_parser", "scene_from_args", "EXIT_OK", "EXIT_FAILED", "EXIT_USAGE",
+           "EXIT_ACCURACY"]
 
-EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
+EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_ACCURACY = 0, 1, 2, 3
+_PRESET_HELP = "accuracy preset: " + "; ".join(f"{k} ({p.description})" for k, p in PRESETS.items())
 
 
 class _Parser(argparse.ArgumentParser):
@@ -20,16 +37,18 @@ class _Parser(argparse.ArgumentParser):
         raise InputError(f"{message} (see {self.prog} --help)")
 
 
-def _scene_options(p: argparse.ArgumentParser):
-    g = p.add_argument_group("scene (defaults: the built-in default scene)")
+def _scene_options(p: argparse.ArgumentParser, preset: str = "accurate"):
+    g = p.add_argument_group("scene (defaults: the built-in default scene; SI units throughout)")
     g.add_argument("--scene", default="default", help="built-in scene to start from (see 'analogy scenes')")
-    g.add_argument("--robot", help="built-in robot: redundant, serial2, parallel2, serial3, parallel3, serialN")
+    g.add_argument("--robot", help=f"built-in robot: {', '.join(ROBOT_NAMES)}, serial<N> (a planar "
+                                   f"N-joint arm, e.g. serial4, N up to {MAX_SERIAL}) or random<N>")
     g.add_argument("--mass", metavar="MATRIX", help="mass matrix, e.g. '[[m1, m3], [m3, m2]]'; "
                    "may use --param names and q1..qn")
     g.add_argument("--damping", metavar="VECTOR|MATRIX", help="damping: diagonal '[b1, b2]' or a matrix")
     g.add_argument("--stiffness", metavar="VECTOR|MATRIX", help="stiffness: diagonal or a matrix")
     g.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
-                   help="parameter value (repeatable), e.g. l1=0.5 or q2=pi/4")
+                   help="parameter value (repeatable), e.g. l1=0.5; qK=VALUE sets joint "
+                        "coordinate K, e.g. q2=pi/4")
     g.add_argument("--q", metavar="VALUES", help="configuration, e.g. '0, 0.3'")
     g.add_argument("--topology", metavar="serial|parallel|MATRIX",
                    help="joint-to-node map: serial, parallel or a matrix T with v = T r")
@@ -39,34 +58,41 @@ def _scene_options(p: argparse.ArgumentParser):
                         "sine(offset, amplitude, freq), pwl(t1, v1, t2, v2, ...)")
     g.add_argument("--r0", metavar="VALUES", help="initial joint rates, e.g. '0, 0'")
     g.add_argument("--t-stop", metavar="SECONDS", help="end time of the simulation")
-    p.add_argument("--preset", default="accurate", help="accuracy preset: fast or accurate (default)")
+    p.add_argument("--preset", default=preset, choices=list(PRESETS), help=_PRESET_HELP)
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``analogy`` argument parser, with one subcommand per task."""
     parser = _Parser(prog="analogy",
                      description="Robot dynamics as electric circuits: netlists, SPICE and checks.")
+    parser.add_argument("--version", action="version", version=f"analogy {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     p = sub.add_parser("netlist", help="write the equivalent-circuit SPICE netlist")
     _scene_options(p)
     p.add_argument("-o", "--output", help="file to write (default: stdout)")
-    p.add_argument("--save", metavar="NODES", help="nodes to save, e.g. 'n1, n2' (default: all)")
+    p.add_argument("--save", metavar="NAMES", help="nodes or elements to save, e.g. 'n1, C1_2' (default: all nodes)")
     p.add_argument("--realizable", action="store_true",
                    help="no negative values: negative elements behind 1:-1 couplings")
     p = sub.add_parser("compare", help="run SPICE, ODE and exact solvers and compare them")
     _scene_options(p)
     p.add_argument("--solvers", default="spice,ode,exact", help="comma-separated: spice, ode, exact")
+    p.add_argument("--dynamics", default="linear", choices=["linear", "nonlinear"],
+                   help="the circuit at q (linear) or the full configuration-dependent motion")
+    p.add_argument("--step", metavar="SECONDS", help="output step of the shared time grid "
+                   "(default: SPICE's own points); errors are measured on each solver's own points")
     p.add_argument("--csv", metavar="FILE", help="write joint rates of every solver to CSV")
     p.add_argument("--plot", metavar="FILE.png", help="write a plot of rates and errors")
     p.add_argument("--no-plot", action="store_true", help="never import the plotting library")
     p = sub.add_parser("verify", help="check every built-in example: SPICE and ODE against exact, "
                                       "exact against a 40-digit mpmath solution")
-    p.add_argument("--preset", default="accurate")
+    p.add_argument("--preset", default="accurate", choices=list(PRESETS), help=_PRESET_HELP)
     p.add_argument("--scenes", default=None, help="comma-separated scene names (default: all)")
     sub.add_parser("scenes", help="list the built-in scenes")
     p = sub.add_parser("draw", help="draw the equivalent circuit and the mechanical system (SVG and PNG)")
     _scene_options(p)
     p.add_argument("-o", "--output-dir", default=".", help="folder for the drawings (default: .)")
-    p.add_argument("--stem", help="file name stem (default: the scene name)")
+    p.add_argument("--stem", help="file name stem (default: the scene's name, with its content "
+                                  "key when changed from a built-in scene)")
     p = sub.add_parser("run", help="run a scene file (TOML): exactly what it asks for")
     p.add_argument("scene_file", help="path to a .toml scene")
     p.add_argument("--output-dir", help="folder for the scene's output files (default: next to it)")
@@ -83,150 +109,116 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--group-size", type=int, default=100, help="scenes per ngspice run (default 100)")
     p.add_argument("--baseline", type=int, default=500, help="scenes for the per-scene loops (default 500)")
     p.add_argument("--repeats", type=int, default=3, help="turns of every path; medians are reported (default 3)")
-    p.add_argument("--preset", default="fast")
+    p.add_argument("--preset", default="fast", choices=list(PRESETS), help=_PRESET_HELP)
     return parser
 
 
-def _split_param(text: str):
+def _split_param(text: str) -> tuple[str, float]:
     name, sep, value = text.partition("=")
     if not sep or not name.strip().isidentifier():
         raise InputError(f"--param needs NAME=VALUE, got {text!r}")
-    from .expressions import parse_number
-    return name.strip(), parse_number(value)
+    try:
+        return name.strip(), parse_number(value)
+    except InputError as exc:
+        raise InputError(f"--param {name.strip()}: {exc}") from None
 
 
-def _numbers(text: str, what: str) -> list[float]:
-    from .expressions import parse_vector
-    return parse_vector(text, numeric=True)
-
-
-def _numeric_matrix(text: str | None, n: int, what: str, diagonal: bool = True):
-    """A numeric matrix, or (if *diagonal*) a diagonal from a vector; None if *text* uses names."""
-    import numpy as np
-
-    from .expressions import parse_matrix, parse_vector
+def _entries(text: str | None, label: str):
     if text is None:
         return None
     try:
-        if text.strip().startswith("[[") or not diagonal:
-            return np.array(parse_matrix(text, numeric=True))
-        return np.diag(parse_vector(text, numeric=True))
+        return split_entries(text)
     except InputError as exc:
-        if "unknown name" in str(exc):
-            return None
-        raise
+        raise InputError(f"{label}: {exc}") from None
 
 
-def _matrix_or_diagonal(text: str, symbols, what: str):
-    from .expressions import parse_matrix, parse_vector
-    if text.strip().startswith("[["):
-        return parse_matrix(text, symbols)
-    return parse_vector(text, symbols)
+def scene_from_args(args) -> Scene:
+    """The scene the CLI options describe: a built-in scene with the options' changes.
 
-
-def scene_from_args(args):
-    """Build (model, scene) from the CLI options; model None means the scene's own."""
-    from .scenes import scene
-    from .topology import TOPOLOGIES
-
-    from .scenes import SCENES
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed scene options (see :func:`build_parser`).
+    """
     # A robot with a scene of its own starts from that scene (a configuration that assembles).
     start = args.robot if args.robot in SCENES and args.scene == "default" else args.scene
     sc = scene(start)
     params = dict(_split_param(p) for p in args.param)
-    changes = {}
+    coords = {k: params.pop(k) for k in list(params) if k[0] == "q" and k[1:].isdigit()}
+    changes: dict = {"source": "command line"}
     if args.mass is not None:
-        import numpy as np
-
-        from .expressions import parse_matrix
-        from .model import JointSpace
-        mass = _numeric_matrix(args.mass, 0, "--mass", diagonal=False)
-        if mass is not None and not params:
-            # A numeric matrix needs no symbolic work at all.
-            n = mass.shape[0] if mass.ndim == 2 else 0
-            damping = _numeric_matrix(args.damping, n, "--damping")
-            stiffness = _numeric_matrix(args.stiffness, n, "--stiffness")
-            if (args.damping and damping is None) or (args.stiffness and stiffness is None):
-                raise InputError("--damping and --stiffness may use names only with a symbolic --mass and --param")
-            model = JointSpace(mass, np.zeros_like(mass) if damping is None else damping, stiffness)
-            changes.update(parameters={}, q=(), initial_rates=None)
-            if not args.force:
-                changes["forces"] = tuple(1.0 for _ in range(n))
-        else:
-            import sympy as sp
-
-            from .model import Model
-            probe = parse_matrix(args.mass, None)   # names only; checked again below
-            n = probe.rows
-            qs = [sp.Symbol(f"q{k + 1}", real=True) for k in range(n)]
-            names = {str(x) for x in probe.free_symbols} - {str(q) for q in qs}
-            missing = sorted(names - set(params))
-            if missing:
-                raise InputError(f"--mass uses {', '.join(missing)} with no value: add --param NAME=VALUE")
-            used = set(names)
-            for text in (args.damping, args.stiffness):
-                if text:
-                    value = _matrix_or_diagonal(text, None, "")
-                    items = value if isinstance(value, list) else [value]
-                    used |= {str(x) for item in items for x in getattr(item, "free_symbols", ())}
-            unused = sorted(set(params) - used)
-            if unused:
-                raise InputError(f"--param {unused[0]} is not used by --mass, --damping or --stiffness")
-            symbols = {k: sp.Symbol(k, real=True) for k in params}
-            symbols.update({str(q): q for q in qs})
-            mass = parse_matrix(args.mass, symbols)
-            damping = _matrix_or_diagonal(args.damping, symbols, "--damping") if args.damping else None
-            stiffness = _matrix_or_diagonal(args.stiffness, symbols, "--stiffness") if args.stiffness else None
-            used_q = [q for q in qs if q in mass.free_symbols]
-            model = Model("custom", mass, damping=damping, stiffness=stiffness,
-                          parameters=params, coordinates=qs if used_q else (), topology="parallel")
-            changes.update(parameters={}, q=tuple(0.0 for _ in qs) if used_q else ())
-            if not args.force:
-                changes["forces"] = tuple(1.0 for _ in range(n))
-            changes["initial_rates"] = None
-    else:
-        if args.damping or args.stiffness:
-            raise InputError("--damping and --stiffness need --mass (built-in robots have their own)")
-        model = None                 # the scene's own, compiled once and cached on disk
-        if args.robot is not None and args.robot != sc.model:
-            from .robots import robot
-            robot(args.robot)        # fails early, with one line, on an unknown name
-            changes["model"] = args.robot
-            m = sc.replace(model=args.robot).numeric_model()
-            n = m.dof
-            changes.update(q=tuple(0.0 for _ in m.coordinates), parameters={},
-                           forces=tuple(1.0 for _ in range(n)), initial_rates=None)
-        if params:
-            changes["parameters"] = params
+        mass = _entries(args.mass, "--mass")
+        if not mass or not all(isinstance(r, list) for r in mass):
+            raise InputError("--mass must be a matrix like [[m1, m3], [m3, m2]]")
+        spec = ModelSpec.of(None, mass=mass, damping=_entries(args.damping, "--damping"),
+                            stiffness=_entries(args.stiffness, "--stiffness"))
+        n = len(mass)
+        changes.update(model=spec, parameters=params, q=(0.0,) * n, initial_rates=None, topology=None,
+                       forces=(1.0,) * n)
+    elif args.damping or args.stiffness:
+        raise InputError("--damping and --stiffness need --mass (built-in robots have their own)")
+    elif args.robot is not None and args.robot != sc.model.robot:
+        probe = Scene.of(args.robot, args.robot, source="command line")
+        model = scene_model(probe)          # one sentence on an unknown name
+        n = model.dof
+        changes.update(model=probe.model, q=(0.0,) * len(model.coordinates), parameters=params,
+                       forces=(1.0,) * n, initial_rates=None, topology=None)
+    elif params:
+        changes["parameters"] = dict(sc.parameters, **params)
     if args.q is not None:
-        changes["q"] = tuple(_numbers(args.q, "--q"))
+        changes["q"] = tuple(parse_vector(args.q, numeric=True))
+    if coords:
+        q = list(changes.get("q", sc.q))
+        for key, value in coords.items():
+            k = int(key[1:])
+            if not 1 <= k <= len(q):
+                raise InputError(f"--param {key}: the model has joint coordinates q1 to q{len(q)}")
+            q[k - 1] = value
+        changes["q"] = tuple(q)
     if args.topology is not None:
         t = args.topology.strip()
-        if t in TOPOLOGIES:
+        if t.startswith("["):
+            changes["topology"] = tuple(tuple(r) for r in parse_matrix(t, numeric=True))
+        elif t in ("serial", "parallel"):
             changes["topology"] = t
-        elif t.startswith("["):
-            from .expressions import parse_matrix
-            changes["topology"] = parse_matrix(t, numeric=True)
         else:
             raise InputError(f"unknown topology {t!r}: use serial, parallel or a matrix like [[1, 0], [1, 1]]")
     if args.force:
         changes["forces"] = tuple(args.force)
     if args.r0 is not None:
-        changes["initial_rates"] = tuple(_numbers(args.r0, "--r0"))
+        changes["initial_rates"] = tuple(parse_vector(args.r0, numeric=True))
     if args.t_stop is not None:
-        from .expressions import parse_number
         changes["t_stop"] = parse_number(args.t_stop)
-    sc = sc.replace(**changes)
-    return model, sc
+    if getattr(args, "dynamics", None):
+        changes["dynamics"] = args.dynamics
+    new = sc.replace(**changes)
+    if new.key != sc.key:           # name and describe what was actually built
+        label = new.model.label
+        new = new.replace(name=label if label != sc.name else sc.name,
+                          description=f"{label}, changed from the built-in scene {sc.name!r} on the "
+                                      "command line")
+    return new
+
+
+def _title(sc: Scene) -> str:
+    return f"analogy {sc.name}: {sc.description}" if sc.description else f"analogy {sc.name}"
+
+
+def _check_writable(path):
+    if path is None:
+        return
+    folder = Path(path).resolve().parent
+    if not folder.is_dir():
+        raise InputError(f"cannot write {path}: folder {folder} does not exist")
+    if not os.access(folder, os.W_OK) or (Path(path).exists() and not os.access(path, os.W_OK)):
+        raise InputError(f"cannot write {path}: permission denied")
 
 
 def _cmd_netlist(args) -> int:
-    from .netlist import netlist
-    model, sc = scene_from_args(args)
-    system = sc.system(model)
+    sc = scene_from_args(args)
+    _check_writable(args.output)
     save = None if args.save is None else [s.strip() for s in args.save.split(",") if s.strip()]
-    text = netlist(system, args.preset, save=save, realizable=args.realizable,
-                   title=f"analogy {sc.name}: {sc.description}" if sc.description else None)
+    text = netlist(sc.system(), args.preset, save=save, realizable=args.realizable, title=_title(sc))
     if args.output:
         try:
             Path(args.output).write_text(text)
@@ -237,10 +229,15 @@ def _cmd_netlist(args) -> int:
     return EXIT_OK
 
 
+def _accuracy_exit(flags: dict, preset: str, bound: float) -> int:
+    for solver, err in flags.items():
+        print(f"analogy: accuracy: {solver} error {err:.3g} of the peak is above the {preset} "
+              f"preset's bound {bound:g}", file=sys.stderr)
+    return EXIT_ACCURACY if flags else EXIT_OK
+
+
 def _cmd_compare(args) -> int:
-    from .compare import compare
-    model, sc = scene_from_args(args)
-    system = sc.system(model)
+    sc = scene_from_args(args)
     solvers = [s.strip() for s in args.solvers.split(",") if s.strip()]
     if not solvers:
         raise InputError("--solvers names no solver: use spice, ode and/or exact")
@@ -248,11 +245,11 @@ def _cmd_compare(args) -> int:
         raise InputError("--plot and --no-plot contradict each other")
     # Output paths are checked before any work, so nothing computed is lost to a typo.
     if args.plot:
-        from .compare import check_plot_path
         check_plot_path(args.plot)
     for path in (args.csv, args.plot):
         _check_writable(path)
-    result = compare(system, args.preset, solvers)
+    step = None if args.step is None else parse_number(args.step)
+    result = compare(sc.system(), args.preset, solvers, step=step)
     print(result.table())
     # Results already computed are written even when a solver failed.
     try:
@@ -264,29 +261,24 @@ def _cmd_compare(args) -> int:
             print(f"wrote {args.plot}")
     except OSError as exc:
         raise InputError(f"cannot write output: {exc}") from None
-    return EXIT_FAILED if result.failures else EXIT_OK
+    if result.failures:
+        return EXIT_FAILED
+    return _accuracy_exit(result.outside_bound(), result.preset, result.bound)
 
 
 def _cmd_verify(args) -> int:
     import numpy as np
 
-    from .compare import compare
-    from .reference import solve_reference
-    from .scenes import SCENES, scene
-
+    from .solvers.reference import solve_reference
     names = list(SCENES) if args.scenes is None else [s.strip() for s in args.scenes.split(",")]
     print(f"{'scene':<10}{'dof':>4}{'spice/peak':>13}{'ode/peak':>11}{'exact vs mpmath':>17}"
           f"{'spice [ms]':>12}")
-    worst = 0
+    code, flags = EXIT_OK, {}
     for name in names:
-        sc = scene(name)
-        system = sc.system()
+        system = scene(name).system()
         c = compare(system, args.preset)
         probe = np.linspace(0, system.t_stop, 9)
-        from .exact import solve_exact
-        ref = solve_reference(system, probe)
-        ex = solve_exact(system, probe).voltages
-        mp_err = float(np.max(np.abs(ex - ref)) / np.max(np.abs(ref)))
+        mp_err = relative_error(solve_exact(system, probe).voltages, solve_reference(system, probe))
         errs = c.errors()
         sp_err = errs.get("spice", (np.nan, np.nan))[1]
         od_err = errs.get("ode", (np.nan, np.nan))[1]
@@ -295,29 +287,34 @@ def _cmd_verify(args) -> int:
         for solver, reason in c.failures.items():
             print(f"  {solver} failed: {reason}")
         if c.failures:
-            worst = EXIT_FAILED
-    return worst
+            code = EXIT_FAILED
+        flags.update({f"{name} {k}": v for k, v in c.outside_bound().items()})
+    if code:
+        return code
+    return _accuracy_exit(flags, args.preset, PRESETS[args.preset].bound)
 
 
 def _cmd_draw(args) -> int:
-    from .diagram import draw
-    model, sc = scene_from_args(args)
-    system = sc.system(model)
+    from .circuit.diagram import draw
+    sc = scene_from_args(args)
     out = Path(args.output_dir)
+    built_in = SCENES.get(sc.name)
+    stem = args.stem or (sc.name if built_in is not None and built_in.key == sc.key
+                         else f"{sc.name}-{sc.key[:8]}")
+    if Path(stem).name != stem or stem in (".", ".."):
+        raise InputError(f"--stem {stem!r} must be a plain file name (the folder is -o)")
+    system = sc.system()
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise InputError(f"cannot create {out}: {exc.strerror}") from None
-    stem = args.stem or sc.name
-    if Path(stem).name != stem or stem in (".", ".."):
-        raise InputError(f"--stem {stem!r} must be a plain file name (the folder is -o)")
+    _check_writable(out / stem)
     for path in draw(system, out, stem):
         print(f"wrote {path}")
     return EXIT_OK
 
 
 def _cmd_run(args) -> int:
-    from .scenefile import load_scene, run_scene
     job = load_scene(args.scene_file)
     if args.no_plot:
         job = job.replace(plot_file=None)
@@ -327,7 +324,11 @@ def _cmd_run(args) -> int:
         sys.stdout.write(result.netlist)
     for written in result.written:
         print(f"wrote {written}")
-    return EXIT_FAILED if result.failures else EXIT_OK
+    if result.failures:
+        return EXIT_FAILED
+    if result.comparison is not None:
+        return _accuracy_exit(result.comparison.outside_bound(), job.preset, PRESETS[job.preset].bound)
+    return EXIT_OK
 
 
 def _positive(value: int, what: str) -> int:
@@ -336,18 +337,8 @@ def _positive(value: int, what: str) -> int:
     return value
 
 
-def _check_writable(path):
-    import os
-    if path is None:
-        return
-    folder = Path(path).resolve().parent
-    if not folder.is_dir() or not os.access(folder, os.W_OK):
-        raise InputError(f"cannot write {path}: folder {folder} does not exist or is not writable")
-
-
 def _cmd_bench(args) -> int:
     from .bench import bench
-    from .compare import check_plot_path
     check_plot_path(args.plot)
     _check_writable(args.csv)
     _check_writable(args.plot)
@@ -371,27 +362,36 @@ def _cmd_throughput(args) -> int:
 
 
 def _cmd_scenes(args) -> int:
-    from .scenes import SCENES
     for name, sc in SCENES.items():
         print(f"{name:<10} {sc.description}")
     return EXIT_OK
 
 
+_COMMANDS = {"netlist": _cmd_netlist, "compare": _cmd_compare, "verify": _cmd_verify,
+             "scenes": _cmd_scenes, "draw": _cmd_draw, "run": _cmd_run, "bench": _cmd_bench,
+             "throughput": _cmd_throughput}
+
+
 def main(argv=None) -> int:
-    """Entry point of the ``analogy`` command; returns the exit code."""
+    """Entry point of the ``analogy`` command; returns the exit code.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        Arguments (default ``sys.argv[1:]``).
+    """
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
-        command = args.command or "compare"
         if args.command is None:
             args = parser.parse_args(["compare"])
-        handler = {"netlist": _cmd_netlist, "compare": _cmd_compare, "verify": _cmd_verify,
-                   "scenes": _cmd_scenes, "draw": _cmd_draw, "run": _cmd_run, "bench": _cmd_bench,
-                   "throughput": _cmd_throughput}[command]
-        return handler(args)
+        return _COMMANDS[args.command](args)
     except InputError as exc:
         print(f"analogy: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
+    except AccuracyError as exc:
+        print(f"analogy: accuracy: {exc}", file=sys.stderr)
+        return EXIT_ACCURACY
     except SimulationError as exc:
         print(f"analogy: simulation failed: {exc}", file=sys.stderr)
         return EXIT_FAILED

@@ -1,6 +1,6 @@
 """Exception types that carry one clear, user-facing sentence."""
 
-__all__ = ["AnalogyError", "InputError", "SimulationError", "SpiceError"]
+__all__ = ["AnalogyError", "InputError", "SimulationError", "SpiceError", "AccuracyError"]
 
 
 class AnalogyError(Exception):
@@ -17,3 +17,7 @@ class SimulationError(AnalogyError, RuntimeError):
 
 class SpiceError(SimulationError):
     """ngspice failed: parse error, singular matrix or collapsed time step."""
+
+
+class AccuracyError(AnalogyError):
+    """A result is outside the accuracy bound it was promised to keep (exit code 3)."""

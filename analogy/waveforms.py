@@ -50,6 +50,18 @@ class Waveform:
     def __call__(self, t):
         raise NotImplementedError
 
+    def label(self) -> str:
+        """The waveform as the user writes it, e.g. ``step(1)`` or ``sine(0, 0.5, 2)``."""
+        raise NotImplementedError
+
+
+def _call(name: str, values, keep: int) -> str:
+    """``name(v1, v2, …)`` with trailing defaults beyond the first *keep* values dropped."""
+    vals = list(values)
+    while len(vals) > keep and vals[-1] in (0.0, None):
+        vals.pop()
+    return f"{name}(" + ", ".join(f"{float(v):g}" for v in vals) + ")"
+
 
 class PWL(Waveform):
     """Piecewise linear through (t_k, f_k); constant before the first and after the last point."""
@@ -79,6 +91,11 @@ class PWL(Waveform):
 
     def breakpoints(self, t_stop):
         return [float(t) for t in self.times if 0 < t < t_stop]
+
+    def label(self):
+        pairs = np.column_stack([self.times, self.values]).ravel()
+        text = _call("pwl", pairs, len(pairs))
+        return text if len(pairs) <= 8 else f"{text[:40]}... ({len(self.times)} points)"
 
     def __call__(self, t):
         return np.interp(t, self.times, self.values)
@@ -111,6 +128,9 @@ class Step(PWL):
     def __repr__(self):
         return f"Step({self.amplitude!r}, delay={self.delay!r}, rise={self.rise!r})"
 
+    def label(self):
+        return _call("step", (self.amplitude, self.delay, self.rise), 1)
+
 
 class Pulse(Waveform):
     """SPICE PULSE(v1 v2 delay rise fall width period); rise and fall must be > 0."""
@@ -130,6 +150,9 @@ class Pulse(Waveform):
     def __repr__(self):
         return (f"Pulse({self.v1!r}, {self.v2!r}, {self.delay!r}, {self.rise!r}, "
                 f"{self.fall!r}, {self.width!r}, {self.period!r})")
+
+    def label(self):
+        return _call("pulse", (self.v1, self.v2, self.delay, self.rise, self.fall, self.width, self.period), 6)
 
     def _period(self, t_stop):
         one = self.rise + self.width + self.fall
@@ -206,6 +229,10 @@ class Sine(Waveform):
         return (f"Sine({self.offset!r}, {self.amplitude!r}, {self.frequency!r}, "
                 f"delay={self.delay!r}, damping={self.damping!r}, phase={self.phase!r})")
 
+    def label(self):
+        return _call("sine", (self.offset, self.amplitude, self.frequency, self.delay, self.damping,
+                              self.phase), 3)
+
     def spice(self, scale, t_stop):
         vals = (scale * self.offset, scale * self.amplitude, self.frequency, self.delay,
                 self.damping, self.phase)
@@ -245,7 +272,7 @@ _WAVEFORMS = {
 def parse_waveform(text: str) -> Waveform:
     """Parse ``step(1)``, ``pulse(0, 1, 0.1, 1e-3, 1e-3, 0.5, 2)``, ``sine(0, 1, 2)``,
     ``pwl(0, 0, 1, 1)`` or a bare number (a step at t = 0), without evaluating code."""
-    from .expressions import parse_call, parse_number
+    from .model.expressions import parse_call, parse_number
     stripped = text.strip()
     if "(" not in stripped:
         return Step(parse_number(stripped))

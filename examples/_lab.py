@@ -15,7 +15,7 @@ import sympy as sp
 
 import analogy
 from analogy.errors import InputError
-from analogy.topology import congruence
+from analogy.circuit.topology import congruence
 
 #: Tolerances every paper lab asserts, relative to the peak exact joint rate.
 SPICE_TOL = 1e-6
@@ -113,7 +113,7 @@ def check_solvers(system, out: Path, stem: str):
 
 def draw_diagrams(system, out: Path, stem: str) -> list[Path]:
     """Circuit and mechanism diagrams (SVG and PNG) of *system*."""
-    from analogy.diagram import draw
+    from analogy.circuit.diagram import draw
     paths = draw(system, out, stem)
     print("diagrams:", ", ".join(p.name for p in paths))
     return paths

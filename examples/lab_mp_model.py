@@ -59,9 +59,9 @@ import numpy as np
 import sympy as sp
 
 import _lab
-from analogy.netlist import analysis_lines
-from analogy.nodal import nodal_analysis
-from analogy.spice import run_netlist
+from analogy.circuit.netlist import analysis_lines
+from analogy.circuit.nodal import nodal_analysis
+from analogy.solvers.spice import run_netlist
 
 out = _lab.output_folder()
 

@@ -4,9 +4,12 @@ import numpy as np
 import pytest
 
 import analogy
-from analogy.batch import batch_netlist, run_batch, solve_spice_group
-from analogy.exact import solve_exact, solve_exact_many
-from analogy.scenes import SCENES, scene
+from analogy.batch import run_batch
+from analogy.circuit.netlist import batch_netlist
+from analogy.presets import preset
+from analogy.solvers.spice import SOLVER as SPICE
+from analogy.solvers.exact import solve_exact, solve_exact_many
+from analogy.scenes.builtin import SCENES, scene
 
 
 def test_vectorised_exact_equals_the_single_system_solver():
@@ -33,10 +36,10 @@ def test_grouped_run_matches_one_run_per_scene():
     """Each scene's joint rates agree with the exact solution whichever path ran it."""
     model = analogy.robot("serial2")
     systems = [scene("default").replace(q=(0.0, q)).system(model) for q in np.linspace(-3, 3, 12)]
-    t, volts, _ = solve_spice_group(systems, "accurate")
-    for s, v in zip(systems, volts):
-        ex = solve_exact(s, t).rates
-        grouped = np.max(np.abs(s.joint_rates(v) - ex)) / np.max(np.abs(ex))
+    trajectories = SPICE.solve_many(systems, None, preset("accurate"))
+    assert len({id(tr.time) for tr in trajectories}) == 1          # one run, one time grid
+    for s, tr in zip(systems, trajectories):
+        grouped = analogy.relative_error(tr.rates, solve_exact(s, tr.time).rates)
         solo = analogy.compare(s, "accurate", ["spice"]).max_relative_error("spice")
         assert grouped <= 1e-6 and solo <= 1e-6
 

@@ -6,8 +6,8 @@ import sys
 import numpy as np
 import pytest
 
-from analogy.compiled import cache_dir, compile_model, load_compiled
-from analogy.robots import robot
+from analogy.model.compiled import cache_dir, compile_model, load_compiled
+from analogy.model.robots import robot
 
 
 @pytest.mark.parametrize("name", ["serial2", "serial3", "redundant"])

@@ -10,10 +10,10 @@ pytest.importorskip("schemdraw")
 pytest.importorskip("matplotlib")
 
 import analogy  # noqa: E402
-from analogy.elements import ZERO_TOL, elements  # noqa: E402
-from analogy import diagram  # noqa: E402
+from analogy.circuit.elements import ZERO_TOL, elements  # noqa: E402
+from analogy.circuit import diagram  # noqa: E402
 from analogy.errors import InputError  # noqa: E402
-from analogy.netlist import source_lines  # noqa: E402
+from analogy.circuit.description import circuit  # noqa: E402
 
 SCENES = ["redundant", "serial2", "parallel2", "serial3", "parallel3", "random10"]
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -25,7 +25,7 @@ def circuit_names(system):
     """Element names and current-source names of the netlist (one source per joint force, not per waveform)."""
     names = [e.name for e in elements(system)]
     sources = []
-    for line in source_lines(system):
+    for line in (f"{src.name} " for src in circuit(system).sources):
         # I<joint>[_<waveform>] between two nodes, or I<joint>[_<waveform>]_n<node> to ground.
         joint, node = re.fullmatch(r"I(\d+)(?:_\d+)?(_n\d+)?", line.split()[0]).groups()
         name = f"I{joint}{node or ''}"
@@ -95,8 +95,12 @@ def test_both_diagrams_label_every_element_and_source_once(name, systems, tmp_pa
 
 def test_a_dropped_element_is_detected(systems, tmp_path, monkeypatch):
     system = systems["serial2"]
-    full = diagram.elements
-    monkeypatch.setattr(diagram, "elements", lambda s, tol: full(s, tol)[1:])
+    full = diagram.circuit
+
+    def short(s, tol):          # the description with its first element missing
+        c = full(s, tol)
+        return type(c)(c.nodes, c.elements[1:], c.sources, c.initial, c.t_stop)
+    monkeypatch.setattr(diagram, "circuit", short)
     diagram.draw_circuit(system, tmp_path / "short.svg")
     assert labelled(tmp_path / "short.svg", CIRCUIT_NAME) != Counter(circuit_names(system))
 

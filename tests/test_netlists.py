@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from analogy.exact import solve_exact
-from analogy.rawfile import read_raw
-from analogy.scenes import PAPER_EXAMPLES, scene, write_netlists
+from analogy.solvers.exact import solve_exact
+from analogy.solvers.rawfile import read_raw
+from analogy.scenes.builtin import PAPER_EXAMPLES, scene, write_netlists
 
 NETLISTS = Path(__file__).resolve().parent.parent / "netlists"
 
@@ -19,7 +19,7 @@ def test_committed_netlists_are_up_to_date(tmp_path):
     fresh = write_netlists(tmp_path)
     for path in fresh:
         committed = NETLISTS / path.name
-        assert committed.exists(), f"{committed} is missing: run analogy.scenes.write_netlists('netlists')"
+        assert committed.exists(), f"{committed} is missing: run analogy.scenes.builtin.write_netlists('netlists')"
         assert committed.read_text() == path.read_text(), f"{path.name} differs from a fresh generation"
     assert sorted(p.name for p in NETLISTS.glob("*.cir")) == sorted(p.name for p in fresh)
 

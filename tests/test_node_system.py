@@ -5,10 +5,10 @@ import pytest
 import sympy as sp
 
 from analogy import elements, mp_capacitance, node_system, robot
-from analogy.elements import laplacian_split
-from analogy.model import JointSpace
-from analogy.robots import random_spd_model
-from analogy.topology import congruence, custom, serial
+from analogy.circuit.elements import laplacian_split
+from analogy.model.joint import JointSpace
+from analogy.model.robots import random_spd_model
+from analogy.circuit.topology import congruence, custom, serial
 
 RNG = np.random.default_rng(7)
 

@@ -24,10 +24,10 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from analogy.elements import laplacian_split
-from analogy.nodal import nodal_analysis
-from analogy.robots import planar_serial, point_mass_matrix, redundant_actuators
-from analogy.topology import congruence, parallel, serial
+from analogy.circuit.elements import laplacian_split
+from analogy.circuit.nodal import nodal_analysis
+from analogy.model.robots import planar_serial, point_mass_matrix, redundant_actuators
+from analogy.circuit.topology import congruence, parallel, serial
 
 s = sp.Symbol("s")
 q1, q2, q3 = sp.symbols("q1 q2 q3", real=True)
@@ -126,7 +126,7 @@ def general_mass_matrix(n: int) -> sp.Matrix:
 
 @pytest.mark.parametrize("n", [2, 3, 6])
 def test_symbolic_split_is_the_package_laplacian_split(n):
-    """The symbolic split used below agrees with analogy.elements.laplacian_split."""
+    """The symbolic split used below agrees with analogy.circuit.elements.laplacian_split."""
     rng = np.random.default_rng(n)
     a = rng.normal(size=(n, n))
     x = a @ a.T + n * np.eye(n)
@@ -163,7 +163,7 @@ def test_nodal_analysis_reads_the_package_elements():
     """The package's element list of a node system (C in F, R in Ω, L in H) gives back its
     node matrices: C = M' and G = B'."""
     from analogy import scene
-    from analogy.elements import elements
+    from analogy.circuit.elements import elements
     system = scene("default").system()
     nodal = nodal_analysis(elements(system), system.dof)
     np.testing.assert_allclose(np.array(nodal.C, dtype=float), system.mass, rtol=1e-12)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from analogy import netlist, solve_exact
-from analogy.scenes import SCENES, scene
+from analogy.scenes.builtin import SCENES, scene
 
 pytestmark = pytest.mark.ngspice
 
@@ -19,7 +19,7 @@ def element_values(text):
 
 @pytest.mark.parametrize("name", list(SCENES))
 def test_realizable_netlist_has_no_negative_values_and_matches_signed(name):
-    from analogy.spice import run_netlist
+    from analogy.solvers.spice import run_netlist
     s = scene(name).system()
     signed, real = netlist(s, "accurate"), netlist(s, "accurate", realizable=True)
     assert all(v > 0 for v in element_values(real))

@@ -23,9 +23,9 @@ import pytest
 import sympy
 
 from analogy.errors import InputError
-from analogy.linkages import ClosedChainModel
-from analogy.model import Model
-from analogy.robots import ROBOTS, five_bar, planar_3rrr, planar_serial, robot
+from analogy.model.linkages import ClosedChainModel
+from analogy.model.symbolic import Model
+from analogy.model.robots import ROBOTS, five_bar, planar_3rrr, planar_serial, robot
 
 N_SPD = 1000
 N_ENERGY = 50

@@ -11,7 +11,17 @@ import numpy as np
 import pytest
 
 from analogy.errors import InputError, SimulationError
-from analogy.scenefile import SceneJob, element_currents, load_scene, main_run, parse_scene, run_scene
+from analogy.circuit.currents import trajectory_currents as element_currents
+from analogy.cli import main
+from analogy.scenes.run import run_scene, save_names
+from analogy.scenes.scene import Scene
+from analogy.scenes.toml import load_scene, parse_scene
+
+
+def main_run(path, output_dir=None, no_plot=False):
+    """`analogy run` as the command line runs it."""
+    args = ["run", str(path)] + (["--output-dir", str(output_dir)] if output_dir is not None else [])
+    return main(args + (["--no-plot"] if no_plot else []))
 
 SCENES_DIR = Path(__file__).resolve().parent.parent / "examples" / "scenes"
 EXAMPLES = sorted(p.name for p in SCENES_DIR.glob("*.toml"))
@@ -40,9 +50,9 @@ def test_examples_are_there():
 @pytest.mark.parametrize("name", EXAMPLES)
 def test_every_example_loads(name):
     job = load_scene(SCENES_DIR / name)
-    assert isinstance(job, SceneJob)
+    assert isinstance(job, Scene)
     assert job.name
-    assert job.system.dof >= 2
+    assert job.system().dof >= 2
 
 
 @pytest.mark.ngspice
@@ -96,35 +106,35 @@ def test_fast_preset_on_every_example(name):
 
 
 def test_default_scene_file_matches_builtin_default():
-    from analogy.scenes import scene
+    from analogy.scenes.builtin import scene
     job = load_scene(SCENES_DIR / "default.toml")
     ref = scene("default").system()
-    np.testing.assert_array_equal(job.system.mass, ref.mass)
-    np.testing.assert_array_equal(job.system.damping, ref.damping)
-    np.testing.assert_array_equal(job.system.topology.matrix, ref.topology.matrix)
+    np.testing.assert_array_equal(job.system().mass, ref.mass)
+    np.testing.assert_array_equal(job.system().damping, ref.damping)
+    np.testing.assert_array_equal(job.system().topology.matrix, ref.topology.matrix)
     t = np.linspace(0, 10, 11)
-    np.testing.assert_array_equal(job.system.force(t), ref.force(t))
-    assert job.system.t_stop == ref.t_stop
+    np.testing.assert_array_equal(job.system().force(t), ref.force(t))
+    assert job.system().t_stop == ref.t_stop
     assert job.solvers == ("spice", "ode", "exact") and job.preset == "accurate"
 
 
 def test_symbolic_and_numeric_models():
     job = load_scene(SCENES_DIR / "currents.toml")
-    js = job.system.joint
+    js = job.system().joint
     q2, a, b, c = 0.5, 2.0, 0.64, 0.8
     m = [[a + b + 2 * c * np.cos(q2), b + c * np.cos(q2)], [b + c * np.cos(q2), b]]
     np.testing.assert_allclose(js.mass_matrix, m, rtol=1e-15)
     np.testing.assert_allclose(js.damping, np.diag([1.0, b / 2]), rtol=1e-15)
     np.testing.assert_allclose(js.stiffness, np.diag([2.0, 1.0]), rtol=1e-15)
     np.testing.assert_allclose(js.gravity, [0.5 * np.cos(0.2), 0.0], rtol=1e-15)
-    names = [e.name for e in __import__("analogy").elements(job.system)]
+    names = [e.name for e in __import__("analogy").elements(job.system())]
     assert set(job.element_currents) == set(names) and {"C1_2", "R1_2", "L1_2"} <= set(names)
-    c12 = next(e for e in __import__("analogy").elements(job.system) if e.name == "C1_2")
+    c12 = next(e for e in __import__("analogy").elements(job.system()) if e.name == "C1_2")
     assert c12.value < 0                      # an MP model with negative mass
 
     job = load_scene(SCENES_DIR / "springs3.toml")
-    np.testing.assert_array_equal(job.system.joint.stiffness, np.diag([4.0, 3.0, 2.0]))
-    assert job.system.topology.name == "serial"
+    np.testing.assert_array_equal(job.system().joint.stiffness, np.diag([4.0, 3.0, 2.0]))
+    assert job.system().topology.name == "serial"
 
 
 def test_netlist_saves_only_requested_vectors(tmp_path):
@@ -152,9 +162,9 @@ def test_netlist_saves_only_requested_vectors(tmp_path):
 
 
 def test_netlist_save_names_are_checked():
-    from analogy.netlist import netlist, save_vectors
+    from analogy.circuit.netlist import netlist, save_vectors
     job = parse_scene(VALID)
-    s = job.system
+    s = job.system()
     assert save_vectors(s, ["n1", "C1_2", "r1_2"]) == ["v(n1)", "@c1_2[i]", "@r1_2[i]"]
     assert save_vectors(s, ["C1_2"], realizable=True) == ["@fc1_2[i]"]     # negative: its coupling
     assert save_vectors(s, ["C1"], realizable=True) == ["@c1[i]"]
@@ -167,7 +177,8 @@ def test_netlist_save_names_are_checked():
 def test_netlist_only_scene_imports_no_solver(tmp_path):
     code = textwrap.dedent(f"""
         import json, sys
-        from analogy.scenefile import load_scene, run_scene
+        from analogy.scenes.toml import load_scene
+        from analogy.scenes.run import run_scene
         r = run_scene(load_scene({str(SCENES_DIR / 'serial2_netlist.toml')!r}), {str(tmp_path)!r})
         assert r.netlist and r.netlist.rstrip().endswith(".end")
         mods = ["PySpice", "scipy.integrate", "matplotlib", "analogy.spice", "analogy.ode",
@@ -184,7 +195,8 @@ def test_netlist_only_scene_imports_no_solver(tmp_path):
 def test_ode_only_numeric_scene_imports_no_spice_and_no_sympy(tmp_path):
     code = textwrap.dedent(f"""
         import json, sys
-        from analogy.scenefile import load_scene, run_scene
+        from analogy.scenes.toml import load_scene
+        from analogy.scenes.run import run_scene
         r = run_scene(load_scene({str(SCENES_DIR / 'ode_only.toml')!r}), {str(tmp_path)!r})
         assert r.solvers == ["ode"], r.solvers
         mods = ["PySpice", "sympy", "matplotlib", "analogy.spice", "analogy.exact", "analogy.robots"]
@@ -213,7 +225,7 @@ def test_exact_runs_only_when_asked_or_needed():
 
 def _kcl_check(system, traj, currents):
     """Currents leaving each node through its elements equal the source current into it."""
-    from analogy.elements import elements
+    from analogy.circuit.elements import elements
     inj = system.force(traj.time) @ system.current_map.T
     out = np.zeros_like(inj)
     for e in elements(system):
@@ -226,8 +238,8 @@ def _kcl_check(system, traj, currents):
 
 @pytest.mark.parametrize("name", ["currents.toml", "springs3.toml", "default.toml"])
 def test_exact_and_ode_element_currents_obey_kirchhoff(name):
-    from analogy.exact import solve_exact
-    from analogy.ode import solve_ode
+    from analogy.solvers.exact import solve_exact
+    from analogy.solvers.ode import solve_ode
     s = load_scene(SCENES_DIR / name).system
     t = np.linspace(0, s.t_stop, 801)
     ex = solve_exact(s, t, positions=True)
@@ -250,8 +262,8 @@ def test_exact_and_ode_element_currents_obey_kirchhoff(name):
 
 
 def test_optional_positions_leave_results_unchanged():
-    from analogy.exact import solve_exact
-    from analogy.ode import solve_ode
+    from analogy.solvers.exact import solve_exact
+    from analogy.solvers.ode import solve_ode
     s = load_scene(SCENES_DIR / "springs3.toml").system
     t = np.linspace(0, s.t_stop, 301)
     a, b = solve_exact(s, t), solve_exact(s, t, positions=True)
@@ -263,7 +275,7 @@ def test_optional_positions_leave_results_unchanged():
 
 
 def test_currents_need_positions_with_springs():
-    from analogy.exact import solve_exact
+    from analogy.solvers.exact import solve_exact
     s = load_scene(SCENES_DIR / "springs3.toml").system
     with pytest.raises(InputError, match="positions"):
         element_currents(s, solve_exact(s, np.linspace(0, 1, 5)), ["C1"])
@@ -285,7 +297,7 @@ def _system(name):
         return _springs3_from_rest()
     if name.endswith(".toml"):
         return load_scene(SCENES_DIR / name).system
-    from analogy.scenes import scene
+    from analogy.scenes.builtin import scene
     return scene(name).system()
 
 
@@ -294,10 +306,10 @@ def _system(name):
                                   "parallel3"])
 def test_spice_element_currents_match_exact(name):
     """Per element kind, SPICE's device currents within 1e-6 of the peak of the exact ones."""
-    from analogy.exact import solve_exact
-    from analogy.netlist import netlist
-    from analogy.spice import run_netlist
-    from analogy.elements import elements
+    from analogy.solvers.exact import solve_exact
+    from analogy.circuit.netlist import netlist
+    from analogy.solvers.spice import run_netlist
+    from analogy.circuit.elements import elements
     s = _system(name)
     els = elements(s)
     names = [e.name for e in els]
@@ -335,9 +347,9 @@ def test_scene_element_currents_from_spice(tmp_path):
 
 @pytest.mark.ngspice
 def test_realizable_element_current_is_the_couplings(tmp_path):
-    from analogy.exact import solve_exact
-    from analogy.netlist import netlist
-    from analogy.spice import run_netlist
+    from analogy.solvers.exact import solve_exact
+    from analogy.circuit.netlist import netlist
+    from analogy.solvers.spice import run_netlist
     s = load_scene(SCENES_DIR / "default.toml").system
     data = run_netlist(netlist(s, "accurate", save=["C1_2", "R1_2"], realizable=True),
                        ["@fc1_2[i]", "@r1_2[i]"])
@@ -487,7 +499,7 @@ def test_main_run_exit_codes(tmp_path, capsys, monkeypatch):
     ode.write_text(VALID.replace("[outputs]\nnetlist = true\n",
                                  '[outputs]\njoint_rates = true\ncsv = "r.csv"\nplot = "r.png"\n'
                                  '[solvers]\nuse = ["ode"]\n'))
-    import analogy.ode
+    import analogy.solvers.ode
 
     def broken(*args, **kwargs):
         raise SimulationError("ODE solver DOP853 failed at t = 0.5: test")

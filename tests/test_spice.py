@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from analogy import SpiceError, elements, netlist, node_system, solve_exact
-from analogy.compare import compare
-from analogy.model import JointSpace
-from analogy.scenes import SCENES, scene
+from analogy.results.comparison import compare
+from analogy.model.joint import JointSpace
+from analogy.scenes.builtin import SCENES, scene
 
 pytestmark = pytest.mark.ngspice
 
@@ -48,14 +48,14 @@ def test_comparison_uses_spice_time_points_without_interpolation():
 
 
 def test_singular_circuit_names_the_failure_and_node():
-    from analogy.spice import run_netlist
+    from analogy.solvers.spice import run_netlist
     bad = "* floating\nI1 0 n1 DC 1\nC1 n1 n2 1\nC2 n2 n3 1\n.tran 1e-3 1 uic\n.end\n"
     with pytest.raises(SpiceError, match=r"time step too small .* node n\d"):
         run_netlist(bad)
 
 
 def test_parse_error_is_one_exception_and_the_session_recovers():
-    from analogy.spice import run_netlist
+    from analogy.solvers.spice import run_netlist
     with pytest.raises(SpiceError, match="netlist line 4"):
         run_netlist("* bad\nI1 0 n1 DC 1\nR1 n1 0 1\n.tran 0 1 uic\n.end\n")
     with pytest.raises(SpiceError, match="unknown subckt"):
@@ -67,7 +67,7 @@ def test_parse_error_is_one_exception_and_the_session_recovers():
 
 def test_informational_stderr_is_not_an_error():
     """A circuit that makes ngspice print warnings still returns its data."""
-    from analogy.spice import run_netlist
+    from analogy.solvers.spice import run_netlist
     text = ("* warns\nI1 0 n1 DC 1\nR1 n1 0 1\nC1 n1 0 1\nR2 n9 0 1\n"
             ".options reltol=1e-6\n.tran 1e-2 1 uic\n.save v(n1)\n.end\n")
     data = run_netlist(text, ["n1"])
@@ -76,7 +76,7 @@ def test_informational_stderr_is_not_an_error():
 
 def test_memory_stays_flat_over_2000_runs():
     """destroy + remcirc after every run: resident memory grows by < 5 MB over 2,000 runs."""
-    from analogy.spice import session
+    from analogy.solvers.spice import session
 
     def rss_kb():
         with open("/proc/self/status") as fh:
@@ -96,7 +96,7 @@ def test_memory_stays_flat_over_2000_runs():
 
 def test_a_broken_library_is_reloaded_from_a_private_copy():
     """If ngspice asks to exit (its global state is then unusable), the next run gets a fresh copy."""
-    from analogy.spice import session
+    from analogy.solvers.spice import session
     s = scene("default").system()
     text = netlist(s, "fast")
     sess = session()
@@ -121,7 +121,7 @@ def test_spice_last_point_a_rounding_past_t_stop(t_stop):
 
 def test_custom_topology_sources_are_simulated_correctly():
     """A T that is neither serial nor parallel: each joint force is a set of scaled grounded sources."""
-    from analogy.robots import random_spd_model
+    from analogy.model.robots import random_spd_model
     t = [[2.0, 0.5, 0.0], [1.0, 1.0, 0.0], [0.3, -0.2, 1.5]]
     s = node_system(random_spd_model(3, seed=4), topology=t, forces=[1.0, "sine(0, 0.5, 1)", -0.3],
                     initial_rates=[0.2, -0.1, 0.05], t_stop=5.0)

@@ -6,13 +6,15 @@ import sympy as sp
 
 import analogy
 from analogy import batch
-from analogy.batch import batch_netlist, run_batch
-from analogy.elements import element_table, elements
-from analogy.model import Model
-from analogy.netlist import element_lines, source_lines
-from analogy.robots import robot
-from analogy.scenes import scene
-from analogy.system import node_system, node_systems
+from analogy.batch import run_batch
+from analogy.circuit.netlist import batch_netlist
+from analogy.circuit.elements import element_table, elements
+from analogy.model.symbolic import Model
+from analogy.circuit.description import circuit
+from analogy.circuit.netlist import circuit_lines
+from analogy.model.robots import robot
+from analogy.scenes.builtin import scene
+from analogy.circuit.node_system import node_system, node_systems
 
 EPS = np.finfo(float).eps
 
@@ -140,7 +142,7 @@ def test_batch_netlist_is_each_systems_own_circuit_under_a_prefix():
     text = batch_netlist(systems)
     expected = []
     for k, s in enumerate(systems):
-        expected += element_lines(s, prefix=f"x{k}_")[0] + source_lines(s, prefix=f"x{k}_")
+        expected += circuit_lines(circuit(s), prefix=f"x{k}_")
     body = [ln for ln in text.splitlines()[1:] if not ln.startswith(".")]
     assert body == expected
 
@@ -165,7 +167,7 @@ def test_a_malformed_configuration_fails_alone():
 
 @pytest.mark.ngspice
 def test_a_system_the_exact_solver_cannot_take_fails_alone(monkeypatch):
-    from analogy import exact
+    from analogy.solvers import exact
     solve = exact.solve_exact_many
 
     def refusing(systems, t):
@@ -183,15 +185,17 @@ def test_a_system_the_exact_solver_cannot_take_fails_alone(monkeypatch):
 @pytest.mark.ngspice
 def test_a_failing_ngspice_run_is_retried_scene_by_scene(monkeypatch):
     """If the shared run fails, each scene runs alone and only the culprit is a failure."""
-    run = batch.solve_spice_group
+    from analogy.solvers import spice
+    run = spice.batch_netlist
     culprit = 0.7
 
-    def failing(systems, preset):
+    def failing(systems, preset):     # a netlist ngspice rejects when the culprit is in it
+        text = run(systems, preset)
         if any(s.info["configuration"]["q2"] == culprit for s in systems):
-            raise analogy.SpiceError("ngspice transient analysis failed: time step too small")
-        return run(systems, preset)
+            text = text.replace(".end", ".tran 0 0\n.end")
+        return text
 
-    monkeypatch.setattr(batch, "solve_spice_group", failing)
+    monkeypatch.setattr(spice, "batch_netlist", failing)
     items = [scene("default").replace(q=(0.0, q), t_stop=2.0) for q in (0.1, culprit, 1.3)]
     res = run_batch(items, "fast", workers=1)
     assert list(res.failures) == [1] and "time step too small" in res.failures[1]

@@ -7,10 +7,10 @@ import math
 import operator
 from typing import Iterable, Mapping
 
-from .errors import InputError
+from ..errors import InputError
 
 __all__ = ["parse_expression", "parse_matrix", "parse_vector", "parse_number",
-           "parse_call", "FUNCTION_NAMES", "MAX_LENGTH"]
+           "parse_call", "split_entries", "FUNCTION_NAMES", "MAX_LENGTH"]
 
 #: Longest expression accepted; bounds parser work on hostile input.
 MAX_LENGTH = 20_000
@@ -193,6 +193,36 @@ def parse_vector(text: str, symbols: Mapping | None = None, numeric: bool = Fals
         stripped = f"[{stripped}]"
     items = _nested(stripped, symbols, 1, numeric)
     return [_finite(x, text) for x in items] if numeric else items
+
+
+def split_entries(text: str) -> list:
+    """The entries of ``[[a, b], [c, d]]`` or ``[a, b]`` (or ``a, b``) as nested lists of entry texts.
+
+    Only the list structure is read here; each entry is left as its own text for
+    :func:`parse_expression` or :func:`parse_number`, so a matrix given on the command
+    line and one given in a scene file go through the same parser.
+
+    Parameters
+    ----------
+    text : str
+        A bracketed list of expressions, or of such lists.
+    """
+    stripped = text.strip() if isinstance(text, str) else text
+    if isinstance(stripped, str) and not stripped.startswith("["):
+        stripped = f"[{stripped}]"
+    tree = _syntax_tree(stripped)
+    source = stripped.replace("^", "**")
+
+    def entries(node, depth):
+        if isinstance(node, (ast.List, ast.Tuple)):
+            if depth > 1:
+                raise InputError(f"{text!r} nests lists too deeply: give a vector or a matrix")
+            return [entries(e, depth + 1) for e in node.elts]
+        return ast.get_source_segment(source, node)
+    value = entries(tree, 0)
+    if not isinstance(value, list):
+        raise InputError(f"{text!r} is not a list like [a, b] or [[a, b], [c, d]]")
+    return value
 
 
 def parse_call(text: str, names: Iterable[str]) -> tuple[str, list[float], dict[str, float]]:

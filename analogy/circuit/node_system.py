@@ -1,26 +1,41 @@
-"""The node system: one linear system M'·dv/dt + B'·v + K'·∫v = i(t) read by every consumer."""
+"""Linear node systems M'·dv/dt + B'·v + K'·∫v = i(t): one configuration, or many built as one stack."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from functools import lru_cache
-from typing import Mapping, Sequence
+from typing import Iterator, Mapping, Protocol, Sequence
 
 import numpy as np
 
-from .errors import InputError
-from .model import JointSpace, JointStack, Model, check_square_symmetric, check_vector, configuration_stack
+from ..errors import InputError
+from ..model.dynamics import DynamicsKind
+from ..model.joint import JointSpace, check_square_symmetric, check_vector, configuration_stack, stack_fault
+from ..waveforms import Step, Waveform, parse_waveform
 from .topology import Topology, topology as make_topology
-from .waveforms import Step, Waveform, parse_waveform
-
-__all__ = ["NodeSystem", "node_system", "node_systems"]
 
 
-@dataclass(frozen=True, eq=False)
+class Evaluable(Protocol):
+    """What node systems need of a model: a name, its coordinates and parameters, and M, B, K, G."""
+
+    name: str
+    coordinates: Sequence
+    parameters: Mapping[str, float]
+    topology: str
+
+    def joint_space(self, q=None, parameters=None) -> JointSpace: ...
+
+__all__ = ["Evaluable", "NodeSystem", "node_system", "node_systems", "output_times", "joint_forces",
+           "force_breakpoints", "waveforms"]
+
+
 class NodeSystem:
     """Linear dynamics in node coordinates v = T·r, driven by joint forces F(t).
 
-    Attributes
+    ``M'·dv/dt = i(t) − B'·v − K'·x`` with constant M' = T⁻ᵀ·M·T⁻¹ (B', K' likewise)
+    and i = T⁻ᵀ·F: the :class:`~analogy.model.dynamics.NodeDynamics` special case that
+    every solver, the exact one included, applies to.
+
+    Parameters
     ----------
     joint : JointSpace
         Joint-space M, B, K, G at the chosen configuration.
@@ -28,49 +43,57 @@ class NodeSystem:
         The map T.
     forces : tuple of tuple of Waveform
         Per joint, the waveforms whose sum is F_j(t) (gravity included as a constant −G).
-    initial_rates : ndarray
+    initial_rates : array_like
         Joint rates R(0).
     t_stop : float
         End of the simulated interval [s].
-    info : dict
+    info : mapping, optional
         Robot name, parameters and configuration, for netlist headers and reports.
     """
 
-    joint: JointSpace
-    topology: Topology
-    forces: tuple
-    initial_rates: np.ndarray
-    t_stop: float
-    info: Mapping = field(default_factory=dict)
+    kind: DynamicsKind = "linear"
 
-    def __post_init__(self):
-        n = self.joint.dof
-        if self.topology.dof != n:
-            raise InputError(f"topology is {self.topology.dof}x{self.topology.dof} "
-                             f"but the robot has {n} joints")
-        if not (np.isfinite(self.t_stop) and 1e-9 <= self.t_stop <= 1e9):
+    def __init__(self, joint: JointSpace, topology: Topology, forces: tuple, initial_rates,
+                 t_stop: float, info: Mapping | None = None):
+        n = joint.dof
+        if topology.dof != n:
+            raise InputError(f"topology is {topology.dof}x{topology.dof} but the robot has {n} joints")
+        if not (np.isfinite(t_stop) and 1e-9 <= t_stop <= 1e9):
             raise InputError("t_stop must be a time between 1e-9 s and 1e9 s")
-        if len(self.forces) != n:
-            raise InputError(f"forces must have {n} entries (one per joint), got {len(self.forces)}")
-        object.__setattr__(self, "initial_rates", check_vector("initial rates r0", self.initial_rates, n))
-        t = self.topology
-        object.__setattr__(self, "mass", t.node_matrix(self.joint.mass_matrix))
-        object.__setattr__(self, "damping", t.node_matrix(self.joint.damping))
-        object.__setattr__(self, "stiffness", None if self.joint.stiffness is None
-                           else t.node_matrix(self.joint.stiffness))
-        object.__setattr__(self, "current_map", t.current_map)
+        if len(forces) != n:
+            raise InputError(f"forces must have {n} entries (one per joint), got {len(forces)}")
+        r0 = check_vector("initial rates r0", initial_rates, n)
+        mass = topology.node_matrix(joint.mass_matrix)
         # T can be well conditioned yet scale M' out of floating-point range.
-        check_square_symmetric("node mass matrix M'", self.mass, definite=True)
+        check_square_symmetric("node mass matrix M'", mass, definite=True)
+        self._store(joint, topology, tuple(forces), r0, float(t_stop), dict(info or {}), mass,
+                    topology.node_matrix(joint.damping),
+                    None if joint.stiffness is None else topology.node_matrix(joint.stiffness))
         self.breakpoints()          # checks every waveform against t_stop before any solver runs
 
-    # M', B', K' and T⁻ᵀ are set in __post_init__ so that every consumer reads the same numbers.
-    mass: np.ndarray = field(init=False, repr=False)
-    damping: np.ndarray = field(init=False, repr=False)
-    stiffness: np.ndarray | None = field(init=False, repr=False)
-    current_map: np.ndarray = field(init=False, repr=False)
+    def _store(self, joint, topology, forces, r0, t_stop, info, mass, damping, stiffness):
+        self.joint, self.topology, self.forces = joint, topology, forces
+        self.initial_rates, self.t_stop, self.info = r0, t_stop, info
+        self.mass, self.damping, self.stiffness = mass, damping, stiffness
+        self.current_map = topology.current_map
+
+    @classmethod
+    def from_checked(cls, joint: JointSpace, topology: Topology, forces: tuple, initial_rates: np.ndarray,
+                     t_stop: float, info: Mapping, mass: np.ndarray, damping: np.ndarray,
+                     stiffness: np.ndarray | None) -> "NodeSystem":
+        """A system whose parts were checked as one row of a stack (see :func:`node_systems`)."""
+        obj = cls.__new__(cls)
+        obj._store(joint, topology, forces, initial_rates, t_stop, info, mass, damping, stiffness)
+        return obj
+
+    def __repr__(self) -> str:
+        springs = ", springs" if self.stiffness is not None else ""
+        return (f"NodeSystem({self.info.get('robot', 'custom')}, {self.dof} nodes, "
+                f"{self.topology.name} topology{springs}, t_stop={self.t_stop:g} s)")
 
     @property
     def dof(self) -> int:
+        """Number of nodes (and joints) n."""
         return self.joint.dof
 
     @property
@@ -83,6 +106,18 @@ class NodeSystem:
         """Node velocities v(0) = T·R(0)."""
         return self.topology.matrix @ self.initial_rates
 
+    def node_mass(self, x: np.ndarray) -> np.ndarray:
+        """M', the same at every x."""
+        return self.mass
+
+    def node_load(self, x: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
+        """h = 0: a linear system has no velocity or configuration terms."""
+        return np.zeros(self.dof)
+
+    def node_currents(self, t) -> np.ndarray:
+        """Node currents i(t) = T⁻ᵀ·F(t), shape (len(t), n)."""
+        return self.force(t) @ self.current_map.T
+
     def joint_rates(self, node_voltages: np.ndarray) -> np.ndarray:
         """R = T⁻¹·v for node voltages of shape (..., n)."""
         return self.topology.joint_rates(node_voltages)
@@ -90,33 +125,48 @@ class NodeSystem:
     def time_points(self, times=None, default: int = 1001) -> np.ndarray:
         """Sorted output times in [0, t_stop] (default: uniform); a time a rounding past
         t_stop, as SPICE's last point can be, is taken as t_stop."""
-        if times is None:
-            return np.linspace(0.0, self.t_stop, default)
-        t = np.asarray(times, dtype=float).reshape(-1)
-        if t.size and (np.any(np.diff(t) < 0) or t[0] < 0 or t[-1] > self.t_stop * (1 + 1e-9)
-                       or not np.all(np.isfinite(t))):
-            raise InputError("output times must be sorted and within [0, t_stop]")
-        return np.minimum(t, self.t_stop)
+        return output_times(self.t_stop, times, default)
 
     def force(self, t) -> np.ndarray:
         """Joint forces F(t), shape (len(t), n) for an array of times."""
-        t = np.atleast_1d(np.asarray(t, dtype=float))
-        return np.stack([sum((w(t) for w in ws), np.zeros_like(t)) for ws in self.forces], axis=-1)
+        return joint_forces(self.forces, t)
 
     def breakpoints(self) -> np.ndarray:
         """Segment ends 0 < t_1 < … < t_stop between which every force is smooth."""
-        pts = {self.t_stop}
-        for ws in self.forces:
-            for w in ws:
-                pts.update(b for b in w.breakpoints(self.t_stop) if 0 < b < self.t_stop)
-        return np.array(sorted(pts))
+        return force_breakpoints(self.forces, self.t_stop)
 
-    def segments(self):
+    def segments(self) -> Iterator[tuple[float, float]]:
         """Yield (t0, t1) intervals on which all forces are given by one closed form."""
         t0 = 0.0
         for t1 in self.breakpoints():
             yield t0, float(t1)
             t0 = float(t1)
+
+
+def output_times(t_stop: float, times=None, default: int = 1001) -> np.ndarray:
+    """Sorted output times in [0, *t_stop*]: *times* checked, or *default* uniform points."""
+    if times is None:
+        return np.linspace(0.0, t_stop, default)
+    t = np.asarray(times, dtype=float).reshape(-1)
+    if t.size and (np.any(np.diff(t) < 0) or t[0] < 0 or t[-1] > t_stop * (1 + 1e-9)
+                   or not np.all(np.isfinite(t))):
+        raise InputError("output times must be sorted and within [0, t_stop]")
+    return np.minimum(t, t_stop)
+
+
+def joint_forces(forces: tuple, t) -> np.ndarray:
+    """The summed waveforms of every joint at times *t*, shape (len(t), n)."""
+    t = np.atleast_1d(np.asarray(t, dtype=float))
+    return np.stack([sum((w(t) for w in ws), np.zeros_like(t)) for ws in forces], axis=-1)
+
+
+def force_breakpoints(forces: tuple, t_stop: float) -> np.ndarray:
+    """Sorted segment ends in (0, t_stop] between which every force is smooth."""
+    pts = {t_stop}
+    for ws in forces:
+        for w in ws:
+            pts.update(b for b in w.breakpoints(t_stop) if 0 < b < t_stop)
+    return np.array(sorted(pts))
 
 
 @lru_cache(maxsize=1024)
@@ -125,7 +175,16 @@ def _step(value: float) -> Step:
     return Step(value)
 
 
-def _waveforms(spec, n) -> tuple:
+def waveforms(spec, n: int) -> tuple:
+    """Per joint, the tuple of waveforms a force specification sums (see :func:`node_system`).
+
+    Parameters
+    ----------
+    spec : sequence or None
+        One entry per joint: a number, a waveform, a waveform string or a list of these.
+    n : int
+        Number of joints.
+    """
     if spec is None:
         return tuple(() for _ in range(n))
     if isinstance(spec, (str, Waveform)) or np.isscalar(spec):
@@ -154,7 +213,7 @@ def _waveforms(spec, n) -> tuple:
     return tuple(out)
 
 
-def node_system(model: Model | JointSpace, q: Sequence[float] | None = None, *,
+def node_system(model: Evaluable | JointSpace, q: Sequence[float] | None = None, *,
                 parameters: Mapping[str, float] | None = None,
                 topology: str | Topology | np.ndarray | None = None,
                 forces=None, initial_rates=None, t_stop: float = 1.0,
@@ -184,7 +243,7 @@ def node_system(model: Model | JointSpace, q: Sequence[float] | None = None, *,
 
 def _evaluated(model, q, parameters, topology):
     """The joint space of *model* at *q*, the topology to use and the report fields."""
-    if isinstance(model, Model) or hasattr(model, "joint_space"):   # Model or CompiledModel
+    if hasattr(model, "joint_space"):   # Model, ClosedChainModel or CompiledModel
         joint = model.joint_space(q, parameters)
         top_spec = topology if topology is not None else model.topology
         values = dict(model.parameters, **(parameters or {}))
@@ -203,42 +262,12 @@ def _mapped(joint, top_spec, base_info, forces, initial_rates, t_stop, info) -> 
     """A joint space mapped to node coordinates, with its forces and initial rates."""
     n = joint.dof
     top = make_topology(top_spec, n)
-    ws = _waveforms(forces, n)
+    ws = waveforms(forces, n)
     if joint.gravity is not None:
         ws = tuple(w + (Step(-g),) if g else w for w, g in zip(ws, joint.gravity))
     r0 = np.zeros(n) if initial_rates is None else initial_rates
     base_info.update(info or {})
     return NodeSystem(joint, top, ws, r0, float(t_stop), base_info)
-
-
-def _assembled(cls, **values):
-    """An instance of a frozen dataclass whose values were already checked as part of a stack."""
-    obj = object.__new__(cls)
-    for name, value in values.items():
-        object.__setattr__(obj, name, value)
-    return obj
-
-
-def _stack_fault(stack: JointStack, node_mass: np.ndarray) -> bool:
-    """True unless every configuration passes the checks of JointSpace and NodeSystem."""
-    m, b, k, g = stack
-    parts = [x for x in (m, b, k, g, node_mass) if x is not None]
-    if not all(np.all(np.isfinite(x)) for x in parts):
-        return True
-    for x in (m, b, k):
-        if x is not None and not np.array_equal(x, np.swapaxes(x, 1, 2)):
-            return True         # rare (rounding in a model's own expressions): checked one by one
-    try:
-        np.linalg.cholesky(m)
-        np.linalg.cholesky(node_mass)
-    except np.linalg.LinAlgError:
-        return True
-    for x in (b, k):
-        if x is not None:
-            floor = -1e-12 * np.maximum(np.abs(x).max(axis=(1, 2)), 1.0)
-            if np.any(np.linalg.eigvalsh(x)[:, 0] < floor):
-                return True
-    return False
 
 
 def node_systems(model, qs, *, parameters: Mapping[str, float] | None = None,
@@ -268,7 +297,7 @@ def node_systems(model, qs, *, parameters: Mapping[str, float] | None = None,
         top = first.topology
         m, b, kk = (None if x is None else 0.5 * (x + np.swapaxes(x, 1, 2)) for x in stack[:3])
         node_mass = top.node_matrix(m)
-        fault = _stack_fault(stack, node_mass)
+        fault = stack_fault(stack, node_mass)
     except InputError:
         fault = True
     if fault:               # one at a time: a bad row raises its own error, with its number
@@ -284,20 +313,18 @@ def node_systems(model, qs, *, parameters: Mapping[str, float] | None = None,
     for x in (m, b, kk, node_mass, node_damping, node_stiffness):
         if x is not None:
             x.setflags(write=False)     # rows are views: no system may change another
-    shared_forces = first.forces if stack.gravity is None else _waveforms(forces, first.dof)
+    shared_forces = first.forces if stack.gravity is None else waveforms(forces, first.dof)
     coords = [str(c) for c in model.coordinates]
-    r0, cmap, t_end = first.initial_rates, top.current_map, first.t_stop
+    r0, t_end = first.initial_rates, first.t_stop
     out = []
     for k, row in enumerate(q):
         stiff = None if kk is None or not np.any(kk[k]) else kk[k]
         grav = None if stack.gravity is None or not np.any(stack.gravity[k]) else stack.gravity[k]
         ws = shared_forces if grav is None else \
             tuple(w + (Step(-x),) if x else w for w, x in zip(shared_forces, grav))
-        joint = _assembled(JointSpace, mass_matrix=m[k], damping=b[k],
-                           stiffness=stiff, gravity=grav)
+        joint = JointSpace.from_checked(m[k], b[k], stiff, grav)
         item_info = {**first.info, "parameters": dict(first.info["parameters"]),
                      "configuration": dict(zip(coords, row.tolist()))}
-        out.append(_assembled(NodeSystem, joint=joint, topology=top, forces=ws, initial_rates=r0.copy(),
-                              t_stop=t_end, info=item_info, mass=node_mass[k], damping=node_damping[k],
-                              stiffness=None if stiff is None else node_stiffness[k], current_map=cmap))
+        out.append(NodeSystem.from_checked(joint, top, ws, r0.copy(), t_end, item_info, node_mass[k],
+                                           node_damping[k], None if stiff is None else node_stiffness[k]))
     return out

@@ -30,11 +30,12 @@ import schemdraw
 import schemdraw.elements as elm
 from schemdraw.segments import Segment, SegmentCircle, SegmentPoly
 
-from .elements import ZERO_TOL, elements
-from .errors import InputError
+from .description import circuit
+from .elements import ZERO_TOL
+from ..errors import InputError
 
 if TYPE_CHECKING:
-    from .system import NodeSystem
+    from .node_system import NodeSystem
 
 __all__ = ["draw_circuit", "draw_mechanism", "draw", "FORMATS"]
 
@@ -93,25 +94,16 @@ class _Layout:
 
 
 def _parts(system: NodeSystem, zero_tol: float) -> list[_Part]:
-    """Elements then force sources, split as :func:`analogy.netlist.source_lines` does."""
-    parts = [_Part(e.name, e.kind, e.a, e.b, e.value, e.coefficient) for e in elements(system, zero_tol)]
-    cmap = np.asarray(system.current_map, dtype=float)
-    for j, waves in enumerate(system.forces):
-        if not waves:
-            continue
-        col = cmap[:, j].copy()
-        col[np.abs(col) <= zero_tol * np.max(np.abs(col))] = 0.0
-        plus = np.flatnonzero(np.isclose(col, 1.0, rtol=0, atol=zero_tol))
-        minus = np.flatnonzero(np.isclose(col, -1.0, rtol=0, atol=zero_tol))
-        nz = np.flatnonzero(col)
-        if len(plus) == 1 and len(minus) <= 1 and len(nz) == len(plus) + len(minus):
-            p = int(plus[0]) + 1
-            m = int(minus[0]) + 1 if len(minus) else 0
-            a, b = (p, 0) if m == 0 else (min(p, m), max(p, m))
-            parts.append(_Part(f"I{j + 1}", "I", a, b, 1.0, 1.0, j + 1, into_a=(p == a)))
+    """Elements then force sources, read from the circuit description."""
+    c = circuit(system, zero_tol)
+    parts = [_Part(e.name, e.kind, e.a, e.b, e.value, e.coefficient) for e in c.elements]
+    for src in c.sources:
+        if src.b == 0 or src.scale != 1.0:
+            a, b, into_a = src.a, src.b, True
         else:
-            parts += [_Part(f"I{j + 1}_n{k + 1}", "I", int(k) + 1, 0, float(col[k]), float(col[k]), j + 1)
-                      for k in nz]
+            a, b = min(src.a, src.b), max(src.a, src.b)
+            into_a = src.a == a
+        parts.append(_Part(src.name, "I", a, b, src.scale, src.scale, src.joint, into_a=into_a))
     return parts
 
 

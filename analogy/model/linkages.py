@@ -9,8 +9,9 @@ import numpy as np
 import sympy as sp
 from sympy.simplify.fu import TR8
 
-from .errors import InputError
-from .model import JointStack, Model, configuration_stack
+from ..errors import InputError
+from .joint import JointStack, configuration_stack
+from .symbolic import Model
 
 __all__ = ["link_mass_matrix", "ClosedChainModel"]
 

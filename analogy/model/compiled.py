@@ -9,12 +9,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .model import (JointSpace, JointStack, configuration_stack, evaluate_entries, evaluation_arguments,
+from .joint import (JointSpace, JointStack, configuration_stack, evaluate_entries, evaluation_arguments,
                     part_shapes)
 
 __all__ = ["CompiledModel", "cache_dir", "compile_model", "load_compiled"]
 
-_SOURCES = ("model.py", "robots.py", "linkages.py", "compiled.py")
+_SOURCES = ("joint.py", "symbolic.py", "robots.py", "linkages.py", "compiled.py")
 
 
 def cache_dir() -> Path | None:
@@ -101,7 +101,7 @@ def _module_source(model) -> str:
 
 def compile_model(model, name: str) -> CompiledModel | None:
     """Write *model*'s numeric source to the cache under *name*; return it loaded (or None)."""
-    from .model import Model
+    from .symbolic import Model
     folder = cache_dir()
     if folder is None or type(model) is not Model:     # closed chains solve numerically per call
         return None

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-from .errors import InputError
+from ..errors import InputError
 
 __all__ = ["Nodal", "nodal_analysis", "KINDS"]
 

@@ -14,10 +14,16 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import SpiceError
-from .trajectory import Trajectory
+from ..circuit.currents import element_currents
+from ..circuit.description import circuit
+from ..circuit.netlist import batch_netlist, netlist, save_vectors
+from ..errors import SimulationError, SpiceError
+from ..presets import Preset
+from ..results.trajectory import SolverStats, Trajectory
+from .registry import Solver
 
-__all__ = ["NgspiceSession", "session", "run_netlist", "solve_spice", "library_path", "vector_key"]
+__all__ = ["NgspiceSession", "session", "run_netlist", "solve_spice", "library_path", "vector_key",
+           "SpiceSolver", "SOLVER"]
 
 _INFO_PREFIXES = ("warning", "note", "using", "doing analysis", "reference value",
                   "circuit:", "no. of data rows")
@@ -212,11 +218,18 @@ class NgspiceSession:
         except SpiceError:
             return False
 
-    def run(self, netlist: str, vectors=None) -> dict[str, np.ndarray]:
+    def run(self, netlist: str, vectors=None, stats: dict | None = None) -> dict[str, np.ndarray]:
         """Run a transient netlist and return ``{"time": …, node: …}``.
 
-        With *vectors*, return only those, keyed as given; each is looked up by
-        :func:`vector_key`, so ``n1``, ``v(n1)`` and ``@c1_2[i]`` all work.
+        Parameters
+        ----------
+        netlist : str
+            The netlist text (ASCII).
+        vectors : sequence of str, optional
+            Return only these, keyed as given; each is looked up by :func:`vector_key`,
+            so ``n1``, ``v(n1)`` and ``@c1_2[i]`` all work.
+        stats : dict, optional
+            Filled with ngspice's ``iterations`` and ``rejected`` time points.
 
         Raises
         ------
@@ -225,14 +238,14 @@ class NgspiceSession:
         """
         with self._lock:
             try:
-                return self._run(netlist, vectors)
+                return self._run(netlist, vectors, stats)
             except SpiceError:
                 # Leave a clean instance for the next run, whatever state ngspice is in.
                 if self._ng.exited or not self._healthy():
                     self._reload()
                 raise
 
-    def _run(self, netlist, vectors):
+    def _run(self, netlist, vectors, stats=None):
         try:
             netlist.encode("ascii")
         except UnicodeEncodeError:
@@ -250,6 +263,12 @@ class NgspiceSession:
             self._free()
             raise SpiceError(_describe_failure([t for s, t in ran], "transient analysis failed"))
         data = self._vectors(plot)
+        if stats is not None:
+            for _, text in self._command("rusage traniter rejected"):
+                name, _, value = text.partition(" = ")
+                key = {"Transient iterations": "iterations", "Rejected timepoints": "rejected"}.get(name)
+                if key and value.strip().isdigit():
+                    stats[key] = int(value)
         self._free()
         if "time" not in data:
             raise SpiceError("ngspice returned no time vector")
@@ -275,17 +294,121 @@ def session() -> NgspiceSession:
 
 
 def run_netlist(netlist: str, vectors=None) -> dict[str, np.ndarray]:
-    """Run *netlist* in the process's ngspice session."""
+    """Run *netlist* in the process's ngspice session.
+
+    Parameters
+    ----------
+    netlist : str
+        The netlist text.
+    vectors : sequence of str, optional
+        Vectors to return (see :meth:`NgspiceSession.run`).
+    """
     return session().run(netlist, vectors)
 
 
+def _from_start(time: np.ndarray) -> tuple[np.ndarray, bool]:
+    """SPICE's time points with t = 0 first (ngspice's first output point is its first step)."""
+    if time.size and time[0] > 0:
+        return np.concatenate([[0.0], time]), True
+    return time, False
+
+
+def _trajectory(system, time, prepended: bool, volts, currents, stats, elapsed) -> Trajectory:
+    """A SPICE result on *time*; with *prepended*, its first row is the initial state."""
+    if prepended:
+        v0 = system.initial_voltages
+        volts = np.vstack([v0, volts])
+        if currents:
+            first = element_currents(system, np.zeros(1), v0[None], np.zeros((1, system.dof)),
+                                     list(currents))
+            currents = {k: np.concatenate([first[k], x]) for k, x in currents.items()}
+    info = SolverStats(elapsed, max(int(time.size) - 1, 0), stats.get("rejected"), stats.get("iterations"))
+    return Trajectory("spice", time, volts, system.joint_rates(volts), currents=currents, stats=info)
+
+
 def solve_spice(system, preset="accurate", save=None) -> Trajectory:
-    """Simulate *system*'s netlist in ngspice and recover joint rates from node voltages."""
-    from .netlist import netlist as make_netlist
-    text = make_netlist(system, preset, save=save)
+    """Simulate *system*'s netlist in ngspice and recover joint rates from node voltages.
+
+    Parameters
+    ----------
+    system : NodeSystem
+        A linear node system.
+    preset : str or Preset
+        Accuracy preset.
+    save : sequence of str, optional
+        Element names whose currents to return in :attr:`Trajectory.currents`.
+    """
+    circ = circuit(system)
+    names = [e for e in (save or []) if e not in system.nodes]
+    vectors = save_vectors(circ, list(system.nodes) + names)
+    text = netlist(circ, preset, save=list(system.nodes) + names, printing=False)
     sess = session()
+    stats: dict = {}
     start = _time.perf_counter()
-    data = sess.run(text, system.nodes)
+    data = sess.run(text, vectors, stats)
     elapsed = _time.perf_counter() - start
-    v = np.column_stack([data[n] for n in system.nodes])
-    return Trajectory("spice", data["time"], v, system.joint_rates(v), elapsed)
+    v = np.column_stack([data[f"v({n})"] for n in system.nodes])
+    currents = {name: data[vec] for name, vec in zip(names, vectors[system.dof:])}
+    return _trajectory(system, *_from_start(data["time"]), v, currents, stats, elapsed)
+
+
+class SpiceSolver(Solver):
+    """ngspice in process: the equivalent circuit, simulated on its own time points."""
+
+    name = "spice"
+    linear_only = True          # the nonlinear circuit comes with behavioural elements
+    own_grid = True
+    label = "ngspice (shared library)"
+
+    def solve(self, system, times, preset: Preset, *, save=(), positions=False) -> Trajectory:
+        """Simulate on SPICE's own points; given *times*, the result is interpolated onto them.
+
+        Parameters
+        ----------
+        system : NodeSystem
+            A linear system.
+        times : array_like or None
+            None keeps SPICE's points (t = 0 added); else linear interpolation onto them.
+        preset : Preset
+            Accuracy settings (``.options`` and ``.tran``).
+        save : sequence of str
+            Element names whose device currents to return.
+        positions : bool
+            Unused: the circuit's states are node voltages.
+        """
+        tr = solve_spice(system, preset, save)
+        return tr if times is None else tr.resampled(system.time_points(times), system.joint_rates)
+
+    def solve_many(self, systems, times, preset: Preset, *, save=(), positions=False) -> list[Trajectory]:
+        """One ngspice run for all systems (sharing t_stop); if it fails, one run each.
+
+        Parameters
+        ----------
+        systems : sequence of NodeSystem
+            Linear systems sharing t_stop.
+        times : array_like or None
+            Must be None: a shared run has SPICE's own points.
+        preset : Preset
+            Accuracy settings.
+        save : sequence of str
+            Element currents to return (then each system runs alone).
+        positions : bool
+            Unused.
+        """
+        if len(systems) == 1 or save or times is not None:
+            return super().solve_many(systems, times, preset, save=save)
+        text = batch_netlist(systems, preset)
+        stats: dict = {}
+        start = _time.perf_counter()
+        try:
+            data = session().run(text, None, stats)
+        except SimulationError:
+            return super().solve_many(systems, times, preset)
+        elapsed = (_time.perf_counter() - start) / len(systems)
+        time, prepended = _from_start(data["time"])
+        return [_trajectory(s, time, prepended,
+                            np.column_stack([data[f"x{k}_{n}"] for n in s.nodes]), {}, stats, elapsed)
+                for k, s in enumerate(systems)]
+
+
+SOLVER = SpiceSolver()

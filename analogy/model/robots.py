@@ -9,9 +9,9 @@ from typing import Sequence
 import numpy as np
 import sympy as sp
 
-from .errors import InputError
+from ..errors import InputError
 from .linkages import ClosedChainModel, link_mass_matrix
-from .model import Model
+from .symbolic import Model
 
 __all__ = ["point_mass_matrix", "redundant_actuators", "planar_serial", "serial_2dof",
            "serial_3dof", "five_bar", "planar_3rrr", "numeric_model", "random_spd_model",

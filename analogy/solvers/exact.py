@@ -8,10 +8,12 @@ from typing import Sequence
 
 import numpy as np
 
-from .errors import SimulationError
-from .trajectory import Trajectory
+from ..errors import SimulationError
+from ..presets import Preset
+from ..results.trajectory import SolverStats, Trajectory
+from .registry import Solver
 
-__all__ = ["solve_exact", "solve_exact_many", "phi1", "phi2"]
+__all__ = ["solve_exact", "solve_exact_many", "phi1", "phi2", "ExactSolver", "SOLVER"]
 
 
 def _expm1(x: np.ndarray) -> np.ndarray:
@@ -185,4 +187,63 @@ def solve_exact(system, times=None, positions: bool = False) -> Trajectory:
     voltages = y[:, -n:]
     pos = y[:, :n] if positions and system.stiffness is not None else None
     elapsed = _time.perf_counter() - start
-    return Trajectory("exact", t, voltages, system.joint_rates(voltages), elapsed, pos)
+    return Trajectory("exact", t, voltages, system.joint_rates(voltages), pos, stats=SolverStats(elapsed))
+
+
+class ExactSolver(Solver):
+    """The modal closed form of a linear system, segment by segment."""
+
+    name = "exact"
+    linear_only = True
+    label = "modal closed form"
+
+    def solve(self, system, times, preset: Preset, *, save=(), positions=False) -> Trajectory:
+        """The exact solution at *times* (None: the preset's uniform grid); see :meth:`Solver.solve`.
+
+        Parameters
+        ----------
+        system : NodeSystem
+            A linear system.
+        times : array_like or None
+            Output times.
+        preset : Preset
+            Sets the default grid only.
+        save : sequence of str
+            Unused: element currents follow from the trajectory.
+        positions : bool
+            Also return node positions where the system has springs.
+        """
+        grid = np.linspace(0.0, system.t_stop, preset.steps + 1) if times is None else times
+        return solve_exact(system, grid, positions)
+
+    def solve_many(self, systems, times, preset: Preset, *, save=(), positions=False) -> list[Trajectory]:
+        """All systems at once with stacked linear algebra; if that fails, one by one.
+
+        Parameters
+        ----------
+        systems : sequence of NodeSystem
+            Linear systems.
+        times : array_like or None
+            Shared output times.
+        preset : Preset
+            Sets the default grid only.
+        save : sequence of str
+            Unused: element currents follow from the trajectory.
+        positions : bool
+            Also return node positions where the systems have springs (one by one).
+        """
+        if positions or len(systems) == 1 or any(self.supports(s) for s in systems):
+            return super().solve_many(systems, times, preset, positions=positions)
+        grid = np.linspace(0.0, systems[0].t_stop, preset.steps + 1) if times is None else times
+        start = _time.perf_counter()
+        try:
+            volts = solve_exact_many(systems, grid)
+        except SimulationError:
+            return super().solve_many(systems, grid, preset, positions=positions)
+        t = systems[0].time_points(grid)
+        each = (_time.perf_counter() - start) / len(systems)
+        return [Trajectory("exact", t, v, s.joint_rates(v), stats=SolverStats(each))
+                for s, v in zip(systems, volts)]
+
+
+SOLVER = ExactSolver()

@@ -7,7 +7,7 @@ from functools import cached_property, lru_cache
 
 import numpy as np
 
-from .errors import InputError
+from ..errors import InputError
 
 __all__ = ["Topology", "serial", "parallel", "custom", "topology", "TOPOLOGIES", "congruence"]
 

@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from typing import Literal, NamedTuple
 
 import numpy as np
 
-__all__ = ["Element", "elements", "element_table", "spice_value", "mp_capacitance", "laplacian_split",
+__all__ = ["Element", "ElementKind", "ELEMENT_KINDS", "elements", "element_table", "spice_value", "mp_capacitance", "laplacian_split",
            "ZERO_TOL"]
 
 #: Default relative tolerance below which an element value counts as zero.
@@ -16,15 +16,18 @@ _UNITS = {"C": "F", "R": "Ohm", "L": "H"}
 _MEANING = {"C": "mass", "R": "damper", "L": "spring"}
 
 
-@dataclass(frozen=True)
-class Element:
+ElementKind = Literal["C", "R", "L"]
+ELEMENT_KINDS: tuple[ElementKind, ...] = ("C", "R", "L")
+
+
+class Element(NamedTuple):
     """One two-terminal element between node *a* and node *b* (0 is ground).
 
     *value* is the SPICE value: capacitance [F] = mass, resistance [Ω] = 1/damping,
     inductance [H] = 1/stiffness. *coefficient* is the mechanical value it came from.
     """
 
-    kind: str
+    kind: ElementKind
     a: int
     b: int
     value: float
@@ -32,6 +35,7 @@ class Element:
 
     @property
     def name(self) -> str:
+        """Netlist name: ``C1`` (grounded at node 1) or ``C1_2`` (between nodes 1 and 2)."""
         return f"{self.kind}{self.a}" if self.b == 0 else f"{self.kind}{self.a}_{self.b}"
 
     @property
@@ -41,13 +45,19 @@ class Element:
 
     @property
     def unit(self) -> str:
+        """SI unit of :attr:`value`."""
         return _UNITS[self.kind]
 
     @property
     def meaning(self) -> str:
+        """The mechanical element it stands for: mass, MP model, damper or spring."""
         if self.kind == "C" and self.floating:
             return "MP model"
         return _MEANING[self.kind]
+
+    def __repr__(self) -> str:
+        where = f"n{self.a}-ground" if self.b == 0 else f"n{self.a}-n{self.b}"
+        return f"<{self.name} {self.value:.6g} {self.unit}: {self.meaning}, {where}>"
 
 
 def laplacian_split(matrix: np.ndarray, zero_tol: float = ZERO_TOL):

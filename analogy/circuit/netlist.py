@@ -1,0 +1,227 @@
+"""SPICE text of circuit descriptions: one netlist, or many circuits in one run; the only SPICE writer."""
+
+from __future__ import annotations
+
+import re
+from typing import Iterable, Sequence
+
+from ..errors import InputError
+from ..presets import Preset, preset as get_preset
+from .description import BehaviouralCurrent, ChargeCapacitor, Circuit, circuit as describe, circuits
+from .elements import ZERO_TOL
+
+__all__ = ["netlist", "batch_netlist", "circuit_lines", "analysis_lines", "save_vectors",
+           "comment_text", "spice_expression"]
+
+_SAFE_COMMENT = re.compile(r"[^A-Za-z0-9 _.,:;=+\-*/()\[\]{}<>'#%@!?|~^&$]")
+_SAFE_EXPRESSION = re.compile(r"^[A-Za-z0-9_.+\-*/()^ ,<>=!&|?:]+$")
+
+
+def comment_text(text) -> str:
+    """Make *text* safe inside a ``*`` comment: one line, printable ASCII only.
+
+    Parameters
+    ----------
+    text : object
+        Anything; its ``str`` is cleaned.
+    """
+    return _SAFE_COMMENT.sub("?", str(text))
+
+
+def spice_expression(text: str) -> str:
+    """*text* if it is a plain arithmetic SPICE expression, else :class:`InputError`.
+
+    Only names, numbers, operators, parentheses and commas pass: no quotes, braces,
+    newlines or dots that start a control line, so nothing can leave the expression.
+
+    Parameters
+    ----------
+    text : str
+        A behavioural expression such as ``v(n1)*v(n2)``.
+    """
+    if not isinstance(text, str) or not _SAFE_EXPRESSION.match(text) or text.lstrip().startswith("."):
+        raise InputError(f"behavioural expression {text!r} contains characters SPICE must not read")
+    return text
+
+
+def _num(x: float) -> str:
+    return repr(float(x))
+
+
+def _node(k: int, prefix: str = "") -> str:
+    return "0" if k == 0 else f"{prefix}n{k}"
+
+
+def circuit_lines(c: Circuit, prefix: str = "") -> list[str]:
+    """Device lines of circuit *c*: elements, 1:−1 couplings, behavioural parts, sources.
+
+    Parameters
+    ----------
+    c : Circuit
+        The description to write.
+    prefix : str
+        Prepended to every device and node name (independent circuits in one run).
+    """
+    lines = []
+    for e in c.elements:
+        name = f"{e.kind}{prefix}{e.a}" if e.b == 0 else f"{e.kind}{prefix}{e.a}_{e.b}"
+        lines.append(f"{name} {_node(e.a, prefix)} {_node(e.b, prefix)} {_num(e.value)}")
+    for cp in c.couplings:
+        e = cp.element
+        name = f"{prefix}{e.name}"
+        a, b = _node(e.a, prefix), _node(e.b, prefix)
+        x, y = (f"{prefix}{n}" for n in cp.auxiliary_nodes)
+        lines += [f"E{name} {x} 0 {b} {a} 1", f"V{name} {x} {y} DC 0",
+                  f"{name} {y} 0 {_num(-e.value)}", f"F{name} {a} {b} V{name} 1"]
+    for p in c.behavioural:
+        a, b = _node(p.a, prefix), _node(p.b, prefix)
+        if isinstance(p, ChargeCapacitor):
+            lines.append(f"C{prefix}{p.name} {a} {b} Q={{{spice_expression(p.charge)}}}")
+        elif isinstance(p, BehaviouralCurrent):
+            lines.append(f"B{prefix}{p.name} {b} {a} I={{{spice_expression(p.current)}}}")
+    # 'I n+ n- value' drives current out of n+ and into n-: into a, out of b.
+    lines += [f"I{prefix}{s.name[1:]} {_node(s.b, prefix)} {_node(s.a, prefix)} "
+              f"{s.waveform.spice(s.scale, c.t_stop)}" for s in c.sources]
+    return lines
+
+
+def analysis_lines(preset: str | Preset, t_stop: float, ic: Iterable[tuple[str, float]],
+                   save: Iterable[str], options: dict | None = None, printing: bool = False) -> list[str]:
+    """``.ic``, ``.options``, ``.tran`` (uic), ``.save`` and, with *printing*, ``.print``.
+
+    Parameters
+    ----------
+    preset : str or Preset
+        Its SPICE options, print step and step cap.
+    t_stop : float
+        End of the transient.
+    ic : iterable of (str, float)
+        Node voltages at t = 0.
+    save : iterable of str
+        Vectors to save (``v(n1)``, ``@c1_2[i]``).
+    options : dict, optional
+        Overrides of the preset's options.
+    printing : bool
+        Add ``.print tran`` of the saved vectors, so that ``ngspice -b`` prints them.
+    """
+    p = get_preset(preset)
+    opts = dict(p.spice_options, **(options or {}))
+    save = list(save)
+    lines = [
+        ".ic " + " ".join(f"v({n})={_num(v)}" for n, v in ic),
+        ".options " + " ".join(f"{k}={v}" for k, v in opts.items()),
+        f".tran {_num(t_stop / p.steps)} {_num(t_stop)} 0 {_num(t_stop / p.max_steps)} uic",
+        ".save " + " ".join(save),
+    ]
+    if printing:
+        lines.append(".print tran " + " ".join(save))
+    return lines
+
+
+def save_vectors(c: Circuit, save: Iterable[str] | None = None) -> list[str]:
+    """The ``.save`` vectors for node and element names of circuit *c*.
+
+    A node name (``n1`` …) gives its voltage ``v(n1)``; an element name (``C1``,
+    ``C1_2``, ``R1``, ``L2_3`` …) gives its current ``@c1_2[i]``, flowing from its
+    first terminal through it to its second, as SPICE reports a device ``name a b
+    value``. An element behind a coupling reports the current of the coupling's
+    source ``F<name>``, which carries it from a to b. Names are checked against the
+    circuit, so nothing else can reach the netlist.
+
+    Parameters
+    ----------
+    c : Circuit
+        The circuit whose nodes and elements may be named.
+    save : iterable of str, optional
+        Names; default every node.
+    """
+    nodes = c.node_names
+    wanted = list(nodes) if save is None else list(save)
+    if not wanted:
+        raise InputError("nothing to save: name at least one node")
+    coupled = {cp.name.lower() for cp in c.couplings}
+    out = []
+    for item in wanted:
+        if isinstance(item, str) and item in nodes:
+            out.append(f"v({item})")
+            continue
+        e = c.element(item) if isinstance(item, str) else None
+        if e is None:
+            names = ", ".join(p.name for p in c.parts) or "none"
+            raise InputError(f"cannot save unknown node or element {item!r}: nodes are "
+                             f"{', '.join(nodes)}; elements are {names}")
+        device = f"F{e.name}" if e.name.lower() in coupled else e.name
+        out.append(f"@{device.lower()}[i]")
+    return list(dict.fromkeys(out))
+
+
+def _header(c: Circuit, title: str | None, realizable: bool) -> list[str]:
+    robot = next((line.split(": ", 1)[1] for line in c.comments if line.startswith("robot: ")), "custom")
+    lines = [f"* {comment_text(title or 'analogy equivalent circuit: ' + robot)}"]
+    lines += [f"* {comment_text(line)}" for line in c.comments]
+    lines += ["* analogy: force = current [A], velocity = voltage [V], mass = capacitance [F],",
+              "* damping = conductance [S], stiffness = 1/inductance [1/H]; floating C = MP model"]
+    if realizable:
+        lines.append("* realizable: negative elements sit behind 1:-1 couplings (E, V, F sources)")
+    return lines
+
+
+def netlist(system, preset: str | Preset = "accurate", save: Iterable[str] | None = None,
+            zero_tol: float = ZERO_TOL, title: str | None = None, realizable: bool = False,
+            printing: bool = True) -> str:
+    """Write *system* as a SPICE netlist that ``ngspice -b`` runs and prints unchanged.
+
+    Parameters
+    ----------
+    system : NodeSystem or Circuit
+        The system (its circuit is described here) or a circuit description.
+    preset : str or Preset
+        Accuracy preset for ``.options`` and ``.tran``.
+    save : iterable of str, optional
+        Node names (``n1`` …) whose voltages to save and element names (``C1_2``,
+        ``R1`` …) whose currents to save (see :func:`save_vectors`); default all nodes.
+    zero_tol : float
+        Relative tolerance under which an element is left out.
+    title : str, optional
+        First line of the netlist.
+    realizable : bool
+        Build negative elements from positive ones behind inverting couplings.
+    printing : bool
+        End with ``.print tran`` of the saved vectors (``ngspice -b`` prints them; the
+        in-process run ignores the line).
+    """
+    c = system if isinstance(system, Circuit) else describe(system, zero_tol, realizable)
+    vectors = save_vectors(c, save)
+    body = circuit_lines(c)
+    # A capacitor driven by an ideal source makes the trapezoidal rule ring from step to
+    # step, and tight step control then collapses; gear damps it.
+    options = {"method": "gear"} if c.couplings else None
+    tail = analysis_lines(preset, c.t_stop, c.initial, vectors, options, printing) + [".end"]
+    return "\n".join(_header(c, title, bool(c.couplings)) + body + tail) + "\n"
+
+
+def batch_netlist(systems: Sequence, preset: str | Preset = "fast") -> str:
+    """One netlist holding every system as an independent sub-circuit (prefix ``x<k>_``).
+
+    All systems must share t_stop, so that one ``.tran`` serves them all; their
+    circuits come from :func:`~analogy.circuit.description.circuits`, one stack per size.
+
+    Parameters
+    ----------
+    systems : sequence of NodeSystem
+        The systems, sharing t_stop.
+    preset : str or Preset
+        Accuracy preset for ``.options`` and ``.tran``.
+    """
+    if not systems:
+        raise InputError("a batch needs at least one system")
+    t_stop = systems[0].t_stop
+    if any(s.t_stop != t_stop for s in systems):
+        raise InputError("systems in one ngspice run must share t_stop")
+    lines, ic, save = [f"* analogy batch of {len(systems)} independent circuits"], [], []
+    for k, c in enumerate(circuits(systems)):
+        prefix = f"x{k}_"
+        lines += circuit_lines(c, prefix)
+        ic += [(prefix + n, v) for n, v in c.initial]
+        save += [f"v({prefix}{n})" for n in c.node_names]
+    return "\n".join(lines + analysis_lines(preset, t_stop, ic, save) + [".end"]) + "\n"

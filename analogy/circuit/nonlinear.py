@@ -1,0 +1,156 @@
+"""Configuration-dependent node dynamics: M'(x)·dv/dt = i(t) − B'·v − K'·x − h(x, v)."""
+
+from __future__ import annotations
+
+from typing import Iterator, Mapping, Sequence
+
+import numpy as np
+
+from ..errors import InputError
+from ..model.dynamics import DynamicsKind
+from ..model.joint import check_square_symmetric, check_vector
+from ..model.dynamics import MechanicalFunctions
+from .node_system import force_breakpoints, joint_forces, output_times, waveforms
+from .topology import Topology, topology as make_topology
+
+__all__ = ["NonlinearNodeSystem", "nonlinear_system"]
+
+
+class NonlinearNodeSystem:
+    """A robot's full dynamics in node coordinates, about the configuration q0 it starts at.
+
+    With q = q0 + T⁻¹·x and r = T⁻¹·v, the Lagrange equations
+    M(q)·ṙ + c(q, r) + G(q) + K·(q − q0) + B·r = F become
+    ``M'(x)·dv/dt = i − B'·v − K'·x − h`` with M'(x) = T⁻ᵀ·M(q)·T⁻¹ and
+    h = T⁻ᵀ·(c(q, r) + G(q)). Only solvers that integrate M'(x) apply (not the exact one).
+
+    Parameters
+    ----------
+    functions : MechanicalFunctions
+        Compiled M(q), c(q, q̇), G(q) and constant B, K of the model.
+    q0 : array_like
+        Configuration at t = 0.
+    topology : Topology
+        The constant map T.
+    forces : tuple of tuple of Waveform
+        Per joint, the waveforms whose sum is F_j(t) (gravity is part of h, not of F).
+    initial_rates : array_like
+        Joint rates at t = 0.
+    t_stop : float
+        End of the simulated interval [s].
+    info : mapping, optional
+        Robot name, parameters and configuration, for reports.
+    """
+
+    kind: DynamicsKind = "nonlinear"
+
+    def __init__(self, functions: MechanicalFunctions, q0, topology: Topology, forces: tuple,
+                 initial_rates, t_stop: float, info: Mapping | None = None):
+        n = topology.dof
+        self.functions = functions
+        self.q0 = check_vector("configuration q", q0, n)
+        self.topology, self.forces, self.t_stop = topology, tuple(forces), float(t_stop)
+        if not (np.isfinite(self.t_stop) and 1e-9 <= self.t_stop <= 1e9):
+            raise InputError("t_stop must be a time between 1e-9 s and 1e9 s")
+        if len(self.forces) != n:
+            raise InputError(f"forces must have {n} entries (one per joint), got {len(self.forces)}")
+        self.initial_rates = check_vector("initial rates r0", initial_rates, n)
+        self.info = dict(info or {})
+        self.damping = topology.node_matrix(functions.damping)
+        self.stiffness = None if functions.stiffness is None or not np.any(functions.stiffness) \
+            else topology.node_matrix(functions.stiffness)
+        self.current_map = topology.current_map
+        check_square_symmetric("node mass matrix M'(0)", self.node_mass(np.zeros(n)), definite=True)
+        force_breakpoints(self.forces, self.t_stop)
+
+    def __repr__(self) -> str:
+        return (f"NonlinearNodeSystem({self.info.get('robot', 'custom')}, {self.dof} nodes, "
+                f"{self.topology.name} topology, t_stop={self.t_stop:g} s)")
+
+    @property
+    def dof(self) -> int:
+        """Number of nodes (and joints) n."""
+        return self.topology.dof
+
+    @property
+    def nodes(self) -> list[str]:
+        """SPICE node names, n1 … nN."""
+        return [f"n{k + 1}" for k in range(self.dof)]
+
+    @property
+    def initial_voltages(self) -> np.ndarray:
+        """Node velocities v(0) = T·R(0)."""
+        return self.topology.matrix @ self.initial_rates
+
+    def configuration(self, x: np.ndarray) -> np.ndarray:
+        """Joint coordinates q = q0 + T⁻¹·x at node positions *x*."""
+        return self.q0 + self.topology.joint_rates(x)
+
+    def node_mass(self, x: np.ndarray) -> np.ndarray:
+        """M'(x) = T⁻ᵀ·M(q0 + T⁻¹·x)·T⁻¹."""
+        return self.topology.node_matrix(self.functions.mass(self.configuration(x)))
+
+    def node_load(self, x: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
+        """h = T⁻ᵀ·(c(q, r) + G(q)): velocity terms and gravity, as node currents."""
+        q, r = self.configuration(x), self.joint_rates(v)
+        load = self.functions.velocity(q, r)
+        if self.functions.gravity is not None:
+            load = load + self.functions.gravity(q)
+        return self.current_map @ load
+
+    def node_currents(self, t) -> np.ndarray:
+        """Node currents i(t) = T⁻ᵀ·F(t), shape (len(t), n)."""
+        return joint_forces(self.forces, t) @ self.current_map.T
+
+    def joint_rates(self, node_voltages: np.ndarray) -> np.ndarray:
+        """R = T⁻¹·v for node voltages of shape (..., n)."""
+        return self.topology.joint_rates(node_voltages)
+
+    def time_points(self, times=None, default: int = 1001) -> np.ndarray:
+        """Sorted output times in [0, t_stop]."""
+        return output_times(self.t_stop, times, default)
+
+    def segments(self) -> Iterator[tuple[float, float]]:
+        """Yield (t0, t1) intervals on which all forces are given by one closed form."""
+        t0 = 0.0
+        for t1 in force_breakpoints(self.forces, self.t_stop):
+            yield t0, float(t1)
+            t0 = float(t1)
+
+
+def nonlinear_system(model, q: Sequence[float], *, parameters: Mapping[str, float] | None = None,
+                     topology=None, forces=None, initial_rates=None, t_stop: float = 1.0,
+                     info: Mapping | None = None) -> NonlinearNodeSystem:
+    """The full nonlinear dynamics of a symbolic *model*, starting at configuration *q*.
+
+    Parameters
+    ----------
+    model : Model
+        A symbolic model (its Christoffel symbols are derived from M(q)).
+    q : sequence of float
+        Configuration at t = 0.
+    parameters : mapping, optional
+        Parameter overrides.
+    topology : {"serial", "parallel"}, Topology or array_like, optional
+        Joint-to-node map T; defaults to the model's own.
+    forces : sequence, optional
+        One entry per joint, as for :func:`~analogy.circuit.node_system.node_system`.
+    initial_rates : sequence of float, optional
+        Joint rates at t = 0 (default zero).
+    t_stop : float
+        End of the simulated interval.
+    info : mapping, optional
+        Extra report fields.
+    """
+    if not hasattr(model, "mechanical_functions"):
+        raise InputError(f"model {getattr(model, 'name', model)!r} has no symbolic M(q): "
+                         "nonlinear dynamics need a symbolic model")
+    functions = model.mechanical_functions(parameters)
+    n = model.dof
+    top = make_topology(model.topology if topology is None else topology, n)
+    values = dict(model.parameters, **(parameters or {}))
+    base = {"robot": model.name, "parameters": values,
+            "configuration": dict(zip((str(c) for c in model.coordinates), list(q)))}
+    base.update(info or {})
+    return NonlinearNodeSystem(functions, q, top, waveforms(forces, n),
+                               np.zeros(n) if initial_rates is None else initial_rates, t_stop, base)

@@ -1,0 +1,73 @@
+"""The dynamics protocol every node system follows: M'(x)·dv/dt = i(t) − B'·v − K'·x − h(x, v, t)."""
+
+from __future__ import annotations
+
+from typing import Any, Callable, Iterator, Literal, Mapping, NamedTuple, Protocol, runtime_checkable
+
+import numpy as np
+
+__all__ = ["DynamicsKind", "DYNAMICS", "NodeDynamics", "MechanicalFunctions"]
+
+#: The kinds of node dynamics: constant M', B', K' with h = 0, or configuration-dependent.
+DynamicsKind = Literal["linear", "nonlinear"]
+DYNAMICS: tuple[DynamicsKind, ...] = ("linear", "nonlinear")
+
+
+@runtime_checkable
+class NodeDynamics(Protocol):
+    """Dynamics in node coordinates v = T·r, x = ∫v, read by every solver.
+
+    ``M'(x)·dv/dt = i(t) − B'·v − K'·x − h(x, v, t)``, with node currents
+    i = T⁻ᵀ·F(t). A linear system has constant M' and h = 0; a nonlinear one gives
+    M'(x) and h (velocity terms, gravity) from its model. x is measured from the
+    configuration the system was built at, so x(0) = 0.
+    """
+
+    kind: DynamicsKind
+    topology: Any
+    forces: tuple
+    t_stop: float
+    info: Mapping
+    damping: np.ndarray
+    stiffness: np.ndarray | None
+
+    @property
+    def dof(self) -> int: ...
+
+    @property
+    def nodes(self) -> list[str]: ...
+
+    @property
+    def initial_voltages(self) -> np.ndarray: ...
+
+    def node_mass(self, x: np.ndarray) -> np.ndarray:
+        """M'(x), shape (n, n)."""
+
+    def node_load(self, x: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
+        """h(x, v, t), shape (n,): zero for a linear system."""
+
+    def node_currents(self, t) -> np.ndarray:
+        """i(t) = T⁻ᵀ·F(t), shape (len(t), n)."""
+
+    def joint_rates(self, node_voltages: np.ndarray) -> np.ndarray:
+        """R = T⁻¹·v for node voltages of shape (..., n)."""
+
+    def time_points(self, times=None, default: int = 1001) -> np.ndarray:
+        """Sorted output times in [0, t_stop]."""
+
+    def segments(self) -> Iterator[tuple[float, float]]:
+        """Intervals on which every force is one closed form."""
+
+
+class MechanicalFunctions(NamedTuple):
+    """Compiled functions of a configuration-dependent model, at fixed parameters.
+
+    Each takes numeric q (and q̇) of shape (n,) and returns an array: M(q) (n, n),
+    c(q, q̇) (n,), G(q) (n,) or None, and the constant B and K (None without springs).
+    """
+
+    mass: Callable[[np.ndarray], np.ndarray]
+    velocity: Callable[[np.ndarray, np.ndarray], np.ndarray]
+    gravity: Callable[[np.ndarray], np.ndarray] | None
+    damping: np.ndarray
+    stiffness: np.ndarray | None

@@ -1,0 +1,3 @@
+"""Trajectories, the error metric, and comparisons of solvers on shared time points."""
+
+__all__: list[str] = []

@@ -1,0 +1,366 @@
+"""The one orchestrator: registered solvers on shared time points, errors against a reference."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from ..circuit.currents import trajectory_currents
+from ..errors import InputError
+from ..presets import Preset, preset as get_preset
+from ..solvers.registry import SOLVER_NAMES, run_many, solver
+from .metrics import absolute_error, peak, relative_error
+from .output import html_table, write_columns
+from .trajectory import Trajectory
+
+__all__ = ["Comparison", "compare", "compare_many", "output_grid", "DEFAULT_SOLVERS"]
+
+#: The solvers a comparison runs unless told otherwise.
+DEFAULT_SOLVERS: tuple[str, ...] = ("spice", "ode", "exact")
+
+
+@dataclass(eq=False)
+class Comparison:
+    """Joint rates from several solvers on one time grid, with errors against a reference.
+
+    Attributes
+    ----------
+    system : NodeDynamics
+        The system that was solved.
+    preset : str
+        The accuracy preset's name.
+    time : ndarray
+        Shared time points: SPICE's own output points (t = 0 included) when SPICE
+        ran and no output step was asked for, else a uniform grid.
+    results : dict of str to Trajectory
+        Successful solvers, in run order.
+    failures : dict of str to str
+        Solvers that failed or do not apply, with the reason; the others are kept.
+    reference : str or None
+        The solver the errors are measured against (None: no reference applied).
+    bound : float
+        The preset's promised worst error / peak (:attr:`Preset.bound`).
+    measured : dict of str to (float, float)
+        Per solver: max |R − R_ref| and that over the peak |R_ref|, measured on the
+        solver's own time points.
+    """
+
+    system: object
+    preset: str
+    time: np.ndarray
+    results: dict = field(default_factory=dict)
+    failures: dict = field(default_factory=dict)
+    reference: str | None = "exact"
+    measured: dict = field(default_factory=dict)
+    bound: float = math.nan
+
+    @property
+    def peak(self) -> float:
+        """max |R_ref| over joints and times (NaN without a reference)."""
+        ref = self.results.get(self.reference) if self.reference else None
+        return peak(ref.rates) if ref is not None else math.nan
+
+    def errors(self) -> dict[str, tuple[float, float]]:
+        """Per solver: (max |R − R_ref|, that divided by the peak); NaN without a reference."""
+        nan = (math.nan, math.nan)
+        return {name: self.measured.get(name, nan) for name in self.results}
+
+    def outside_bound(self) -> dict[str, float]:
+        """Solvers whose error / peak exceeds the preset's bound: a broken promise, flagged."""
+        return {name: r for name, (_, r) in self.errors().items()
+                if name != self.reference and r > self.bound}
+
+    def max_relative_error(self, solver: str) -> float:
+        """Max error of *solver* relative to the reference's peak joint rate.
+
+        Parameters
+        ----------
+        solver : str
+            A solver that ran.
+        """
+        return self.errors()[solver][1]
+
+    def _rows(self) -> list[list]:
+        rows = []
+        for name in list(self.results) + [f for f in self.failures if f not in self.results]:
+            tr = self.results.get(name)
+            if tr is None:
+                rows.append([name, "failed", "", "", "", self.failures[name]])
+                continue
+            e, r = self.errors()[name]
+            st = tr.stats
+            note = "reference" if name == self.reference else tr.message
+            rows.append([name, tr.run_time * 1e3, e, r, "" if st.steps is None else st.steps, note])
+        return rows
+
+    def table(self) -> str:
+        """A plain-text table of run time, error and steps per solver."""
+        info = self.system.info
+        ref = self.reference or "none"
+        lines = [f"robot {info.get('robot', 'custom')}, topology {self.system.topology.name}, "
+                 f"preset {self.preset}, {self.time.size} time points, reference {ref} "
+                 f"(errors on each solver's own points)",
+                 f"{'solver':<10}{'run time [ms]':>15}{'max |error|':>14}{'error / peak':>14}{'steps':>8}"]
+        for name, ms, e, r, steps, note in self._rows():
+            if ms == "failed":
+                lines.append(f"{name:<10}  failed: {note}")
+                continue
+            tail = f"  ({note})" if note else ""
+            lines.append(f"{name:<10}{ms:>15.3f}{e:>14.3e}{r:>14.3e}{steps!s:>8}{tail}")
+        return "\n".join(lines)
+
+    def __str__(self) -> str:
+        return self.table()
+
+    def __repr__(self) -> str:
+        worst = {k: v[1] for k, v in self.errors().items() if k != self.reference}
+        errs = ", ".join(f"{k} {v:.2e}" for k, v in worst.items()) or "no errors"
+        failed = f", {len(self.failures)} failed" if self.failures else ""
+        return (f"<Comparison {self.system.info.get('robot', 'custom')}: {', '.join(self.results)} "
+                f"on {self.time.size} points, error/peak vs {self.reference}: {errs}{failed}>")
+
+    def _repr_html_(self) -> str:
+        return html_table(["solver", "run time [ms]", "max |error|", "error / peak", "steps", "note"],
+                          self._rows())
+
+    def columns(self) -> dict[str, np.ndarray]:
+        """``time``, then every solver's joint rates ``r1_spice`` …"""
+        n = self.system.dof
+        cols = {"time": self.time}
+        for s, tr in self.results.items():
+            cols.update((f"r{j + 1}_{s}", tr.rates[:, j]) for j in range(n))
+        return cols
+
+    def to_csv(self, path) -> Path:
+        """Write time, then every solver's joint rates r1…rn, one row per time point.
+
+        Parameters
+        ----------
+        path : str or Path
+            The file to write.
+        """
+        return write_columns(path, self.columns())
+
+    def to_frame(self):
+        """The :meth:`columns` as a pandas DataFrame indexed by time."""
+        import pandas as pd
+        return pd.DataFrame(self.columns()).set_index("time")
+
+    def plot(self, path=None):
+        """Joint rates of every solver and their errors against time; saved to *path* if given.
+
+        Parameters
+        ----------
+        path : str or Path, optional
+            Image file to write (``.png``, ``.svg``, ``.pdf`` …).
+        """
+        from .plots import plot_comparison
+        return plot_comparison(self, path)
+
+
+def output_grid(t_stop: float, step: float | None, default: int) -> np.ndarray:
+    """Uniform output times 0, step, 2·step, … with t_stop last (or *default* + 1 points).
+
+    Parameters
+    ----------
+    t_stop : float
+        End time.
+    step : float or None
+        Output step; None gives *default* intervals.
+    default : int
+        Number of intervals without a step.
+    """
+    if step is None:
+        return np.linspace(0.0, t_stop, default + 1)
+    if not (math.isfinite(step) and 0 < step <= t_stop):
+        raise InputError(f"the output step must be a time in (0, t_stop = {t_stop:g} s], got {step!r}")
+    count = int(math.floor(t_stop / step * (1 + 1e-12)))
+    if count > 10_000_000:
+        raise InputError(f"the output step {step:g} s gives more than 10 million points")
+    t = np.arange(count + 1) * step
+    return t if t[-1] >= t_stop * (1 - 1e-12) else np.append(t, t_stop)
+
+
+def _names(solvers: Sequence[str]) -> list[str]:
+    names = list(dict.fromkeys(solvers))
+    if not names:
+        raise InputError(f"no solver named: use {', '.join(SOLVER_NAMES)}")
+    for name in names:
+        solver(name)                        # one clear sentence for an unknown name
+    return names
+
+
+def _reference(system, names: list[str], reference: str | None) -> str | None:
+    if reference != "auto":
+        if reference is not None:
+            solver(reference)
+        return reference
+    return "exact" if solver("exact").supports(system) is None else None
+
+
+def _by_grid(trajectories: Sequence[Trajectory | None]) -> dict[int, list[int]]:
+    groups: dict = {}
+    for k, tr in enumerate(trajectories):
+        groups.setdefault(id(tr.time) if tr is not None else None, []).append(k)
+    return groups
+
+
+def compare_many(systems: Sequence, preset: str | Preset = "accurate",
+                 solvers: Sequence[str] = DEFAULT_SOLVERS, times=None, *,
+                 reference: str | None = "auto", step: float | None = None,
+                 save: Sequence[str] = (), positions: bool = False) -> list[Comparison]:
+    """:func:`compare` for many systems, each solver running them together where it can.
+
+    SPICE runs the systems as one circuit (they must share t_stop), the exact solver
+    stacks them; errors are measured stacked on shared grids.
+
+    Parameters
+    ----------
+    systems : sequence of NodeDynamics
+        Systems of one kind (linear or nonlinear).
+    preset : str or Preset
+        Accuracy preset.
+    solvers : sequence of str
+        Registered solver names.
+    times : array_like, optional
+        Output times when no solver chooses its own and no *step* is given.
+    reference : str or None
+        The yardstick: ``"auto"`` is the exact solver where it applies; it runs even
+        when *solvers* does not name it. None measures no errors.
+    step : float, optional
+        Output step: a uniform grid for every solver (SPICE is interpolated onto it,
+        its error measured on its own points first).
+    save : sequence of str
+        Element currents to report in each :attr:`Trajectory.currents`.
+    positions : bool
+        Also keep node positions where the systems have springs.
+    """
+    if not systems:
+        return []
+    p = get_preset(preset)
+    names = _names(solvers)
+    ref_name = _reference(systems[0], names, reference)
+    order = [s for s in SOLVER_NAMES if s in names or s == ref_name]
+    order += [s for s in names if s not in order]
+    if ref_name is not None and ref_name not in order:
+        order.append(ref_name)
+    order.sort(key=lambda s: not solver(s).own_grid)         # own time points first
+    count = len(systems)
+    base = None if step is None and times is None else (
+        output_grid(systems[0].t_stop, step, p.steps) if times is None else np.asarray(times, float))
+    runs: dict[str, list[Trajectory]] = {}
+    native: dict[str, list[Trajectory]] = {}
+    grids: list = [base] * count
+    want_x = positions or bool(save)
+    for name in order:
+        s = solver(name)
+        if s.own_grid:
+            trs = run_many(name, systems, None, p, save=save, positions=want_x)
+            native[name] = trs
+            if base is None:
+                grids = [tr.time if tr.success and grids[k] is None else grids[k]
+                         for k, tr in enumerate(trs)]
+            else:
+                trs = [tr.resampled(base, sys_.joint_rates) if tr.success else tr
+                       for tr, sys_ in zip(trs, systems)]
+        else:
+            default = np.linspace(0.0, systems[0].t_stop, p.steps + 1)
+            grids = [default if g is None else g for g in grids]
+            trs: list = [None] * count
+            for idx in _group_indices(grids).values():
+                for k, tr in zip(idx, run_many(name, [systems[k] for k in idx], grids[idx[0]], p,
+                                               save=save, positions=want_x)):
+                    trs[k] = tr
+        if save:
+            for tr, sys_ in zip(trs, systems):
+                if tr.success and not tr.currents:
+                    tr.currents = trajectory_currents(sys_, tr, save)
+        runs[name] = trs
+    out = []
+    measured = _measure(systems, runs, native, ref_name, p)
+    for k, system in enumerate(systems):
+        results = {n: runs[n][k] for n in order if runs[n][k].success}
+        failures = {n: runs[n][k].message for n in order if not runs[n][k].success}
+        grid = grids[k] if grids[k] is not None else np.linspace(0.0, system.t_stop, p.steps + 1)
+        ref = ref_name if ref_name in results else None
+        if ref_name is not None and ref is None and ref_name in failures:
+            failures.setdefault(ref_name, "the reference failed")
+        out.append(Comparison(system, p.name, grid, results, failures, ref, measured[k] if ref else {},
+                              p.bound))
+    return out
+
+
+def _group_indices(grids: list) -> dict[int, list[int]]:
+    groups: dict = {}
+    for k, g in enumerate(grids):
+        groups.setdefault(id(g), []).append(k)
+    return groups
+
+
+def _measure(systems, runs, native, ref_name, p) -> list[dict]:
+    """Per system and solver, (max |R − R_ref|, relative): on each solver's own points."""
+    out: list[dict] = [{} for _ in systems]
+    if ref_name is None:
+        return out
+    ref = runs[ref_name]
+    for name, trs in runs.items():
+        own = native.get(name, trs)
+        for idx in _by_grid(own).values():
+            k0 = idx[0]
+            if own[k0] is None or not own[k0].success:
+                continue
+            if own[k0] is not trs[k0]:      # resampled: measure on its own points
+                refs = run_many(ref_name, [systems[k] for k in idx], own[k0].time, p)
+            else:
+                refs = [ref[k] for k in idx]
+            ok = [j for j, r in enumerate(refs) if r.success and own[idx[j]].success]
+            if not ok:
+                continue
+            shapes = {own[idx[j]].rates.shape for j in ok}
+            if len(shapes) == 1:
+                x = np.stack([own[idx[j]].rates for j in ok])
+                y = np.stack([refs[j].rates for j in ok])
+                abs_e = np.atleast_1d(absolute_error(x, y, axis=(1, 2)))
+                rel_e = np.atleast_1d(relative_error(x, y, axis=(1, 2)))
+                for j, a, r in zip(ok, abs_e.tolist(), rel_e.tolist()):
+                    out[idx[j]][name] = (a, r)
+            else:
+                for j in ok:
+                    a, b = own[idx[j]].rates, refs[j].rates
+                    out[idx[j]][name] = (absolute_error(a, b), relative_error(a, b))
+    return out
+
+
+def compare(system, preset: str | Preset = "accurate", solvers: Sequence[str] = DEFAULT_SOLVERS,
+            times=None, *, reference: str | None = "auto", step: float | None = None,
+            save: Sequence[str] = (), positions: bool = False) -> Comparison:
+    """Run the requested solvers on *system* and compare them on shared time points.
+
+    A failing solver, or one that does not apply, is recorded in
+    :attr:`Comparison.failures`; the others still run. Only bad input raises.
+
+    Parameters
+    ----------
+    system : NodeDynamics
+        The system to solve.
+    preset : str or Preset
+        Accuracy preset.
+    solvers : sequence of str
+        Registered solver names (:data:`~analogy.solvers.registry.SOLVER_NAMES`).
+    times : array_like, optional
+        Output times when SPICE does not run and no *step* is given.
+    reference : str or None
+        The yardstick (``"auto"``: the exact solver where it applies).
+    step : float, optional
+        Output step for every solver; errors are still measured on each solver's own points.
+    save : sequence of str
+        Element currents to report in each :attr:`Trajectory.currents`.
+    positions : bool
+        Also keep node positions where the system has springs.
+    """
+    return compare_many([system], preset, solvers, times, reference=reference, step=step,
+                        save=save, positions=positions)[0]

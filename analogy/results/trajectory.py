@@ -1,0 +1,168 @@
+"""Trajectory: one solver's node voltages and joint rates on its time points, with its status and statistics."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .output import write_columns
+
+__all__ = ["Trajectory", "SolverStats"]
+
+
+@dataclass(frozen=True)
+class SolverStats:
+    """What a solver spent: wall time, steps and evaluations (None where it does not count them).
+
+    Attributes
+    ----------
+    wall_time : float
+        Seconds in the solver call.
+    steps : int or None
+        Accepted time steps.
+    rejected : int or None
+        Rejected time steps.
+    evaluations : int or None
+        Right-hand-side evaluations (Newton iterations for SPICE).
+    jacobians : int or None
+        Jacobian evaluations.
+    """
+
+    wall_time: float = math.nan
+    steps: int | None = None
+    rejected: int | None = None
+    evaluations: int | None = None
+    jacobians: int | None = None
+
+    def __repr__(self) -> str:
+        parts = [f"{self.wall_time * 1e3:.3g} ms"]
+        parts += [f"{v} {k}" for k, v in (("steps", self.steps), ("rejected", self.rejected),
+                                         ("evaluations", self.evaluations),
+                                         ("jacobians", self.jacobians)) if v is not None]
+        return f"SolverStats({', '.join(parts)})"
+
+
+_EMPTY = np.empty((0, 0))
+
+
+@dataclass(eq=False)
+class Trajectory:
+    """Result of one solver: a success with its values, or a failure with the reason.
+
+    Attributes
+    ----------
+    solver : str
+        The registered solver's name (``"spice"``, ``"ode"``, ``"exact"`` …).
+    time : ndarray, shape (N,)
+        Output times, t = 0 included.
+    voltages : ndarray, shape (N, n)
+        Node velocities v.
+    rates : ndarray, shape (N, n)
+        Joint rates R = T⁻¹·v.
+    positions : ndarray, shape (N, n), or None
+        Node positions x = ∫v, when asked for and the system has springs.
+    currents : dict of str to ndarray
+        Element currents the solver produced itself (SPICE's device currents).
+    success : bool
+        False if the solver could not run or failed; *message* says why.
+    message : str
+        The reason of a failure, or a note.
+    stats : SolverStats
+        Wall time, steps and evaluations.
+    """
+
+    solver: str
+    time: np.ndarray
+    voltages: np.ndarray
+    rates: np.ndarray
+    positions: np.ndarray | None = None
+    currents: dict = field(default_factory=dict)
+    success: bool = True
+    message: str = ""
+    stats: SolverStats = field(default_factory=SolverStats)
+
+    @classmethod
+    def failed(cls, solver: str, message: str, wall_time: float = math.nan) -> "Trajectory":
+        """A failed result: no values, the reason in :attr:`message`.
+
+        Parameters
+        ----------
+        solver : str
+            The solver's name.
+        message : str
+            One sentence saying why.
+        wall_time : float
+            Seconds spent before it failed.
+        """
+        empty = np.empty(0)
+        return cls(solver, empty, _EMPTY, _EMPTY, success=False, message=message,
+                   stats=SolverStats(wall_time))
+
+    @property
+    def run_time(self) -> float:
+        """Seconds in the solver (:attr:`SolverStats.wall_time`)."""
+        return self.stats.wall_time
+
+    def __repr__(self) -> str:
+        if not self.success:
+            return f"Trajectory({self.solver}: failed: {self.message})"
+        return (f"Trajectory({self.solver}: {self.time.size} points to t = {self.time[-1]:g} s, "
+                f"{self.rates.shape[1]} joints, {self.run_time * 1e3:.3g} ms)")
+
+    def resampled(self, times: np.ndarray, joint_rates) -> "Trajectory":
+        """This trajectory linearly interpolated onto *times* (an output grid, not a new solution).
+
+        Parameters
+        ----------
+        times : ndarray
+            New output times within the trajectory's span.
+        joint_rates : callable
+            R = T⁻¹·v of the system, for the new voltages.
+        """
+        t = np.asarray(times, dtype=float)
+
+        def interp(a):
+            return None if a is None else np.column_stack([np.interp(t, self.time, a[:, j])
+                                                           for j in range(a.shape[1])])
+        volts = interp(self.voltages)
+        currents = {k: np.interp(t, self.time, x) for k, x in self.currents.items()}
+        return Trajectory(self.solver, t, volts, joint_rates(volts), interp(self.positions), currents,
+                          self.success, f"interpolated from its {self.time.size} own time points",
+                          self.stats)
+
+    def columns(self) -> dict[str, np.ndarray]:
+        """``time``, joint rates ``r1`` …, node voltages ``v_n1`` … and currents ``i_C1_2`` …"""
+        cols = {"time": self.time}
+        cols.update((f"r{j + 1}", self.rates[:, j]) for j in range(self.rates.shape[1]))
+        cols.update((f"v_n{j + 1}", self.voltages[:, j]) for j in range(self.voltages.shape[1]))
+        cols.update((f"i_{name}", values) for name, values in self.currents.items())
+        return cols
+
+    def to_frame(self):
+        """The :meth:`columns` as a pandas DataFrame indexed by time."""
+        import pandas as pd
+        return pd.DataFrame(self.columns()).set_index("time")
+
+    def to_csv(self, path) -> Path:
+        """Write the :meth:`columns`, one row per time point.
+
+        Parameters
+        ----------
+        path : str or Path
+            The file to write.
+        """
+        return write_columns(path, self.columns())
+
+    def plot(self, path=None):
+        """Joint rates against time; saved to *path* if given.
+
+        Parameters
+        ----------
+        path : str or Path, optional
+            Image file to write.
+        """
+        from .plots import plot_trajectory
+        return plot_trajectory(self, path)

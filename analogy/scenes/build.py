@@ -1,0 +1,390 @@
+"""From scene data to models and node systems: the one path for scene files, the CLI and the API."""
+
+from __future__ import annotations
+
+import re
+from contextlib import contextmanager
+from typing import Mapping
+
+import numpy as np
+
+from ..circuit.currents import check_element_names
+from ..circuit.description import circuit
+from ..circuit.node_system import node_system, node_systems
+from ..errors import InputError
+from ..model.catalog import check_robot_name
+from ..model.compiled import compile_model, load_compiled
+from ..model.expressions import parse_number
+from ..model.joint import JointSpace
+from .scene import ModelSpec, Scene
+
+__all__ = ["scene_model", "scene_system", "scene_systems", "validated", "entry_value", "TOML_KEYS",
+           "CLI_KEYS", "keyed"]
+
+#: How errors name each part of a scene: in a scene file, and on the command line.
+TOML_KEYS = {"robot": "[model] robot", "mass": "[model] mass", "damping": "[model] damping",
+             "stiffness": "[model] stiffness", "gravity": "[model] gravity", "q": "[configuration] q",
+             "topology": "[configuration] topology", "forces": "[inputs] forces",
+             "initial_rates": "[inputs] initial_rates", "t_stop": "[inputs] t_stop",
+             "parameters": "[parameters]", "model": "[model]", "inputs": "[inputs]"}
+CLI_KEYS = {"robot": "--robot", "mass": "--mass", "damping": "--damping", "stiffness": "--stiffness",
+            "gravity": "--gravity", "q": "--q", "topology": "--topology", "forces": "--force",
+            "initial_rates": "--r0", "t_stop": "--t-stop", "parameters": "--param", "model": "--mass",
+            "inputs": "--force"}
+_QNAME = re.compile(r"^q[0-9]+$")
+_MODELS: dict = {}
+
+
+@contextmanager
+def keyed(key: str | None):
+    """Prefix an :class:`InputError` raised inside with *key* (``[model] mass: …``).
+
+    Parameters
+    ----------
+    key : str or None
+        The label; None leaves the message alone.
+    """
+    try:
+        yield
+    except InputError as exc:
+        if key is None:
+            raise
+        raise InputError(f"{key}: {' '.join(str(exc).split())}") from None
+
+
+def _keys(scene: Scene) -> dict:
+    return CLI_KEYS if scene.source == "command line" else TOML_KEYS
+
+
+def _where(scene: Scene):
+    """Prefix errors with the scene file, when the scene came from one."""
+    src = scene.source
+    return keyed(src if src not in (None, "command line") else None)
+
+
+def entry_value(value, where: str = ""):
+    """A number from a number or a constant expression; the text itself if it has names.
+
+    Parameters
+    ----------
+    value : float or str
+        A matrix or vector entry.
+    where : str
+        Position for error messages (``row 1, column 2``).
+    """
+    if isinstance(value, bool) or not isinstance(value, (int, float, str)):
+        raise InputError(f"{where + ': ' if where else ''}expected a number or an expression")
+    if isinstance(value, str):
+        try:
+            return parse_number(value)
+        except InputError:
+            return value            # names (or a bad expression): the symbolic parser decides
+    x = float(value)
+    if not np.isfinite(x):
+        raise InputError(f"{where + ': ' if where else ''}expected a finite number, got {value!r}")
+    return x
+
+
+def _square(rows, n: int | None, what: str) -> list[list]:
+    if not isinstance(rows, tuple) or not rows or not all(isinstance(r, tuple) for r in rows):
+        raise InputError(f"expected a {what} as a list of rows")
+    for k, r in enumerate(rows):
+        if len(r) != len(rows):
+            raise InputError(f"expected a square matrix: row {k + 1} has {len(r)} entries, "
+                             f"but there are {len(rows)} rows")
+    if n is not None and len(rows) != n:
+        raise InputError(f"expected a {n}x{n} matrix to match the mass matrix, got {len(rows)}x{len(rows)}")
+    return [[entry_value(x, f"row {i + 1}, column {j + 1}") for j, x in enumerate(r)]
+            for i, r in enumerate(rows)]
+
+
+def _matrix_or_diagonal(value, n: int) -> list[list]:
+    if isinstance(value, tuple) and value and all(isinstance(r, tuple) for r in value):
+        return _square(value, n, "matrix")
+    if not isinstance(value, tuple) or any(isinstance(r, tuple) for r in value):
+        raise InputError("give a diagonal [b1, b2] or a matrix [[...], [...]]")
+    if len(value) != n:
+        raise InputError(f"expected {n} diagonal entries or a {n}x{n} matrix, got {len(value)} entries")
+    diag = [entry_value(x, f"entry {k + 1}") for k, x in enumerate(value)]
+    return [[diag[i] if i == j else 0.0 for j in range(n)] for i in range(n)]
+
+
+def _vector(value, n: int) -> list:
+    if not isinstance(value, tuple) or len(value) != n:
+        raise InputError(f"expected {n} entries (one per joint)")
+    return [entry_value(x, f"entry {k + 1}") for k, x in enumerate(value)]
+
+
+def _joint_key(message: str, keys: dict) -> str:
+    for part in ("damping", "stiffness", "gravity"):
+        if message.startswith(part):
+            return keys[part]
+    return keys["mass"]
+
+
+def _matrices(spec: ModelSpec, keys: dict) -> tuple[dict, bool]:
+    parts = {}
+    with keyed(keys["mass"]):
+        parts["mass"] = _square(spec.mass, None, "square matrix")
+    n = len(parts["mass"])
+    for label in ("damping", "stiffness"):
+        if getattr(spec, label) is not None:
+            with keyed(keys[label]):
+                parts[label] = _matrix_or_diagonal(getattr(spec, label), n)
+    if spec.gravity is not None:
+        with keyed(keys["gravity"]):
+            parts["gravity"] = _vector(spec.gravity, n)
+    symbolic = any(isinstance(x, str) for p in parts.values() for row in p
+                   for x in (row if isinstance(row, list) else [row]))
+    return parts, symbolic
+
+
+def _symbolic(parts: dict, params: Mapping[str, float], keys: dict):
+    import sympy as sp
+
+    from ..model.expressions import parse_expression
+    from ..model.symbolic import Model
+    n = len(parts["mass"])
+    qnames = [f"q{k + 1}" for k in range(n)]
+    qs = [sp.Symbol(name, real=True) for name in qnames]
+    symbols = {k: sp.Symbol(k, real=True) for k in params}
+    symbols.update(zip(qnames, qs))
+
+    def convert(label, value, where):
+        if isinstance(value, str):
+            with keyed(keys[label]):
+                try:
+                    return parse_expression(value, symbols)
+                except InputError as exc:
+                    hint = "" if params else f"; give its value with {keys['parameters']}"
+                    raise InputError(f"{where}: {exc}{hint}") from None
+        return sp.Float(value, 17)
+
+    mats = {}
+    for label, value in parts.items():
+        if label == "gravity":
+            mats[label] = sp.Matrix([convert(label, x, f"entry {k + 1}") for k, x in enumerate(value)])
+        else:
+            mats[label] = sp.Matrix([[convert(label, x, f"row {i + 1}, column {j + 1}")
+                                      for j, x in enumerate(r)] for i, r in enumerate(value)])
+    free = set().union(*(m.free_symbols for m in mats.values()))
+    for key in params:
+        if symbols[key] not in free:
+            raise InputError(f"{keys['parameters']} {key}: not used by the model's entries")
+    used_q = [s for s in qs if s in free]
+    with keyed(keys["model"]):
+        return Model("custom", mats["mass"], damping=mats.get("damping"), stiffness=mats.get("stiffness"),
+                     gravity=None if "gravity" not in mats else list(mats["gravity"]),
+                     parameters=dict(params), coordinates=qs if used_q else (), topology="parallel")
+
+
+def scene_model(scene: Scene):
+    """The model a scene evaluates: a compiled or symbolic robot, a symbolic model or a JointSpace.
+
+    Built-in robots are derived once per process (and kept compiled on disk); the
+    nonlinear dynamics use the symbolic model, whose Christoffel symbols they need.
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene.
+    """
+    spec, keys = scene.model, _keys(scene)
+    params = scene.parameter_values
+    with _where(scene):
+        if spec.robot is not None:
+            for label in ("mass", "damping", "stiffness", "gravity"):
+                if getattr(spec, label) is not None:
+                    raise InputError(f"{keys[label]}: a built-in robot has its own; set its parameters "
+                                     "instead, or give a mass matrix without a robot")
+            cache = (spec, scene.dynamics)
+            model = _MODELS.get(cache)
+            if model is None:
+                with keyed(keys["robot"]):
+                    model = _MODELS[cache] = _robot(spec, scene.dynamics)
+            for key in params:
+                if key not in model.parameters:
+                    raise InputError(f"{keys['parameters']} {key}: robot {spec.robot} has no such "
+                                     f"parameter (it has: {', '.join(model.parameters) or 'none'})")
+            return model
+        if spec.mass is None:
+            raise InputError(f"{keys['model']}: give a built-in robot or a mass matrix")
+        for key in params:
+            if not key.isidentifier() or key.startswith("_") or _QNAME.match(key) or key in ("pi", "e"):
+                raise InputError(f"{keys['parameters']} {key}: not a usable name (q1 ... qn are the "
+                                 "joint coordinates; pi and e are constants)")
+        parts, symbolic = _matrices(spec, keys)
+        if not symbolic and scene.dynamics == "linear":
+            if params:
+                raise InputError(f"{keys['parameters']} {next(iter(params))}: not used: the model's "
+                                 "entries are all numbers")
+            n = len(parts["mass"])
+            try:
+                return JointSpace(np.array(parts["mass"]), np.array(parts.get("damping", np.zeros((n, n)))),
+                                  None if "stiffness" not in parts else np.array(parts["stiffness"]),
+                                  None if "gravity" not in parts else np.array(parts["gravity"]))
+            except InputError as exc:
+                raise InputError(f"{_joint_key(str(exc), keys)}: {exc}") from None
+        cache = (spec, scene.parameters)
+        model = _MODELS.get(cache)
+        if model is None:
+            model = _MODELS[cache] = _symbolic(parts, params, keys)
+        return model
+
+
+def _robot(spec: ModelSpec, dynamics: str):
+    name = check_robot_name(spec.robot)
+    if name.startswith("random"):
+        from ..model.robots import random_spd_model
+        return random_spd_model(int(name[6:]), seed=spec.seed)
+    if dynamics == "linear":
+        cached = load_compiled(name)
+        if cached is not None:
+            return cached
+    from ..model.robots import robot
+    model = robot(name)
+    return (compile_model(model, name) or model) if dynamics == "linear" else model
+
+
+def _configuration(scene: Scene, model, keys: dict) -> list[float] | None:
+    coords = [str(c) for c in getattr(model, "coordinates", ())]
+    with keyed(keys["q"]):
+        q = [float(x) for x in scene.q]
+        if isinstance(model, JointSpace):
+            return None
+        if not coords:
+            return None
+        if not q:
+            what = f"robot {scene.model.robot}" if scene.model.robot else "the model"
+            raise InputError(f"missing: {what} needs {len(coords)} joint coordinates ({', '.join(coords)})")
+        if len(q) != len(coords):
+            raise InputError(f"expected {len(coords)} numbers, got {len(q)}")
+    return q
+
+
+def _topology(scene: Scene):
+    t = scene.topology
+    if isinstance(t, tuple):
+        return np.array(t, dtype=float)
+    return t
+
+
+def _inputs(scene: Scene, n: int, keys: dict) -> dict:
+    forces = scene.forces
+    with keyed(keys["forces"]):
+        if not forces:
+            raise InputError("missing: give one force per joint, e.g. [1.0, \"sine(0, 1, 2)\"]")
+        if len(forces) != n:
+            raise InputError(f"expected {n} entries (one per joint), got {len(forces)}")
+    out = []
+    from ..circuit.node_system import waveforms
+    for k, item in enumerate(forces):
+        with keyed(f"{keys['forces']}[{k + 1}]" if keys is TOML_KEYS else keys["forces"]):
+            if isinstance(item, tuple) and not item:
+                raise InputError("an empty list: give a number or a waveform such as \"step(1)\"")
+            out.append(waveforms([item], 1)[0])
+    r0 = None
+    if scene.initial_rates is not None:
+        with keyed(keys["initial_rates"]):
+            r0 = [entry_value(x) for x in scene.initial_rates]
+            if len(r0) != n or any(isinstance(x, str) for x in r0):
+                raise InputError(f"expected {n} numbers, got {len(r0)}")
+    return {"forces": out, "initial_rates": r0}
+
+
+def scene_system(scene: Scene, model=None):
+    """The node system of *scene*: linear at q, or its full nonlinear dynamics from q.
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene.
+    model : object, optional
+        An already built model (from :func:`scene_model`).
+    """
+    keys = _keys(scene)
+    m = scene_model(scene) if model is None else model
+    with _where(scene):
+        q = _configuration(scene, m, keys)
+        n = m.dof
+        inputs = _inputs(scene, n, keys)
+        info = {"scene": scene.name}
+        top = _topology(scene)
+        params = scene.parameter_values if scene.model.robot is not None else None
+        if scene.dynamics == "nonlinear":
+            from ..circuit.nonlinear import nonlinear_system
+            with keyed(keys["model"]):
+                return nonlinear_system(m, q or [0.0] * n, parameters=params, topology=top,
+                                        t_stop=scene.t_stop, info=info, **inputs)
+        try:
+            return node_system(m, q, parameters=params, topology=top, t_stop=scene.t_stop, info=info,
+                               **inputs)
+        except InputError as exc:
+            text = str(exc)
+            if text.startswith(("topology", "unknown topology")):
+                raise InputError(f"{keys['topology']}: {text}") from None
+            if text.startswith(("mass", "damping", "stiffness", "gravity", "node mass", "model")):
+                raise InputError(f"{_joint_key(text, keys)}: {text}") from None
+            raise InputError(f"{keys['inputs']}: {text}") from None
+
+
+def scene_systems(scene: Scene, qs, model=None) -> list:
+    """The linear node systems of *scene* at every row of *qs*, built as one stack.
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene (its q is replaced by each row).
+    qs : array_like, shape (count, n)
+        Configurations.
+    model : object, optional
+        An already built model.
+    """
+    m = scene_model(scene) if model is None else model
+    keys = _keys(scene)
+    with _where(scene):
+        inputs = _inputs(scene, m.dof, keys)
+        params = scene.parameter_values if scene.model.robot is not None else None
+        return node_systems(m, qs, parameters=params, topology=_topology(scene), t_stop=scene.t_stop,
+                            info={"scene": scene.name}, **inputs)
+
+
+def _check_nodes(system, names) -> tuple[str, ...]:
+    nodes = system.nodes
+    out = []
+    for name in names:
+        if not isinstance(name, str) or name not in nodes:
+            raise InputError(f"unknown node {name!r}: nodes are {', '.join(nodes)}")
+        out.append(name)
+    if not out:
+        raise InputError("name at least one node (or write true for all)")
+    return tuple(dict.fromkeys(out))
+
+
+def validated(scene: Scene) -> Scene:
+    """*scene* with its outputs checked against its system (built here) and names made canonical.
+
+    ``node_voltages = true`` becomes every node and ``element_currents = true`` every
+    element; an unknown name is an :class:`InputError` naming the key.
+
+    Parameters
+    ----------
+    scene : Scene
+        A parsed scene.
+    """
+    system = scene.system()
+    changes = {}
+    with _where(scene):
+        with keyed("[outputs] node_voltages"):
+            nv = scene.node_voltages
+            changes["node_voltages"] = tuple(system.nodes) if nv is True else \
+                (_check_nodes(system, nv) if nv else ())
+        with keyed("[outputs] element_currents"):
+            ec = scene.element_currents
+            if ec and getattr(system, "kind", "linear") != "linear":
+                raise InputError("element currents need the linear circuit (dynamics = \"linear\")")
+            if ec is True:
+                changes["element_currents"] = tuple(e.name for e in circuit(system).parts)
+            else:
+                changes["element_currents"] = check_element_names(system, ec) if ec else ()
+    return scene.replace(**changes)

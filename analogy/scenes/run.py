@@ -1,0 +1,289 @@
+"""Running a scene: exactly what its outputs need, through the one orchestrator, and its files."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..circuit.netlist import netlist as make_netlist
+from ..errors import InputError
+from ..presets import preset as get_preset
+from ..results.comparison import compare
+from ..results.metrics import absolute_error, relative_error
+from ..results.output import html_table, write_columns
+from .scene import Scene
+
+__all__ = ["SceneResult", "run_scene", "save_names"]
+
+
+def save_names(scene: Scene, system) -> list[str]:
+    """Node and element names for the netlist's ``.save``: exactly what the outputs need.
+
+    Parameters
+    ----------
+    scene : Scene
+        A validated scene (names canonical).
+    system : NodeSystem
+        Its system.
+    """
+    if not scene.needs_solver:
+        return list(system.nodes)
+    nodes = list(system.nodes) if scene.joint_rates else list(scene.node_voltages)
+    return nodes + list(scene.element_currents)
+
+
+def run_scene(scene: Scene, output_dir=None) -> "SceneResult":
+    """Compute exactly what *scene*'s outputs require and write its files.
+
+    Relative file names go to *output_dir* if given, else next to the scene file. A
+    failing solver is recorded in :attr:`SceneResult.failures`; the others still run.
+
+    Parameters
+    ----------
+    scene : Scene
+        A validated scene (:func:`~analogy.scenes.toml.load_scene` gives one).
+    output_dir : str or Path, optional
+        Folder for the scene's output files.
+    """
+    p = get_preset(scene.preset)
+    system = scene.system()
+    result = SceneResult(scene, system)
+    save = save_names(scene, system)
+    if scene.netlist:
+        title = f"analogy scene {scene.name}" + (f": {scene.description}" if scene.description else "")
+        result.netlist = make_netlist(system, p, save=save, title=title)
+        if scene.netlist_file:
+            result.written.append(_write_text(scene.path(scene.netlist_file, output_dir), result.netlist))
+    if not scene.solvers:
+        return result
+    reference = "auto" if scene.errors else ("exact" if "exact" in scene.solvers else None)
+    currents = list(scene.element_currents)
+    comparison = compare(system, p, scene.solvers, reference=reference, step=scene.step,
+                         save=currents, positions=bool(currents))
+    result.time = comparison.time
+    result.failures = dict(comparison.failures)
+    result.reference = comparison.reference
+    for name, tr in comparison.results.items():
+        result.run_times[name] = tr.run_time
+        if scene.node_voltages:
+            result.node_voltages[name] = {n: tr.voltages[:, int(n[1:]) - 1] for n in scene.node_voltages}
+        if currents:
+            result.element_currents[name] = {e: tr.currents[e] for e in currents}
+    if scene.joint_rates:
+        result.comparison = comparison
+    try:
+        if scene.csv_file:
+            result.written.append(result.to_csv(scene.path(scene.csv_file, output_dir)))
+        if scene.plot_file:
+            path = scene.path(scene.plot_file, output_dir)
+            result.plot(path)
+            result.written.append(path)
+    except OSError as exc:
+        raise InputError(f"cannot write output: {exc}") from None
+    return result
+
+
+def _write_text(path: Path, text: str) -> Path:
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text)
+    except OSError as exc:
+        raise InputError(f"cannot write {path}: {exc.strerror or exc}") from None
+    return path
+
+
+@dataclass(eq=False)
+class SceneResult:
+    """What a scene asked for, computed.
+
+    Attributes
+    ----------
+    scene : Scene
+        The scene that was run.
+    system : NodeDynamics
+        Its node system.
+    time : ndarray or None
+        Shared time points of every solver (SPICE's own when it ran and no step was set).
+    comparison : Comparison or None
+        Joint rates of every solver, when the scene asks for them.
+    netlist : str or None
+        The netlist text, when asked for.
+    node_voltages, element_currents : dict
+        ``{solver: {name: values}}`` for the requested nodes and elements.
+    run_times : dict
+        Seconds per solver.
+    failures : dict
+        Solvers that failed, with the reason.
+    reference : str or None
+        The solver errors are measured against.
+    written : list of Path
+        Files written.
+    """
+
+    scene: Scene
+    system: object = None
+    time: np.ndarray | None = None
+    comparison: object = None
+    netlist: str | None = None
+    node_voltages: dict = field(default_factory=dict)
+    element_currents: dict = field(default_factory=dict)
+    run_times: dict = field(default_factory=dict)
+    failures: dict = field(default_factory=dict)
+    reference: str | None = None
+    written: list = field(default_factory=list)
+
+    @property
+    def ok(self) -> bool:
+        """True if no solver failed."""
+        return not self.failures
+
+    @property
+    def solvers(self) -> list[str]:
+        """Solvers that produced results, in run order."""
+        return list(self.run_times)
+
+    def __repr__(self) -> str:
+        files = f", wrote {len(self.written)} files" if self.written else ""
+        failed = f", {len(self.failures)} failed" if self.failures else ""
+        return f"<SceneResult {self.scene.name}: {', '.join(self.solvers) or 'no solver'}{failed}{files}>"
+
+    def _repr_html_(self) -> str:
+        rows = [[q, s, e, r] for q, by in self.errors().items() for s, (e, r) in by.items()]
+        return html_table(["quantity", "solver", "max |error|", "error / peak"], rows)
+
+    def _groups(self) -> list[tuple[str, dict]]:
+        """(quantity, {solver: {name: values}}) for every requested quantity."""
+        groups = []
+        if self.comparison is not None:
+            rates = {s: {f"r{j + 1}": tr.rates[:, j] for j in range(self.system.dof)}
+                     for s, tr in self.comparison.results.items()}
+            groups.append(("joint rates", rates))
+        if self.scene.node_voltages:
+            groups.append(("node voltages", self.node_voltages))
+        for kind in "CRL":
+            names = [e for e in self.scene.element_currents if e[0] == kind]
+            if names:
+                groups.append((f"{kind} currents", {s: {e: vals[e] for e in names}
+                                                    for s, vals in self.element_currents.items()}))
+        return groups
+
+    def errors(self) -> dict:
+        """``{quantity: {solver: (max |x − x_ref|, that / peak |x_ref|)}}``.
+
+        Joint rates are measured on each solver's own points (see
+        :class:`~analogy.results.comparison.Comparison`); node voltages and element
+        currents on the shared time points. Empty without a reference.
+        """
+        out: dict = {}
+        ref_name = self.reference
+        if ref_name is None:
+            return out
+        for quantity, by_solver in self._groups():
+            ref = by_solver.get(ref_name)
+            if ref is None:
+                continue
+            if quantity == "joint rates":
+                out[quantity] = self.comparison.errors()
+                continue
+            names = list(ref)
+            y = np.column_stack([ref[k] for k in names])
+            out[quantity] = {s: (absolute_error(np.column_stack([vals[k] for k in names]), y),
+                                 relative_error(np.column_stack([vals[k] for k in names]), y))
+                             for s, vals in by_solver.items()}
+        return out
+
+    def max_relative_error(self, solver: str) -> float:
+        """Worst error / peak of *solver* over every requested quantity.
+
+        Parameters
+        ----------
+        solver : str
+            A solver that ran.
+        """
+        vals = [by[solver][1] for by in self.errors().values() if solver in by]
+        return max(vals) if vals else math.nan
+
+    def table(self) -> str:
+        """Plain-text summary: solvers, run times, errors against the reference, files."""
+        sc, system = self.scene, self.system
+        lines = [f"scene {sc.name}" + (f": {sc.description}" if sc.description else "")]
+        referenced = self.comparison is not None and self.reference is not None
+        if self.comparison is not None:
+            lines.append(self.comparison.table())
+        elif sc.solvers:
+            n = 0 if self.time is None else self.time.size
+            lines.append(f"robot {system.info.get('robot', 'custom')}, topology {system.topology.name}, "
+                         f"preset {sc.preset}, {n} time points, reference {self.reference or 'none'}")
+            lines.append(f"{'solver':<10}{'run time [ms]':>15}")
+            for s, seconds in self.run_times.items():
+                lines.append(f"{s:<10}{seconds * 1e3:>15.3f}")
+            for s, why in self.failures.items():
+                lines.append(f"{s:<10}  failed: {why}")
+        groups = [g for g in self._groups() if not (referenced and g[0] == "joint rates")]
+        if groups:
+            errs = self.errors()
+            if sc.node_voltages:
+                lines.append("node voltages: " + ", ".join(sc.node_voltages))
+            if sc.element_currents:
+                lines.append("element currents (a to b): " + ", ".join(sc.element_currents))
+            lines.append(f"{'quantity':<16}{'solver':<10}{'peak':>12}{'max |error|':>14}{'error / peak':>14}")
+            for quantity, by_solver in groups:
+                for s, vals in by_solver.items():
+                    top = max(float(np.max(np.abs(x))) for x in vals.values())
+                    if quantity in errs and s in errs[quantity]:
+                        e, r = errs[quantity][s]
+                        tail = f"{e:>14.3e}{r:>14.3e}" + ("  (reference)" if s == self.reference else "")
+                    else:
+                        tail = f"{'-':>14}{'-':>14}"
+                    lines.append(f"{quantity:<16}{s:<10}{top:>12.6g}{tail}")
+        if sc.netlist:
+            count = len(self.netlist.splitlines()) if self.netlist else 0
+            lines.append(f"netlist: {count} lines, saves {', '.join(save_names(sc, system))}")
+        return "\n".join(lines)
+
+    def __str__(self) -> str:
+        return self.table()
+
+    def columns(self) -> dict[str, np.ndarray]:
+        """``time``, then per solver its joint rates ``r1_spice`` …, node voltages
+        ``v_n1_spice`` … and element currents ``i_C1_2_spice`` …"""
+        if self.time is None:
+            raise InputError("no solver ran: nothing to write")
+        cols = {"time": self.time}
+        groups = self._groups()
+        for s in self.solvers:
+            for quantity, by_solver in groups:
+                prefix = {"joint rates": "", "node voltages": "v_"}.get(quantity, "i_")
+                for name, vals in (by_solver.get(s) or {}).items():
+                    cols[f"{prefix}{name}_{s}"] = vals
+        return cols
+
+    def to_csv(self, path) -> Path:
+        """Write the :meth:`columns`, one row per time point.
+
+        Parameters
+        ----------
+        path : str or Path
+            The file to write.
+        """
+        return write_columns(path, self.columns())
+
+    def to_frame(self):
+        """The :meth:`columns` as a pandas DataFrame indexed by time."""
+        import pandas as pd
+        return pd.DataFrame(self.columns()).set_index("time")
+
+    def plot(self, path=None):
+        """One panel per requested quantity and, with a reference, each solver's error / peak.
+
+        Parameters
+        ----------
+        path : str or Path, optional
+            Image file to write.
+        """
+        from ..results.plots import plot_quantities
+        return plot_quantities(self.time, self._groups(), self.errors(),
+                               f"scene {self.scene.name}: preset {self.scene.preset}", path)

@@ -1,0 +1,303 @@
+"""Scenes: one simulation job as pure, hashable data, with a content key stable across machines."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from dataclasses import dataclass, fields, replace
+from pathlib import Path
+from typing import Literal, Mapping
+
+from ..errors import InputError
+from ..model.dynamics import DYNAMICS, DynamicsKind
+from ..presets import PRESETS
+
+__all__ = ["Scene", "ModelSpec", "OUTPUTS", "PresetName", "SCENE_SCHEMA", "content_key"]
+
+#: The quantities a scene may ask for.
+OUTPUTS = ("joint_rates", "node_voltages", "element_currents")
+
+#: Preset names (see :data:`analogy.presets.PRESETS`).
+PresetName = Literal["fast", "accurate"]
+
+#: Version of what a content key covers; bumped when the meaning of a field changes.
+SCENE_SCHEMA = "analogy-scene-1"
+
+# Fields that name, describe or locate a scene but do not change its result.
+_NOT_CONTENT = ("name", "description", "source")
+
+
+def _freeze(value):
+    """Lists to tuples, recursively, so that specs from TOML or the CLI are hashable."""
+    if isinstance(value, (list, tuple)):
+        return tuple(_freeze(v) for v in value)
+    return value
+
+
+@dataclass(frozen=True)
+class ModelSpec:
+    """What model a scene uses: a built-in robot, or matrices of numbers and expressions.
+
+    Attributes
+    ----------
+    robot : str or None
+        A built-in robot (``serial2``, ``serial<N>``, ``random<N>`` …).
+    mass : tuple of tuple or None
+        Rows of the mass matrix: numbers or expression strings in q1 … qn and the
+        parameter names.
+    damping, stiffness : tuple or None
+        A tuple of entries (a diagonal) or of rows (a matrix).
+    gravity : tuple or None
+        One entry per joint.
+    seed : int
+        Random robots only: the seed of their mass matrix.
+    """
+
+    robot: str | None = None
+    mass: tuple | None = None
+    damping: tuple | None = None
+    stiffness: tuple | None = None
+    gravity: tuple | None = None
+    seed: int = 0
+
+    @classmethod
+    def of(cls, robot: str | None = None, **parts) -> "ModelSpec":
+        """A spec whose matrix parts may be given as lists (they are stored as tuples).
+
+        Parameters
+        ----------
+        robot : str, optional
+            A built-in robot name.
+        **parts
+            ``mass``, ``damping``, ``stiffness``, ``gravity`` and ``seed``.
+        """
+        return cls(robot, **{k: _freeze(v) for k, v in parts.items()})
+
+    @property
+    def label(self) -> str:
+        """The robot's name, or ``custom``."""
+        return self.robot or "custom"
+
+
+@dataclass(frozen=True)
+class Scene:
+    """One simulation job: model, configuration, inputs, outputs and solvers, as plain data.
+
+    Built-in scenes (:data:`analogy.scenes.builtin.SCENES`) and TOML files
+    (:func:`analogy.scenes.toml.load_scene`) give scenes; :meth:`system` builds the
+    node system; :func:`analogy.scenes.run.run_scene` computes what the outputs ask for.
+    Two scenes with the same :attr:`key` give the same result.
+
+    Attributes
+    ----------
+    name, description : str
+        Labels (not part of the key).
+    model : ModelSpec
+        The model.
+    q : tuple of float
+        Configuration.
+    parameters : tuple of (str, float)
+        Parameter values, sorted by name.
+    topology : str, tuple of tuple of float, or None
+        ``"serial"``, ``"parallel"``, a matrix T, or None for the model's own.
+    forces : tuple
+        One entry per joint: a number (a step at t = 0), a waveform string, or a tuple of these.
+    initial_rates : tuple of float or None
+        Joint rates at t = 0 (None: zero).
+    t_stop : float
+        End of the simulated interval [s].
+    dynamics : {"linear", "nonlinear"}
+        The circuit at q (linear) or the full configuration-dependent motion.
+    joint_rates : bool
+        Report joint rates.
+    node_voltages, element_currents : tuple of str or bool
+        Names to report, or True for all.
+    netlist : bool
+        Produce the netlist text.
+    netlist_file, csv_file, plot_file : str or None
+        Files to write, relative to the output folder.
+    solvers : tuple of str
+        Registered solvers to run.
+    preset : str
+        Accuracy preset.
+    errors : bool
+        Report errors against the reference (running it if need be).
+    step : float or None
+        Output step; None keeps SPICE's own points.
+    source : str or None
+        The scene file it came from (not part of the key).
+    """
+
+    name: str
+    model: ModelSpec
+    q: tuple = ()
+    parameters: tuple = ()
+    topology: object = None
+    forces: tuple = ()
+    initial_rates: tuple | None = None
+    t_stop: float = 10.0
+    dynamics: DynamicsKind = "linear"
+    joint_rates: bool = True
+    node_voltages: object = ()
+    element_currents: object = ()
+    netlist: bool = False
+    netlist_file: str | None = None
+    csv_file: str | None = None
+    plot_file: str | None = None
+    solvers: tuple = ("spice", "ode", "exact")
+    preset: str = "accurate"
+    errors: bool = True
+    step: float | None = None
+    description: str = ""
+    source: str | None = None
+
+    def __post_init__(self):
+        if not isinstance(self.model, ModelSpec):
+            raise InputError(f"scene {self.name!r}: model must be a ModelSpec")
+        if self.dynamics not in DYNAMICS:
+            raise InputError(f"unknown dynamics {self.dynamics!r}: use {', '.join(DYNAMICS)}")
+        if self.preset not in PRESETS:
+            raise InputError(f"unknown accuracy preset {self.preset!r}: use {', '.join(PRESETS)}")
+        if not (isinstance(self.t_stop, (int, float)) and math.isfinite(self.t_stop) and self.t_stop > 0):
+            raise InputError(f"t_stop must be a positive time, got {self.t_stop!r}")
+        try:
+            hash(self)
+        except TypeError:
+            raise InputError(f"scene {self.name!r} holds a list or table where a tuple is "
+                             "needed: build it with Scene.of") from None
+
+    @classmethod
+    def of(cls, name: str, model: ModelSpec | str, **fields_) -> "Scene":
+        """A scene from friendlier values: a robot name for *model*, lists, a parameter dict.
+
+        Parameters
+        ----------
+        name : str
+            The scene's name.
+        model : ModelSpec or str
+            A spec, or a built-in robot name.
+        **fields_
+            Any other :class:`Scene` field.
+        """
+        spec = model if isinstance(model, ModelSpec) else ModelSpec(robot=model)
+        if isinstance(fields_.get("parameters"), Mapping):
+            fields_["parameters"] = tuple(sorted(fields_["parameters"].items()))
+        for key in ("q", "forces", "initial_rates", "topology", "node_voltages", "element_currents",
+                    "solvers", "parameters"):
+            if key in fields_ and fields_[key] is not None and not isinstance(fields_[key], (str, bool)):
+                fields_[key] = _freeze(fields_[key])
+        return cls(name, spec, **fields_)
+
+    def replace(self, **changes) -> "Scene":
+        """A copy with *changes*; lists and a parameter dict are accepted as in :meth:`of`.
+
+        Parameters
+        ----------
+        **changes
+            New field values.
+        """
+        current = {f.name: getattr(self, f.name) for f in fields(self)}
+        current.update(changes)
+        name, model = current.pop("name"), current.pop("model")
+        return Scene.of(name, model, **current)
+
+    @property
+    def parameter_values(self) -> dict[str, float]:
+        """The parameters as a dict."""
+        return dict(self.parameters)
+
+    @property
+    def key(self) -> str:
+        """Content key: a SHA-256 of everything that determines the result (see :func:`content_key`)."""
+        return content_key(self)
+
+    @property
+    def reference(self) -> bool:
+        """True if a reference solution runs: asked for, or the yardstick of the others."""
+        return "exact" in self.solvers or (self.errors and bool(self.solvers))
+
+    @property
+    def needs_solver(self) -> bool:
+        """True if any output is a solver result."""
+        return bool(self.joint_rates or self.node_voltages or self.element_currents)
+
+    def path(self, name: str, output_dir=None) -> Path:
+        """Where an output file named *name* goes.
+
+        Parameters
+        ----------
+        name : str
+            A relative file name from the scene.
+        output_dir : str or Path, optional
+            The output folder; default the scene file's folder, else the working folder.
+        """
+        p = Path(name)
+        if output_dir is not None:
+            return Path(output_dir) / p
+        return (Path(self.source).parent if self.source is not None else Path.cwd()) / p
+
+    def system(self, model=None):
+        """The scene's node system (see :func:`analogy.scenes.build.scene_system`).
+
+        Parameters
+        ----------
+        model : object, optional
+            An already built model to evaluate instead of building the scene's own.
+        """
+        from .build import scene_system
+        return scene_system(self, model)
+
+    def systems(self, qs, model=None) -> list:
+        """The scene's node systems at every configuration in *qs*, built as one stack.
+
+        Parameters
+        ----------
+        qs : array_like, shape (count, n)
+            Configurations.
+        model : object, optional
+            An already built model.
+        """
+        from .build import scene_systems
+        return scene_systems(self, qs, model)
+
+    def family(self):
+        """What the scene shares with scenes that differ only in q, as a hashable key.
+
+        None when q is not a flat tuple of real numbers.
+        """
+        if not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in self.q):
+            return None
+        return (self.model, self.parameters, self.topology, self.forces, self.initial_rates,
+                self.t_stop, self.dynamics, len(self.q))
+
+
+def _canonical(value):
+    if isinstance(value, float):
+        return repr(value) if math.isfinite(value) else str(value)
+    if isinstance(value, bool) or value is None or isinstance(value, str):
+        return value
+    if isinstance(value, int):          # 0 and 0.0 give the same result, so the same key
+        return repr(float(value))
+    if isinstance(value, tuple):
+        return [_canonical(v) for v in value]
+    if isinstance(value, ModelSpec):
+        return {f.name: _canonical(getattr(value, f.name)) for f in fields(value)}
+    return repr(value)
+
+
+def content_key(scene: Scene) -> str:
+    """A hex SHA-256 of every field that determines *scene*'s result, in canonical JSON.
+
+    Names, descriptions and the source file are left out; numbers are written with
+    ``repr`` (exact for floats), so the key is the same in every process and on
+    every machine. :data:`SCENE_SCHEMA` is part of it.
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene.
+    """
+    data = {f.name: _canonical(getattr(scene, f.name)) for f in fields(scene) if f.name not in _NOT_CONTENT}
+    text = json.dumps([SCENE_SCHEMA, data], sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()

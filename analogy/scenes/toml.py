@@ -1,0 +1,519 @@
+"""Scene files (TOML): parsed into :class:`~analogy.scenes.scene.Scene` data, nothing run.
+
+A scene file describes one simulation job: a model, a configuration, the inputs,
+the outputs wanted and the solvers that produce them. Example::
+
+    name = "default"
+    description = "2-DOF serial arm at q2 = 0.3 rad, step torques"
+
+    [model]
+    robot = "serial2"              # a built-in robot (analogy.robots.robot) ...
+
+    [parameters]                   # ... with parameter overrides
+    d2 = 1.0
+
+    [configuration]
+    q = [0.0, 0.3]                 # joint coordinates q1 … qn
+    topology = "serial"            # "serial", "parallel" or a matrix T, v = T·r
+
+    [inputs]
+    forces = [1.0, "sine(0, 0.5, 2)"]
+    initial_rates = [0.0, 0.0]
+    t_stop = 10.0
+
+    [outputs]
+    joint_rates = true
+    node_voltages = ["n1"]         # or true: every node
+    element_currents = ["C1_2"]    # or true: every element
+    netlist = "default.cir"        # or true: netlist text only, no file
+    csv = "default.csv"
+    plot = "default.png"
+
+    [solvers]
+    use = ["spice", "ode", "exact"]
+    preset = "accurate"
+    errors = true
+    step = 0.01                    # output step [s]; default SPICE's own points
+
+Top level
+    ``name`` (string, default the file's stem), ``description`` (string),
+    ``dynamics`` (``"linear"``, the default: the circuit at q; ``"nonlinear"``: the
+    full configuration-dependent motion, for solvers that integrate it) and the
+    tables below. Every key is checked: an unknown key is an error.
+``[model]``
+    Either ``robot`` (a built-in name: redundant, serial2, parallel2, serial3,
+    parallel3, serialN) or ``mass``, a square matrix (a list of rows) with optional
+    ``damping`` and ``stiffness`` (a list is a diagonal, a list of rows a matrix) and
+    ``gravity`` (a list, entering as a constant force −G). Entries are numbers or
+    expression strings (``"3 + cos(q2)"``, ``"pi/4"``), parsed by the restricted
+    grammar of :mod:`analogy.expressions`; nothing is evaluated as Python. Names in
+    expressions are the joint coordinates q1 … qn and the names of ``[parameters]``.
+    A matrix of plain numbers is used as is, without any symbolic algebra.
+``[parameters]``
+    ``name = value`` (a number or a constant expression such as ``"pi/4"``): values
+    of a robot's parameters (overrides of its defaults), or the symbolic names that
+    the mass, damping, stiffness and gravity entries use. Each must be used.
+``[configuration]``
+    ``q``: the joint coordinates, required when the model depends on them.
+    ``topology``: ``"serial"``, ``"parallel"`` or an invertible matrix; default the
+    robot's own, ``"parallel"`` for a ``mass`` model.
+``[inputs]``
+    ``forces`` (required): one entry per joint, a number (a step at t = 0), a
+    waveform string (``"step(1)"``, ``"step(a, delay, rise)"``,
+    ``"pulse(v1, v2, delay, rise, fall, width, period)"``,
+    ``"sine(offset, amplitude, freq, delay, damping, phase_deg)"``,
+    ``"pwl(t1, v1, t2, v2, ...)"``) or a list of these, summed.
+    ``initial_rates``: joint rates at t = 0 (default zero). ``t_stop``: end time
+    (default 10).
+``[outputs]``
+    ``joint_rates`` (bool), ``node_voltages`` and ``element_currents`` (true for
+    all, or a list of node names ``n1`` … / element names ``C1``, ``C1_2``, ``R1``,
+    ``L2_3`` …), ``netlist`` (true, or a file to write), ``csv`` and ``plot`` (files
+    to write; they need at least one of the three quantities). Instead of a table,
+    ``outputs`` may be a list of ``"joint_rates"``, ``"node_voltages"``,
+    ``"element_currents"`` and ``"netlist"``. Without ``outputs`` a scene asks for
+    the joint rates. Relative file names are resolved against the scene file's
+    folder, or the output directory given to :func:`run_scene`.
+``[solvers]``
+    ``use``: any of ``"spice"``, ``"ode"``, ``"exact"`` (default all three when an
+    output needs a solver, none otherwise); ``preset``: ``"fast"`` or
+    ``"accurate"`` (default), which also sets the netlist's ``.options`` and
+    ``.tran``; ``errors`` (default true): report every solver's error against the
+    exact solution, running the exact solver for that if ``use`` does not name it;
+    ``step`` (seconds): a uniform output grid for every solver (errors are still
+    measured on each solver's own points).
+    Instead of a table, ``solvers`` may be the list ``use``.
+
+Element currents flow from an element's first terminal to its second, as SPICE
+reports a device ``name a b value``: a capacitor carries c·d(v_a − v_b)/dt, a
+resistor (v_a − v_b)/R and an inductor (x_a − x_b)/L with x = ∫v.
+
+Only what the outputs need is computed: the netlist's ``.save`` names only the
+vectors asked for (every node when joint rates are, since R = T⁻¹·v needs them
+all); ngspice is loaded only when ``spice`` is a solver, scipy's integrators only
+for ``ode``, matplotlib only for a plot, and sympy only for a robot or a mass
+matrix with names in it.
+
+A malformed scene raises :class:`~analogy.errors.InputError` with one line naming
+the file, the key and the problem, e.g. ``scene.toml: [configuration] q: expected
+2 numbers, got 3``.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import tomllib
+from contextlib import contextmanager
+from pathlib import Path
+
+from ..errors import InputError
+from ..model.dynamics import DYNAMICS
+from ..presets import preset as get_preset
+from ..model.expressions import parse_number
+from ..results.output import check_plot_path
+from ..solvers.registry import SOLVER_NAMES
+from .build import validated
+from .scene import OUTPUTS, ModelSpec, Scene, _freeze
+
+__all__ = ["load_scene", "parse_scene", "parse_toml"]
+
+_TABLES = {
+    "model": ("robot", "mass", "damping", "stiffness", "gravity"),
+    "parameters": None,         # free names
+    "configuration": ("q", "topology"),
+    "inputs": ("forces", "initial_rates", "t_stop"),
+    "outputs": ("joint_rates", "node_voltages", "element_currents", "netlist", "csv", "plot"),
+    "solvers": ("use", "preset", "errors", "step"),
+}
+_TOP = ("name", "description", "dynamics") + tuple(_TABLES)
+_BARE = re.compile(r"^[A-Za-z0-9_-]+$")
+
+
+def _label(key) -> str:
+    key = str(key)
+    return key if _BARE.match(key) else repr(key)
+
+
+def _one_line(text) -> str:
+    return " ".join(str(text).split())
+
+
+class _Context:
+    """Names the file and key in every error."""
+
+    def __init__(self, source: str):
+        self.source = source
+
+    def error(self, key: str | None, message: str) -> InputError:
+        where = f"{self.source}: {key}: " if key else f"{self.source}: "
+        return InputError(where + _one_line(message))
+
+    @contextmanager
+    def key(self, key: str):
+        try:
+            yield
+        except InputError as exc:
+            raise self.error(key, str(exc)) from None
+
+    def table(self, data: dict, name: str):
+        value = data.get(name)
+        if value is None:
+            return None
+        if not isinstance(value, dict):
+            raise self.error(f"[{name}]", f"expected a table, got {_kind(value)}")
+        allowed = _TABLES[name]
+        if allowed is not None:
+            for key in value:
+                if key not in allowed:
+                    raise self.error(None, f"unknown key [{name}] {_label(key)} "
+                                           f"(known: {', '.join(allowed)})")
+        return value
+
+
+def _kind(value) -> str:
+    if isinstance(value, bool):
+        return "a boolean"
+    if isinstance(value, (int, float)):
+        return "a number"
+    if isinstance(value, str):
+        return "a string"
+    if isinstance(value, list):
+        return "a list"
+    if isinstance(value, dict):
+        return "a table"
+    return type(value).__name__
+
+
+# ---------------------------------------------------------------- values
+
+def _number(value) -> float:
+    """A finite float from a TOML number or a constant expression string."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, str)):
+        raise InputError(f"expected a number, got {_kind(value)}")
+    if isinstance(value, str):
+        return parse_number(value)
+    x = float(value)
+    if not math.isfinite(x):
+        raise InputError(f"expected a finite number, got {value!r}")
+    return x
+
+
+def _numbers(value, n: int | None = None) -> list[float]:
+    if not isinstance(value, list):
+        raise InputError(f"expected a list of numbers, got {_kind(value)}")
+    if n is not None and len(value) != n:
+        raise InputError(f"expected {n} numbers, got {len(value)}")
+    out = []
+    for k, item in enumerate(value):
+        try:
+            out.append(_number(item))
+        except InputError as exc:
+            raise InputError(f"entry {k + 1}: {exc}") from None
+    return out
+
+
+def load_scene(path) -> Scene:
+    """Read, parse and validate the scene file *path* (its system is built to check it).
+
+    Parameters
+    ----------
+    path : str or Path
+        A TOML scene file.
+
+    Raises
+    ------
+    InputError
+        One line naming the file, the key and the problem.
+    """
+    path = Path(path)
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read the scene file: {exc.strerror or exc}") from None
+    except UnicodeDecodeError:
+        raise InputError(f"{path}: the scene file is not UTF-8 text") from None
+    return parse_scene(text, source=path)
+
+
+def parse_scene(text: str, source="scene.toml") -> Scene:
+    """:func:`parse_toml`, then :func:`~analogy.scenes.build.validated`.
+
+    Parameters
+    ----------
+    text : str
+        TOML text.
+    source : str or Path
+        The file the text came from; it names the file in errors, and relative
+        output files are resolved against its folder.
+    """
+    return validated(parse_toml(text, source))
+
+
+def parse_toml(text: str, source="scene.toml") -> Scene:
+    """Parse scene TOML *text* into a :class:`Scene`, checking its structure; nothing is built or run.
+
+    Parameters
+    ----------
+    text : str
+        TOML text.
+    source : str or Path
+        The file the text came from, named in errors.
+    """
+    label = str(source)
+    ctx = _Context(label)
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        message = str(exc)
+        if "(at end of document)" in message:
+            last = max(len(text.splitlines()), 1)
+            message = message.replace("(at end of document)", f"(at line {last}, the end of the document)")
+        raise ctx.error(None, f"TOML syntax error: {message}") from None
+    for key in data:
+        if key not in _TOP:
+            kind = "table" if isinstance(data[key], dict) else "key"
+            shown = f"[{_label(key)}]" if kind == "table" else _label(key)
+            raise ctx.error(None, f"unknown {kind} {shown} (known: {', '.join(_TOP)})")
+    path = Path(source)
+    name = data.get("name", path.stem or "scene")
+    description = data.get("description", "")
+    dynamics = data.get("dynamics", "linear")
+    for key, value in (("name", name), ("description", description), ("dynamics", dynamics)):
+        if not isinstance(value, str):
+            raise ctx.error(key, f"expected a string, got {_kind(value)}")
+    if not name.strip():
+        raise ctx.error("name", "must not be empty")
+    if dynamics not in DYNAMICS:
+        raise ctx.error("dynamics", f"unknown dynamics {dynamics!r}: use {', '.join(DYNAMICS)}")
+    for table in _TABLES:                  # unknown keys first, before anything else
+        if isinstance(data.get(table), dict):
+            ctx.table(data, table)
+    outputs = _outputs(ctx, data)
+    solvers = _solvers(ctx, data)
+    fields = _model_fields(ctx, data)
+    needs = bool(outputs["joint_rates"] or outputs["node_voltages"] or outputs["element_currents"])
+    use = solvers["use"]
+    if use is None:
+        use = ("spice", "ode", "exact") if needs else ()
+    if needs and not use:
+        raise ctx.error("[solvers] use", "the outputs need a solver: choose spice, ode or exact")
+    if use and not needs:
+        raise ctx.error("[solvers] use", "no output needs a solver: ask for joint_rates, "
+                                         "node_voltages or element_currents in [outputs]")
+    for key in ("csv", "plot"):
+        if outputs[key] is not None and not needs:
+            raise ctx.error(f"[outputs] {key}", "needs joint_rates, node_voltages or element_currents")
+    nv, ec = outputs["node_voltages"], outputs["element_currents"]
+    return Scene.of(name, fields.pop("model"), description=description, source=str(path),
+                    dynamics=dynamics, joint_rates=outputs["joint_rates"],
+                    node_voltages=nv if nv is True else tuple(nv or ()),
+                    element_currents=ec if ec is True else tuple(ec or ()),
+                    netlist=outputs["netlist"], netlist_file=outputs["netlist_file"],
+                    csv_file=outputs["csv"], plot_file=outputs["plot"], solvers=tuple(use),
+                    preset=solvers["preset"], errors=solvers["errors"], step=solvers["step"], **fields)
+
+
+def _model_fields(ctx: _Context, data: dict) -> dict:
+    """The model, configuration and inputs as Scene fields (values checked for their type only)."""
+    model = ctx.table(data, "model")
+    if model is None:
+        raise ctx.error("[model]", "missing: give robot = \"serial2\" (a built-in robot) or mass = [[...]]")
+    params_raw = ctx.table(data, "parameters") or {}
+    config = ctx.table(data, "configuration") or {}
+    inputs = ctx.table(data, "inputs")
+    if inputs is None:
+        raise ctx.error("[inputs]", "missing: give at least forces = [...] (one per joint)")
+    out = {}
+    params = {}
+    for key, value in params_raw.items():
+        with ctx.key(f"[parameters] {_label(key)}"):
+            params[key] = _number(value)
+    out["parameters"] = params
+    if "robot" in model:
+        if not isinstance(model["robot"], str):
+            raise ctx.error("[model] robot", f"expected a robot name, got {_kind(model['robot'])}")
+        for key in ("mass", "damping", "stiffness", "gravity"):
+            if key in model:
+                raise ctx.error(f"[model] {key}", "a built-in robot has its own; set its [parameters] "
+                                                  "instead, or give mass = [[...]] without robot")
+        out["model"] = ModelSpec(robot=model["robot"])
+    elif "mass" in model:
+        parts = {}
+        for key in ("mass", "damping", "stiffness", "gravity"):
+            if key in model:
+                with ctx.key(f"[model] {key}"):
+                    parts[key] = _entries(model[key], key)
+        out["model"] = ModelSpec.of(None, **parts)
+    else:
+        raise ctx.error("[model]", "give robot = \"serial2\" (a built-in robot) or mass = [[...]]")
+    if "q" in config:
+        with ctx.key("[configuration] q"):
+            out["q"] = tuple(_numbers(config["q"]))
+    if "topology" in config:
+        spec = config["topology"]
+        with ctx.key("[configuration] topology"):
+            if isinstance(spec, list):
+                out["topology"] = tuple(tuple(_numbers(r)) if isinstance(r, list) else _bad_row()
+                                        for r in spec)
+            elif isinstance(spec, str):
+                out["topology"] = spec
+            else:
+                raise InputError(f"expected \"serial\", \"parallel\" or a matrix, got {_kind(spec)}")
+    with ctx.key("[inputs] forces"):
+        if "forces" not in inputs:
+            raise InputError("missing: give one force per joint, e.g. forces = [1.0, \"sine(0, 1, 2)\"]")
+        raw = inputs["forces"]
+        if not isinstance(raw, list):
+            raise InputError(f"expected a list with one entry per joint, got {_kind(raw)}")
+    for k, item in enumerate(raw):
+        with ctx.key(f"[inputs] forces[{k + 1}]"):
+            for w in (item if isinstance(item, list) else [item]):
+                if isinstance(w, bool) or not isinstance(w, (int, float, str)):
+                    raise InputError(f"expected a number or a waveform string such as \"step(1)\", "
+                                     f"got {_kind(w)}")
+    out["forces"] = _freeze(raw)
+    if "initial_rates" in inputs:
+        with ctx.key("[inputs] initial_rates"):
+            out["initial_rates"] = tuple(_numbers(inputs["initial_rates"]))
+    if "t_stop" in inputs:
+        with ctx.key("[inputs] t_stop"):
+            t_stop = _number(inputs["t_stop"])
+            if t_stop <= 0:
+                raise InputError(f"must be a positive time, got {t_stop!r}")
+            out["t_stop"] = t_stop
+    return out
+
+
+def _bad_row():
+    raise InputError("expected a matrix as a list of rows")
+
+
+def _entries(value, key: str):
+    """Matrix or vector entries, type-checked; their meaning is read when the model is built."""
+    def entry(x, where):
+        if isinstance(x, bool) or not isinstance(x, (int, float, str)):
+            raise InputError(f"{where}: expected a number or an expression string, got {_kind(x)}")
+        if isinstance(x, float) and not math.isfinite(x):
+            raise InputError(f"{where}: expected a finite number, got {x!r}")
+        return x
+    if not isinstance(value, list) or not value:
+        raise InputError(f"expected a list, got {_kind(value)}")
+    if all(isinstance(r, list) for r in value):
+        return [[entry(x, f"row {i + 1}, column {j + 1}") for j, x in enumerate(r)]
+                for i, r in enumerate(value)]
+    if any(isinstance(r, list) for r in value):
+        raise InputError("mixes numbers and rows: give a diagonal [b1, b2] or a matrix [[...], [...]]")
+    if key == "mass":
+        raise InputError("expected a square matrix as a list of rows, got a list")
+    return [entry(x, f"entry {k + 1}") for k, x in enumerate(value)]
+
+
+def _outputs(ctx, data) -> dict:
+    out = {"joint_rates": False, "node_voltages": None, "element_currents": None,
+           "netlist": False, "netlist_file": None, "csv": None, "plot": None}
+    raw = data.get("outputs")
+    if raw is None:
+        out["joint_rates"] = True
+        return out
+    if isinstance(raw, list):
+        allowed = OUTPUTS + ("netlist",)
+        for item in raw:
+            if item not in allowed:
+                raise ctx.error("outputs", f"unknown output {item!r} (use {', '.join(allowed)}, "
+                                           "or an [outputs] table for files)")
+            if item == "netlist":
+                out["netlist"] = True
+            elif item == "joint_rates":
+                out["joint_rates"] = True
+            else:
+                out[item] = True
+        if not raw:
+            raise ctx.error("outputs", "asks for nothing")
+        return out
+    table = ctx.table(data, "outputs")
+    if not table:
+        raise ctx.error("[outputs]", "asks for nothing: give joint_rates, node_voltages, "
+                                     "element_currents or netlist")
+    if "joint_rates" in table:
+        if not isinstance(table["joint_rates"], bool):
+            raise ctx.error("[outputs] joint_rates", f"expected true or false, got {_kind(table['joint_rates'])}")
+        out["joint_rates"] = table["joint_rates"]
+    for key in ("node_voltages", "element_currents"):
+        if key in table:
+            value = table[key]
+            if value is True or value is False:
+                out[key] = value or None
+            elif isinstance(value, list) and all(isinstance(x, str) for x in value):
+                if not value:
+                    raise ctx.error(f"[outputs] {key}", "an empty list: name at least one, or write true")
+                out[key] = value
+            else:
+                raise ctx.error(f"[outputs] {key}", f"expected true or a list of names, got {_kind(value)}")
+    if "netlist" in table:
+        value = table["netlist"]
+        if isinstance(value, bool):
+            out["netlist"] = value
+        elif isinstance(value, str) and value.strip():
+            out["netlist"], out["netlist_file"] = True, _relative_file(ctx, "netlist", value)
+        else:
+            raise ctx.error("[outputs] netlist", f"expected true or a file name, got {_kind(value)}")
+    for key in ("csv", "plot"):
+        if key in table:
+            value = table[key]
+            if not isinstance(value, str) or not value.strip():
+                raise ctx.error(f"[outputs] {key}", f"expected a file name, got {_kind(value)}")
+            out[key] = _relative_file(ctx, key, value)
+    if out["plot"] is not None:
+        try:
+            check_plot_path(out["plot"])
+        except InputError as exc:
+            raise ctx.error("[outputs] plot", str(exc)) from None
+    if not (out["joint_rates"] or out["node_voltages"] or out["element_currents"] or out["netlist"]):
+        raise ctx.error("[outputs]", "asks for nothing: give joint_rates, node_voltages, "
+                                     "element_currents or netlist")
+    return out
+
+
+def _relative_file(ctx, key: str, value: str) -> str:
+    # A scene file may come from anyone: its outputs stay inside the output folder.
+    p = Path(value)
+    if p.is_absolute() or ".." in p.parts:
+        raise ctx.error(f"[outputs] {key}", f"{value!r} must be a relative path inside the "
+                                            "output folder (no absolute path, no '..')")
+    return value
+
+
+def _solvers(ctx, data) -> dict:
+    out = {"use": None, "preset": "accurate", "errors": True, "step": None}
+    raw = data.get("solvers")
+    if raw is None:
+        return out
+    if isinstance(raw, list):
+        table, key = {"use": raw}, "solvers"
+    else:
+        table, key = ctx.table(data, "solvers"), "[solvers] use"
+    if "use" in table:
+        use = table["use"]
+        if not isinstance(use, list):
+            raise ctx.error(key, f"expected a list of solver names, got {_kind(use)}")
+        for s in use:
+            if s not in SOLVER_NAMES:
+                raise ctx.error(key, f"unknown solver {s!r}: use {', '.join(SOLVER_NAMES)}")
+        out["use"] = list(dict.fromkeys(use))
+    if "preset" in table:
+        with ctx.key("[solvers] preset"):
+            if not isinstance(table["preset"], str):
+                raise InputError(f"expected a preset name, got {_kind(table['preset'])}")
+            out["preset"] = get_preset(table["preset"]).name
+    if "errors" in table:
+        if not isinstance(table["errors"], bool):
+            raise ctx.error("[solvers] errors", f"expected true or false, got {_kind(table['errors'])}")
+        out["errors"] = table["errors"]
+    if "step" in table:
+        with ctx.key("[solvers] step"):
+            step = _number(table["step"])
+            if step <= 0:
+                raise InputError(f"must be a positive time, got {step!r}")
+            out["step"] = step
+    return out

@@ -1,0 +1,174 @@
+"""Direct integration of M'(x)·dv/dt = i(t) − B'·v − K'·x − h with scipy's ODE solvers."""
+
+from __future__ import annotations
+
+import time as _time
+
+import numpy as np
+import scipy.linalg as la
+from scipy import integrate
+
+from ..circuit.node_system import joint_forces
+from ..errors import InputError, SimulationError
+from ..presets import Preset
+from ..results.trajectory import SolverStats, Trajectory
+from .registry import Solver
+
+__all__ = ["solve_ode", "ODE_METHODS", "state_matrices", "OdeSolver", "SOLVER"]
+
+#: scipy.integrate methods; the implicit ones receive the constant analytic Jacobian of a linear system.
+ODE_METHODS = ("LSODA", "Radau", "BDF", "RK45", "RK23", "DOP853")
+_IMPLICIT = {"LSODA", "Radau", "BDF"}
+
+
+def state_matrices(system):
+    """First-order form y' = A·y + G·F(t) of a linear system on y = [x, v] (or y = v without springs).
+
+    M'⁻¹ is never formed: M'⁻¹B', M'⁻¹K' and M'⁻¹T⁻ᵀ come from one Cholesky factor.
+
+    Parameters
+    ----------
+    system : NodeSystem
+        A linear node system.
+    """
+    n = system.dof
+    chol = la.cho_factor(system.mass)
+    mb = la.cho_solve(chol, system.damping)
+    mc = la.cho_solve(chol, system.current_map)
+    if system.stiffness is None:
+        return -mb, mc
+    mk = la.cho_solve(chol, system.stiffness)
+    a = np.block([[np.zeros((n, n)), np.eye(n)], [-mk, -mb]])
+    g = np.vstack([np.zeros((n, mc.shape[1])), mc])
+    return a, g
+
+
+def _joint_force(forces, tt: float) -> np.ndarray:
+    return np.array([sum(float(w(tt)) for w in ws) if ws else 0.0 for ws in forces])
+
+
+def _linear(system):
+    """(rhs, jacobian, state size, initial state, whether x is in the state)."""
+    a, g = state_matrices(system)
+    forces = system.forces
+    springs = system.stiffness is not None
+    v0 = system.initial_voltages
+    y0 = np.concatenate([np.zeros(system.dof), v0]) if springs else v0.copy()
+
+    def rhs(tt, yy):
+        return a @ yy + g @ _joint_force(forces, tt)
+    return rhs, a, y0, springs, float(np.max(np.abs(g))) if g.size else 0.0
+
+
+def _nonlinear(system):
+    n = system.dof
+    forces, cmap, b = system.forces, system.current_map, system.damping
+    k = system.stiffness
+
+    def rhs(tt, yy):
+        x, v = yy[:n], yy[n:]
+        i = cmap @ _joint_force(forces, tt) - b @ v - system.node_load(x, v, tt)
+        if k is not None:
+            i = i - k @ x
+        return np.concatenate([v, np.linalg.solve(system.node_mass(x), i)])
+    y0 = np.concatenate([np.zeros(n), system.initial_voltages])
+    gain = float(np.max(np.abs(np.linalg.solve(system.node_mass(np.zeros(n)), cmap))))
+    return rhs, None, y0, True, gain
+
+
+def solve_ode(system, times=None, method: str = "DOP853", rtol: float = 1e-10,
+              atol: float | None = None, positions: bool = False) -> Trajectory:
+    """Integrate *system* with a scipy ODE solver, restarting at every force breakpoint.
+
+    Parameters
+    ----------
+    system : NodeDynamics
+        A linear or nonlinear node system.
+    times : array_like, optional
+        Output times in [0, t_stop]; default 1001 uniform points.
+    method : str
+        One of :data:`ODE_METHODS`.
+    rtol, atol : float
+        Tolerances; *atol* defaults to ``rtol * 1e-3`` times the response scale.
+    positions : bool
+        Also return the node positions x = ∫v (:attr:`Trajectory.positions`) when the
+        system has springs (they are then part of the integrated state).
+    """
+    if method not in ODE_METHODS:
+        raise InputError(f"unknown ODE method {method!r}: use {', '.join(ODE_METHODS)}")
+    start = _time.perf_counter()
+    t = system.time_points(times)
+    n = system.dof
+    linear = getattr(system, "kind", "linear") == "linear"
+    rhs, jac, y, has_x, gain = _linear(system) if linear else _nonlinear(system)
+    if atol is None:
+        # Scale from the steady response to the peak force, so atol is relative to the motion.
+        fmax = max(float(np.max(np.abs(joint_forces(system.forces, t)))) if t.size else 0.0, 1e-300)
+        scale = max(float(np.max(np.abs(system.initial_voltages))), fmax * gain * system.t_stop)
+        atol = rtol * 1e-3 * max(scale, 1e-300)
+    extra = {}
+    if jac is not None and method in _IMPLICIT:     # LSODA takes the Jacobian as a callable only
+        extra["jac"] = (lambda tt, yy: jac) if method == "LSODA" else jac
+    cls = getattr(integrate, method)
+    out = np.empty((t.size, n))
+    pos = np.empty((t.size, n)) if positions and has_x else None
+    steps = nfev = njev = 0
+    for t0, t1 in system.segments():
+        last = t1 >= system.t_stop
+        idx = np.flatnonzero((t >= t0) & ((t <= t1) if last else (t < t1)))
+        at_start = idx[t[idx] == t0]
+        out[at_start] = y[-n:]
+        if pos is not None:
+            pos[at_start] = y[:n]
+        idx = idx[t[idx] > t0]
+        k = 0
+        if t1 > t0:
+            sol = cls(rhs, t0, y, t1, rtol=rtol, atol=atol, **extra)
+            while sol.status == "running":
+                message = sol.step()
+                if sol.status == "failed":
+                    raise SimulationError(f"ODE solver {method} failed at t = {sol.t:.6g}: {message}")
+                steps += 1
+                stop = k
+                while stop < idx.size and t[idx[stop]] <= sol.t:
+                    stop += 1
+                if stop > k:
+                    values = sol.dense_output()(t[idx[k:stop]])
+                    out[idx[k:stop]] = values[-n:].T
+                    if pos is not None:
+                        pos[idx[k:stop]] = values[:n].T
+                    k = stop
+            nfev, njev = nfev + sol.nfev, njev + sol.njev
+            y = sol.y
+    elapsed = _time.perf_counter() - start
+    stats = SolverStats(elapsed, steps, None, nfev, njev)
+    return Trajectory("ode", t, out, system.joint_rates(out), pos, stats=stats)
+
+
+class OdeSolver(Solver):
+    """scipy's integrators with the preset's method and tolerance."""
+
+    name = "ode"
+    label = "scipy.integrate"
+
+    def solve(self, system, times, preset: Preset, *, save=(), positions=False) -> Trajectory:
+        """Integrate with ``preset.ode_method`` at ``preset.ode_rtol``; see :meth:`Solver.solve`.
+
+        Parameters
+        ----------
+        system : NodeDynamics
+            The system.
+        times : array_like or None
+            Output times; None is the preset's uniform grid.
+        preset : Preset
+            Accuracy settings.
+        save : sequence of str
+            Unused: element currents follow from the trajectory.
+        positions : bool
+            Also return node positions where the system has springs.
+        """
+        grid = np.linspace(0.0, system.t_stop, preset.steps + 1) if times is None else times
+        return solve_ode(system, grid, preset.ode_method, preset.ode_rtol, positions=positions)
+
+
+SOLVER = OdeSolver()
