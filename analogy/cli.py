@@ -10,7 +10,7 @@ from pathlib import Path
 from . import __version__
 from .errors import AccuracyError, AnalogyError, InputError, SimulationError
 from .model.catalog import MAX_SERIAL, ROBOT_NAMES
-from .model.expressions import parse_matrix, parse_number, parse_vector, split_entries
+from .model.expressions import parse_expression, parse_matrix, parse_number, parse_vector, split_entries
 from .circuit.netlist import netlist
 from .presets import PRESETS
 from .results.comparison import compare
@@ -149,6 +149,11 @@ def scene_from_args(args) -> Scene:
     if args.mass is not None:
         mass = _entries(args.mass, "--mass")
         if not mass or not all(isinstance(r, list) for r in mass):
+            try:
+                parse_expression(args.mass, {})       # the grammar's own sentence first
+            except InputError as exc:
+                if "unknown name" not in str(exc):
+                    raise InputError(f"--mass: {exc}") from None
             raise InputError("--mass must be a matrix like [[m1, m3], [m3, m2]]")
         spec = ModelSpec.of(None, mass=mass, damping=_entries(args.damping, "--damping"),
                             stiffness=_entries(args.stiffness, "--stiffness"))

@@ -162,12 +162,14 @@ def test_netlist_saves_only_requested_vectors(tmp_path):
 
 
 def test_netlist_save_names_are_checked():
+    from analogy.circuit.description import circuit
     from analogy.circuit.netlist import netlist, save_vectors
     job = parse_scene(VALID)
     s = job.system()
-    assert save_vectors(s, ["n1", "C1_2", "r1_2"]) == ["v(n1)", "@c1_2[i]", "@r1_2[i]"]
-    assert save_vectors(s, ["C1_2"], realizable=True) == ["@fc1_2[i]"]     # negative: its coupling
-    assert save_vectors(s, ["C1"], realizable=True) == ["@c1[i]"]
+    assert save_vectors(circuit(s), ["n1", "C1_2", "r1_2"]) == ["v(n1)", "@c1_2[i]", "@r1_2[i]"]
+    signed = circuit(s, realizable=True)
+    assert save_vectors(signed, ["C1_2"]) == ["@fc1_2[i]"]     # negative: its coupling
+    assert save_vectors(signed, ["C1"]) == ["@c1[i]"]
     for bad in ["C9", "n1\n.control", "@c1[i]", "v(n1)", "L1"]:
         with pytest.raises(InputError, match="unknown node or element"):
             netlist(s, save=[bad])
@@ -181,8 +183,8 @@ def test_netlist_only_scene_imports_no_solver(tmp_path):
         from analogy.scenes.run import run_scene
         r = run_scene(load_scene({str(SCENES_DIR / 'serial2_netlist.toml')!r}), {str(tmp_path)!r})
         assert r.netlist and r.netlist.rstrip().endswith(".end")
-        mods = ["PySpice", "scipy.integrate", "matplotlib", "analogy.spice", "analogy.ode",
-                "analogy.exact"]
+        mods = ["PySpice", "scipy.integrate", "matplotlib", "analogy.solvers.spice",
+                "analogy.solvers.ode", "analogy.solvers.exact"]
         print(json.dumps({{m: m in sys.modules for m in mods}}))
     """)
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
@@ -199,7 +201,8 @@ def test_ode_only_numeric_scene_imports_no_spice_and_no_sympy(tmp_path):
         from analogy.scenes.run import run_scene
         r = run_scene(load_scene({str(SCENES_DIR / 'ode_only.toml')!r}), {str(tmp_path)!r})
         assert r.solvers == ["ode"], r.solvers
-        mods = ["PySpice", "sympy", "matplotlib", "analogy.spice", "analogy.exact", "analogy.robots"]
+        mods = ["PySpice", "sympy", "matplotlib", "analogy.solvers.spice", "analogy.solvers.exact",
+                "analogy.model.robots"]
         print(json.dumps({{m: m in sys.modules for m in mods}}))
     """)
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
@@ -240,7 +243,7 @@ def _kcl_check(system, traj, currents):
 def test_exact_and_ode_element_currents_obey_kirchhoff(name):
     from analogy.solvers.exact import solve_exact
     from analogy.solvers.ode import solve_ode
-    s = load_scene(SCENES_DIR / name).system
+    s = load_scene(SCENES_DIR / name).system()
     t = np.linspace(0, s.t_stop, 801)
     ex = solve_exact(s, t, positions=True)
     od = solve_ode(s, t, "DOP853", 1e-12, positions=True)
@@ -264,7 +267,7 @@ def test_exact_and_ode_element_currents_obey_kirchhoff(name):
 def test_optional_positions_leave_results_unchanged():
     from analogy.solvers.exact import solve_exact
     from analogy.solvers.ode import solve_ode
-    s = load_scene(SCENES_DIR / "springs3.toml").system
+    s = load_scene(SCENES_DIR / "springs3.toml").system()
     t = np.linspace(0, s.t_stop, 301)
     a, b = solve_exact(s, t), solve_exact(s, t, positions=True)
     np.testing.assert_array_equal(a.voltages, b.voltages)
@@ -276,7 +279,7 @@ def test_optional_positions_leave_results_unchanged():
 
 def test_currents_need_positions_with_springs():
     from analogy.solvers.exact import solve_exact
-    s = load_scene(SCENES_DIR / "springs3.toml").system
+    s = load_scene(SCENES_DIR / "springs3.toml").system()
     with pytest.raises(InputError, match="positions"):
         element_currents(s, solve_exact(s, np.linspace(0, 1, 5)), ["C1"])
     assert set(element_currents(s, solve_exact(s, np.linspace(0, 1, 5)), ["R1"])) == {"R1"}
@@ -289,14 +292,14 @@ def _springs3_from_rest():
     text = (SCENES_DIR / "springs3.toml").read_text()
     assert "initial_rates = [0.0, 0.2, 0.0]" in text
     return parse_scene(text.replace("initial_rates = [0.0, 0.2, 0.0]", "initial_rates = [0.0, 0.0, 0.0]"),
-                       source="springs3.toml").system
+                       source="springs3.toml").system()
 
 
 def _system(name):
     if name == "springs3 from rest":
         return _springs3_from_rest()
     if name.endswith(".toml"):
-        return load_scene(SCENES_DIR / name).system
+        return load_scene(SCENES_DIR / name).system()
     from analogy.scenes.builtin import scene
     return scene(name).system()
 
@@ -350,7 +353,7 @@ def test_realizable_element_current_is_the_couplings(tmp_path):
     from analogy.solvers.exact import solve_exact
     from analogy.circuit.netlist import netlist
     from analogy.solvers.spice import run_netlist
-    s = load_scene(SCENES_DIR / "default.toml").system
+    s = load_scene(SCENES_DIR / "default.toml").system()
     data = run_netlist(netlist(s, "accurate", save=["C1_2", "R1_2"], realizable=True),
                        ["@fc1_2[i]", "@r1_2[i]"])
     exact = element_currents(s, solve_exact(s, data["time"]), ["C1_2", "R1_2"])
@@ -504,7 +507,7 @@ def test_main_run_exit_codes(tmp_path, capsys, monkeypatch):
     def broken(*args, **kwargs):
         raise SimulationError("ODE solver DOP853 failed at t = 0.5: test")
 
-    monkeypatch.setattr(analogy.ode, "solve_ode", broken)
+    monkeypatch.setattr(analogy.solvers.ode, "solve_ode", broken)
     assert main_run(ode, output_dir=tmp_path / "o", no_plot=True) == 1
     out = capsys.readouterr().out
     assert "ode" in out and "failed" in out and "exact" in out

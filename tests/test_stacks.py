@@ -186,16 +186,18 @@ def test_a_system_the_exact_solver_cannot_take_fails_alone(monkeypatch):
 def test_a_failing_ngspice_run_is_retried_scene_by_scene(monkeypatch):
     """If the shared run fails, each scene runs alone and only the culprit is a failure."""
     from analogy.solvers import spice
-    run = spice.batch_netlist
     culprit = 0.7
+    c12 = next(e for e in elements(scene("default").replace(q=(0.0, culprit), t_stop=2.0).system())
+               if e.name == "C1_2")
+    real = spice.session()
 
-    def failing(systems, preset):     # a netlist ngspice rejects when the culprit is in it
-        text = run(systems, preset)
-        if any(s.info["configuration"]["q2"] == culprit for s in systems):
-            text = text.replace(".end", ".tran 0 0\n.end")
-        return text
+    class Failing:                  # ngspice that fails on any netlist holding the culprit
+        def run(self, text, vectors=None, stats=None):
+            if repr(c12.value) in text:
+                raise analogy.SpiceError("ngspice transient analysis failed: time step too small")
+            return real.run(text, vectors, stats)
 
-    monkeypatch.setattr(spice, "batch_netlist", failing)
+    monkeypatch.setattr(spice, "session", Failing)
     items = [scene("default").replace(q=(0.0, q), t_stop=2.0) for q in (0.1, culprit, 1.3)]
     res = run_batch(items, "fast", workers=1)
     assert list(res.failures) == [1] and "time step too small" in res.failures[1]

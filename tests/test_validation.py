@@ -70,7 +70,7 @@ def test_expression_grammar_accepts_formulas():
     (["--q", "0, 0.3, 1"], "2 joint coordinates"),
     (["--force", "1", "--force", "2", "--force", "3"], "2 entries"),
     (["--topology", "ring"], "unknown topology"),
-    (["--r0", "1"], "2 entries"),
+    (["--r0", "1"], "expected 2 numbers"),
     (["--t-stop", "1e999"], "must be finite"),
     (["--mass", "__import__('os').system('touch /tmp/analogy-pwned')"], "not allowed"),
     (["--param", "l1=__import__('os').system('touch /tmp/analogy-pwned')"], "not allowed"),
@@ -102,7 +102,7 @@ def test_names_cannot_smuggle_spice_control_lines():
     s = node_system(js, forces=[1.0, 0.0], info={"robot": "evil\n.control\nshell rm -rf /\n.endc"})
     text = netlist(s, title="x\r\n.include /etc/passwd")
     directives = [ln.split()[0] for ln in text.splitlines() if ln.startswith(".")]
-    assert directives == [".ic", ".options", ".tran", ".save", ".end"]
+    assert directives == [".ic", ".options", ".tran", ".save", ".print", ".end"]
     with pytest.raises(InputError, match="unknown node"):
         netlist(s, save=["n1\n.control"])
 

@@ -40,6 +40,8 @@ class Nodal:
 
 
 def _fields(element):
+    if hasattr(element, "kind"):            # an Element (itself a named tuple)
+        return element.kind, element.a, element.b, element.value
     if isinstance(element, (tuple, list)):
         if len(element) != 4:
             raise InputError(f"an element is (kind, node_a, node_b, value), got {element!r}")

@@ -221,6 +221,7 @@ def split_entries(text: str) -> list:
         return ast.get_source_segment(source, node)
     value = entries(tree, 0)
     if not isinstance(value, list):
+        parse_expression(text)          # the grammar's own sentence if it rejects the text
         raise InputError(f"{text!r} is not a list like [a, b] or [[a, b], [c, d]]")
     return value
 

@@ -18,7 +18,7 @@ from ..model.expressions import parse_number
 from ..model.joint import JointSpace
 from .scene import ModelSpec, Scene
 
-__all__ = ["scene_model", "scene_system", "scene_systems", "validated", "entry_value", "TOML_KEYS",
+__all__ = ["scene_model", "symbolic_model", "scene_system", "scene_systems", "validated", "entry_value", "TOML_KEYS",
            "CLI_KEYS", "keyed"]
 
 #: How errors name each part of a scene: in a scene file, and on the command line.
@@ -90,7 +90,7 @@ def _square(rows, n: int | None, what: str) -> list[list]:
         raise InputError(f"expected a {what} as a list of rows")
     for k, r in enumerate(rows):
         if len(r) != len(rows):
-            raise InputError(f"expected a square matrix: row {k + 1} has {len(r)} entries, "
+            raise InputError(f"the matrix must be square: row {k + 1} has {len(r)} entries, "
                              f"but there are {len(rows)} rows")
     if n is not None and len(rows) != n:
         raise InputError(f"expected a {n}x{n} matrix to match the mass matrix, got {len(rows)}x{len(rows)}")
@@ -170,7 +170,7 @@ def _symbolic(parts: dict, params: Mapping[str, float], keys: dict):
     free = set().union(*(m.free_symbols for m in mats.values()))
     for key in params:
         if symbols[key] not in free:
-            raise InputError(f"{keys['parameters']} {key}: not used by the model's entries")
+            raise InputError(f"{keys['parameters']} {key} is not used by the model's entries")
     used_q = [s for s in qs if s in free]
     with keyed(keys["model"]):
         return Model("custom", mats["mass"], damping=mats.get("damping"), stiffness=mats.get("stiffness"),
@@ -232,6 +232,21 @@ def scene_model(scene: Scene):
         return model
 
 
+def symbolic_model(scene: Scene):
+    """The scene's model as sympy expressions (a built-in robot is derived, not loaded compiled).
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene.
+    """
+    if scene.model.robot is not None:
+        with _where(scene), keyed(_keys(scene)["robot"]):
+            return _robot(scene.model, "nonlinear")
+    model = scene_model(scene.replace(dynamics="nonlinear"))
+    return model
+
+
 def _robot(spec: ModelSpec, dynamics: str):
     name = check_robot_name(spec.robot)
     if name.startswith("random"):
@@ -249,17 +264,17 @@ def _robot(spec: ModelSpec, dynamics: str):
 def _configuration(scene: Scene, model, keys: dict) -> list[float] | None:
     coords = [str(c) for c in getattr(model, "coordinates", ())]
     with keyed(keys["q"]):
-        q = [float(x) for x in scene.q]
-        if isinstance(model, JointSpace):
+        if isinstance(model, JointSpace) or not coords:
             return None
-        if not coords:
-            return None
-        if not q:
-            what = f"robot {scene.model.robot}" if scene.model.robot else "the model"
+        what = f"robot {scene.model.robot}" if scene.model.robot else "the model"
+        if not scene.q:
             raise InputError(f"missing: {what} needs {len(coords)} joint coordinates ({', '.join(coords)})")
-        if len(q) != len(coords):
-            raise InputError(f"expected {len(coords)} numbers, got {len(q)}")
-    return q
+        if len(scene.q) != len(coords):
+            raise InputError(f"expected {len(coords)} numbers, got {len(scene.q)}: {what} needs "
+                             f"{len(coords)} joint coordinates ({', '.join(coords)})")
+        if not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in scene.q):
+            raise InputError("configuration q must be a list of numbers")
+        return [float(x) for x in scene.q]
 
 
 def _topology(scene: Scene):

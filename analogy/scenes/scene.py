@@ -237,6 +237,16 @@ class Scene:
             return Path(output_dir) / p
         return (Path(self.source).parent if self.source is not None else Path.cwd()) / p
 
+    def build_model(self):
+        """The scene's symbolic model (sympy): a robot's derivation, or the parsed matrices."""
+        from .build import symbolic_model
+        return symbolic_model(self)
+
+    def numeric_model(self):
+        """The model the scene evaluates: compiled from the on-disk cache where it can be."""
+        from .build import scene_model
+        return scene_model(self)
+
     def system(self, model=None):
         """The scene's node system (see :func:`analogy.scenes.build.scene_system`).
 

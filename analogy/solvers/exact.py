@@ -236,14 +236,22 @@ class ExactSolver(Solver):
             return super().solve_many(systems, times, preset, positions=positions)
         grid = np.linspace(0.0, systems[0].t_stop, preset.steps + 1) if times is None else times
         start = _time.perf_counter()
-        try:
-            volts = solve_exact_many(systems, grid)
-        except SimulationError:
-            return super().solve_many(systems, grid, preset, positions=positions)
         t = systems[0].time_points(grid)
+        try:
+            volts = solve_exact_many(systems, t)
+        except SimulationError:             # one by one, so that only a system it cannot take fails
+            return [self._one(s, t) for s in systems]
         each = (_time.perf_counter() - start) / len(systems)
         return [Trajectory("exact", t, v, s.joint_rates(v), stats=SolverStats(each))
                 for s, v in zip(systems, volts)]
+
+    def _one(self, system, t) -> Trajectory:
+        start = _time.perf_counter()
+        try:
+            v = solve_exact_many([system], t)[0]
+        except SimulationError as exc:
+            return Trajectory.failed(self.name, str(exc), _time.perf_counter() - start)
+        return Trajectory("exact", t, v, system.joint_rates(v), stats=SolverStats(_time.perf_counter() - start))
 
 
 SOLVER = ExactSolver()
