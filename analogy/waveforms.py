@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import inspect
 import math
 from dataclasses import dataclass
 from typing import Sequence
@@ -282,6 +283,14 @@ def parse_waveform(text: str) -> Waveform:
             if kwargs or len(args) < 2 or len(args) % 2:
                 raise InputError(f"{text!r}: pwl needs time, value pairs")
             return PWL(list(zip(args[0::2], args[1::2])))
-        return _WAVEFORMS[name](*args, **kwargs)
-    except TypeError as exc:
-        raise InputError(f"{text!r}: wrong arguments for {name} ({exc})") from None
+        cls = _WAVEFORMS[name]
+        params = list(inspect.signature(cls).parameters.values())
+        need = sum(p.default is inspect.Parameter.empty for p in params)
+        if not need <= len(args) + len(kwargs) <= len(params) or any(k not in [p.name for p in params]
+                                                                    for k in kwargs):
+            names = ", ".join(p.name for p in params)
+            raise InputError(f"{text!r}: {name} takes {need} to {len(params)} arguments ({names}), "
+                             f"got {len(args) + len(kwargs)}")
+        return cls(*args, **kwargs)
+    except TypeError:
+        raise InputError(f"{text!r}: wrong arguments for {name}") from None

@@ -14,7 +14,7 @@ __all__ = ["solver_style", "plot_trajectory", "plot_comparison", "plot_quantitie
 
 
 _STYLES = {"exact": dict(ls="-", lw=2.0, alpha=0.5), "spice": dict(ls="--", lw=1.2),
-           "ode": dict(ls=":", lw=1.2), "reference": dict(ls="-", lw=3.0, alpha=0.3)}
+           "ode": dict(ls=":", lw=1.2)}
 
 
 def solver_style(name: str) -> dict:
@@ -91,7 +91,8 @@ def plot_comparison(comparison, path=None) -> Figure:
     return _save(fig, path)
 
 
-def plot_quantities(time: np.ndarray, groups: list, errors: dict, title: str, path=None) -> Figure:
+def plot_quantities(time: np.ndarray, groups: list, errors: dict, title: str, path=None,
+                    reference: str | None = None) -> Figure:
     """One panel per quantity (solvers overlaid) and, with a reference, each solver's error / peak.
 
     Parameters
@@ -106,13 +107,14 @@ def plot_quantities(time: np.ndarray, groups: list, errors: dict, title: str, pa
         Heading of the first panel.
     path : str or Path, optional
         Image file to write.
+    reference : str, optional
+        The solver the errors are measured against.
     """
     if not groups:
         raise InputError("no solver ran: nothing to plot")
     panels = len(groups) + (1 if errors else 0)
     fig = Figure(figsize=(8, 2.6 * panels + 0.6), layout="constrained")
     axes = fig.subplots(panels, 1, sharex=True, squeeze=False)[:, 0]
-    reference = next((s for by in groups for s in by[1] if s in ("exact", "reference")), None)
     for ax, (quantity, by_solver) in zip(axes, groups):
         for s, vals in by_solver.items():
             for k, (name, v) in enumerate(vals.items()):

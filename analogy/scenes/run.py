@@ -286,4 +286,5 @@ class SceneResult:
         """
         from ..results.plots import plot_quantities
         return plot_quantities(self.time, self._groups(), self.errors(),
-                               f"scene {self.scene.name}: preset {self.scene.preset}", path)
+                               f"scene {self.scene.name}: preset {self.scene.preset}", path,
+                               self.reference)

@@ -35,68 +35,13 @@ the outputs wanted and the solvers that produce them. Example::
     errors = true
     step = 0.01                    # output step [s]; default SPICE's own points
 
-Top level
-    ``name`` (string, default the file's stem), ``description`` (string),
-    ``dynamics`` (``"linear"``, the default: the circuit at q; ``"nonlinear"``: the
-    full configuration-dependent motion, for solvers that integrate it) and the
-    tables below. Every key is checked: an unknown key is an error.
-``[model]``
-    Either ``robot`` (a built-in name: redundant, serial2, parallel2, serial3,
-    parallel3, serialN) or ``mass``, a square matrix (a list of rows) with optional
-    ``damping`` and ``stiffness`` (a list is a diagonal, a list of rows a matrix) and
-    ``gravity`` (a list, entering as a constant force −G). Entries are numbers or
-    expression strings (``"3 + cos(q2)"``, ``"pi/4"``), parsed by the restricted
-    grammar of :mod:`analogy.expressions`; nothing is evaluated as Python. Names in
-    expressions are the joint coordinates q1 … qn and the names of ``[parameters]``.
-    A matrix of plain numbers is used as is, without any symbolic algebra.
-``[parameters]``
-    ``name = value`` (a number or a constant expression such as ``"pi/4"``): values
-    of a robot's parameters (overrides of its defaults), or the symbolic names that
-    the mass, damping, stiffness and gravity entries use. Each must be used.
-``[configuration]``
-    ``q``: the joint coordinates, required when the model depends on them.
-    ``topology``: ``"serial"``, ``"parallel"`` or an invertible matrix; default the
-    robot's own, ``"parallel"`` for a ``mass`` model.
-``[inputs]``
-    ``forces`` (required): one entry per joint, a number (a step at t = 0), a
-    waveform string (``"step(1)"``, ``"step(a, delay, rise)"``,
-    ``"pulse(v1, v2, delay, rise, fall, width, period)"``,
-    ``"sine(offset, amplitude, freq, delay, damping, phase_deg)"``,
-    ``"pwl(t1, v1, t2, v2, ...)"``) or a list of these, summed.
-    ``initial_rates``: joint rates at t = 0 (default zero). ``t_stop``: end time
-    (default 10).
-``[outputs]``
-    ``joint_rates`` (bool), ``node_voltages`` and ``element_currents`` (true for
-    all, or a list of node names ``n1`` … / element names ``C1``, ``C1_2``, ``R1``,
-    ``L2_3`` …), ``netlist`` (true, or a file to write), ``csv`` and ``plot`` (files
-    to write; they need at least one of the three quantities). Instead of a table,
-    ``outputs`` may be a list of ``"joint_rates"``, ``"node_voltages"``,
-    ``"element_currents"`` and ``"netlist"``. Without ``outputs`` a scene asks for
-    the joint rates. Relative file names are resolved against the scene file's
-    folder, or the output directory given to :func:`run_scene`.
-``[solvers]``
-    ``use``: any of ``"spice"``, ``"ode"``, ``"exact"`` (default all three when an
-    output needs a solver, none otherwise); ``preset``: ``"fast"`` or
-    ``"accurate"`` (default), which also sets the netlist's ``.options`` and
-    ``.tran``; ``errors`` (default true): report every solver's error against the
-    exact solution, running the exact solver for that if ``use`` does not name it;
-    ``step`` (seconds): a uniform output grid for every solver (errors are still
-    measured on each solver's own points).
-    Instead of a table, ``solvers`` may be the list ``use``.
-
-Element currents flow from an element's first terminal to its second, as SPICE
-reports a device ``name a b value``: a capacitor carries c·d(v_a − v_b)/dt, a
-resistor (v_a − v_b)/R and an inductor (x_a − x_b)/L with x = ∫v.
-
-Only what the outputs need is computed: the netlist's ``.save`` names only the
-vectors asked for (every node when joint rates are, since R = T⁻¹·v needs them
-all); ngspice is loaded only when ``spice`` is a solver, scipy's integrators only
-for ``ode``, matplotlib only for a plot, and sympy only for a robot or a mass
-matrix with names in it.
-
-A malformed scene raises :class:`~analogy.errors.InputError` with one line naming
-the file, the key and the problem, e.g. ``scene.toml: [configuration] q: expected
-2 numbers, got 3``.
+Every table and key is described in ``docs/scenes.md``. Every key is checked: an
+unknown key is an error, and a malformed scene raises
+:class:`~analogy.errors.InputError` with one line naming the file, the key and the
+problem, e.g. ``scene.toml: [configuration] q: expected 2 numbers, got 3``. Entries
+are numbers or expression strings parsed by the restricted grammar of
+:mod:`analogy.model.expressions`; nothing is evaluated as Python. Parsing builds
+nothing; :func:`load_scene` then builds the system once to check the outputs' names.
 """
 
 from __future__ import annotations
