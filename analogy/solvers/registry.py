@@ -37,13 +37,14 @@ from ..results.trajectory import Trajectory
 __all__ = ["Solver", "SolverName", "SOLVER_NAMES", "solver", "run", "run_many"]
 
 #: Registered solver names.
-SolverName = Literal["spice", "ode", "exact"]
+SolverName = Literal["spice", "ode", "exact", "reference"]
 
 # name -> module that defines SOLVER; imported on first use.
 _MODULES: dict[str, str] = {
     "spice": "analogy.solvers.spice",
     "ode": "analogy.solvers.ode",
     "exact": "analogy.solvers.exact",
+    "reference": "analogy.solvers.reference",
 }
 
 #: Names in the order a comparison runs them (a solver with its own time points first).
