@@ -3,10 +3,15 @@
 from __future__ import annotations
 
 import csv
+import logging
+import multiprocessing
+import os
 import statistics
 import time as _time
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -14,13 +19,18 @@ from .batch.run import _system, run_batch
 from .circuit.description import circuit
 from .circuit.netlist import netlist
 from .errors import AnalogyError, InputError
-from .presets import PRESETS, Preset, preset as get_preset
+from .presets import PRESETS, Preset
+from .presets import preset as get_preset
 from .results.metrics import relative_error
 from .scenes.builtin import scene
-from .scenes.scene import ModelSpec, Scene
+from .scenes.scene import Scene
+from .scenes.spec import ModelSpec
 from .solvers.exact import solve_exact
 from .solvers.reference import solve_reference
 from .solvers.spice import library_path, session, solve_spice
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 __all__ = ["BenchRow", "BenchResult", "bench", "bench_scenes", "throughput", "spice_grid", "ode_grid"]
 
@@ -52,6 +62,13 @@ class BenchResult:
     wall_s: float = 0.0
 
     def to_csv(self, path) -> Path:
+        """to_csv.
+
+        Parameters
+        ----------
+        path : str or Path
+            The file to write.
+        """
         path = Path(path)
         with path.open("w", newline="") as fh:
             w = csv.writer(fh)
@@ -76,8 +93,14 @@ class BenchResult:
     def __str__(self):
         return self.table()
 
-    def plot(self, path=None):
-        """Work-precision diagram: median run time against max error / peak, log-log, per scene."""
+    def plot(self, path=None) -> "Figure":
+        """Work-precision diagram: median run time against max error / peak, log-log, per scene.
+
+        Parameters
+        ----------
+        path : str or Path, optional
+            Image file to write.
+        """
         from matplotlib.figure import Figure
         scenes = list(dict.fromkeys(r.scene for r in self.rows))
         fig = Figure(figsize=(5.0 * len(scenes), 4.6), layout="constrained")
@@ -113,7 +136,7 @@ class BenchResult:
         return fig
 
 
-def bench_scenes():
+def bench_scenes() -> list[Scene]:
     """The benchmark's scenes: 2, 10 and 50 DOF."""
     big = Scene.of("random50", ModelSpec(robot="random50", seed=2), topology="serial",
                    forces=tuple(["sine(0, 1, 0.7)"] + [f"step({1.0 / (k + 1)!r})" for k in range(1, 50)]),
@@ -121,8 +144,14 @@ def bench_scenes():
     return [scene("default"), scene("random10"), big]
 
 
-def spice_grid(full: bool = False):
-    """(label, options, max_steps) for ngspice: method, reltol, trtol and maximum step."""
+def spice_grid(full: bool = False) -> list[tuple]:
+    """(label, options, max_steps) for ngspice: method, reltol, trtol and maximum step.
+
+    Parameters
+    ----------
+    full : bool
+        Also cross the step caps T/1000 and T/20000.
+    """
     grid = []
     reltols = (1e-3, 1e-5, 1e-7, 1e-9)
     trtols = (7, 1)
@@ -139,7 +168,7 @@ def spice_grid(full: bool = False):
     return grid
 
 
-def ode_grid():
+def ode_grid() -> list[tuple[str, float]]:
     """(method, rtol) pairs: rtol from 1e-3 to 1e-10."""
     return [(m, 10.0 ** -k) for m in ODE_BENCH_METHODS for k in range(3, 11)]
 
@@ -164,6 +193,17 @@ def bench(repeats: int = 5, full: bool = False, scenes=None, progress: bool = Tr
     Only the solver call is timed (netlist text and the exact reference are built
     outside). A setting that raises, or whose time step collapses, is a failure row.
     A setting slower than 1 s per run gets fewer timed runs; each row records how many.
+
+    Parameters
+    ----------
+    repeats : int
+        Timed runs per setting (the median is reported).
+    full : bool
+        Cross every ngspice method, tolerance and step cap.
+    scenes : sequence of Scene, optional
+        Scenes to time (default :func:`bench_scenes`).
+    progress : bool
+        Show a progress bar.
     """
     from .solvers.ode import solve_ode
 
@@ -245,9 +285,6 @@ def bench(repeats: int = 5, full: bool = False, scenes=None, progress: bool = Tr
 
 def _pyspice_loop(payload):
     """A plain PySpice loop: build a Circuit and call simulator().transient() per scene."""
-    import logging
-    import os
-
     os.environ.setdefault("NGSPICE_LIBRARY_PATH", library_path())
     logging.getLogger("PySpice").setLevel(logging.CRITICAL)
     from PySpice.Spice.Netlist import Circuit
@@ -306,10 +343,24 @@ def throughput(n: int = 10_000, preset: str = "fast", group_size: int = 100, wor
     pass); the batched path is timed whole, worker start-up included, on *workers*
     processes and, for the speed per core, on one. The paths take turns, *repeats*
     times, and the figures are medians.
-    """
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
 
+    Parameters
+    ----------
+    n : int
+        Scenes on the batched path.
+    preset : str
+        Accuracy preset.
+    group_size : int
+        Scenes per ngspice run.
+    workers : int
+        Worker processes of the batched path.
+    baseline_n : int
+        Scenes on each per-scene path.
+    seed : int
+        Seed of the random configurations.
+    repeats : int
+        Turns of every path; medians are reported.
+    """
     if min(n, baseline_n, repeats, workers, group_size) < 1:
         raise InputError("n, baseline_n, repeats, workers and group_size must be at least 1")
     base = scene("default")

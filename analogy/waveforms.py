@@ -10,6 +10,7 @@ from typing import Sequence
 import numpy as np
 
 from .errors import InputError
+from .model.expressions import parse_call, parse_number
 
 __all__ = ["Waveform", "Step", "PWL", "Pulse", "Sine", "Piece", "parse_waveform"]
 
@@ -37,15 +38,37 @@ class Waveform:
     """A force waveform f(t), t ≥ 0."""
 
     def spice(self, scale: float, t_stop: float) -> str:
-        """The SPICE source value (``DC …``, ``PWL(…)``, ``SIN(…)``) of scale·f."""
+        """The SPICE source value (``DC …``, ``PWL(…)``, ``SIN(…)``) of scale·f.
+
+        Parameters
+        ----------
+        scale : float
+            Factor on the waveform (a column entry of T⁻ᵀ).
+        t_stop : float
+            End of the simulation.
+        """
         raise NotImplementedError
 
     def breakpoints(self, t_stop: float) -> list[float]:
-        """Times in (0, t_stop) where f or its derivative jumps."""
+        """Times in (0, t_stop) where f or its derivative jumps.
+
+        Parameters
+        ----------
+        t_stop : float
+            End of the simulation.
+        """
         raise NotImplementedError
 
     def piece(self, t0: float, t1: float) -> Piece:
-        """Closed form of f on a segment that contains no breakpoint."""
+        """Closed form of f on a segment that contains no breakpoint.
+
+        Parameters
+        ----------
+        t0 : float
+            Segment start.
+        t1 : float
+            Segment end.
+        """
         raise NotImplementedError
 
     def __call__(self, t):
@@ -81,7 +104,7 @@ class PWL(Waveform):
     def __repr__(self):
         return f"PWL({list(zip(self.times.tolist(), self.values.tolist()))})"
 
-    def spice(self, scale, t_stop):
+    def spice(self, scale, t_stop) -> str:
         if len(self.times) == 1 or np.all(self.values == self.values[0]):
             return f"DC {_num(scale * self.values[0])}"
         times, values = self.times, self.values
@@ -90,10 +113,10 @@ class PWL(Waveform):
         body = " ".join(f"{_num(t)} {_num(scale * v)}" for t, v in zip(times, values))
         return f"PWL({body})"
 
-    def breakpoints(self, t_stop):
+    def breakpoints(self, t_stop) -> list[float]:
         return [float(t) for t in self.times if 0 < t < t_stop]
 
-    def label(self):
+    def label(self) -> str:
         pairs = np.column_stack([self.times, self.values]).ravel()
         text = _call("pwl", pairs, len(pairs))
         return text if len(pairs) <= 8 else f"{text[:40]}... ({len(self.times)} points)"
@@ -101,7 +124,7 @@ class PWL(Waveform):
     def __call__(self, t):
         return np.interp(t, self.times, self.values)
 
-    def piece(self, t0, t1):
+    def piece(self, t0, t1) -> Piece:
         mid = 0.5 * (t0 + t1)
         k = np.searchsorted(self.times, mid)
         if k == 0 or k == len(self.times):
@@ -129,7 +152,7 @@ class Step(PWL):
     def __repr__(self):
         return f"Step({self.amplitude!r}, delay={self.delay!r}, rise={self.rise!r})"
 
-    def label(self):
+    def label(self) -> str:
         return _call("step", (self.amplitude, self.delay, self.rise), 1)
 
 
@@ -152,7 +175,7 @@ class Pulse(Waveform):
         return (f"Pulse({self.v1!r}, {self.v2!r}, {self.delay!r}, {self.rise!r}, "
                 f"{self.fall!r}, {self.width!r}, {self.period!r})")
 
-    def label(self):
+    def label(self) -> str:
         return _call("pulse", (self.v1, self.v2, self.delay, self.rise, self.fall, self.width, self.period), 6)
 
     def _period(self, t_stop):
@@ -166,6 +189,13 @@ class Pulse(Waveform):
                              f"(more than {_MAX_PERIODS} periods)")
 
     def as_pwl(self, t_stop: float) -> PWL:
+        """as_pwl.
+
+        Parameters
+        ----------
+        t_stop : float
+            Expand periods up to this time.
+        """
         per = self._period(t_stop)
         pts = [(0.0, self.v1)] if self.delay > 0 else []
         start = self.delay
@@ -182,7 +212,7 @@ class Pulse(Waveform):
             clean.append((t, v))
         return PWL(clean)
 
-    def spice(self, scale, t_stop):
+    def spice(self, scale, t_stop) -> str:
         self._check(t_stop)
         if self.width == 0:     # SPICE reads a zero width as t_stop: write the corners instead
             pwl = self.as_pwl(t_stop)
@@ -191,11 +221,11 @@ class Pulse(Waveform):
                 self.width, self._period(t_stop))
         return "PULSE(" + " ".join(_num(v) for v in vals) + ")"
 
-    def breakpoints(self, t_stop):
+    def breakpoints(self, t_stop) -> list[float]:
         self._check(t_stop)
         return self.as_pwl(t_stop).breakpoints(t_stop)
 
-    def piece(self, t0, t1):
+    def piece(self, t0, t1) -> Piece:
         return self._pwl_cache(t1).piece(t0, t1)
 
     def _pwl_cache(self, t_stop):
@@ -230,16 +260,16 @@ class Sine(Waveform):
         return (f"Sine({self.offset!r}, {self.amplitude!r}, {self.frequency!r}, "
                 f"delay={self.delay!r}, damping={self.damping!r}, phase={self.phase!r})")
 
-    def label(self):
+    def label(self) -> str:
         return _call("sine", (self.offset, self.amplitude, self.frequency, self.delay, self.damping,
                               self.phase), 3)
 
-    def spice(self, scale, t_stop):
+    def spice(self, scale, t_stop) -> str:
         vals = (scale * self.offset, scale * self.amplitude, self.frequency, self.delay,
                 self.damping, self.phase)
         return "SIN(" + " ".join(_num(v) for v in vals) + ")"
 
-    def breakpoints(self, t_stop):
+    def breakpoints(self, t_stop) -> list[float]:
         return [self.delay] if 0 < self.delay < t_stop else []
 
     def __call__(self, t):
@@ -249,7 +279,7 @@ class Sine(Waveform):
         return self.offset + self.amplitude * np.exp(-self.damping * tau) * \
             np.sin(2 * math.pi * self.frequency * tau + phi)
 
-    def piece(self, t0, t1):
+    def piece(self, t0, t1) -> Piece:
         phi = math.radians(self.phase)
         if t1 <= self.delay:
             return Piece(self.offset + self.amplitude * math.sin(phi))
@@ -272,8 +302,13 @@ _WAVEFORMS = {
 
 def parse_waveform(text: str) -> Waveform:
     """Parse ``step(1)``, ``pulse(0, 1, 0.1, 1e-3, 1e-3, 0.5, 2)``, ``sine(0, 1, 2)``,
-    ``pwl(0, 0, 1, 1)`` or a bare number (a step at t = 0), without evaluating code."""
-    from .model.expressions import parse_call, parse_number
+    ``pwl(0, 0, 1, 1)`` or a bare number (a step at t = 0), without evaluating code.
+
+    Parameters
+    ----------
+    text : str
+        The waveform as written.
+    """
     stripped = text.strip()
     if "(" not in stripped:
         return Step(parse_number(stripped))

@@ -7,9 +7,9 @@ import analogy
 from analogy.batch import run_batch
 from analogy.circuit.netlist import batch_netlist
 from analogy.presets import preset
-from analogy.solvers.spice import SOLVER as SPICE
-from analogy.solvers.exact import solve_exact, solve_exact_many
 from analogy.scenes.builtin import SCENES, scene
+from analogy.solvers.exact import solve_exact, solve_exact_many
+from analogy.solvers.spice import SOLVER as SPICE
 
 
 def test_vectorised_exact_equals_the_single_system_solver():

@@ -10,10 +10,10 @@ pytest.importorskip("schemdraw")
 pytest.importorskip("matplotlib")
 
 import analogy  # noqa: E402
-from analogy.circuit.elements import ZERO_TOL, elements  # noqa: E402
 from analogy.circuit import diagram  # noqa: E402
-from analogy.errors import InputError  # noqa: E402
 from analogy.circuit.description import circuit  # noqa: E402
+from analogy.circuit.elements import ZERO_TOL, elements  # noqa: E402
+from analogy.errors import InputError  # noqa: E402
 
 SCENES = ["redundant", "serial2", "parallel2", "serial3", "parallel3", "random10"]
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"

@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from analogy.scenes.builtin import PAPER_EXAMPLES, scene, write_netlists
 from analogy.solvers.exact import solve_exact
 from analogy.solvers.rawfile import read_raw
-from analogy.scenes.builtin import PAPER_EXAMPLES, scene, write_netlists
 
 NETLISTS = Path(__file__).resolve().parent.parent / "netlists"
 

@@ -6,9 +6,9 @@ import sympy as sp
 
 from analogy import elements, mp_capacitance, node_system, robot
 from analogy.circuit.elements import laplacian_split
+from analogy.circuit.topology import congruence, custom, serial
 from analogy.model.joint import JointSpace
 from analogy.model.robots import random_spd_model
-from analogy.circuit.topology import congruence, custom, serial
 
 RNG = np.random.default_rng(7)
 

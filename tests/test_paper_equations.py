@@ -26,8 +26,8 @@ import sympy as sp
 
 from analogy.circuit.elements import laplacian_split
 from analogy.circuit.nodal import nodal_analysis
-from analogy.model.robots import planar_serial, point_mass_matrix, redundant_actuators
 from analogy.circuit.topology import congruence, parallel, serial
+from analogy.model.robots import planar_serial, point_mass_matrix, redundant_actuators
 
 s = sp.Symbol("s")
 q1, q2, q3 = sp.symbols("q1 q2 q3", real=True)

@@ -24,8 +24,8 @@ import sympy
 
 from analogy.errors import InputError
 from analogy.model.linkages import ClosedChainModel
-from analogy.model.symbolic import Model
 from analogy.model.robots import ROBOTS, five_bar, planar_3rrr, planar_serial, robot
+from analogy.model.symbolic import Model
 
 N_SPD = 1000
 N_ENERGY = 50

@@ -10,10 +10,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from analogy.errors import InputError, SimulationError
 from analogy.circuit.currents import trajectory_currents as element_currents
 from analogy.cli import main
-from analogy.scenes.run import run_scene, save_names
+from analogy.errors import InputError, SimulationError
+from analogy.scenes.run import run_scene
 from analogy.scenes.scene import Scene
 from analogy.scenes.toml import load_scene, parse_scene
 
@@ -309,10 +309,10 @@ def _system(name):
                                   "parallel3"])
 def test_spice_element_currents_match_exact(name):
     """Per element kind, SPICE's device currents within 1e-6 of the peak of the exact ones."""
-    from analogy.solvers.exact import solve_exact
-    from analogy.circuit.netlist import netlist
-    from analogy.solvers.spice import run_netlist
     from analogy.circuit.elements import elements
+    from analogy.circuit.netlist import netlist
+    from analogy.solvers.exact import solve_exact
+    from analogy.solvers.spice import run_netlist
     s = _system(name)
     els = elements(s)
     names = [e.name for e in els]
@@ -350,8 +350,8 @@ def test_scene_element_currents_from_spice(tmp_path):
 
 @pytest.mark.ngspice
 def test_realizable_element_current_is_the_couplings(tmp_path):
-    from analogy.solvers.exact import solve_exact
     from analogy.circuit.netlist import netlist
+    from analogy.solvers.exact import solve_exact
     from analogy.solvers.spice import run_netlist
     s = load_scene(SCENES_DIR / "default.toml").system()
     data = run_netlist(netlist(s, "accurate", save=["C1_2", "R1_2"], realizable=True),

@@ -5,12 +5,12 @@ import numpy as np
 import pytest
 
 from analogy import node_system, solve_exact, solve_ode
-from analogy.solvers.exact import phi1, phi2
 from analogy.model.joint import JointSpace
-from analogy.solvers.ode import ODE_METHODS
-from analogy.solvers.reference import solve_reference
 from analogy.model.robots import random_spd_model
 from analogy.scenes.builtin import SCENES, scene
+from analogy.solvers.exact import phi1, phi2
+from analogy.solvers.ode import ODE_METHODS
+from analogy.solvers.reference import solve_reference
 
 
 def rel_err(a, b):

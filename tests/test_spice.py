@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from analogy import SpiceError, elements, netlist, node_system, solve_exact
-from analogy.results.comparison import compare
 from analogy.model.joint import JointSpace
+from analogy.results.comparison import compare
 from analogy.scenes.builtin import SCENES, scene
 
 pytestmark = pytest.mark.ngspice

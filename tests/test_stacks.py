@@ -5,16 +5,14 @@ import pytest
 import sympy as sp
 
 import analogy
-from analogy import batch
 from analogy.batch import run_batch
-from analogy.circuit.netlist import batch_netlist
-from analogy.circuit.elements import element_table, elements
-from analogy.model.symbolic import Model
 from analogy.circuit.description import circuit
-from analogy.circuit.netlist import circuit_lines
-from analogy.model.robots import robot
-from analogy.scenes.builtin import scene
+from analogy.circuit.elements import element_table, elements
+from analogy.circuit.netlist import batch_netlist, circuit_lines
 from analogy.circuit.node_system import node_system, node_systems
+from analogy.model.robots import robot
+from analogy.model.symbolic import Model
+from analogy.scenes.builtin import scene
 
 EPS = np.finfo(float).eps
 

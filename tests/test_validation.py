@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from analogy import InputError, node_system
+from analogy.circuit.netlist import netlist
 from analogy.model.expressions import parse_expression, parse_matrix, parse_number
 from analogy.model.joint import JointSpace
-from analogy.circuit.netlist import netlist
 
 
 def cli(*args):

@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import csv
+import multiprocessing
+import threading
 import time as _time
-from concurrent.futures import Executor
+from concurrent.futures import Executor, ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Sequence
+from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
@@ -16,6 +18,10 @@ from ..presets import preset as get_preset
 from ..results.comparison import compare_many
 from ..results.output import html_table
 from ..scenes.scene import Scene
+
+if TYPE_CHECKING:
+    import pandas
+    from matplotlib.figure import Figure
 
 __all__ = ["BatchResult", "run_batch"]
 
@@ -80,7 +86,7 @@ class BatchResult:
         cols.update((f"error_{name}", e) for name, e in (self.solver_errors or {"spice": self.errors}).items())
         return cols
 
-    def to_frame(self):
+    def to_frame(self) -> "pandas.DataFrame":
         """The :meth:`columns` as a pandas DataFrame, with the failure reasons."""
         import pandas as pd
         frame = pd.DataFrame(self.columns()).set_index("scene")
@@ -105,7 +111,7 @@ class BatchResult:
                            + [self.failures.get(k, "")])
         return path
 
-    def plot(self, path=None):
+    def plot(self, path=None) -> "Figure":
         """Histogram of the per-scene errors (log scale).
 
         Parameters
@@ -214,8 +220,6 @@ def _worker_context():
     (a lab without an ``if __name__ == "__main__"`` guard still works). Forking a
     process with threads can deadlock, so then a fork server starts them clean.
     """
-    import multiprocessing
-    import threading
     if threading.active_count() == 1 and "fork" in multiprocessing.get_all_start_methods():
         return multiprocessing.get_context("fork")
     ctx = multiprocessing.get_context("forkserver")
@@ -270,7 +274,6 @@ def run_batch(systems: Sequence, preset="fast", *, solvers: Sequence[str] = ("sp
     payloads = [(task, p, names, reference, keep_rates) for _, task in tasks]
     own = None
     if executor is None and workers > 1 and len(tasks) > 1:
-        from concurrent.futures import ProcessPoolExecutor
         executor = own = ProcessPoolExecutor(workers, mp_context=_worker_context())
     try:
         outputs = executor.map(_group, payloads) if executor is not None else map(_group, payloads)

@@ -121,13 +121,25 @@ class Circuit:
         return [f"n{k + 1}" for k in range(self.nodes)]
 
     def element(self, name: str) -> Element | None:
-        """The element called *name* (any case), or None."""
+        """The element called *name* (any case), or None.
+
+        Parameters
+        ----------
+        name : str
+            An element name such as ``C1_2``.
+        """
         low = name.lower()
         return next((e for e in self.parts if e.name.lower() == low), None)
 
 
 def describe_forces(forces: Sequence) -> str:
-    """``F1 = step(1), F2 = sine(0, 0.5, 2) + step(-0.1)``: the joint forces as written."""
+    """``F1 = step(1), F2 = sine(0, 0.5, 2) + step(-0.1)``: the joint forces as written.
+
+    Parameters
+    ----------
+    forces : sequence of tuple of Waveform
+        Per joint, the waveforms whose sum is its force.
+    """
     terms = []
     for j, ws in enumerate(forces):
         text = " + ".join(w.label() for w in ws) if ws else "0"

@@ -30,9 +30,9 @@ import schemdraw
 import schemdraw.elements as elm
 from schemdraw.segments import Segment, SegmentCircle, SegmentPoly
 
+from ..errors import InputError
 from .description import circuit
 from .elements import ZERO_TOL
-from ..errors import InputError
 
 if TYPE_CHECKING:
     from .node_system import NodeSystem
@@ -398,6 +398,17 @@ def draw_mechanism(system: NodeSystem, path: str | Path | None = None, *, zero_t
 def draw(system: NodeSystem, directory: str | Path, stem: str = "system", *,
          zero_tol: float = ZERO_TOL) -> list[Path]:
     """Write ``<stem>_circuit`` and ``<stem>_mechanism`` as SVG and PNG into *directory*.
+
+    Parameters
+    ----------
+    system : NodeSystem
+        The system to draw.
+    directory : str or Path
+        Folder to write into (created if need be).
+    stem : str
+        File name stem.
+    zero_tol : float
+        Relative tolerance under which an element is left out.
 
     Returns
     -------

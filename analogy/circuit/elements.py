@@ -60,12 +60,19 @@ class Element(NamedTuple):
         return f"<{self.name} {self.value:.6g} {self.unit}: {self.meaning}, {where}>"
 
 
-def laplacian_split(matrix: np.ndarray, zero_tol: float = ZERO_TOL):
+def laplacian_split(matrix: np.ndarray, zero_tol: float = ZERO_TOL) -> tuple[np.ndarray, np.ndarray]:
     """Split a symmetric node matrix X into grounded x_i = Σ_j X_ij and floating x_ij = −X_ij.
 
     X is recovered as X_ii = x_i + Σ_{j≠i} x_ij and X_ij = −x_ij; entries with
     |x| ≤ zero_tol·max|X| are returned as exact zeros. A stack of matrices
     (..., n, n) is split matrix by matrix.
+
+    Parameters
+    ----------
+    matrix : ndarray, shape (..., n, n)
+        A symmetric node matrix, or a stack of them.
+    zero_tol : float
+        Relative tolerance under which a value counts as zero.
 
     Returns
     -------
@@ -84,16 +91,35 @@ def laplacian_split(matrix: np.ndarray, zero_tol: float = ZERO_TOL):
 
 
 def mp_capacitance(node_mass: np.ndarray, zero_tol: float = ZERO_TOL) -> np.ndarray:
-    """Floating capacitances c_ij = −M'_ij: the masses of the MP models between nodes."""
+    """Floating capacitances c_ij = −M'_ij: the masses of the MP models between nodes.
+
+    Parameters
+    ----------
+    node_mass : ndarray
+        The node mass matrix M'.
+    zero_tol : float
+        Relative tolerance under which a value counts as zero.
+    """
     return laplacian_split(node_mass, zero_tol)[1]
 
 
-def element_table(mass, damping, stiffness=None, zero_tol: float = ZERO_TOL):
+def element_table(mass, damping, stiffness=None, zero_tol: float = ZERO_TOL) -> list[tuple]:
     """Every element position of a stack of node matrices, in netlist order.
 
     Returns a list of (kind, a, b, coefficients): per node then per pair, C then R
     then L, with the mechanical coefficient of each system in the stack (shape (count,),
     exactly 0 where the element is absent).
+
+    Parameters
+    ----------
+    mass : ndarray, shape (count, n, n)
+        Node mass matrices M'.
+    damping : ndarray, shape (count, n, n)
+        Node damping matrices B'.
+    stiffness : ndarray, shape (count, n, n), optional
+        Node stiffness matrices K'.
+    zero_tol : float
+        Relative tolerance under which an element is left out.
     """
     table = []
     for kind, mat in (("C", mass), ("R", damping), ("L", stiffness)):
@@ -106,10 +132,17 @@ def element_table(mass, damping, stiffness=None, zero_tol: float = ZERO_TOL):
     return table
 
 
-def spice_value(kind: str, coefficient):
+def spice_value(kind: str, coefficient) -> np.ndarray:
     """The SPICE value of a mechanical coefficient: C = mass, R = 1/damping, L = 1/stiffness.
 
     Works on arrays; a zero coefficient (no element) gives 0.
+
+    Parameters
+    ----------
+    kind : {"C", "R", "L"}
+        Element kind.
+    coefficient : float or ndarray
+        Mass, damping or stiffness.
     """
     c = np.asarray(coefficient, dtype=float)
     if kind == "C":
@@ -122,6 +155,13 @@ def elements(system, zero_tol: float = ZERO_TOL) -> list[Element]:
 
     Negative values are kept: a negative floating capacitor is legitimate physics
     (an MP model whose mass opposes the relative acceleration of its terminals).
+
+    Parameters
+    ----------
+    system : NodeSystem
+        A linear node system.
+    zero_tol : float
+        Relative tolerance under which an element is left out.
     """
     k = None if system.stiffness is None else system.stiffness[None]
     return [Element(kind, a, b, float(spice_value(kind, c[0])), float(c[0]))

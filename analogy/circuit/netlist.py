@@ -6,8 +6,10 @@ import re
 from typing import Iterable, Sequence
 
 from ..errors import InputError
-from ..presets import Preset, preset as get_preset
-from .description import BehaviouralCurrent, ChargeCapacitor, Circuit, circuit as describe, circuits
+from ..presets import Preset
+from ..presets import preset as get_preset
+from .description import BehaviouralCurrent, ChargeCapacitor, Circuit, circuits
+from .description import circuit as describe
 from .elements import ZERO_TOL
 
 __all__ = ["netlist", "batch_netlist", "circuit_lines", "analysis_lines", "save_vectors",

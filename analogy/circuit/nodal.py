@@ -34,7 +34,15 @@ class Nodal:
     J: sp.Matrix
 
     def currents(self, v, s) -> sp.Matrix:
-        """The element currents leaving each node, G·v + C·s·v + Γ·v/s (equal to J)."""
+        """The element currents leaving each node, G·v + C·s·v + Γ·v/s (equal to J).
+
+        Parameters
+        ----------
+        v : sympy Matrix
+            Node voltages.
+        s : sympy Symbol
+            The Laplace variable.
+        """
         v = sp.Matrix(v)
         return self.G * v + self.C * s * v + self.Gamma * v / s
 
@@ -60,6 +68,13 @@ def nodal_analysis(elements, n: int | None = None) -> Nodal:
     ("I", a, b, i) adds i to J_a and −i to J_b. *n* defaults to the highest node used.
     Objects with ``kind``, ``a``, ``b`` and ``value`` attributes (such as
     :class:`analogy.elements.Element`) are accepted too.
+
+    Parameters
+    ----------
+    elements : iterable
+        Elements, or (kind, node_a, node_b, value) tuples.
+    n : int, optional
+        Node count (default: the highest node named).
     """
     items = [_fields(e) for e in elements]
     for kind, a, b, _ in items:

@@ -11,7 +11,8 @@ from ..errors import InputError
 from ..model.dynamics import DynamicsKind
 from ..model.joint import JointSpace, check_square_symmetric, check_vector, configuration_stack, stack_fault
 from ..waveforms import Step, Waveform, parse_waveform
-from .topology import Topology, topology as make_topology
+from .topology import Topology
+from .topology import topology as make_topology
 
 
 class Evaluable(Protocol):
@@ -22,7 +23,16 @@ class Evaluable(Protocol):
     parameters: Mapping[str, float]
     topology: str
 
-    def joint_space(self, q=None, parameters=None) -> JointSpace: ...
+    def joint_space(self, q=None, parameters=None) -> JointSpace:
+        """M, B, K and G at configuration *q*.
+
+        Parameters
+        ----------
+        q : sequence of float, optional
+            Configuration.
+        parameters : mapping, optional
+            Parameter overrides.
+        """
 
 __all__ = ["Evaluable", "NodeSystem", "node_system", "node_systems", "output_times", "joint_forces",
            "force_breakpoints", "waveforms"]
@@ -81,7 +91,29 @@ class NodeSystem:
     def from_checked(cls, joint: JointSpace, topology: Topology, forces: tuple, initial_rates: np.ndarray,
                      t_stop: float, info: Mapping, mass: np.ndarray, damping: np.ndarray,
                      stiffness: np.ndarray | None) -> "NodeSystem":
-        """A system whose parts were checked as one row of a stack (see :func:`node_systems`)."""
+        """A system whose parts were checked as one row of a stack (see :func:`node_systems`).
+
+        Parameters
+        ----------
+        joint : JointSpace
+            Joint-space matrices.
+        topology : Topology
+            The map T.
+        forces : tuple
+            Per joint, its waveforms.
+        initial_rates : ndarray
+            Joint rates at t = 0.
+        t_stop : float
+            End time.
+        info : mapping
+            Report fields.
+        mass : ndarray
+            M'.
+        damping : ndarray
+            B'.
+        stiffness : ndarray or None
+            K'.
+        """
         obj = cls.__new__(cls)
         obj._store(joint, topology, forces, initial_rates, t_stop, info, mass, damping, stiffness)
         return obj
@@ -107,28 +139,70 @@ class NodeSystem:
         return self.topology.matrix @ self.initial_rates
 
     def node_mass(self, x: np.ndarray) -> np.ndarray:
-        """M', the same at every x."""
+        """M', the same at every x.
+
+        Parameters
+        ----------
+        x : ndarray
+            Node positions (unused: M' is constant).
+        """
         return self.mass
 
     def node_load(self, x: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
-        """h = 0: a linear system has no velocity or configuration terms."""
+        """h = 0: a linear system has no velocity or configuration terms.
+
+        Parameters
+        ----------
+        x : ndarray
+            Node positions.
+        v : ndarray
+            Node velocities.
+        t : float
+            Time.
+        """
         return np.zeros(self.dof)
 
     def node_currents(self, t) -> np.ndarray:
-        """Node currents i(t) = T⁻ᵀ·F(t), shape (len(t), n)."""
+        """Node currents i(t) = T⁻ᵀ·F(t), shape (len(t), n).
+
+        Parameters
+        ----------
+        t : float or array_like
+            Times.
+        """
         return self.force(t) @ self.current_map.T
 
     def joint_rates(self, node_voltages: np.ndarray) -> np.ndarray:
-        """R = T⁻¹·v for node voltages of shape (..., n)."""
+        """R = T⁻¹·v for node voltages of shape (..., n).
+
+        Parameters
+        ----------
+        node_voltages : ndarray, shape (..., n)
+            Node velocities v.
+        """
         return self.topology.joint_rates(node_voltages)
 
     def time_points(self, times=None, default: int = 1001) -> np.ndarray:
         """Sorted output times in [0, t_stop] (default: uniform); a time a rounding past
-        t_stop, as SPICE's last point can be, is taken as t_stop."""
+        t_stop, as SPICE's last point can be, is taken as t_stop.
+
+        Parameters
+        ----------
+        times : array_like, optional
+            Requested times.
+        default : int
+            Number of uniform points without *times*.
+        """
         return output_times(self.t_stop, times, default)
 
     def force(self, t) -> np.ndarray:
-        """Joint forces F(t), shape (len(t), n) for an array of times."""
+        """Joint forces F(t), shape (len(t), n) for an array of times.
+
+        Parameters
+        ----------
+        t : float or array_like
+            Times.
+        """
         return joint_forces(self.forces, t)
 
     def breakpoints(self) -> np.ndarray:
@@ -144,7 +218,17 @@ class NodeSystem:
 
 
 def output_times(t_stop: float, times=None, default: int = 1001) -> np.ndarray:
-    """Sorted output times in [0, *t_stop*]: *times* checked, or *default* uniform points."""
+    """Sorted output times in [0, *t_stop*]: *times* checked, or *default* uniform points.
+
+    Parameters
+    ----------
+    t_stop : float
+        End time.
+    times : array_like, optional
+        Requested times.
+    default : int
+        Number of uniform points without *times*.
+    """
     if times is None:
         return np.linspace(0.0, t_stop, default)
     t = np.asarray(times, dtype=float).reshape(-1)
@@ -155,13 +239,29 @@ def output_times(t_stop: float, times=None, default: int = 1001) -> np.ndarray:
 
 
 def joint_forces(forces: tuple, t) -> np.ndarray:
-    """The summed waveforms of every joint at times *t*, shape (len(t), n)."""
+    """The summed waveforms of every joint at times *t*, shape (len(t), n).
+
+    Parameters
+    ----------
+    forces : tuple of tuple of Waveform
+        Per joint, its waveforms.
+    t : float or array_like
+        Times.
+    """
     t = np.atleast_1d(np.asarray(t, dtype=float))
     return np.stack([sum((w(t) for w in ws), np.zeros_like(t)) for ws in forces], axis=-1)
 
 
 def force_breakpoints(forces: tuple, t_stop: float) -> np.ndarray:
-    """Sorted segment ends in (0, t_stop] between which every force is smooth."""
+    """Sorted segment ends in (0, t_stop] between which every force is smooth.
+
+    Parameters
+    ----------
+    forces : tuple of tuple of Waveform
+        Per joint, its waveforms.
+    t_stop : float
+        End time.
+    """
     pts = {t_stop}
     for ws in forces:
         for w in ws:
@@ -237,6 +337,8 @@ def node_system(model: Evaluable | JointSpace, q: Sequence[float] | None = None,
         Joint rates at t = 0 (default zero).
     t_stop : float
         End of the simulated interval.
+    info : mapping, optional
+        Extra report fields (scene name and the like).
     """
     return _mapped(*_evaluated(model, q, parameters, topology), forces, initial_rates, t_stop, info)
 
@@ -281,6 +383,25 @@ def node_systems(model, qs, *, parameters: Mapping[str, float] | None = None,
     the ones :func:`node_system` builds, to rounding (the same numbers on the platforms
     tested); a configuration that fails a check raises the error :func:`node_system`
     gives for it, naming its row. The systems' matrices are read-only views of the stack.
+
+    Parameters
+    ----------
+    model : Model or CompiledModel
+        A model that evaluates stacks of configurations.
+    qs : array_like, shape (count, n)
+        Configurations.
+    parameters : mapping, optional
+        Parameter overrides.
+    topology : str, Topology or array_like, optional
+        Joint-to-node map T.
+    forces : sequence, optional
+        One entry per joint (see :func:`node_system`).
+    initial_rates : sequence of float, optional
+        Joint rates at t = 0.
+    t_stop : float
+        End of the simulated interval.
+    info : mapping, optional
+        Extra report fields.
     """
     if not hasattr(model, "joint_stack"):
         raise InputError("node_systems needs a Model or CompiledModel, not a JointSpace")

@@ -7,11 +7,11 @@ from typing import Iterator, Mapping, Sequence
 import numpy as np
 
 from ..errors import InputError
-from ..model.dynamics import DynamicsKind
+from ..model.dynamics import DynamicsKind, MechanicalFunctions
 from ..model.joint import check_square_symmetric, check_vector
-from ..model.dynamics import MechanicalFunctions
 from .node_system import force_breakpoints, joint_forces, output_times, waveforms
-from .topology import Topology, topology as make_topology
+from .topology import Topology
+from .topology import topology as make_topology
 
 __all__ = ["NonlinearNodeSystem", "nonlinear_system"]
 
@@ -83,15 +83,37 @@ class NonlinearNodeSystem:
         return self.topology.matrix @ self.initial_rates
 
     def configuration(self, x: np.ndarray) -> np.ndarray:
-        """Joint coordinates q = q0 + T⁻¹·x at node positions *x*."""
+        """Joint coordinates q = q0 + T⁻¹·x at node positions *x*.
+
+        Parameters
+        ----------
+        x : ndarray
+            Node positions.
+        """
         return self.q0 + self.topology.joint_rates(x)
 
     def node_mass(self, x: np.ndarray) -> np.ndarray:
-        """M'(x) = T⁻ᵀ·M(q0 + T⁻¹·x)·T⁻¹."""
+        """M'(x) = T⁻ᵀ·M(q0 + T⁻¹·x)·T⁻¹.
+
+        Parameters
+        ----------
+        x : ndarray
+            Node positions.
+        """
         return self.topology.node_matrix(self.functions.mass(self.configuration(x)))
 
     def node_load(self, x: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
-        """h = T⁻ᵀ·(c(q, r) + G(q)): velocity terms and gravity, as node currents."""
+        """h = T⁻ᵀ·(c(q, r) + G(q)): velocity terms and gravity, as node currents.
+
+        Parameters
+        ----------
+        x : ndarray
+            Node positions.
+        v : ndarray
+            Node velocities.
+        t : float
+            Time (the load does not depend on it).
+        """
         q, r = self.configuration(x), self.joint_rates(v)
         load = self.functions.velocity(q, r)
         if self.functions.gravity is not None:
@@ -99,15 +121,35 @@ class NonlinearNodeSystem:
         return self.current_map @ load
 
     def node_currents(self, t) -> np.ndarray:
-        """Node currents i(t) = T⁻ᵀ·F(t), shape (len(t), n)."""
+        """Node currents i(t) = T⁻ᵀ·F(t), shape (len(t), n).
+
+        Parameters
+        ----------
+        t : float or array_like
+            Times.
+        """
         return joint_forces(self.forces, t) @ self.current_map.T
 
     def joint_rates(self, node_voltages: np.ndarray) -> np.ndarray:
-        """R = T⁻¹·v for node voltages of shape (..., n)."""
+        """R = T⁻¹·v for node voltages of shape (..., n).
+
+        Parameters
+        ----------
+        node_voltages : ndarray, shape (..., n)
+            Node velocities v.
+        """
         return self.topology.joint_rates(node_voltages)
 
     def time_points(self, times=None, default: int = 1001) -> np.ndarray:
-        """Sorted output times in [0, t_stop]."""
+        """Sorted output times in [0, t_stop].
+
+        Parameters
+        ----------
+        times : array_like, optional
+            Requested times.
+        default : int
+            Number of uniform points without *times*.
+        """
         return output_times(self.t_stop, times, default)
 
     def segments(self) -> Iterator[tuple[float, float]]:

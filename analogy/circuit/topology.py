@@ -60,14 +60,26 @@ class Topology:
         return self.inverse.T
 
     def node_matrix(self, joint_matrix: np.ndarray) -> np.ndarray:
-        """The node-coordinate form T⁻ᵀ·X·T⁻¹ of a joint-space matrix X, or of a stack (..., n, n)."""
+        """The node-coordinate form T⁻ᵀ·X·T⁻¹ of a joint-space matrix X, or of a stack (..., n, n).
+
+        Parameters
+        ----------
+        joint_matrix : ndarray, shape (..., n, n)
+            A joint-space matrix, or a stack of them.
+        """
         if self.exact_inverse:      # products with an exact inverse: no solves, same numbers
             z = self.inverse.T @ np.asarray(joint_matrix, dtype=float) @ self.inverse
             return 0.5 * (z + np.swapaxes(z, -1, -2))
         return congruence(joint_matrix, self.matrix)
 
     def joint_rates(self, node_voltages) -> np.ndarray:
-        """R = T⁻¹·v for node voltages of shape (..., n)."""
+        """R = T⁻¹·v for node voltages of shape (..., n).
+
+        Parameters
+        ----------
+        node_voltages : ndarray, shape (..., n)
+            Node velocities v.
+        """
         v = np.asarray(node_voltages, dtype=float)
         if self.exact_inverse:
             return v @ self.inverse.T
@@ -81,11 +93,19 @@ class Topology:
         return "custom (v = T r)"
 
 
-def congruence(x, t):
+def congruence(x, t) -> np.ndarray:
     """Return T⁻ᵀ·X·T⁻¹ for numeric arrays (or stacks of them) or sympy matrices, without
-    forming T⁻¹ for numbers."""
+    forming T⁻¹ for numbers.
+
+    Parameters
+    ----------
+    x : ndarray or sympy Matrix
+        The joint-space matrix (or a stack of them).
+    t : ndarray or sympy Matrix
+        The map T.
+    """
     if not (isinstance(x, np.ndarray) and isinstance(t, np.ndarray)):
-        import sympy as sp        # symbolic congruence; numbers never import sympy
+        import sympy as sp  # symbolic congruence; numbers never import sympy
         if isinstance(x, sp.MatrixBase) or isinstance(t, sp.MatrixBase):
             ti = sp.Matrix(t).inv()
             return sp.simplify(ti.T * sp.Matrix(x) * ti)
@@ -108,7 +128,13 @@ def parallel(n: int) -> Topology:
 
 
 def custom(matrix) -> Topology:
-    """Any invertible joint-to-node map T."""
+    """Any invertible joint-to-node map T.
+
+    Parameters
+    ----------
+    matrix : array_like, shape (n, n)
+        The invertible map T.
+    """
     return Topology("custom", matrix)
 
 
@@ -116,7 +142,15 @@ TOPOLOGIES = {"serial": serial, "parallel": parallel}
 
 
 def topology(spec, n: int) -> Topology:
-    """Build a topology from a name (``serial``, ``parallel``), a Topology or a matrix."""
+    """Build a topology from a name (``serial``, ``parallel``), a Topology or a matrix.
+
+    Parameters
+    ----------
+    spec : str, Topology or array_like
+        ``"serial"``, ``"parallel"``, a Topology or a matrix T.
+    n : int
+        Number of joints.
+    """
     if isinstance(spec, Topology):
         top = spec
     elif isinstance(spec, str):

@@ -2,15 +2,23 @@
 
 from __future__ import annotations
 
+import ast
 import hashlib
 import importlib.util
+import inspect
 import os
 from pathlib import Path
 
 import numpy as np
 
-from .joint import (JointSpace, JointStack, configuration_stack, evaluate_entries, evaluation_arguments,
-                    part_shapes)
+from .joint import (
+    JointSpace,
+    JointStack,
+    configuration_stack,
+    evaluate_entries,
+    evaluation_arguments,
+    part_shapes,
+)
 
 __all__ = ["CompiledModel", "cache_dir", "compile_model", "load_compiled"]
 
@@ -56,12 +64,28 @@ class CompiledModel:
         return self._m.DOF
 
     def joint_space(self, q=None, parameters=None) -> JointSpace:
-        """Evaluate at configuration *q*; same contract as :meth:`analogy.model.Model.joint_space`."""
+        """Evaluate at configuration *q*; same contract as :meth:`analogy.model.Model.joint_space`.
+
+        Parameters
+        ----------
+        q : sequence of float, optional
+            Configuration.
+        parameters : mapping, optional
+            Parameter overrides.
+        """
         args = evaluation_arguments(self.name, self.coordinates, self.parameters, q, parameters)
         return JointSpace(*(evaluate_entries(self.name, f, args, shape) for f, shape in self._parts()))
 
     def joint_stack(self, qs, parameters=None) -> JointStack:
-        """Evaluate at every row of *qs* at once; same contract as :meth:`analogy.model.Model.joint_stack`."""
+        """Evaluate at every row of *qs* at once; same contract as :meth:`analogy.model.Model.joint_stack`.
+
+        Parameters
+        ----------
+        qs : array_like, shape (count, n)
+            Configurations.
+        parameters : mapping, optional
+            Parameter overrides.
+        """
         q = configuration_stack(self.name, self.coordinates, qs)
         args = list(q.T) + evaluation_arguments(self.name, (), self.parameters, None, parameters)
         return JointStack(*(evaluate_entries(self.name, f, args, shape, len(q)) for f, shape in self._parts()))
@@ -72,9 +96,6 @@ class CompiledModel:
 
 
 def _module_source(model) -> str:
-    import ast
-    import inspect
-
     import sympy as sp
     args = list(model.coordinates) + list(model.symbols.values())
     header = [f"NAME = {model.name!r}", f"PARAMETERS = {dict(model.parameters)!r}",
@@ -100,7 +121,15 @@ def _module_source(model) -> str:
 
 
 def compile_model(model, name: str) -> CompiledModel | None:
-    """Write *model*'s numeric source to the cache under *name*; return it loaded (or None)."""
+    """Write *model*'s numeric source to the cache under *name*; return it loaded (or None).
+
+    Parameters
+    ----------
+    model : Model
+        A symbolic model.
+    name : str
+        The cache entry's name.
+    """
     from .symbolic import Model
     folder = cache_dir()
     if folder is None or type(model) is not Model:     # closed chains solve numerically per call
@@ -117,7 +146,13 @@ def compile_model(model, name: str) -> CompiledModel | None:
 
 
 def load_compiled(name: str) -> CompiledModel | None:
-    """The cached compiled model *name*, or None if absent or unreadable."""
+    """The cached compiled model *name*, or None if absent or unreadable.
+
+    Parameters
+    ----------
+    name : str
+        The cache entry's name.
+    """
     folder = cache_dir()
     if folder is None:
         return None

@@ -41,19 +41,55 @@ class NodeDynamics(Protocol):
     def initial_voltages(self) -> np.ndarray: ...
 
     def node_mass(self, x: np.ndarray) -> np.ndarray:
-        """M'(x), shape (n, n)."""
+        """M'(x), shape (n, n).
+
+        Parameters
+        ----------
+        x : ndarray
+            Node positions.
+        """
 
     def node_load(self, x: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
-        """h(x, v, t), shape (n,): zero for a linear system."""
+        """h(x, v, t), shape (n,): zero for a linear system.
+
+        Parameters
+        ----------
+        x : ndarray
+            Node positions.
+        v : ndarray
+            Node velocities.
+        t : float
+            Time.
+        """
 
     def node_currents(self, t) -> np.ndarray:
-        """i(t) = T⁻ᵀ·F(t), shape (len(t), n)."""
+        """i(t) = T⁻ᵀ·F(t), shape (len(t), n).
+
+        Parameters
+        ----------
+        t : float or array_like
+            Times.
+        """
 
     def joint_rates(self, node_voltages: np.ndarray) -> np.ndarray:
-        """R = T⁻¹·v for node voltages of shape (..., n)."""
+        """R = T⁻¹·v for node voltages of shape (..., n).
+
+        Parameters
+        ----------
+        node_voltages : ndarray, shape (..., n)
+            Node velocities v.
+        """
 
     def time_points(self, times=None, default: int = 1001) -> np.ndarray:
-        """Sorted output times in [0, t_stop]."""
+        """Sorted output times in [0, t_stop].
+
+        Parameters
+        ----------
+        times : array_like, optional
+            Requested times.
+        default : int
+            Number of uniform points without *times*.
+        """
 
     def segments(self) -> Iterator[tuple[float, float]]:
         """Intervals on which every force is one closed form."""

@@ -130,7 +130,7 @@ class _Converter:
         self.reject(f"syntax {type(node).__name__}")
 
 
-def parse_expression(text: str, symbols: Mapping | None = None):
+def parse_expression(text: str, symbols: Mapping | None = None) -> object:
     """Parse an arithmetic expression into sympy without evaluating any Python.
 
     Parameters
@@ -155,7 +155,13 @@ def _finite(value, text: str) -> float:
 
 
 def parse_number(text: str) -> float:
-    """Parse a constant expression such as ``pi/4`` or ``1e-3`` to a finite float."""
+    """Parse a constant expression such as ``pi/4`` or ``1e-3`` to a finite float.
+
+    Parameters
+    ----------
+    text : str
+        A constant expression such as ``pi/4``.
+    """
     return _finite(_Converter(text, _Numeric, {}, allow_lists=False).convert(_syntax_tree(text)), text)
 
 
@@ -172,8 +178,18 @@ def _nested(text: str, symbols, depth: int, numeric: bool):
     return value
 
 
-def parse_matrix(text: str, symbols: Mapping | None = None, numeric: bool = False):
-    """Parse ``[[a, b], [c, d]]`` into a sympy Matrix (or, with *numeric*, a list of float rows)."""
+def parse_matrix(text: str, symbols: Mapping | None = None, numeric: bool = False) -> object:
+    """Parse ``[[a, b], [c, d]]`` into a sympy Matrix (or, with *numeric*, a list of float rows).
+
+    Parameters
+    ----------
+    text : str
+        A matrix such as ``[[a, b], [c, d]]``.
+    symbols : mapping of str to sympy Symbol, optional
+        The names the entries may use.
+    numeric : bool
+        Return floats (constant entries only) instead of a sympy Matrix.
+    """
     rows = _nested(text, symbols, 2, numeric)
     if any(not isinstance(r, list) or any(isinstance(e, list) for e in r) for r in rows):
         raise InputError(f"{text!r} is not a matrix like [[a, b], [c, d]]")
@@ -187,7 +203,17 @@ def parse_matrix(text: str, symbols: Mapping | None = None, numeric: bool = Fals
 
 
 def parse_vector(text: str, symbols: Mapping | None = None, numeric: bool = False) -> list:
-    """Parse ``[a, b, c]`` or ``a, b, c`` into a list of sympy expressions (or floats)."""
+    """Parse ``[a, b, c]`` or ``a, b, c`` into a list of sympy expressions (or floats).
+
+    Parameters
+    ----------
+    text : str
+        A vector such as ``[a, b]`` or ``a, b``.
+    symbols : mapping of str to sympy Symbol, optional
+        The names the entries may use.
+    numeric : bool
+        Return floats (constant entries only).
+    """
     stripped = text.strip()
     if not stripped.startswith("["):
         stripped = f"[{stripped}]"
@@ -227,7 +253,15 @@ def split_entries(text: str) -> list:
 
 
 def parse_call(text: str, names: Iterable[str]) -> tuple[str, list[float], dict[str, float]]:
-    """Parse ``name(1, 2, key=3)`` with numeric arguments; ``name`` must be in *names*."""
+    """Parse ``name(1, 2, key=3)`` with numeric arguments; ``name`` must be in *names*.
+
+    Parameters
+    ----------
+    text : str
+        A call such as ``step(1, 0.5, 0.01)``.
+    names : iterable of str
+        The names that may be called.
+    """
     tree = _syntax_tree(text)
     allowed = set(names)
     if isinstance(tree, ast.Call) and isinstance(tree.func, ast.Name) and tree.func.id in allowed:

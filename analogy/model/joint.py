@@ -19,6 +19,21 @@ def check_square_symmetric(name: str, matrix, *, n: int | None = None,
     """Return *matrix* as a float array after checking shape, finiteness and symmetry.
 
     Raises :class:`InputError` with one sentence naming what is wrong.
+
+    Parameters
+    ----------
+    name : str
+        What the matrix is, for messages.
+    matrix : array_like
+        The matrix.
+    n : int, optional
+        The size it must have.
+    definite : bool
+        Require positive definiteness.
+    semidefinite : bool
+        Require positive semidefiniteness.
+    rtol : float
+        Relative tolerance of the symmetry check.
     """
     try:
         a = np.array(matrix, dtype=float)
@@ -60,7 +75,17 @@ def check_square_symmetric(name: str, matrix, *, n: int | None = None,
 
 
 def check_vector(name: str, values, n: int) -> np.ndarray:
-    """Return *values* as a finite float vector of length *n*."""
+    """Return *values* as a finite float vector of length *n*.
+
+    Parameters
+    ----------
+    name : str
+        What the vector is, for messages.
+    values : array_like
+        The entries.
+    n : int
+        The length it must have.
+    """
     try:
         v = np.array(values, dtype=float).reshape(-1)
     except (TypeError, ValueError):
@@ -74,7 +99,21 @@ def check_vector(name: str, values, n: int) -> np.ndarray:
 
 def evaluation_arguments(name: str, coordinates, defaults: Mapping[str, float], q=None,
                          overrides: Mapping[str, float] | None = None) -> list[float]:
-    """Checked numeric arguments (q…, parameters…) for a model's compiled functions."""
+    """Checked numeric arguments (q…, parameters…) for a model's compiled functions.
+
+    Parameters
+    ----------
+    name : str
+        The model's name, for messages.
+    coordinates : sequence of str
+        The model's coordinates.
+    defaults : mapping
+        The model's parameter values.
+    q : sequence of float, optional
+        Configuration.
+    overrides : mapping, optional
+        Parameter overrides.
+    """
     q = [] if q is None else list(q)
     if len(q) != len(coordinates):
         raise InputError(f"model {name!r} needs {len(coordinates)} joint coordinates "
@@ -90,7 +129,17 @@ def evaluation_arguments(name: str, coordinates, defaults: Mapping[str, float], 
 
 
 def configuration_stack(name: str, coordinates, qs) -> np.ndarray:
-    """*qs* as a finite float array of shape (count, len(coordinates))."""
+    """*qs* as a finite float array of shape (count, len(coordinates)).
+
+    Parameters
+    ----------
+    name : str
+        The model's name, for messages.
+    coordinates : sequence of str
+        The model's coordinates.
+    qs : array_like
+        Configurations, one per row.
+    """
     try:
         q = np.array(qs, dtype=float)
     except (TypeError, ValueError):
@@ -108,15 +157,34 @@ def configuration_stack(name: str, coordinates, qs) -> np.ndarray:
 
 
 def part_shapes(n: int) -> tuple:
-    """Shapes of M, B, K and G for *n* joints."""
+    """Shapes of M, B, K and G for *n* joints.
+
+    Parameters
+    ----------
+    n : int
+        Number of joints.
+    """
     return ((n, n), (n, n), (n, n), (n,))
 
 
-def evaluate_entries(name: str, fn, args, shape, count: int | None = None):
+def evaluate_entries(name: str, fn, args, shape, count: int | None = None) -> np.ndarray | None:
     """A compiled part (a function returning its entries flat) at *args*, as a float array.
 
     With *count*, the arguments may be arrays of that length and the result has shape
     (count, *shape); constant entries are broadcast.
+
+    Parameters
+    ----------
+    name : str
+        The model's name, for messages.
+    fn : callable or None
+        A compiled part.
+    args : sequence
+        Its arguments.
+    shape : tuple of int
+        The part's shape.
+    count : int, optional
+        Number of configurations when the arguments are arrays.
     """
     if fn is None:
         return None
@@ -146,7 +214,13 @@ class JointStack(NamedTuple):
 
     @classmethod
     def of(cls, spaces: Sequence["JointSpace"]) -> "JointStack":
-        """Stack joint spaces evaluated one by one (absent K or G as zeros, if any has one)."""
+        """Stack joint spaces evaluated one by one (absent K or G as zeros, if any has one).
+
+        Parameters
+        ----------
+        spaces : sequence of JointSpace
+            Joint spaces of one size.
+        """
         def stack(parts, shape):
             if all(p is None for p in parts):
                 return None
@@ -196,7 +270,19 @@ class JointSpace:
 
     @classmethod
     def from_checked(cls, mass_matrix, damping, stiffness=None, gravity=None) -> "JointSpace":
-        """A joint space from values that already passed :func:`stack_fault` (one row of a stack)."""
+        """A joint space from values that already passed :func:`stack_fault` (one row of a stack).
+
+        Parameters
+        ----------
+        mass_matrix : ndarray
+            M.
+        damping : ndarray
+            B.
+        stiffness : ndarray, optional
+            K.
+        gravity : ndarray, optional
+            G.
+        """
         obj = cls.__new__(cls)
         obj._store(mass_matrix, damping, stiffness, gravity)
         return obj

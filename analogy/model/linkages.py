@@ -94,7 +94,25 @@ class ClosedChainModel(Model):
     @classmethod
     def from_links(cls, name: str, links: Sequence, coordinates: Sequence, passive: Sequence,
                    constraints, reference: Callable, **kw) -> "ClosedChainModel":
-        """Build M = Sᵀ·M_θ·S from planar links over (q, p); see :func:`link_mass_matrix`."""
+        """Build M = Sᵀ·M_θ·S from planar links over (q, p); see :func:`link_mass_matrix`.
+
+        Parameters
+        ----------
+        name : str
+            The model's name.
+        links : sequence
+            Planar links (see :func:`link_mass_matrix`).
+        coordinates : sequence of sympy Symbol
+            Actuated joint angles q.
+        passive : sequence of sympy Symbol
+            Passive joint angles p.
+        constraints : sequence of sympy expressions
+            Loop-closure equations in q and p.
+        reference : callable
+            Assembly at a reference configuration, for continuation.
+        **kw
+            Further :class:`ClosedChainModel` fields.
+        """
         q, p = list(coordinates), list(passive)
         rates = sp.Matrix(len(p), len(q), lambda i, j: sp.Symbol(f"d{p[i]}_d{q[j]}", real=True))
         s = sp.eye(len(q)).col_join(rates)
@@ -104,7 +122,15 @@ class ClosedChainModel(Model):
                    constraints=sp.Matrix(constraints), reference=reference, **kw)
 
     def joint_stack(self, qs, parameters=None) -> JointStack:
-        """Evaluate configuration by configuration: each needs its own assembly solve."""
+        """Evaluate configuration by configuration: each needs its own assembly solve.
+
+        Parameters
+        ----------
+        qs : array_like, shape (count, n)
+            Configurations.
+        parameters : mapping, optional
+            Parameter overrides.
+        """
         q = configuration_stack(self.name, [str(c) for c in self.coordinates], qs)
         return JointStack.of([self.joint_space(row, parameters) for row in q])
 
@@ -146,8 +172,15 @@ class ClosedChainModel(Model):
         self._compiled = ([wrap(f) for f in fns], [str(s) for s in q], pnames)
         return self._compiled
 
-    def assemble(self, q: Sequence[float], parameters: Mapping[str, float] | None = None):
+    def assemble(self, q: Sequence[float], parameters: Mapping[str, float] | None = None) -> np.ndarray:
         """Passive coordinates p(q) and rates G = ∂p/∂q in the model's assembly mode.
+
+        Parameters
+        ----------
+        q : sequence of float
+            Actuated joint angles.
+        parameters : mapping, optional
+            Parameter overrides.
 
         Returns
         -------

@@ -36,7 +36,19 @@ def _symbols(prefix: str, n: int):
 
 def redundant_actuators(d1: float = 1.5, d2: float = 1.0, b1: float = 1.0,
                         b2: float = 0.5) -> Model:
-    """Two stacked actuators on one axis (paper Fig. 8): stage 1 moves d1 and d2, stage 2 moves d2."""
+    """Two stacked actuators on one axis (paper Fig. 8): stage 1 moves d1 and d2, stage 2 moves d2.
+
+    Parameters
+    ----------
+    d1 : float
+        Mass of stage 1 [kg].
+    d2 : float
+        Mass of stage 2 [kg].
+    b1 : float
+        Damping of actuator 1 [N s/m].
+    b2 : float
+        Damping of actuator 2 [N s/m].
+    """
     q = _symbols("q", 2)
     d, b = _symbols("d", 2), _symbols("b", 2)
     positions = [sp.Matrix([q[0]]), sp.Matrix([q[0] + q[1]])]
@@ -63,7 +75,21 @@ def planar_serial(n: int, lengths: Sequence[float] | None = None,
                   masses: Sequence[float] | None = None,
                   dampings: Sequence[float] | None = None,
                   stiffnesses: Sequence[float] | None = None) -> Model:
-    """Planar nR arm with a point mass d_k at the distal end of link k, joint dampers b_k."""
+    """Planar nR arm with a point mass d_k at the distal end of link k, joint dampers b_k.
+
+    Parameters
+    ----------
+    n : int
+        Number of joints.
+    lengths : sequence of float, optional
+        Link lengths [m].
+    masses : sequence of float, optional
+        Point masses at the link ends [kg].
+    dampings : sequence of float, optional
+        Joint dampers [N m s/rad].
+    stiffnesses : sequence of float, optional
+        Joint springs [N m/rad].
+    """
     if n < 1:
         raise InputError("a serial arm needs at least one joint")
     q, l, d, b = _symbols("q", n), _symbols("l", n), _symbols("d", n), _symbols("b", n)
@@ -88,19 +114,47 @@ def planar_serial(n: int, lengths: Sequence[float] | None = None,
 
 
 def serial_2dof(**kw) -> Model:
-    """The 2-DOF serial arm of the MP-model paper (eqs. 17–20): l1 = 1, l2 = 0.8, d1 = 2, d2 = 1."""
+    """The 2-DOF serial arm of the MP-model paper (eqs. 17–20): l1 = 1, l2 = 0.8, d1 = 2, d2 = 1.
+
+    Parameters
+    ----------
+    **kw
+        Passed to :func:`planar_serial` (e.g. ``stiffnesses``).
+    """
     return planar_serial(2, lengths=(1.0, 0.8), masses=(2.0, 1.0), dampings=(1.0, 0.5), **kw)
 
 
 def serial_3dof(**kw) -> Model:
-    """A planar 3R arm: l = (0.6, 0.5, 0.4) m, d = (2, 1.5, 1) kg."""
+    """A planar 3R arm: l = (0.6, 0.5, 0.4) m, d = (2, 1.5, 1) kg.
+
+    Parameters
+    ----------
+    **kw
+        Passed to :func:`planar_serial` (e.g. ``stiffnesses``).
+    """
     return planar_serial(3, lengths=(0.6, 0.5, 0.4), masses=(2.0, 1.5, 1.0),
                          dampings=(1.0, 0.8, 0.5), **kw)
 
 
 def numeric_model(name: str, mass_matrix, damping=None, stiffness=None,
                   topology: str = "parallel", description: str = "") -> Model:
-    """A model with constant numeric matrices (no configuration dependence)."""
+    """A model with constant numeric matrices (no configuration dependence).
+
+    Parameters
+    ----------
+    name : str
+        The model's name.
+    mass_matrix : array_like
+        Constant M.
+    damping : array_like, optional
+        A diagonal or a matrix.
+    stiffness : array_like, optional
+        A diagonal or a matrix.
+    topology : str
+        Default topology.
+    description : str
+        A few words.
+    """
     return Model(name, sp.Matrix(np.asarray(mass_matrix, dtype=float).tolist()),
                  damping=None if damping is None else sp.Matrix(np.asarray(damping, dtype=float).tolist())
                  if np.ndim(damping) == 2 else list(map(float, damping)),
@@ -111,7 +165,19 @@ def numeric_model(name: str, mass_matrix, damping=None, stiffness=None,
 
 def random_spd_model(n: int, seed: int = 0, topology: str = "serial",
                      stiffness: bool = False) -> Model:
-    """A random well-conditioned SPD mass matrix with positive diagonal damping."""
+    """A random well-conditioned SPD mass matrix with positive diagonal damping.
+
+    Parameters
+    ----------
+    n : int
+        Number of joints.
+    seed : int
+        Random seed.
+    topology : str
+        Default topology.
+    stiffness : bool
+        Add random joint springs.
+    """
     rng = np.random.default_rng(seed)
     a = rng.normal(size=(n, n))
     m = a @ a.T / n + np.eye(n)
@@ -214,6 +280,29 @@ def five_bar(d: float = 0.06, la: float = 0.12, lb: float = 0.15, ma: float = 0.
     P = (0, √(la² + lb² − d²/4)) (E1 left of A1→P, E2 right of A2→P, both
     elbows right angles). The scene and the tests stay in the elbows-out region.
     Units: m, kg, kg·m², N·m·s/rad (b1, b2), N·m/rad (k1, k2).
+
+    Parameters
+    ----------
+    d : float
+        Distance between the base joints [m].
+    la : float
+        Proximal link length [m].
+    lb : float
+        Distal link length [m].
+    ma : float
+        Proximal link mass [kg].
+    mb : float
+        Distal link mass [kg].
+    ja : float
+        Proximal centroidal inertia [kg m^2].
+    jb : float
+        Distal centroidal inertia [kg m^2].
+    me : float
+        End-effector point mass [kg].
+    dampings : sequence of float
+        Joint dampers [N m s/rad].
+    stiffnesses : sequence of float, optional
+        Joint springs [N m/rad].
     """
     return _with_values(_five_bar_chain(), _FIVE_BAR, (d, la, lb, ma, mb, ja, jb, me),
                         dampings, stiffnesses)
@@ -270,6 +359,33 @@ def planar_3rrr(rb: float = 0.20, rp: float = 0.05, la: float = 0.12, lb: float 
     Working mode: every elbow turned counterclockwise from its line A_i→C_i;
     the assembly mode is the one reached from the home pose x = y = phi = 0.
     Units: m, kg, kg·m², N·m·s/rad (b_i), N·m/rad (k_i).
+
+    Parameters
+    ----------
+    rb : float
+        Base radius [m].
+    rp : float
+        Platform radius [m].
+    la : float
+        Proximal link length [m].
+    lb : float
+        Distal link length [m].
+    ma : float
+        Proximal link mass [kg].
+    mb : float
+        Distal link mass [kg].
+    mp : float
+        Platform mass [kg].
+    ja : float
+        Proximal centroidal inertia [kg m^2].
+    jb : float
+        Distal centroidal inertia [kg m^2].
+    jp : float
+        Platform centroidal inertia [kg m^2].
+    dampings : sequence of float
+        Joint dampers [N m s/rad].
+    stiffnesses : sequence of float, optional
+        Joint springs [N m/rad].
     """
     return _with_values(_three_rrr_chain(), _THREE_RRR, (rb, rp, la, lb, ma, mb, mp, ja, jb, jp),
                         dampings, stiffnesses)
@@ -291,7 +407,13 @@ ROBOTS = {
 
 
 def robot(name: str) -> Model:
-    """A built-in model by name (see :data:`ROBOTS`); ``serialN`` gives a planar N-joint arm."""
+    """A built-in model by name (see :data:`ROBOTS`); ``serialN`` gives a planar N-joint arm.
+
+    Parameters
+    ----------
+    name : str
+        A built-in robot (see :func:`analogy.model.catalog.check_robot_name`).
+    """
     if name in ROBOTS:
         return ROBOTS[name]()
     if name.startswith("serial") and name[6:].isdigit() and 1 <= int(name[6:]) <= 50:

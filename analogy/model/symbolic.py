@@ -10,7 +10,14 @@ import sympy as sp
 
 from ..errors import InputError
 from .dynamics import MechanicalFunctions
-from .joint import JointSpace, JointStack, configuration_stack, evaluate_entries, evaluation_arguments, part_shapes
+from .joint import (
+    JointSpace,
+    JointStack,
+    configuration_stack,
+    evaluate_entries,
+    evaluation_arguments,
+    part_shapes,
+)
 
 __all__ = ["Model", "christoffel_symbols", "velocity_terms"]
 
@@ -193,6 +200,13 @@ class Model:
         """Evaluate at every row of *qs* at once (vectorised over configurations).
 
         The values are not checked; :func:`analogy.system.node_systems` checks the stack.
+
+        Parameters
+        ----------
+        qs : array_like, shape (count, n)
+            Configurations.
+        parameters : mapping, optional
+            Parameter overrides.
         """
         fns, qnames, _ = self._compiled or self._compile()
         q = configuration_stack(self.name, qnames, qs)

@@ -5,17 +5,22 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Sequence
+from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
 from ..circuit.currents import trajectory_currents
 from ..errors import InputError
-from ..presets import Preset, preset as get_preset
+from ..presets import Preset
+from ..presets import preset as get_preset
 from ..solvers.registry import SOLVER_NAMES, run_many, solver
 from .metrics import absolute_error, peak, relative_error
 from .output import html_table, write_columns
 from .trajectory import Trajectory
+
+if TYPE_CHECKING:
+    import pandas
+    from matplotlib.figure import Figure
 
 __all__ = ["Comparison", "compare", "compare_many", "output_grid", "DEFAULT_SOLVERS"]
 
@@ -145,12 +150,12 @@ class Comparison:
         """
         return write_columns(path, self.columns())
 
-    def to_frame(self):
+    def to_frame(self) -> "pandas.DataFrame":
         """The :meth:`columns` as a pandas DataFrame indexed by time."""
         import pandas as pd
         return pd.DataFrame(self.columns()).set_index("time")
 
-    def plot(self, path=None):
+    def plot(self, path=None) -> "Figure":
         """Joint rates of every solver and their errors against time; saved to *path* if given.
 
         Parameters

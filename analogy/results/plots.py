@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from matplotlib.figure import Figure   # no pyplot: works headless, with no global state
+from matplotlib.figure import Figure  # no pyplot: works headless, with no global state
 
 from ..errors import InputError
 from .output import check_plot_path

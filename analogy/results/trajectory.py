@@ -5,10 +5,15 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .output import write_columns
+
+if TYPE_CHECKING:
+    import pandas
+    from matplotlib.figure import Figure
 
 __all__ = ["Trajectory", "SolverStats"]
 
@@ -141,7 +146,7 @@ class Trajectory:
         cols.update((f"i_{name}", values) for name, values in self.currents.items())
         return cols
 
-    def to_frame(self):
+    def to_frame(self) -> "pandas.DataFrame":
         """The :meth:`columns` as a pandas DataFrame indexed by time."""
         import pandas as pd
         return pd.DataFrame(self.columns()).set_index("time")
@@ -156,7 +161,7 @@ class Trajectory:
         """
         return write_columns(path, self.columns())
 
-    def plot(self, path=None):
+    def plot(self, path=None) -> "Figure":
         """Joint rates against time; saved to *path* if given.
 
         Parameters

@@ -4,19 +4,23 @@ from __future__ import annotations
 
 import re
 from contextlib import contextmanager
-from typing import Mapping
+from typing import TYPE_CHECKING, Iterator, Mapping
 
 import numpy as np
 
 from ..circuit.currents import check_element_names
 from ..circuit.description import circuit
-from ..circuit.node_system import node_system, node_systems
+from ..circuit.node_system import node_system, node_systems, waveforms
+from ..circuit.nonlinear import nonlinear_system
 from ..errors import InputError
 from ..model.catalog import check_robot_name
 from ..model.compiled import compile_model, load_compiled
-from ..model.expressions import parse_number
+from ..model.expressions import parse_expression, parse_number
 from ..model.joint import JointSpace
-from .scene import ModelSpec, Scene
+from .spec import ModelSpec
+
+if TYPE_CHECKING:
+    from .scene import Scene
 
 __all__ = ["scene_model", "symbolic_model", "scene_system", "scene_systems", "validated", "entry_value", "TOML_KEYS",
            "CLI_KEYS", "keyed"]
@@ -36,7 +40,7 @@ _MODELS: dict = {}
 
 
 @contextmanager
-def keyed(key: str | None):
+def keyed(key: str | None) -> Iterator[None]:
     """Prefix an :class:`InputError` raised inside with *key* (``[model] mass: …``).
 
     Parameters
@@ -62,7 +66,7 @@ def _where(scene: Scene):
     return keyed(src if src not in (None, "command line") else None)
 
 
-def entry_value(value, where: str = ""):
+def entry_value(value, where: str = "") -> float | str:
     """A number from a number or a constant expression; the text itself if it has names.
 
     Parameters
@@ -142,7 +146,6 @@ def _matrices(spec: ModelSpec, keys: dict) -> tuple[dict, bool]:
 def _symbolic(parts: dict, params: Mapping[str, float], keys: dict):
     import sympy as sp
 
-    from ..model.expressions import parse_expression
     from ..model.symbolic import Model
     n = len(parts["mass"])
     qnames = [f"q{k + 1}" for k in range(n)]
@@ -178,7 +181,7 @@ def _symbolic(parts: dict, params: Mapping[str, float], keys: dict):
                      parameters=dict(params), coordinates=qs if used_q else (), topology="parallel")
 
 
-def scene_model(scene: Scene):
+def scene_model(scene: Scene) -> object:
     """The model a scene evaluates: a compiled or symbolic robot, a symbolic model or a JointSpace.
 
     Built-in robots are derived once per process (and kept compiled on disk); the
@@ -232,7 +235,7 @@ def scene_model(scene: Scene):
         return model
 
 
-def symbolic_model(scene: Scene):
+def symbolic_model(scene: Scene) -> object:
     """The scene's model as sympy expressions (a built-in robot is derived, not loaded compiled).
 
     Parameters
@@ -292,7 +295,6 @@ def _inputs(scene: Scene, n: int, keys: dict) -> dict:
         if len(forces) != n:
             raise InputError(f"expected {n} entries (one per joint), got {len(forces)}")
     out = []
-    from ..circuit.node_system import waveforms
     for k, item in enumerate(forces):
         with keyed(f"{keys['forces']}[{k + 1}]" if keys is TOML_KEYS else keys["forces"]):
             if isinstance(item, tuple) and not item:
@@ -307,7 +309,7 @@ def _inputs(scene: Scene, n: int, keys: dict) -> dict:
     return {"forces": out, "initial_rates": r0}
 
 
-def scene_system(scene: Scene, model=None):
+def scene_system(scene: Scene, model=None) -> object:
     """The node system of *scene*: linear at q, or its full nonlinear dynamics from q.
 
     Parameters
@@ -327,7 +329,6 @@ def scene_system(scene: Scene, model=None):
         top = _topology(scene)
         params = scene.parameter_values if scene.model.robot is not None else None
         if scene.dynamics == "nonlinear":
-            from ..circuit.nonlinear import nonlinear_system
             with keyed(keys["model"]):
                 return nonlinear_system(m, q or [0.0] * n, parameters=params, topology=top,
                                         t_stop=scene.t_stop, info=info, **inputs)

@@ -7,7 +7,8 @@ from typing import Sequence
 
 from ..circuit.netlist import netlist
 from ..errors import InputError
-from .scene import ModelSpec, Scene
+from .scene import Scene
+from .spec import ModelSpec
 
 __all__ = ["SCENES", "PAPER_EXAMPLES", "scene", "write_netlists"]
 

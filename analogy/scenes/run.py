@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -15,6 +16,10 @@ from ..results.comparison import compare
 from ..results.metrics import absolute_error, relative_error
 from ..results.output import html_table, write_columns
 from .scene import Scene
+
+if TYPE_CHECKING:
+    import pandas
+    from matplotlib.figure import Figure
 
 __all__ = ["SceneResult", "run_scene", "save_names"]
 
@@ -271,12 +276,12 @@ class SceneResult:
         """
         return write_columns(path, self.columns())
 
-    def to_frame(self):
+    def to_frame(self) -> "pandas.DataFrame":
         """The :meth:`columns` as a pandas DataFrame indexed by time."""
         import pandas as pd
         return pd.DataFrame(self.columns()).set_index("time")
 
-    def plot(self, path=None):
+    def plot(self, path=None) -> "Figure":
         """One panel per requested quantity and, with a reference, each solver's error / peak.
 
         Parameters

@@ -5,15 +5,17 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Literal, Mapping
 
 from ..errors import InputError
 from ..model.dynamics import DYNAMICS, DynamicsKind
 from ..presets import PRESETS
+from .build import scene_model, scene_system, scene_systems, symbolic_model
+from .spec import ModelSpec, freeze
 
-__all__ = ["Scene", "ModelSpec", "OUTPUTS", "PresetName", "SCENE_SCHEMA", "content_key"]
+__all__ = ["Scene", "OUTPUTS", "PresetName", "SCENE_SCHEMA", "content_key"]
 
 #: The quantities a scene may ask for.
 OUTPUTS = ("joint_rates", "node_voltages", "element_currents")
@@ -26,58 +28,6 @@ SCENE_SCHEMA = "analogy-scene-1"
 
 # Fields that name, describe or locate a scene but do not change its result.
 _NOT_CONTENT = ("name", "description", "source")
-
-
-def _freeze(value):
-    """Lists to tuples, recursively, so that specs from TOML or the CLI are hashable."""
-    if isinstance(value, (list, tuple)):
-        return tuple(_freeze(v) for v in value)
-    return value
-
-
-@dataclass(frozen=True)
-class ModelSpec:
-    """What model a scene uses: a built-in robot, or matrices of numbers and expressions.
-
-    Attributes
-    ----------
-    robot : str or None
-        A built-in robot (``serial2``, ``serial<N>``, ``random<N>`` …).
-    mass : tuple of tuple or None
-        Rows of the mass matrix: numbers or expression strings in q1 … qn and the
-        parameter names.
-    damping, stiffness : tuple or None
-        A tuple of entries (a diagonal) or of rows (a matrix).
-    gravity : tuple or None
-        One entry per joint.
-    seed : int
-        Random robots only: the seed of their mass matrix.
-    """
-
-    robot: str | None = None
-    mass: tuple | None = None
-    damping: tuple | None = None
-    stiffness: tuple | None = None
-    gravity: tuple | None = None
-    seed: int = 0
-
-    @classmethod
-    def of(cls, robot: str | None = None, **parts) -> "ModelSpec":
-        """A spec whose matrix parts may be given as lists (they are stored as tuples).
-
-        Parameters
-        ----------
-        robot : str, optional
-            A built-in robot name.
-        **parts
-            ``mass``, ``damping``, ``stiffness``, ``gravity`` and ``seed``.
-        """
-        return cls(robot, **{k: _freeze(v) for k, v in parts.items()})
-
-    @property
-    def label(self) -> str:
-        """The robot's name, or ``custom``."""
-        return self.robot or "custom"
 
 
 @dataclass(frozen=True)
@@ -186,7 +136,7 @@ class Scene:
         for key in ("q", "forces", "initial_rates", "topology", "node_voltages", "element_currents",
                     "solvers", "parameters"):
             if key in fields_ and fields_[key] is not None and not isinstance(fields_[key], (str, bool)):
-                fields_[key] = _freeze(fields_[key])
+                fields_[key] = freeze(fields_[key])
         return cls(name, spec, **fields_)
 
     def replace(self, **changes) -> "Scene":
@@ -237,17 +187,15 @@ class Scene:
             return Path(output_dir) / p
         return (Path(self.source).parent if self.source is not None else Path.cwd()) / p
 
-    def build_model(self):
+    def build_model(self) -> object:
         """The scene's symbolic model (sympy): a robot's derivation, or the parsed matrices."""
-        from .build import symbolic_model
         return symbolic_model(self)
 
-    def numeric_model(self):
+    def numeric_model(self) -> object:
         """The model the scene evaluates: compiled from the on-disk cache where it can be."""
-        from .build import scene_model
         return scene_model(self)
 
-    def system(self, model=None):
+    def system(self, model=None) -> object:
         """The scene's node system (see :func:`analogy.scenes.build.scene_system`).
 
         Parameters
@@ -255,7 +203,6 @@ class Scene:
         model : object, optional
             An already built model to evaluate instead of building the scene's own.
         """
-        from .build import scene_system
         return scene_system(self, model)
 
     def systems(self, qs, model=None) -> list:
@@ -268,10 +215,9 @@ class Scene:
         model : object, optional
             An already built model.
         """
-        from .build import scene_systems
         return scene_systems(self, qs, model)
 
-    def family(self):
+    def family(self) -> tuple | None:
         """What the scene shares with scenes that differ only in q, as a hashable key.
 
         None when q is not a flat tuple of real numbers.

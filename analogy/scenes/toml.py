@@ -54,12 +54,13 @@ from pathlib import Path
 
 from ..errors import InputError
 from ..model.dynamics import DYNAMICS
-from ..presets import preset as get_preset
 from ..model.expressions import parse_number
+from ..presets import preset as get_preset
 from ..results.output import check_plot_path
 from ..solvers.registry import SOLVER_NAMES
 from .build import validated
-from .scene import OUTPUTS, ModelSpec, Scene, _freeze
+from .scene import OUTPUTS, Scene
+from .spec import ModelSpec, freeze
 
 __all__ = ["load_scene", "parse_scene", "parse_toml"]
 
@@ -317,7 +318,7 @@ def _model_fields(ctx: _Context, data: dict) -> dict:
                 if isinstance(w, bool) or not isinstance(w, (int, float, str)):
                     raise InputError(f"expected a number or a waveform string such as \"step(1)\", "
                                      f"got {_kind(w)}")
-    out["forces"] = _freeze(raw)
+    out["forces"] = freeze(raw)
     if "initial_rates" in inputs:
         with ctx.key("[inputs] initial_rates"):
             out["initial_rates"] = tuple(_numbers(inputs["initial_rates"]))

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import time as _time
-
 from typing import Sequence
 
 import numpy as np
@@ -27,7 +26,13 @@ def _expm1(x: np.ndarray) -> np.ndarray:
 
 
 def phi1(x: np.ndarray) -> np.ndarray:
-    """φ₁(x) = (eˣ − 1)/x, with φ₁(0) = 1; real in, real out."""
+    """φ₁(x) = (eˣ − 1)/x, with φ₁(0) = 1; real in, real out.
+
+    Parameters
+    ----------
+    x : array_like
+        Real or complex arguments.
+    """
     x = np.asarray(x)
     x = x.astype(complex if np.iscomplexobj(x) else float, copy=False)
     out = np.ones_like(x)
@@ -37,7 +42,13 @@ def phi1(x: np.ndarray) -> np.ndarray:
 
 
 def phi2(x: np.ndarray) -> np.ndarray:
-    """φ₂(x) = (eˣ − 1 − x)/x², with φ₂(0) = 1/2; a Taylor series near 0 avoids cancellation."""
+    """φ₂(x) = (eˣ − 1 − x)/x², with φ₂(0) = 1/2; a Taylor series near 0 avoids cancellation.
+
+    Parameters
+    ----------
+    x : array_like
+        Real or complex arguments.
+    """
     x = np.asarray(x)
     x = x.astype(complex if np.iscomplexobj(x) else float, copy=False)
     out = np.empty_like(x)
@@ -158,6 +169,13 @@ def solve_exact_many(systems: Sequence, times) -> list[np.ndarray]:
 
     Systems are split by size, springs and force breakpoints, and each part is solved
     at once with numpy's stacked linear algebra.
+
+    Parameters
+    ----------
+    systems : sequence of NodeSystem
+        Linear systems sharing t_stop.
+    times : array_like
+        Output times.
     """
     if not systems:
         return []

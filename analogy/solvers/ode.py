@@ -21,7 +21,7 @@ ODE_METHODS = ("LSODA", "Radau", "BDF", "RK45", "RK23", "DOP853")
 _IMPLICIT = {"LSODA", "Radau", "BDF"}
 
 
-def state_matrices(system):
+def state_matrices(system) -> tuple[np.ndarray, np.ndarray]:
     """First-order form y' = A·y + G·F(t) of a linear system on y = [x, v] (or y = v without springs).
 
     M'⁻¹ is never formed: M'⁻¹B', M'⁻¹K' and M'⁻¹T⁻ᵀ come from one Cholesky factor.

@@ -15,6 +15,11 @@ def read_raw(path) -> dict[str, np.ndarray]:
     """Read the first real-valued plot of a raw file into ``{vector name: values}``.
 
     Node voltages are keyed by node name (``v(n1)`` becomes ``n1``).
+
+    Parameters
+    ----------
+    path : str or Path
+        A raw file.
     """
     data = Path(path).read_bytes()
     header = {}

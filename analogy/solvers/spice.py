@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import ctypes.util
+import locale
 import logging
 import os
 import re
@@ -37,6 +38,11 @@ def vector_key(name: str) -> str:
     ngspice names device vectors in lower case, so keys are lower case, and a node
     voltage ``v(n1)`` is keyed by its node, ``n1``; a device current ``@C1_2[i]`` is
     ``@c1_2[i]``.
+
+    Parameters
+    ----------
+    name : str
+        A vector name such as ``v(n1)`` or ``@C1_2[i]``.
     """
     key = name.strip().lower()
     if key.startswith("v(") and key.endswith(")"):
@@ -71,7 +77,6 @@ def _shared_class():
             return self._path
 
         def _load_library(self, verbose):
-            import locale
             locale.setlocale(locale.LC_NUMERIC, "C")   # ngspice parses numbers with the C locale
             global _CDEF_DONE
             if not _CDEF_DONE:        # PySpice's one ffi object takes the declarations once

@@ -1,0 +1,65 @@
+"""What model a scene uses, as plain data: a built-in robot, or matrices of numbers and expressions."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+__all__ = ["ModelSpec", "freeze"]
+
+
+def freeze(value) -> object:
+    """Lists to tuples, recursively, so that specs from TOML or the CLI are hashable.
+
+    Parameters
+    ----------
+    value : object
+        A value, or a list or tuple of values.
+    """
+    if isinstance(value, (list, tuple)):
+        return tuple(freeze(v) for v in value)
+    return value
+
+
+@dataclass(frozen=True)
+class ModelSpec:
+    """What model a scene uses: a built-in robot, or matrices of numbers and expressions.
+
+    Attributes
+    ----------
+    robot : str or None
+        A built-in robot (``serial2``, ``serial<N>``, ``random<N>`` …).
+    mass : tuple of tuple or None
+        Rows of the mass matrix: numbers or expression strings in q1 … qn and the
+        parameter names.
+    damping, stiffness : tuple or None
+        A tuple of entries (a diagonal) or of rows (a matrix).
+    gravity : tuple or None
+        One entry per joint.
+    seed : int
+        Random robots only: the seed of their mass matrix.
+    """
+
+    robot: str | None = None
+    mass: tuple | None = None
+    damping: tuple | None = None
+    stiffness: tuple | None = None
+    gravity: tuple | None = None
+    seed: int = 0
+
+    @classmethod
+    def of(cls, robot: str | None = None, **parts) -> "ModelSpec":
+        """A spec whose matrix parts may be given as lists (they are stored as tuples).
+
+        Parameters
+        ----------
+        robot : str, optional
+            A built-in robot name.
+        **parts
+            ``mass``, ``damping``, ``stiffness``, ``gravity`` and ``seed``.
+        """
+        return cls(robot, **{k: freeze(v) for k, v in parts.items()})
+
+    @property
+    def label(self) -> str:
+        """The robot's name, or ``custom``."""
+        return self.robot or "custom"

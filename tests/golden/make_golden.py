@@ -1,0 +1,48 @@
+"""Regenerate the golden ngspice outputs of the paper's five netlists (``netlists/*.cir``).
+
+Run from the repository root with the ngspice executable on the path:
+
+    python tests/golden/make_golden.py
+
+Each netlist is run unchanged by ``ngspice -b`` through a control block that
+interpolates the solution onto the netlist's print step (``linearize``) and writes
+a binary raw file ``<name>.raw`` here, with ``<name>.txt`` recording the ngspice
+version. ``tests/test_golden.py`` checks them against the exact solution and against
+the in-process run.
+"""
+
+import shutil
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+NETLISTS = HERE.parent.parent / "netlists"
+
+
+def main() -> int:
+    ngspice = shutil.which("ngspice")
+    if ngspice is None:
+        print("make_golden: the ngspice executable is not on the path", file=sys.stderr)
+        return 1
+    version = subprocess.run([ngspice, "--version"], capture_output=True, text=True).stdout
+    version = next((ln.strip("* ").strip() for ln in version.splitlines() if "ngspice-" in ln), "unknown")
+    for cir in sorted(NETLISTS.glob("*.cir")):
+        raw = HERE / f"{cir.stem}.raw"
+        body = [ln for ln in cir.read_text().splitlines() if ln.strip().lower() != ".end"]
+        control = [".control", "set filetype=binary", "run", "linearize", f"write {raw}", ".endc", ".end"]
+        with tempfile.TemporaryDirectory() as tmp:
+            deck = Path(tmp) / cir.name
+            deck.write_text("\n".join(body + control) + "\n")
+            res = subprocess.run([ngspice, "-b", str(deck)], capture_output=True, text=True, timeout=600)
+        if res.returncode != 0 or not raw.exists():
+            print(f"make_golden: ngspice failed on {cir.name}:\n{res.stderr}", file=sys.stderr)
+            return 1
+        (HERE / f"{cir.stem}.txt").write_text(f"{cir.name} run by {version}, linearized to the print step\n")
+        print(f"wrote {raw.relative_to(HERE.parent.parent)} ({raw.stat().st_size} bytes)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
