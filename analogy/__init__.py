@@ -12,7 +12,7 @@ _EXPORTS = {
     "Trajectory": "results.trajectory", "SolverStats": "results.trajectory",
     "relative_error": "results.metrics",
     "Element": "circuit.elements", "elements": "circuit.elements", "mp_capacitance": "circuit.elements",
-    "Circuit": "circuit.description", "circuit": "circuit.description",
+    "Circuit": "circuit.description",
     "AnalogyError": "errors", "InputError": "errors", "SimulationError": "errors",
     "SpiceError": "errors", "AccuracyError": "errors",
     "solve_exact": "solvers.exact", "solve_ode": "solvers.ode", "solve_spice": "solvers.spice",
@@ -34,14 +34,6 @@ _EXPORTS = {
 }
 
 __all__ = sorted(_EXPORTS)
-
-
-# Functions named like their modules are bound now: importing the submodule later
-# must not replace the function by the module.
-from .circuit.description import circuit  # noqa: E402
-from .circuit.elements import elements  # noqa: E402
-from .circuit.netlist import netlist  # noqa: E402
-from .results.comparison import compare  # noqa: E402
 
 
 def __getattr__(name):

@@ -1,4 +1,8 @@
-"""Command-line interface: argument parsing and printing over the analogy API."""
+"""Command-line interface: argument parsing and printing over the analogy API.
+
+Each command imports the modules it uses when it runs, so that ``analogy netlist``
+starts without the solvers, the batch machinery or the benchmarks.
+"""
 
 from __future__ import annotations
 
@@ -7,26 +11,17 @@ import os
 import sys
 from pathlib import Path
 
-import numpy as np
-
 from . import __version__
-from .bench import bench, throughput
 from .circuit.netlist import netlist
 from .errors import AccuracyError, AnalogyError, InputError, SimulationError
 from .model.catalog import MAX_SERIAL, ROBOT_NAMES
 from .model.expressions import parse_expression, parse_matrix, parse_number, parse_vector, split_entries
 from .presets import PRESETS
-from .results.comparison import compare
-from .results.metrics import relative_error
 from .results.output import check_plot_path
 from .scenes.build import scene_model
 from .scenes.builtin import SCENES, scene
-from .scenes.run import run_scene
 from .scenes.scene import Scene
 from .scenes.spec import ModelSpec
-from .scenes.toml import load_scene
-from .solvers.exact import solve_exact
-from .solvers.reference import solve_reference
 
 __all__ = ["main", "build_parser", "scene_from_args", "EXIT_OK", "EXIT_FAILED", "EXIT_USAGE",
            "EXIT_ACCURACY"]
@@ -247,6 +242,7 @@ def _accuracy_exit(flags: dict, preset: str, bound: float) -> int:
 
 
 def _cmd_compare(args) -> int:
+    from .results.comparison import compare
     sc = scene_from_args(args)
     solvers = [s.strip() for s in args.solvers.split(",") if s.strip()]
     if not solvers:
@@ -277,6 +273,12 @@ def _cmd_compare(args) -> int:
 
 
 def _cmd_verify(args) -> int:
+    import numpy as np
+
+    from .results.comparison import compare
+    from .results.metrics import relative_error
+    from .solvers.exact import solve_exact
+    from .solvers.reference import solve_reference
     names = list(SCENES) if args.scenes is None else [s.strip() for s in args.scenes.split(",")]
     print(f"{'scene':<10}{'dof':>4}{'spice/peak':>13}{'ode/peak':>11}{'exact vs mpmath':>17}"
           f"{'spice [ms]':>12}")
@@ -322,6 +324,8 @@ def _cmd_draw(args) -> int:
 
 
 def _cmd_run(args) -> int:
+    from .scenes.run import run_scene
+    from .scenes.toml import load_scene
     job = load_scene(args.scene_file)
     if args.no_plot:
         job = job.replace(plot_file=None)
@@ -345,6 +349,7 @@ def _positive(value: int, what: str) -> int:
 
 
 def _cmd_bench(args) -> int:
+    from .bench import bench
     check_plot_path(args.plot)
     _check_writable(args.csv)
     _check_writable(args.plot)
@@ -358,6 +363,7 @@ def _cmd_bench(args) -> int:
 
 
 def _cmd_throughput(args) -> int:
+    from .bench import throughput
     print(throughput(n=_positive(args.n, "-n"), preset=args.preset,
                      group_size=_positive(args.group_size, "--group-size"),
                      workers=_positive(args.workers, "--workers"),

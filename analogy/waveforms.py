@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import inspect
 import math
 from dataclasses import dataclass
 from typing import Sequence
@@ -319,13 +318,12 @@ def parse_waveform(text: str) -> Waveform:
                 raise InputError(f"{text!r}: pwl needs time, value pairs")
             return PWL(list(zip(args[0::2], args[1::2])))
         cls = _WAVEFORMS[name]
-        params = list(inspect.signature(cls).parameters.values())
-        need = sum(p.default is inspect.Parameter.empty for p in params)
-        if not need <= len(args) + len(kwargs) <= len(params) or any(k not in [p.name for p in params]
-                                                                    for k in kwargs):
-            names = ", ".join(p.name for p in params)
-            raise InputError(f"{text!r}: {name} takes {need} to {len(params)} arguments ({names}), "
-                             f"got {len(args) + len(kwargs)}")
+        code = cls.__init__.__code__
+        params = code.co_varnames[1:code.co_argcount]
+        need = len(params) - len(cls.__init__.__defaults__ or ())
+        if not need <= len(args) + len(kwargs) <= len(params) or any(k not in params for k in kwargs):
+            raise InputError(f"{text!r}: {name} takes {need} to {len(params)} arguments "
+                             f"({', '.join(params)}), got {len(args) + len(kwargs)}")
         return cls(*args, **kwargs)
     except TypeError:
         raise InputError(f"{text!r}: wrong arguments for {name}") from None

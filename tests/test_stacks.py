@@ -166,14 +166,14 @@ def test_a_malformed_configuration_fails_alone():
 @pytest.mark.ngspice
 def test_a_system_the_exact_solver_cannot_take_fails_alone(monkeypatch):
     from analogy.solvers import exact
-    solve = exact.solve_exact_many
+    solve = exact._solve
 
     def refusing(systems, t):
         if any(s.info["configuration"]["q2"] == 0.7 for s in systems):
             raise analogy.SimulationError("the modes are nearly defective")
         return solve(systems, t)
 
-    monkeypatch.setattr(exact, "solve_exact_many", refusing)
+    monkeypatch.setattr(exact, "_solve", refusing)
     items = [scene("default").replace(q=(0.0, q), t_stop=2.0) for q in (0.1, 0.7, 1.3)]
     res = run_batch(items, "fast", workers=1)
     assert list(res.failures) == [1] and "nearly defective" in res.failures[1]

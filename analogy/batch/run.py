@@ -179,11 +179,13 @@ def _group(payload):
     for k, c in zip(ok, comparisons):
         for name, why in c.failures.items():
             failures[k] = f"{name}: {why}" if name != "spice" else why
+        measured = c.measured
         for name in solvers:
             tr = c.results.get(name)
             if tr is not None:
                 seconds[name] += tr.run_time
-                errors[name][k] = c.errors()[name][1] if c.reference else np.nan
+                if name in measured:
+                    errors[name][k] = measured[name][1]
         first = next((c.results[s] for s in solvers if s in c.results), None)
         if keep and first is not None:
             rates[k] = (first.time, first.rates)

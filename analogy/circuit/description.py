@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import NamedTuple, Sequence
 
 import numpy as np
@@ -71,8 +70,7 @@ class BehaviouralCurrent(NamedTuple):
     current: str
 
 
-@dataclass(frozen=True, eq=False)
-class Circuit:
+class Circuit(NamedTuple):
     """Every part of a node system's circuit, typed: the one description all writers read.
 
     Attributes
@@ -231,7 +229,7 @@ def _check_dropped(mass: np.ndarray, kept: list[Element], zero_tol: float):
                      "without it is singular: rescale the masses or lower zero_tol")
 
 
-def circuit(system, zero_tol: float = ZERO_TOL, realizable: bool = False) -> Circuit:
+def circuit(system, zero_tol: float = ZERO_TOL, realizable: bool = False, describe: bool = True) -> Circuit:
     """The circuit of a linear node system.
 
     Parameters
@@ -242,6 +240,8 @@ def circuit(system, zero_tol: float = ZERO_TOL, realizable: bool = False) -> Cir
         Relative tolerance under which an element is left out.
     realizable : bool
         Put each negative element behind a 1:−1 :class:`Coupling`.
+    describe : bool
+        Fill :attr:`Circuit.comments` (what was built), for netlist headers.
 
     Raises
     ------
@@ -251,14 +251,11 @@ def circuit(system, zero_tol: float = ZERO_TOL, realizable: bool = False) -> Cir
     if getattr(system, "kind", "linear") != "linear":
         raise InputError("only a linear node system has a circuit of constant elements")
     k = None if system.stiffness is None else system.stiffness[None]
+    table, dropped = element_table(system.mass[None], system.damping[None], k, zero_tol, report=True)
     parts = [Element(kind, a, b, float(spice_value(kind, c[0])), float(c[0]))
-             for kind, a, b, c in element_table(system.mass[None], system.damping[None], k, zero_tol)
-             if c[0] != 0.0]
-    if np.any(np.abs(system.mass) > 0):
-        full = element_table(system.mass[None], system.damping[None], None, 0.0)
-        if sum(1 for kind, _, _, c in full if kind == "C" and c[0] != 0) > \
-                sum(1 for e in parts if e.kind == "C"):
-            _check_dropped(system.mass, parts, zero_tol)
+             for kind, a, b, c in table if c[0] != 0.0]
+    if dropped[0]:
+        _check_dropped(system.mass, parts, zero_tol)
     v0 = system.initial_voltages
     initial = [(f"n{i + 1}", float(x)) for i, x in enumerate(v0)]
     couplings = ()
@@ -270,7 +267,7 @@ def circuit(system, zero_tol: float = ZERO_TOL, realizable: bool = False) -> Cir
             across = (v0[e.b - 1] if e.b else 0.0) - v0[e.a - 1]
             initial += [(node, float(across)) for node in c.auxiliary_nodes]
     return Circuit(system.dof, tuple(parts), current_sources(system, zero_tol), tuple(initial),
-                   system.t_stop, couplings, (), _comments(system))
+                   system.t_stop, couplings, (), _comments(system) if describe else ())
 
 
 def circuits(systems: Sequence, zero_tol: float = ZERO_TOL) -> list[Circuit]:
@@ -293,20 +290,18 @@ def circuits(systems: Sequence, zero_tol: float = ZERO_TOL) -> list[Circuit]:
     for (_, no_springs), idx in kinds.items():
         def stack(attr):
             return np.stack([getattr(systems[k], attr) for k in idx])
-        table = element_table(stack("mass"), stack("damping"), None if no_springs else stack("stiffness"),
-                              zero_tol)
+        table, dropped = element_table(stack("mass"), stack("damping"),
+                                       None if no_springs else stack("stiffness"), zero_tol, report=True)
         columns = [(kind, a, b, spice_value(kind, c).tolist(), c.tolist()) for kind, a, b, c in table]
-        counts = np.count_nonzero([c for kind, _, _, c in table if kind == "C"], axis=0) \
-            if table else np.zeros(len(idx), int)
         for j, k in enumerate(idx):
             s = systems[k]
-            parts = tuple(Element(kind, a, b, values[j], coef[j])
-                          for kind, a, b, values, coef in columns if coef[j] != 0.0)
-            key = (id(s.forces), id(s.current_map))
+            parts = tuple([Element(kind, a, b, values[j], coef[j])
+                           for kind, a, b, values, coef in columns if coef[j] != 0.0])
+            key = (id(s.forces), id(s.topology))
             src = sources.get(key)
             if src is None:
                 src = sources[key] = current_sources(s, zero_tol)
-            if counts[j] < s.dof:           # a node may have lost its capacitors: check it
+            if dropped[j]:                  # a capacitor under the tolerance: is the rest singular?
                 _check_dropped(s.mass, list(parts), zero_tol)
             initial = tuple((f"n{i + 1}", x) for i, x in enumerate(s.initial_voltages.tolist()))
             out[k] = Circuit(s.dof, parts, src, initial, s.t_stop)

@@ -60,7 +60,8 @@ class Element(NamedTuple):
         return f"<{self.name} {self.value:.6g} {self.unit}: {self.meaning}, {where}>"
 
 
-def laplacian_split(matrix: np.ndarray, zero_tol: float = ZERO_TOL) -> tuple[np.ndarray, np.ndarray]:
+def laplacian_split(matrix: np.ndarray, zero_tol: float = ZERO_TOL,
+                    report: bool = False) -> tuple[np.ndarray, ...]:
     """Split a symmetric node matrix X into grounded x_i = Σ_j X_ij and floating x_ij = −X_ij.
 
     X is recovered as X_ii = x_i + Σ_{j≠i} x_ij and X_ij = −x_ij; entries with
@@ -73,11 +74,14 @@ def laplacian_split(matrix: np.ndarray, zero_tol: float = ZERO_TOL) -> tuple[np.
         A symmetric node matrix, or a stack of them.
     zero_tol : float
         Relative tolerance under which a value counts as zero.
+    report : bool
+        Also return, per matrix, whether a nonzero value was set to zero.
 
     Returns
     -------
     grounded : ndarray, shape (..., n)
     floating : ndarray, shape (..., n, n), symmetric with zero diagonal
+    dropped : ndarray of bool, shape (...), with *report* only
     """
     x = np.asarray(matrix, dtype=float)
     n = x.shape[-1]
@@ -85,9 +89,13 @@ def laplacian_split(matrix: np.ndarray, zero_tol: float = ZERO_TOL) -> tuple[np.
     floating = -x
     floating[..., range(n), range(n)] = 0.0
     floor = zero_tol * (np.abs(x).max(axis=(-2, -1), keepdims=True) if x.size else np.zeros(x.shape[:-2] + (1, 1)))
-    grounded[np.abs(grounded) <= floor[..., 0]] = 0.0
-    floating[np.abs(floating) <= floor] = 0.0
-    return grounded, floating
+    small_g = np.abs(grounded) <= floor[..., 0]
+    small_f = np.abs(floating) <= floor
+    if report:
+        dropped = np.any(small_g & (grounded != 0), axis=-1) | np.any(small_f & (floating != 0), axis=(-2, -1))
+    grounded[small_g] = 0.0
+    floating[small_f] = 0.0
+    return (grounded, floating, dropped) if report else (grounded, floating)
 
 
 def mp_capacitance(node_mass: np.ndarray, zero_tol: float = ZERO_TOL) -> np.ndarray:
@@ -103,7 +111,8 @@ def mp_capacitance(node_mass: np.ndarray, zero_tol: float = ZERO_TOL) -> np.ndar
     return laplacian_split(node_mass, zero_tol)[1]
 
 
-def element_table(mass, damping, stiffness=None, zero_tol: float = ZERO_TOL) -> list[tuple]:
+def element_table(mass, damping, stiffness=None, zero_tol: float = ZERO_TOL,
+                  report: bool = False) -> list[tuple] | tuple[list[tuple], np.ndarray]:
     """Every element position of a stack of node matrices, in netlist order.
 
     Returns a list of (kind, a, b, coefficients): per node then per pair, C then R
@@ -120,16 +129,22 @@ def element_table(mass, damping, stiffness=None, zero_tol: float = ZERO_TOL) -> 
         Node stiffness matrices K'.
     zero_tol : float
         Relative tolerance under which an element is left out.
+    report : bool
+        Also return, per system, whether a nonzero capacitor was left out.
     """
     table = []
+    dropped = None
     for kind, mat in (("C", mass), ("R", damping), ("L", stiffness)):
         if mat is None:
             continue
-        grounded, floating = laplacian_split(mat, zero_tol)
+        if kind == "C" and report:
+            grounded, floating, dropped = laplacian_split(mat, zero_tol, report=True)
+        else:
+            grounded, floating = laplacian_split(mat, zero_tol)
         n = grounded.shape[-1]
         table += [(kind, i + 1, 0, grounded[:, i]) for i in range(n)]
         table += [(kind, i + 1, j + 1, floating[:, i, j]) for i in range(n) for j in range(i + 1, n)]
-    return table
+    return (table, dropped) if report else table
 
 
 def spice_value(kind: str, coefficient) -> np.ndarray:

@@ -64,10 +64,9 @@ def circuit_lines(c: Circuit, prefix: str = "") -> list[str]:
     prefix : str
         Prepended to every device and node name (independent circuits in one run).
     """
-    lines = []
-    for e in c.elements:
-        name = f"{e.kind}{prefix}{e.a}" if e.b == 0 else f"{e.kind}{prefix}{e.a}_{e.b}"
-        lines.append(f"{name} {_node(e.a, prefix)} {_node(e.b, prefix)} {_num(e.value)}")
+    lines = [f"{kind}{prefix}{a} {prefix}n{a} 0 {value!r}" if b == 0 else
+             f"{kind}{prefix}{a}_{b} {prefix}n{a} {prefix}n{b} {value!r}"
+             for kind, a, b, value, _ in c.elements]       # values are floats: repr is exact
     for cp in c.couplings:
         e = cp.element
         name = f"{prefix}{e.name}"

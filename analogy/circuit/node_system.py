@@ -83,7 +83,9 @@ class NodeSystem:
 
     def _store(self, joint, topology, forces, r0, t_stop, info, mass, damping, stiffness):
         self.joint, self.topology, self.forces = joint, topology, forces
+        self.dof = joint.dof                                # number of nodes (and joints) n
         self.initial_rates, self.t_stop, self.info = r0, t_stop, info
+        self.initial_voltages = topology.matrix @ r0        # node velocities v(0) = T·R(0)
         self.mass, self.damping, self.stiffness = mass, damping, stiffness
         self.current_map = topology.current_map
 
@@ -124,19 +126,9 @@ class NodeSystem:
                 f"{self.topology.name} topology{springs}, t_stop={self.t_stop:g} s)")
 
     @property
-    def dof(self) -> int:
-        """Number of nodes (and joints) n."""
-        return self.joint.dof
-
-    @property
     def nodes(self) -> list[str]:
         """SPICE node names, n1 … nN."""
         return [f"n{k + 1}" for k in range(self.dof)]
-
-    @property
-    def initial_voltages(self) -> np.ndarray:
-        """Node velocities v(0) = T·R(0)."""
-        return self.topology.matrix @ self.initial_rates
 
     def node_mass(self, x: np.ndarray) -> np.ndarray:
         """M', the same at every x.

@@ -14,7 +14,7 @@ from ..errors import InputError
 from ..presets import Preset
 from ..presets import preset as get_preset
 from ..solvers.registry import SOLVER_NAMES, run_many, solver
-from .metrics import absolute_error, peak, relative_error
+from .metrics import errors, peak
 from .output import html_table, write_columns
 from .trajectory import Trajectory
 
@@ -315,28 +315,26 @@ def _measure(systems, runs, native, ref_name, p) -> list[dict]:
     for name, trs in runs.items():
         own = native.get(name, trs)
         for idx in _by_grid(own).values():
-            k0 = idx[0]
-            if own[k0] is None or not own[k0].success:
-                continue
-            if own[k0] is not trs[k0]:      # resampled: measure on its own points
-                refs = run_many(ref_name, [systems[k] for k in idx], own[k0].time, p)
-            else:
-                refs = [ref[k] for k in idx]
-            ok = [j for j, r in enumerate(refs) if r.success and own[idx[j]].success]
+            ok = [k for k in idx if own[k].success and (name == ref_name or ref[k].success)]
             if not ok:
                 continue
-            shapes = {own[idx[j]].rates.shape for j in ok}
-            if len(shapes) == 1:
-                x = np.stack([own[idx[j]].rates for j in ok])
-                y = np.stack([refs[j].rates for j in ok])
-                abs_e = np.atleast_1d(absolute_error(x, y, axis=(1, 2)))
-                rel_e = np.atleast_1d(relative_error(x, y, axis=(1, 2)))
-                for j, a, r in zip(ok, abs_e.tolist(), rel_e.tolist()):
-                    out[idx[j]][name] = (a, r)
+            if name == ref_name:
+                for k in ok:
+                    out[k][name] = (0.0, 0.0)
+                continue
+            if own[ok[0]] is not trs[ok[0]]:      # resampled: measure on its own points
+                refs = dict(zip(ok, run_many(ref_name, [systems[k] for k in ok], own[ok[0]].time, p)))
             else:
-                for j in ok:
-                    a, b = own[idx[j]].rates, refs[j].rates
-                    out[idx[j]][name] = (absolute_error(a, b), relative_error(a, b))
+                refs = {k: ref[k] for k in ok}
+            ok = [k for k in ok if refs[k].success]
+            if len({own[k].rates.shape for k in ok}) == 1 and ok:
+                a, r = errors(np.stack([own[k].rates for k in ok]), np.stack([refs[k].rates for k in ok]),
+                              axis=(1, 2))
+                for k, x, y in zip(ok, np.atleast_1d(a).tolist(), np.atleast_1d(r).tolist()):
+                    out[k][name] = (x, y)
+            else:
+                for k in ok:
+                    out[k][name] = errors(own[k].rates, refs[k].rates)
     return out
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["relative_error", "absolute_error", "peak"]
+__all__ = ["relative_error", "absolute_error", "peak", "errors"]
 
 
 def peak(reference: np.ndarray, axis=None) -> np.ndarray | float:
@@ -44,6 +44,27 @@ def absolute_error(values: np.ndarray, reference: np.ndarray, axis=None) -> np.n
     return np.max(err, axis=axis) if axis is not None else float(np.max(err))
 
 
+def errors(values: np.ndarray, reference: np.ndarray, axis=None) -> tuple:
+    """(max |x − x_ref|, that / max |x_ref|) in one pass: :func:`relative_error` and its numerator.
+
+    Parameters
+    ----------
+    values : array_like
+        Values of the solver under test.
+    reference : array_like
+        Reference values, of the same shape.
+    axis : int or tuple of int, optional
+        Axes to reduce; default all.
+    """
+    err = absolute_error(values, reference, axis)
+    top = peak(reference, axis)
+    err_a, top_a = np.asarray(err, dtype=float), np.asarray(top, dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rel = np.where(top_a > 0, err_a / np.where(top_a > 0, top_a, 1.0), np.where(err_a == 0, 0.0, np.inf))
+    rel = np.where(np.isnan(err_a), np.nan, rel)
+    return (err, float(rel)) if rel.ndim == 0 else (err_a, rel)
+
+
 def relative_error(values: np.ndarray, reference: np.ndarray, axis=None) -> np.ndarray | float:
     """max |x − x_ref| / max |x_ref|: the error every report and test uses.
 
@@ -60,11 +81,4 @@ def relative_error(values: np.ndarray, reference: np.ndarray, axis=None) -> np.n
     axis : int or tuple of int, optional
         Axes to reduce (e.g. ``(1, 2)`` for a stack of (time, joint) arrays); default all.
     """
-    err = absolute_error(values, reference, axis)
-    top = peak(reference, axis)
-    err_a, top_a = np.asarray(err, dtype=float), np.asarray(top, dtype=float)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        out = np.where(top_a > 0, err_a / np.where(top_a > 0, top_a, 1.0),
-                       np.where(err_a == 0, 0.0, np.inf))
-    out = np.where(np.isnan(err_a), np.nan, out)
-    return float(out) if out.ndim == 0 else out
+    return errors(values, reference, axis)[1]

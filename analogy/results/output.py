@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import csv
-from html import escape
 from pathlib import Path
 from typing import Mapping
 
@@ -37,6 +36,10 @@ def write_columns(path, columns: Mapping[str, np.ndarray]) -> Path:
     return path
 
 
+def _escape(text: str) -> str:
+    return text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;").replace('"', "&quot;")
+
+
 def html_table(header: list[str], rows: list[list]) -> str:
     """A small HTML table for notebooks (``_repr_html_``).
 
@@ -48,8 +51,8 @@ def html_table(header: list[str], rows: list[list]) -> str:
         Cell values; floats are shown with four significant digits.
     """
     def cell(x):
-        return f"{x:.4g}" if isinstance(x, float) else escape(str(x))
-    head = "".join(f"<th>{escape(h)}</th>" for h in header)
+        return f"{x:.4g}" if isinstance(x, float) else _escape(str(x))
+    head = "".join(f"<th>{_escape(h)}</th>" for h in header)
     body = "".join("<tr>" + "".join(f"<td>{cell(x)}</td>" for x in r) + "</tr>" for r in rows)
     return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
 

@@ -18,7 +18,7 @@ if TYPE_CHECKING:
 __all__ = ["Trajectory", "SolverStats"]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class SolverStats:
     """What a solver spent: wall time, steps and evaluations (None where it does not count them).
 
@@ -53,7 +53,7 @@ class SolverStats:
 _EMPTY = np.empty((0, 0))
 
 
-@dataclass(eq=False)
+@dataclass(eq=False, slots=True)
 class Trajectory:
     """Result of one solver: a success with its values, or a failure with the reason.
 

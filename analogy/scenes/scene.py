@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import hashlib
-import json
 import math
 from dataclasses import dataclass, fields
 from pathlib import Path
@@ -229,12 +228,13 @@ class Scene:
 
 
 def _canonical(value):
-    if isinstance(value, float):
-        return repr(value) if math.isfinite(value) else str(value)
-    if isinstance(value, bool) or value is None or isinstance(value, str):
+    """A form whose repr is the same in every process; numbers and strings stay distinct."""
+    if isinstance(value, bool) or value is None:
         return value
-    if isinstance(value, int):          # 0 and 0.0 give the same result, so the same key
-        return repr(float(value))
+    if isinstance(value, (int, float)):     # 0 and 0.0 give the same result, so the same key
+        return f"f:{float(value)!r}"
+    if isinstance(value, str):
+        return f"s:{value}"
     if isinstance(value, tuple):
         return [_canonical(v) for v in value]
     if isinstance(value, ModelSpec):
@@ -243,7 +243,7 @@ def _canonical(value):
 
 
 def content_key(scene: Scene) -> str:
-    """A hex SHA-256 of every field that determines *scene*'s result, in canonical JSON.
+    """A hex SHA-256 of every field that determines *scene*'s result, in a canonical form.
 
     Names, descriptions and the source file are left out; numbers are written with
     ``repr`` (exact for floats), so the key is the same in every process and on
@@ -254,6 +254,7 @@ def content_key(scene: Scene) -> str:
     scene : Scene
         The scene.
     """
-    data = {f.name: _canonical(getattr(scene, f.name)) for f in fields(scene) if f.name not in _NOT_CONTENT}
-    text = json.dumps([SCENE_SCHEMA, data], sort_keys=True, separators=(",", ":"))
-    return hashlib.sha256(text.encode()).hexdigest()
+    data = sorted((f.name, _canonical(getattr(scene, f.name))) for f in fields(scene)
+                  if f.name not in _NOT_CONTENT)
+    # repr of nested lists of str, bool, None and float reprs is the same in every process.
+    return hashlib.sha256(repr([SCENE_SCHEMA, data]).encode()).hexdigest()

@@ -10,7 +10,7 @@ import numpy as np
 from ..errors import SimulationError
 from ..presets import Preset
 from ..results.trajectory import SolverStats, Trajectory
-from .registry import Solver
+from .registry import Solver, stacked_trajectories
 
 __all__ = ["solve_exact", "solve_exact_many", "phi1", "phi2", "ExactSolver", "SOLVER"]
 
@@ -148,7 +148,7 @@ def _states(systems, t, n: int, springs: bool) -> np.ndarray:
     return states
 
 
-def _solve(systems, t) -> list[np.ndarray]:
+def _solve(systems, t) -> np.ndarray | list[np.ndarray]:
     parts: dict = {}
     breaks: dict = {}
     for k, s in enumerate(systems):
@@ -157,6 +157,9 @@ def _solve(systems, t) -> list[np.ndarray]:
             b = breaks[id(s.forces), s.t_stop] = tuple(s.breakpoints().tolist())
         key = (s.dof, s.stiffness is not None, b)
         parts.setdefault(key, []).append(k)
+    if len(parts) == 1:                 # one stack: returned whole
+        (n, springs, _), = parts
+        return _states(systems, t, n, springs)
     out: list = [None] * len(systems)
     for (n, springs, _), idx in parts.items():
         for k, y in zip(idx, _states([systems[k] for k in idx], t, n, springs)):
@@ -256,12 +259,14 @@ class ExactSolver(Solver):
         start = _time.perf_counter()
         t = systems[0].time_points(grid)
         try:
-            volts = solve_exact_many(systems, t)
+            states = _solve(systems, t)
         except SimulationError:             # one by one, so that only a system it cannot take fails
             return [self._one(s, t) for s in systems]
-        each = (_time.perf_counter() - start) / len(systems)
-        return [Trajectory("exact", t, v, s.joint_rates(v), stats=SolverStats(each))
-                for s, v in zip(systems, volts)]
+        each = SolverStats((_time.perf_counter() - start) / len(systems))
+        if isinstance(states, np.ndarray):  # one stack: voltages are a view of it
+            return stacked_trajectories(self.name, systems, t, states[:, :, -systems[0].dof:], each)
+        return [Trajectory("exact", t, y[:, -s.dof:], s.joint_rates(y[:, -s.dof:]), stats=each)
+                for s, y in zip(systems, states)]
 
     def _one(self, system, t) -> Trajectory:
         start = _time.perf_counter()

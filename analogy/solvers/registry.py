@@ -30,11 +30,13 @@ import time as _time
 from importlib import import_module
 from typing import Literal, Sequence
 
+import numpy as np
+
 from ..errors import InputError, SimulationError
 from ..presets import Preset
-from ..results.trajectory import Trajectory
+from ..results.trajectory import SolverStats, Trajectory
 
-__all__ = ["Solver", "SolverName", "SOLVER_NAMES", "solver", "run", "run_many"]
+__all__ = ["Solver", "SolverName", "SOLVER_NAMES", "solver", "run", "run_many", "stacked_trajectories"]
 
 #: Registered solver names.
 SolverName = Literal["spice", "ode", "exact", "reference"]
@@ -123,6 +125,35 @@ class Solver:
 
     def __repr__(self) -> str:
         return f"<solver {self.name}: {self.label}>"
+
+
+def stacked_trajectories(name: str, systems: Sequence, time: np.ndarray, voltages: np.ndarray,
+                         stats: SolverStats) -> list[Trajectory]:
+    """Trajectories of systems solved together on one time grid, joint rates mapped per topology.
+
+    Parameters
+    ----------
+    name : str
+        The solver's name.
+    systems : sequence of NodeDynamics
+        The systems, all of one size.
+    time : ndarray, shape (N,)
+        The shared time points.
+    voltages : ndarray, shape (count, N, n)
+        Node voltages of every system.
+    stats : SolverStats
+        Shared statistics (the group's time per system).
+    """
+    groups: dict = {}
+    for k, s in enumerate(systems):
+        groups.setdefault(id(s.topology), []).append(k)
+    if len(groups) == 1:
+        rates = systems[0].joint_rates(voltages)
+    else:
+        rates = np.empty_like(voltages)
+        for idx in groups.values():
+            rates[idx] = systems[idx[0]].joint_rates(voltages[idx])
+    return [Trajectory(name, time, voltages[k], rates[k], stats=stats) for k in range(len(systems))]
 
 
 def solver(name: str) -> Solver:

@@ -21,7 +21,7 @@ from ..circuit.netlist import batch_netlist, netlist, save_vectors
 from ..errors import SimulationError, SpiceError
 from ..presets import Preset
 from ..results.trajectory import SolverStats, Trajectory
-from .registry import Solver
+from .registry import Solver, stacked_trajectories
 
 __all__ = ["NgspiceSession", "session", "run_netlist", "solve_spice", "library_path", "vector_key",
            "SpiceSolver", "SOLVER"]
@@ -269,7 +269,7 @@ class NgspiceSession:
             raise SpiceError(_describe_failure([t for s, t in ran], "transient analysis failed"))
         data = self._vectors(plot)
         if stats is not None:
-            for _, text in self._command("rusage traniter rejected"):
+            for _, text in self._command("rusage rejected"):
                 name, _, value = text.partition(" = ")
                 key = {"Transient iterations": "iterations", "Rejected timepoints": "rejected"}.get(name)
                 if key and value.strip().isdigit():
@@ -343,7 +343,7 @@ def solve_spice(system, preset="accurate", save=None) -> Trajectory:
     save : sequence of str, optional
         Element names whose currents to return in :attr:`Trajectory.currents`.
     """
-    circ = circuit(system)
+    circ = circuit(system, describe=False)
     names = [e for e in (save or []) if e not in system.nodes]
     vectors = save_vectors(circ, list(system.nodes) + names)
     text = netlist(circ, preset, save=list(system.nodes) + names, printing=False)
@@ -411,9 +411,19 @@ class SpiceSolver(Solver):
             return super().solve_many(systems, times, preset)
         elapsed = (_time.perf_counter() - start) / len(systems)
         time, prepended = _from_start(data["time"])
-        return [_trajectory(s, time, prepended,
-                            np.column_stack([data[f"x{k}_{n}"] for n in s.nodes]), {}, stats, elapsed)
-                for k, s in enumerate(systems)]
+        n = systems[0].dof
+        if any(s.dof != n for s in systems):
+            return [_trajectory(s, time, prepended, np.column_stack([data[f"x{k}_{m}"] for m in s.nodes]),
+                                {}, stats, elapsed) for k, s in enumerate(systems)]
+        nodes = systems[0].nodes
+        count = len(systems)
+        volts = np.stack([data[f"x{k}_{node}"] for k in range(count) for node in nodes])
+        volts = volts.reshape(count, n, -1).transpose(0, 2, 1)
+        if prepended:
+            v0 = np.stack([s.initial_voltages for s in systems])[:, None, :]
+            volts = np.concatenate([v0, volts], axis=1)
+        info = SolverStats(elapsed, time.size - 1, stats.get("rejected"), stats.get("iterations"))
+        return stacked_trajectories(self.name, systems, time, volts, info)
 
 
 SOLVER = SpiceSolver()
