@@ -15,7 +15,13 @@ from . import __version__
 from .circuit.netlist import netlist
 from .errors import AccuracyError, AnalogyError, InputError, SimulationError
 from .model.catalog import MAX_SERIAL, ROBOT_NAMES
-from .model.expressions import parse_expression, parse_matrix, parse_number, parse_vector, split_entries
+from .model.expressions import (
+    parse_expression,
+    parse_matrix,
+    parse_number,
+    parse_vector,
+    split_entries,
+)
 from .presets import PRESETS
 from .results.output import check_plot_path
 from .scenes.build import scene_model

@@ -18,6 +18,7 @@ from ..presets import preset as get_preset
 from ..results.comparison import compare_many
 from ..results.output import html_table
 from ..scenes.scene import Scene
+from ..solvers.registry import solver
 
 if TYPE_CHECKING:
     import pandas
@@ -276,6 +277,8 @@ def run_batch(systems: Sequence, preset="fast", *, solvers: Sequence[str] = ("sp
     payloads = [(task, p, names, reference, keep_rates) for _, task in tasks]
     own = None
     if executor is None and workers > 1 and len(tasks) > 1:
+        for name in names + ["exact"]:
+            solver(name)            # imported once here, so that forked workers start with it
         executor = own = ProcessPoolExecutor(workers, mp_context=_worker_context())
     try:
         outputs = executor.map(_group, payloads) if executor is not None else map(_group, payloads)

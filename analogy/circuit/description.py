@@ -9,6 +9,7 @@ import numpy as np
 from ..errors import InputError
 from ..waveforms import Waveform
 from .elements import ZERO_TOL, Element, element_table, laplacian_split, spice_value
+from .node_system import stacked
 
 __all__ = ["CurrentSource", "Coupling", "ChargeCapacitor", "BehaviouralCurrent", "Circuit",
            "circuit", "circuits", "current_sources", "describe_forces"]
@@ -288,11 +289,12 @@ def circuits(systems: Sequence, zero_tol: float = ZERO_TOL) -> list[Circuit]:
         kinds.setdefault((s.dof, s.stiffness is None), []).append(k)
     sources: dict = {}
     for (_, no_springs), idx in kinds.items():
-        def stack(attr):
-            return np.stack([getattr(systems[k], attr) for k in idx])
-        table, dropped = element_table(stack("mass"), stack("damping"),
-                                       None if no_springs else stack("stiffness"), zero_tol, report=True)
+        group = [systems[k] for k in idx]
+        table, dropped = element_table(stacked(group, "mass"), stacked(group, "damping"),
+                                       None if no_springs else stacked(group, "stiffness"), zero_tol,
+                                       report=True)
         columns = [(kind, a, b, spice_value(kind, c).tolist(), c.tolist()) for kind, a, b, c in table]
+        names = [f"n{i + 1}" for i in range(systems[idx[0]].dof)]
         for j, k in enumerate(idx):
             s = systems[k]
             parts = tuple([Element(kind, a, b, values[j], coef[j])
@@ -303,6 +305,5 @@ def circuits(systems: Sequence, zero_tol: float = ZERO_TOL) -> list[Circuit]:
                 src = sources[key] = current_sources(s, zero_tol)
             if dropped[j]:                  # a capacitor under the tolerance: is the rest singular?
                 _check_dropped(s.mass, list(parts), zero_tol)
-            initial = tuple((f"n{i + 1}", x) for i, x in enumerate(s.initial_voltages.tolist()))
-            out[k] = Circuit(s.dof, parts, src, initial, s.t_stop)
+            out[k] = Circuit(s.dof, parts, src, tuple(zip(names, s.initial_voltages.tolist())), s.t_stop)
     return out

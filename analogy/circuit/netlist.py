@@ -54,7 +54,7 @@ def _node(k: int, prefix: str = "") -> str:
     return "0" if k == 0 else f"{prefix}n{k}"
 
 
-def circuit_lines(c: Circuit, prefix: str = "") -> list[str]:
+def circuit_lines(c: Circuit, prefix: str = "", memo: dict | None = None) -> list[str]:
     """Device lines of circuit *c*: elements, 1:−1 couplings, behavioural parts, sources.
 
     Parameters
@@ -63,6 +63,8 @@ def circuit_lines(c: Circuit, prefix: str = "") -> list[str]:
         The description to write.
     prefix : str
         Prepended to every device and node name (independent circuits in one run).
+    memo : dict, optional
+        Source values already written, for circuits that share their sources.
     """
     lines = [f"{kind}{prefix}{a} {prefix}n{a} 0 {value!r}" if b == 0 else
              f"{kind}{prefix}{a}_{b} {prefix}n{a} {prefix}n{b} {value!r}"
@@ -81,8 +83,13 @@ def circuit_lines(c: Circuit, prefix: str = "") -> list[str]:
         elif isinstance(p, BehaviouralCurrent):
             lines.append(f"B{prefix}{p.name} {b} {a} I={{{spice_expression(p.current)}}}")
     # 'I n+ n- value' drives current out of n+ and into n-: into a, out of b.
-    lines += [f"I{prefix}{s.name[1:]} {_node(s.b, prefix)} {_node(s.a, prefix)} "
-              f"{s.waveform.spice(s.scale, c.t_stop)}" for s in c.sources]
+    values = None if memo is None else memo.get(id(c.sources))
+    if values is None:
+        values = [s.waveform.spice(s.scale, c.t_stop) for s in c.sources]
+        if memo is not None:
+            memo[id(c.sources)] = values
+    lines += [f"I{prefix}{s.name[1:]} {_node(s.b, prefix)} {_node(s.a, prefix)} {v}"
+              for s, v in zip(c.sources, values)]
     return lines
 
 
@@ -220,9 +227,10 @@ def batch_netlist(systems: Sequence, preset: str | Preset = "fast") -> str:
     if any(s.t_stop != t_stop for s in systems):
         raise InputError("systems in one ngspice run must share t_stop")
     lines, ic, save = [f"* analogy batch of {len(systems)} independent circuits"], [], []
+    memo: dict = {}         # circuits of one family share their sources, and t_stop
     for k, c in enumerate(circuits(systems)):
         prefix = f"x{k}_"
-        lines += circuit_lines(c, prefix)
+        lines += circuit_lines(c, prefix, memo)
         ic += [(prefix + n, v) for n, v in c.initial]
         save += [f"v({prefix}{n})" for n in c.node_names]
     return "\n".join(lines + analysis_lines(preset, t_stop, ic, save) + [".end"]) + "\n"

@@ -3,13 +3,19 @@
 from __future__ import annotations
 
 from functools import lru_cache
-from typing import Iterator, Mapping, Protocol, Sequence
+from typing import Iterator, Mapping, NamedTuple, Protocol, Sequence
 
 import numpy as np
 
 from ..errors import InputError
 from ..model.dynamics import DynamicsKind
-from ..model.joint import JointSpace, check_square_symmetric, check_vector, configuration_stack, stack_fault
+from ..model.joint import (
+    JointSpace,
+    check_square_symmetric,
+    check_vector,
+    configuration_stack,
+    stack_fault,
+)
 from ..waveforms import Step, Waveform, parse_waveform
 from .topology import Topology
 from .topology import topology as make_topology
@@ -34,7 +40,7 @@ class Evaluable(Protocol):
             Parameter overrides.
         """
 
-__all__ = ["Evaluable", "NodeSystem", "node_system", "node_systems", "output_times", "joint_forces",
+__all__ = ["Evaluable", "NodeSystem", "Family", "stacked", "node_system", "node_systems", "output_times", "joint_forces",
            "force_breakpoints", "waveforms"]
 
 
@@ -81,18 +87,19 @@ class NodeSystem:
                     None if joint.stiffness is None else topology.node_matrix(joint.stiffness))
         self.breakpoints()          # checks every waveform against t_stop before any solver runs
 
-    def _store(self, joint, topology, forces, r0, t_stop, info, mass, damping, stiffness):
+    def _store(self, joint, topology, forces, r0, t_stop, info, mass, damping, stiffness, family=None):
         self.joint, self.topology, self.forces = joint, topology, forces
         self.dof = joint.dof                                # number of nodes (and joints) n
         self.initial_rates, self.t_stop, self.info = r0, t_stop, info
         self.initial_voltages = topology.matrix @ r0        # node velocities v(0) = T·R(0)
         self.mass, self.damping, self.stiffness = mass, damping, stiffness
         self.current_map = topology.current_map
+        self.family = family            # (Family, row) for systems built as one stack
 
     @classmethod
     def from_checked(cls, joint: JointSpace, topology: Topology, forces: tuple, initial_rates: np.ndarray,
                      t_stop: float, info: Mapping, mass: np.ndarray, damping: np.ndarray,
-                     stiffness: np.ndarray | None) -> "NodeSystem":
+                     stiffness: np.ndarray | None, family: tuple | None = None) -> "NodeSystem":
         """A system whose parts were checked as one row of a stack (see :func:`node_systems`).
 
         Parameters
@@ -115,9 +122,11 @@ class NodeSystem:
             B'.
         stiffness : ndarray or None
             K'.
+        family : tuple of (Family, int), optional
+            The stack the system is a row of, and its row.
         """
         obj = cls.__new__(cls)
-        obj._store(joint, topology, forces, initial_rates, t_stop, info, mass, damping, stiffness)
+        obj._store(joint, topology, forces, initial_rates, t_stop, info, mass, damping, stiffness, family)
         return obj
 
     def __repr__(self) -> str:
@@ -207,6 +216,36 @@ class NodeSystem:
         for t1 in self.breakpoints():
             yield t0, float(t1)
             t0 = float(t1)
+
+
+class Family(NamedTuple):
+    """The node matrices of systems built as one stack, which the systems are rows of, in order."""
+
+    mass: np.ndarray
+    damping: np.ndarray
+    stiffness: np.ndarray | None
+    initial_voltages: np.ndarray
+    size: int
+
+
+def stacked(systems: Sequence, attr: str) -> np.ndarray:
+    """``np.stack`` of attribute *attr* of *systems*, read from their family when they are all its rows.
+
+    Parameters
+    ----------
+    systems : sequence of NodeSystem
+        Systems of one size.
+    attr : str
+        ``mass``, ``damping``, ``stiffness`` or ``initial_voltages``.
+    """
+    first = systems[0].family
+    if first is not None and first[0].size == len(systems):
+        fam = first[0]
+        if all(s.family is not None and s.family[0] is fam and s.family[1] == k for k, s in enumerate(systems)):
+            value = getattr(fam, attr)
+            if value is not None:
+                return value
+    return np.stack([getattr(s, attr) for s in systems])
 
 
 def output_times(t_stop: float, times=None, default: int = 1001) -> np.ndarray:
@@ -429,6 +468,9 @@ def node_systems(model, qs, *, parameters: Mapping[str, float] | None = None,
     shared_forces = first.forces if stack.gravity is None else waveforms(forces, first.dof)
     coords = [str(c) for c in model.coordinates]
     r0, t_end = first.initial_rates, first.t_stop
+    all_stiff = kk is not None and all(np.any(row) for row in kk)
+    v0 = np.broadcast_to(first.initial_voltages, (len(q), first.dof))
+    family = Family(node_mass, node_damping, node_stiffness if all_stiff else None, v0, len(q))
     out = []
     for k, row in enumerate(q):
         stiff = None if kk is None or not np.any(kk[k]) else kk[k]
@@ -439,5 +481,6 @@ def node_systems(model, qs, *, parameters: Mapping[str, float] | None = None,
         item_info = {**first.info, "parameters": dict(first.info["parameters"]),
                      "configuration": dict(zip(coords, row.tolist()))}
         out.append(NodeSystem.from_checked(joint, top, ws, r0.copy(), t_end, item_info, node_mass[k],
-                                           node_damping[k], None if stiff is None else node_stiffness[k]))
+                                           node_damping[k], None if stiff is None else node_stiffness[k],
+                                           (family, k)))
     return out

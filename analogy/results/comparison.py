@@ -28,7 +28,7 @@ __all__ = ["Comparison", "compare", "compare_many", "output_grid", "DEFAULT_SOLV
 DEFAULT_SOLVERS: tuple[str, ...] = ("spice", "ode", "exact")
 
 
-@dataclass(eq=False)
+@dataclass(eq=False, slots=True)
 class Comparison:
     """Joint rates from several solvers on one time grid, with errors against a reference.
 
@@ -287,13 +287,17 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
         runs[name] = trs
     out = []
     measured = _measure(systems, runs, native, ref_name, p)
+    columns = [(n, runs[n]) for n in order]
     for k, system in enumerate(systems):
-        results = {n: runs[n][k] for n in order if runs[n][k].success}
-        failures = {n: runs[n][k].message for n in order if not runs[n][k].success}
+        results, failures = {}, {}
+        for n, trs in columns:
+            tr = trs[k]
+            if tr.success:
+                results[n] = tr
+            else:
+                failures[n] = tr.message
         grid = grids[k] if grids[k] is not None else np.linspace(0.0, system.t_stop, p.steps + 1)
         ref = ref_name if ref_name in results else None
-        if ref_name is not None and ref is None and ref_name in failures:
-            failures.setdefault(ref_name, "the reference failed")
         out.append(Comparison(system, p.name, grid, results, failures, ref, measured[k] if ref else {},
                               p.bound))
     return out
@@ -304,6 +308,21 @@ def _group_indices(grids: list) -> dict[int, list[int]]:
     for k, g in enumerate(grids):
         groups.setdefault(id(g), []).append(k)
     return groups
+
+
+def _start(a: np.ndarray) -> int:
+    return a.__array_interface__["data"][0]
+
+
+def _rows(arrays: list) -> np.ndarray:
+    """The stack *arrays* are the rows of, when a solver produced them as one (see
+    :func:`~analogy.solvers.registry.stacked_trajectories`), else a new stack."""
+    base = arrays[0].base
+    if base is not None and base.ndim == 3 and base.shape[0] == len(arrays) \
+            and all(a.base is base for a in arrays) and _start(arrays[0]) == _start(base) \
+            and _start(arrays[-1]) == _start(base) + (len(arrays) - 1) * base.strides[0]:
+        return base
+    return np.stack(arrays)
 
 
 def _measure(systems, runs, native, ref_name, p) -> list[dict]:
@@ -328,7 +347,7 @@ def _measure(systems, runs, native, ref_name, p) -> list[dict]:
                 refs = {k: ref[k] for k in ok}
             ok = [k for k in ok if refs[k].success]
             if len({own[k].rates.shape for k in ok}) == 1 and ok:
-                a, r = errors(np.stack([own[k].rates for k in ok]), np.stack([refs[k].rates for k in ok]),
+                a, r = errors(_rows([own[k].rates for k in ok]), _rows([refs[k].rates for k in ok]),
                               axis=(1, 2))
                 for k, x, y in zip(ok, np.atleast_1d(a).tolist(), np.atleast_1d(r).tolist()):
                     out[k][name] = (x, y)

@@ -7,6 +7,7 @@ from typing import Sequence
 
 import numpy as np
 
+from ..circuit.node_system import stacked
 from ..errors import SimulationError
 from ..presets import Preset
 from ..results.trajectory import SolverStats, Trajectory
@@ -82,10 +83,12 @@ def _modes(systems, n: int, springs: bool):
     and M'-orthonormal modes, so the transform is perfectly conditioned. With springs
     the first-order system on y = [x, v] is decomposed by ``eig``.
     """
-    m = np.stack([s.mass for s in systems])
-    b = np.stack([s.damping for s in systems])
-    cmap = np.stack([s.current_map for s in systems])
-    v0 = np.stack([s.initial_voltages for s in systems])
+    m = stacked(systems, "mass")
+    b = stacked(systems, "damping")
+    top = systems[0].topology
+    cmap = np.broadcast_to(top.current_map, m.shape) if all(s.topology is top for s in systems) \
+        else np.stack([s.current_map for s in systems])
+    v0 = stacked(systems, "initial_voltages")
     if not springs:
         chol = np.linalg.cholesky(m)
         half = np.linalg.solve(chol, b)
@@ -95,7 +98,7 @@ def _modes(systems, n: int, springs: bool):
         z = np.einsum("sji,sjk,sk->si", vec, m, v0)
         beta = np.einsum("sji,sjk->sik", vec, cmap)
         return -mu, vec, z, beta          # real: real arithmetic unless a sine forces
-    k = np.stack([s.stiffness for s in systems])
+    k = stacked(systems, "stiffness")
     mk, mb, mc = (np.linalg.solve(m, x) for x in (k, b, cmap))
     eye, zero = np.broadcast_to(np.eye(n), mk.shape), np.zeros_like(mk)
     a = np.concatenate([np.concatenate([zero, eye], 2), np.concatenate([-mk, -mb], 2)], 1)

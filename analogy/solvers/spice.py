@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import ctypes.util
+import itertools
 import locale
 import logging
 import os
@@ -18,6 +19,7 @@ import numpy as np
 from ..circuit.currents import element_currents
 from ..circuit.description import circuit
 from ..circuit.netlist import batch_netlist, netlist, save_vectors
+from ..circuit.node_system import stacked
 from ..errors import SimulationError, SpiceError
 from ..presets import Preset
 from ..results.trajectory import SolverStats, Trajectory
@@ -187,8 +189,12 @@ class NgspiceSession:
 
     def _load(self, netlist: str) -> list[tuple[str, str]]:
         ffi = self._ffi
-        keep = [ffi.new("char[]", line.encode("ascii", "replace")) for line in netlist.splitlines() if line]
-        array = ffi.new("char *[]", keep + [ffi.NULL])
+        raw = [line.encode("ascii", "replace") for line in netlist.splitlines() if line]
+        # One buffer of NUL-terminated lines and pointers into it: one allocation, not one per line.
+        buf = ffi.new("char[]", b"\0".join(raw) + b"\0")
+        array = ffi.new("char *[]", len(raw) + 1)       # zero-filled: the last pointer is NULL
+        for i, off in zip(range(len(raw)), itertools.accumulate((len(r) + 1 for r in raw), initial=0)):
+            array[i] = buf + off
         self._ng.lines = []
         rc = self._lib.ngSpice_Circ(array)
         lines = self._ng.lines
@@ -420,7 +426,7 @@ class SpiceSolver(Solver):
         volts = np.stack([data[f"x{k}_{node}"] for k in range(count) for node in nodes])
         volts = volts.reshape(count, n, -1).transpose(0, 2, 1)
         if prepended:
-            v0 = np.stack([s.initial_voltages for s in systems])[:, None, :]
+            v0 = stacked(systems, "initial_voltages")[:, None, :]
             volts = np.concatenate([v0, volts], axis=1)
         info = SolverStats(elapsed, time.size - 1, stats.get("rejected"), stats.get("iterations"))
         return stacked_trajectories(self.name, systems, time, volts, info)
