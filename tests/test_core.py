@@ -276,3 +276,17 @@ def test_short_reprs_for_the_repl():
     e = analogy.elements(s)[2]
     assert repr(e) == "<C1_2 -0.764269 F: MP model, n1-n2>"
     assert c._repr_html_().startswith("<table>") and "ode" in c._repr_html_()
+
+
+def test_results_are_tables_and_pictures_for_notebooks():
+    """DataFrames with one column per quantity and solver; diagrams show as SVG in notebooks."""
+    s = scene("default").replace(t_stop=2.0).system()
+    c = compare(s, "fast", ["ode", "exact"], step=0.5)
+    frame = c.to_frame()
+    assert list(frame.columns) == ["r1_ode", "r2_ode", "r1_exact", "r2_exact"]
+    assert frame.index.tolist() == [0.0, 0.5, 1.0, 1.5, 2.0]
+    np.testing.assert_array_equal(frame["r2_exact"].to_numpy(), c.results["exact"].rates[:, 1])
+    assert list(c.results["ode"].to_frame().columns) == ["r1", "r2", "v_n1", "v_n2"]
+    from analogy.circuit.diagram import draw_circuit
+    svg = draw_circuit(s)._repr_svg_()
+    assert "<svg" in svg and "C1_2" in svg
