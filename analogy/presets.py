@@ -3,10 +3,14 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Literal
 
 from .errors import InputError
 
-__all__ = ["Preset", "PRESETS", "preset"]
+__all__ = ["Preset", "PRESETS", "PresetName", "preset"]
+
+#: Names of the built-in presets.
+PresetName = Literal["fast", "accurate"]
 
 
 @dataclass(frozen=True)

@@ -63,3 +63,15 @@ def test_any_executor_runs_the_groups_with_the_same_results():
         pooled = run_batch(items, "fast", group_size=4, executor=ex)
     np.testing.assert_array_equal(pooled.errors, plain.errors)
     assert not pooled.failures and np.all(pooled.errors <= 1e-3)
+
+
+@pytest.mark.ngspice
+def test_a_batch_result_is_a_short_repr_a_table_and_a_frame():
+    items = [scene("default").replace(q=(0.0, q), t_stop=2.0) for q in np.linspace(-1, 1, 6)]
+    res = run_batch(items, "fast", solvers=("spice", "ode"), workers=1)
+    text = repr(res)
+    assert text.startswith("<BatchResult 6 scenes") and "\n" not in text and len(text) < 200
+    frame = res.to_frame()
+    assert list(frame.columns) == ["error_spice", "error_ode", "failure"] and len(frame) == 6
+    assert (frame["error_spice"] <= 1e-3).all() and (frame["error_ode"] <= 1e-3).all()
+    assert res._repr_html_().startswith("<table>")

@@ -235,6 +235,13 @@ class Model:
                 raise InputError(f"model {self.name!r} has no parameter {key!r} "
                                  f"(it has: {', '.join(values) or 'none'})")
             values[key] = float(value)
+        cache = self.__dict__.setdefault("_mechanical", {})
+        key = tuple(sorted(values.items()))
+        if key not in cache:        # derived and compiled once per parameter set
+            cache[key] = self._mechanical_functions(values)
+        return cache[key]
+
+    def _mechanical_functions(self, values: dict) -> MechanicalFunctions:
         subs = {sym: values[name] for name, sym in self.symbols.items()}
         n = self.dof
         q = list(self.coordinates)

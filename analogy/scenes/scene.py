@@ -6,21 +6,19 @@ import hashlib
 import math
 from dataclasses import dataclass, fields
 from pathlib import Path
-from typing import Literal, Mapping
+from typing import Mapping
 
 from ..errors import InputError
 from ..model.dynamics import DYNAMICS, DynamicsKind
-from ..presets import PRESETS
+from ..presets import PRESETS, PresetName
+from ..solvers.registry import SolverName
 from .build import scene_model, scene_system, scene_systems, symbolic_model
 from .spec import ModelSpec, freeze
 
-__all__ = ["Scene", "OUTPUTS", "PresetName", "SCENE_SCHEMA", "content_key"]
+__all__ = ["Scene", "OUTPUTS", "SCENE_SCHEMA", "content_key"]
 
 #: The quantities a scene may ask for.
 OUTPUTS = ("joint_rates", "node_voltages", "element_currents")
-
-#: Preset names (see :data:`analogy.presets.PRESETS`).
-PresetName = Literal["fast", "accurate"]
 
 #: Version of what a content key covers; bumped when the meaning of a field changes.
 SCENE_SCHEMA = "analogy-scene-1"
@@ -94,8 +92,8 @@ class Scene:
     netlist_file: str | None = None
     csv_file: str | None = None
     plot_file: str | None = None
-    solvers: tuple = ("spice", "ode", "exact")
-    preset: str = "accurate"
+    solvers: tuple[SolverName, ...] = ("spice", "ode", "exact")
+    preset: PresetName = "accurate"
     errors: bool = True
     step: float | None = None
     description: str = ""
