@@ -79,6 +79,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--save", metavar="NAMES", help="nodes or elements to save, e.g. 'n1, C1_2' (default: all nodes)")
     p.add_argument("--realizable", action="store_true",
                    help="no negative values: negative elements behind 1:-1 couplings")
+    p.add_argument("--dynamics", default="linear", choices=["linear", "nonlinear"],
+                   help="the circuit at q (linear), or the robot's full nonlinear circuit: "
+                        "charge-defined capacitors, behavioural forces and integrators")
     p = sub.add_parser("compare", help="run SPICE, ODE and exact solvers and compare them")
     _scene_options(p)
     p.add_argument("--solvers", default="spice,ode,exact", help="comma-separated: spice, ode, exact")
@@ -227,6 +230,8 @@ def _check_writable(path):
 
 def _cmd_netlist(args) -> int:
     sc = scene_from_args(args)
+    if args.realizable and sc.dynamics != "linear":
+        raise InputError("--realizable applies to the linear circuit, not to --dynamics nonlinear")
     _check_writable(args.output)
     save = None if args.save is None else [s.strip() for s in args.save.split(",") if s.strip()]
     text = netlist(sc.system(), args.preset, save=save, realizable=args.realizable, title=_title(sc))

@@ -1,202 +1,28 @@
-"""The circuit of a node system as typed elements, read by the netlist writer, the diagrams and the benchmarks."""
+"""The circuit of a node system as typed parts, read by the netlist writer, the diagrams and the benchmarks."""
 
 from __future__ import annotations
 
-from typing import NamedTuple, Sequence
+from typing import Sequence
 
 import numpy as np
 
 from ..errors import InputError
-from ..waveforms import Waveform
 from .elements import ZERO_TOL, Element, element_table, laplacian_split, spice_value
 from .node_system import stacked
+from .parts import (
+    BehaviouralCurrent,
+    ChargeCapacitor,
+    Circuit,
+    Coupling,
+    CurrentSource,
+    Integrator,
+    comments,
+    current_sources,
+    describe_forces,
+)
 
-__all__ = ["CurrentSource", "Coupling", "ChargeCapacitor", "BehaviouralCurrent", "Circuit",
-           "circuit", "circuits", "current_sources", "describe_forces"]
-
-
-class CurrentSource(NamedTuple):
-    """A joint force as a current source: *scale*·f(t) flows into node *a* and out of node *b*."""
-
-    name: str
-    a: int
-    b: int
-    waveform: Waveform
-    scale: float
-    joint: int
-
-    def __repr__(self) -> str:
-        scale = "" if self.scale == 1.0 else f"{self.scale:g}*"
-        where = f"into n{self.a}" + (f", out of n{self.b}" if self.b else "")
-        return f"<{self.name} = {scale}{self.waveform.label()} A: force on joint {self.joint}, {where}>"
-
-
-class Coupling(NamedTuple):
-    """A negative element built from its positive magnitude behind an ideal 1:−1 coupling.
-
-    A VCVS makes v_x = v_b − v_a, a zero-volt source senses the current of the positive
-    element on x, and a CCCS drives that current from a to b: the terminals see the
-    negative element (mechanically, a reversing pulley).
-    """
-
-    element: Element
-
-    @property
-    def name(self) -> str:
-        """The name of the element it realizes."""
-        return self.element.name
-
-    @property
-    def auxiliary_nodes(self) -> tuple[str, str]:
-        """The coupling's own nodes: the VCVS output x and the sensed side y."""
-        low = self.element.name.lower()
-        return f"{low}_x", f"{low}_y"
-
-
-class ChargeCapacitor(NamedTuple):
-    """A behavioural capacitor between *a* and *b* whose charge is the SPICE expression *charge*."""
-
-    name: str
-    a: int
-    b: int
-    charge: str
-
-
-class BehaviouralCurrent(NamedTuple):
-    """A behavioural source driving the SPICE expression *current* into node *a*, out of node *b*."""
-
-    name: str
-    a: int
-    b: int
-    current: str
-
-
-class Circuit(NamedTuple):
-    """Every part of a node system's circuit, typed: the one description all writers read.
-
-    Attributes
-    ----------
-    nodes : int
-        Node count n; nodes are n1 … nN, and 0 is ground.
-    elements : tuple of Element
-        Elements written as they are (negative values included).
-    couplings : tuple of Coupling
-        Negative elements realized behind 1:−1 couplings (realizable circuits only).
-    sources : tuple of CurrentSource
-        The joint forces.
-    behavioural : tuple
-        Charge-defined capacitors and behavioural currents (nonlinear circuits).
-    initial : tuple of (str, float)
-        Node voltages at t = 0, auxiliary nodes included.
-    t_stop : float
-        End of the transient.
-    comments : tuple of str
-        What was built: robot, parameters, configuration, topology, forces.
-    """
-
-    nodes: int
-    elements: tuple
-    sources: tuple
-    initial: tuple
-    t_stop: float
-    couplings: tuple = ()
-    behavioural: tuple = ()
-    comments: tuple = ()
-
-    def __repr__(self) -> str:
-        kinds = ", ".join(f"{sum(e.kind == k for e in self.parts)} {k}" for k in "CRL"
-                          if any(e.kind == k for e in self.parts))
-        extra = f", {len(self.couplings)} couplings" if self.couplings else ""
-        return f"Circuit({self.nodes} nodes: {kinds}, {len(self.sources)} sources{extra})"
-
-    @property
-    def parts(self) -> tuple:
-        """Every element, those behind couplings included, in netlist order."""
-        return self.elements + tuple(c.element for c in self.couplings)
-
-    @property
-    def node_names(self) -> list[str]:
-        """n1 … nN."""
-        return [f"n{k + 1}" for k in range(self.nodes)]
-
-    def element(self, name: str) -> Element | None:
-        """The element called *name* (any case), or None.
-
-        Parameters
-        ----------
-        name : str
-            An element name such as ``C1_2``.
-        """
-        low = name.lower()
-        return next((e for e in self.parts if e.name.lower() == low), None)
-
-
-def describe_forces(forces: Sequence) -> str:
-    """``F1 = step(1), F2 = sine(0, 0.5, 2) + step(-0.1)``: the joint forces as written.
-
-    Parameters
-    ----------
-    forces : sequence of tuple of Waveform
-        Per joint, the waveforms whose sum is its force.
-    """
-    terms = []
-    for j, ws in enumerate(forces):
-        text = " + ".join(w.label() for w in ws) if ws else "0"
-        terms.append(f"F{j + 1} = {text}")
-    return ", ".join(terms) or "none"
-
-
-def _comments(system) -> tuple[str, ...]:
-    info = system.info
-    params = ", ".join(f"{k}={v!r}" for k, v in dict(info.get("parameters", {})).items())
-    config = ", ".join(f"{k}={v!r}" for k, v in dict(info.get("configuration", {})).items())
-    top = system.topology
-    matrix = "[" + ", ".join("[" + ", ".join(f"{x:.6g}" for x in row) + "]" for row in top.matrix) + "]"
-    r0 = system.initial_rates
-    return (f"robot: {info.get('robot', 'custom')}",
-            f"parameters: {params or 'none'}",
-            f"configuration: {config or 'none'}",
-            f"topology: {top.describe()}, T = {matrix}",
-            f"forces: {describe_forces(system.forces)}",
-            "initial rates: " + (", ".join(f"{x:g}" for x in r0) if np.any(r0) else "zero")
-            + f"; t_stop = {system.t_stop:g} s")
-
-
-def current_sources(system, zero_tol: float = ZERO_TOL) -> tuple[CurrentSource, ...]:
-    """The joint forces as sources of node currents i = T⁻ᵀ·F.
-
-    A joint whose column of T⁻ᵀ is +1 at one node and −1 at another (or nothing else)
-    is one source between the two, as an actuator acting across two links; otherwise
-    it is one grounded source per node, scaled by the column entry.
-
-    Parameters
-    ----------
-    system : NodeSystem
-        Its forces and current map T⁻ᵀ.
-    zero_tol : float
-        Relative tolerance under which a column entry counts as zero.
-    """
-    c = system.current_map
-    out = []
-    for j, waves in enumerate(system.forces):
-        if not waves:
-            continue
-        col = c[:, j].tolist()
-        floor = zero_tol * max(abs(x) for x in col)
-        col = [0.0 if abs(x) <= floor else x for x in col]
-        plus = [k for k, x in enumerate(col) if abs(x - 1.0) <= zero_tol]
-        minus = [k for k, x in enumerate(col) if abs(x + 1.0) <= zero_tol]
-        nz = [k for k, x in enumerate(col) if x != 0.0]
-        two_terminal = len(plus) == 1 and len(minus) <= 1 and len(nz) == len(plus) + len(minus)
-        for w_index, wave in enumerate(waves):
-            suffix = "" if len(waves) == 1 else f"_{w_index + 1}"
-            if two_terminal:
-                b = minus[0] + 1 if minus else 0
-                out.append(CurrentSource(f"I{j + 1}{suffix}", plus[0] + 1, b, wave, 1.0, j + 1))
-            else:
-                out += [CurrentSource(f"I{j + 1}{suffix}_n{k + 1}", k + 1, 0, wave, float(col[k]), j + 1)
-                        for k in nz]
-    return tuple(out)
+__all__ = ["CurrentSource", "Coupling", "ChargeCapacitor", "BehaviouralCurrent", "Integrator", "Circuit",
+           "circuit", "circuits", "current_sources", "describe_forces", "comments"]
 
 
 def _check_dropped(mass: np.ndarray, kept: list[Element], zero_tol: float):
@@ -250,7 +76,10 @@ def circuit(system, zero_tol: float = ZERO_TOL, realizable: bool = False, descri
         If leaving out the capacitors under the tolerance makes the circuit singular.
     """
     if getattr(system, "kind", "linear") != "linear":
-        raise InputError("only a linear node system has a circuit of constant elements")
+        from .nonlinear_circuit import (
+            nonlinear_circuit,  # sympy: only for nonlinear circuits
+        )
+        return nonlinear_circuit(system, zero_tol, describe)
     k = None if system.stiffness is None else system.stiffness[None]
     table, dropped = element_table(system.mass[None], system.damping[None], k, zero_tol, report=True)
     parts = [Element(kind, a, b, float(spice_value(kind, c[0])), float(c[0]))
@@ -268,7 +97,7 @@ def circuit(system, zero_tol: float = ZERO_TOL, realizable: bool = False, descri
             across = (v0[e.b - 1] if e.b else 0.0) - v0[e.a - 1]
             initial += [(node, float(across)) for node in c.auxiliary_nodes]
     return Circuit(system.dof, tuple(parts), current_sources(system, zero_tol), tuple(initial),
-                   system.t_stop, couplings, (), _comments(system) if describe else ())
+                   system.t_stop, couplings, (), comments(system) if describe else ())
 
 
 def circuits(systems: Sequence, zero_tol: float = ZERO_TOL) -> list[Circuit]:

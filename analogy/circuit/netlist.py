@@ -8,7 +8,13 @@ from typing import Iterable, Sequence
 from ..errors import InputError
 from ..presets import Preset
 from ..presets import preset as get_preset
-from .description import BehaviouralCurrent, ChargeCapacitor, Circuit, circuits
+from .description import (
+    BehaviouralCurrent,
+    ChargeCapacitor,
+    Circuit,
+    Integrator,
+    circuits,
+)
 from .description import circuit as describe
 from .elements import ZERO_TOL
 
@@ -46,6 +52,14 @@ def spice_expression(text: str) -> str:
     return text
 
 
+_NODE_REFERENCE = re.compile(r"\bv\(([nx]\d+)\)")
+
+
+def _prefixed(expression: str, prefix: str) -> str:
+    """*expression* with its node references v(n1), v(x1) given the sub-circuit's prefix."""
+    return _NODE_REFERENCE.sub(lambda m: f"v({prefix}{m.group(1)})", expression) if prefix else expression
+
+
 def _num(x: float) -> str:
     return repr(float(x))
 
@@ -77,11 +91,15 @@ def circuit_lines(c: Circuit, prefix: str = "", memo: dict | None = None) -> lis
         lines += [f"E{name} {x} 0 {b} {a} 1", f"V{name} {x} {y} DC 0",
                   f"{name} {y} 0 {_num(-e.value)}", f"F{name} {a} {b} V{name} 1"]
     for p in c.behavioural:
+        if isinstance(p, Integrator):           # x_k = ∫ v(n_k): 1 F charged by a current v(n_k)
+            x, n = f"{prefix}{p.name}", f"{prefix}n{p.node}"
+            lines += [f"C{x} {x} 0 1", f"B{x} 0 {x} I={{v({n})}}"]
+            continue
         a, b = _node(p.a, prefix), _node(p.b, prefix)
         if isinstance(p, ChargeCapacitor):
-            lines.append(f"C{prefix}{p.name} {a} {b} Q={{{spice_expression(p.charge)}}}")
+            lines.append(f"C{prefix}{p.name} {a} {b} Q={{{_prefixed(spice_expression(p.charge), prefix)}}}")
         elif isinstance(p, BehaviouralCurrent):
-            lines.append(f"B{prefix}{p.name} {b} {a} I={{{spice_expression(p.current)}}}")
+            lines.append(f"B{prefix}{p.name} {b} {a} I={{{_prefixed(spice_expression(p.current), prefix)}}}")
     # 'I n+ n- value' drives current out of n+ and into n-: into a, out of b.
     values = None if memo is None else memo.get(id(c.sources))
     if values is None:
@@ -94,7 +112,8 @@ def circuit_lines(c: Circuit, prefix: str = "", memo: dict | None = None) -> lis
 
 
 def analysis_lines(preset: str | Preset, t_stop: float, ic: Iterable[tuple[str, float]],
-                   save: Iterable[str], options: dict | None = None, printing: bool = False) -> list[str]:
+                   save: Iterable[str], options: dict | None = None, printing: bool = False,
+                   behavioural: bool = False) -> list[str]:
     """``.ic``, ``.options``, ``.tran`` (uic), ``.save`` and, with *printing*, ``.print``.
 
     Parameters
@@ -111,14 +130,18 @@ def analysis_lines(preset: str | Preset, t_stop: float, ic: Iterable[tuple[str, 
         Overrides of the preset's options.
     printing : bool
         Add ``.print tran`` of the saved vectors, so that ``ngspice -b`` prints them.
+    behavioural : bool
+        The circuit has behavioural parts: the preset's behavioural options and step cap.
     """
     p = get_preset(preset)
-    opts = dict(p.spice_options, **(options or {}))
+    base = p.behavioural_options if behavioural else p.spice_options
+    opts = dict(base, **(options or {}))
+    cap = p.behavioural_max_steps if behavioural else p.max_steps
     save = list(save)
     lines = [
         ".ic " + " ".join(f"v({n})={_num(v)}" for n, v in ic),
         ".options " + " ".join(f"{k}={v}" for k, v in opts.items()),
-        f".tran {_num(t_stop / p.steps)} {_num(t_stop)} 0 {_num(t_stop / p.max_steps)} uic",
+        f".tran {_num(t_stop / p.steps)} {_num(t_stop)} 0 {_num(t_stop / cap)} uic",
         ".save " + " ".join(save),
     ]
     if printing:
@@ -143,8 +166,8 @@ def save_vectors(c: Circuit, save: Iterable[str] | None = None) -> list[str]:
     save : iterable of str, optional
         Names; default every node.
     """
-    nodes = c.node_names
-    wanted = list(nodes) if save is None else list(save)
+    nodes = c.node_names + c.state_nodes
+    wanted = list(c.node_names) if save is None else list(save)
     if not wanted:
         raise InputError("nothing to save: name at least one node")
     coupled = {cp.name.lower() for cp in c.couplings}
@@ -204,7 +227,8 @@ def netlist(system, preset: str | Preset = "accurate", save: Iterable[str] | Non
     # A capacitor driven by an ideal source makes the trapezoidal rule ring from step to
     # step, and tight step control then collapses; gear damps it.
     options = {"method": "gear"} if c.couplings else None
-    tail = analysis_lines(preset, c.t_stop, c.initial, vectors, options, printing) + [".end"]
+    tail = analysis_lines(preset, c.t_stop, c.initial, vectors, options, printing,
+                          behavioural=bool(c.behavioural)) + [".end"]
     return "\n".join(_header(c, title, bool(c.couplings)) + body + tail) + "\n"
 
 

@@ -40,14 +40,21 @@ class NonlinearNodeSystem:
         End of the simulated interval [s].
     info : mapping, optional
         Robot name, parameters and configuration, for reports.
+    model : Model, optional
+        The symbolic model the functions were compiled from (the nonlinear circuit
+        writes its expressions).
+    parameters : mapping, optional
+        The parameter values the functions were compiled with.
     """
 
     kind: DynamicsKind = "nonlinear"
 
     def __init__(self, functions: MechanicalFunctions, q0, topology: Topology, forces: tuple,
-                 initial_rates, t_stop: float, info: Mapping | None = None):
+                 initial_rates, t_stop: float, info: Mapping | None = None, model=None,
+                 parameters: Mapping[str, float] | None = None):
         n = topology.dof
-        self.functions = functions
+        self.functions, self.model = functions, model
+        self.parameters = dict(parameters or {})
         self.q0 = check_vector("configuration q", q0, n)
         self.topology, self.forces, self.t_stop = topology, tuple(forces), float(t_stop)
         if not (np.isfinite(self.t_stop) and 1e-9 <= self.t_stop <= 1e9):
@@ -60,6 +67,7 @@ class NonlinearNodeSystem:
         self.stiffness = None if functions.stiffness is None or not np.any(functions.stiffness) \
             else topology.node_matrix(functions.stiffness)
         self.current_map = topology.current_map
+        self.initial_voltages = topology.matrix @ self.initial_rates       # v(0) = T·R(0)
         check_square_symmetric("node mass matrix M'(0)", self.node_mass(np.zeros(n)), definite=True)
         force_breakpoints(self.forces, self.t_stop)
 
@@ -76,11 +84,6 @@ class NonlinearNodeSystem:
     def nodes(self) -> list[str]:
         """SPICE node names, n1 … nN."""
         return [f"n{k + 1}" for k in range(self.dof)]
-
-    @property
-    def initial_voltages(self) -> np.ndarray:
-        """Node velocities v(0) = T·R(0)."""
-        return self.topology.matrix @ self.initial_rates
 
     def configuration(self, x: np.ndarray) -> np.ndarray:
         """Joint coordinates q = q0 + T⁻¹·x at node positions *x*.
@@ -119,6 +122,43 @@ class NonlinearNodeSystem:
         if self.functions.gravity is not None:
             load = load + self.functions.gravity(q)
         return self.current_map @ load
+
+    def node_gravity(self, x: np.ndarray) -> np.ndarray:
+        """T⁻ᵀ·G(q): gravity as node currents (zero without gravity).
+
+        Parameters
+        ----------
+        x : ndarray
+            Node positions.
+        """
+        if self.functions.gravity is None:
+            return np.zeros(self.dof)
+        return self.current_map @ self.functions.gravity(self.configuration(x))
+
+    def energy_residual(self, trajectory) -> tuple[np.ndarray, float]:
+        """T + U_K − T(0) − W along *trajectory*, and the energy scale it is relative to.
+
+        T = ½·vᵀM'(x)v, U_K = ½·xᵀK'x, and W is the work of the drive, damping and
+        gravity: the trajectory's own integral where it has one, else the trapezoidal
+        rule on its time points. The scale is the largest of T + U_K and |W| over time.
+
+        Parameters
+        ----------
+        trajectory : Trajectory
+            A solution with positions.
+        """
+        x, v, t = trajectory.positions, trajectory.voltages, trajectory.time
+        kinetic = 0.5 * np.einsum("ti,tij,tj->t", v, np.stack([self.node_mass(p) for p in x]), v)
+        spring = np.zeros_like(kinetic) if self.stiffness is None else \
+            0.5 * np.einsum("ti,ij,tj->t", x, self.stiffness, x)
+        work = trajectory.work
+        if work is None:
+            drive = self.node_currents(t)
+            power = np.einsum("ti,ti->t", v, drive - v @ self.damping.T - np.stack([self.node_gravity(p) for p in x]))
+            work = np.concatenate([[0.0], np.cumsum(0.5 * (power[1:] + power[:-1]) * np.diff(t))])
+        energy = kinetic + spring
+        residual = energy - energy[0] - work
+        return residual, float(max(np.max(np.abs(energy)), np.max(np.abs(work)), np.finfo(float).tiny))
 
     def node_currents(self, t) -> np.ndarray:
         """Node currents i(t) = T⁻ᵀ·F(t), shape (len(t), n).
@@ -184,6 +224,10 @@ def nonlinear_system(model, q: Sequence[float], *, parameters: Mapping[str, floa
     info : mapping, optional
         Extra report fields.
     """
+    if hasattr(model, "passive"):
+        raise InputError(f"{model.name} is a closed chain, whose M(q) has no closed form (its passive "
+                         "joints are solved numerically): its nonlinear dynamics are not built; "
+                         "use the linear circuit at q")
     if not hasattr(model, "mechanical_functions"):
         raise InputError(f"model {getattr(model, 'name', model)!r} has no symbolic M(q): "
                          "nonlinear dynamics need a symbolic model")
@@ -195,4 +239,5 @@ def nonlinear_system(model, q: Sequence[float], *, parameters: Mapping[str, floa
             "configuration": dict(zip((str(c) for c in model.coordinates), list(q)))}
     base.update(info or {})
     return NonlinearNodeSystem(functions, q, top, waveforms(forces, n),
-                               np.zeros(n) if initial_rates is None else initial_rates, t_stop, base)
+                               np.zeros(n) if initial_rates is None else initial_rates, t_stop, base,
+                               model, values)

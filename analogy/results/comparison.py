@@ -49,6 +49,9 @@ class Comparison:
         The solver the errors are measured against (None: no reference applied).
     bound : float
         The preset's promised worst error / peak (:attr:`Preset.bound`).
+    energy : dict of str to float
+        Nonlinear systems: per solver, max |T + U − T(0) − W| over the energy scale
+        (:meth:`~analogy.circuit.nonlinear.NonlinearNodeSystem.energy_residual`).
     measured : dict of str to (float, float)
         Per solver: max |R − R_ref| and that over the peak |R_ref|, measured on the
         solver's own time points.
@@ -62,6 +65,7 @@ class Comparison:
     reference: str | None = "exact"
     measured: dict = field(default_factory=dict)
     bound: float = math.nan
+    energy: dict = field(default_factory=dict)
 
     @property
     def peak(self) -> float:
@@ -99,6 +103,8 @@ class Comparison:
             e, r = self.errors()[name]
             st = tr.stats
             note = "reference" if name == self.reference else tr.message
+            if name in self.energy:
+                note = f"energy residual {self.energy[name]:.2e}" + (f", {note}" if note else "")
             rows.append([name, tr.run_time * 1e3, e, r, "" if st.steps is None else st.steps, note])
         return rows
 
@@ -204,7 +210,10 @@ def _reference(system, names: list[str], reference: str | None) -> str | None:
         if reference is not None:
             solver(reference)
         return reference
-    return "exact" if solver("exact").supports(system) is None else None
+    for name in ("exact", "reference"):     # closed form where it applies, else the tight reference
+        if solver(name).supports(system) is None:
+            return name
+    return None
 
 
 def _by_grid(trajectories: Sequence[Trajectory | None]) -> dict[int, list[int]]:
@@ -260,7 +269,8 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
     runs: dict[str, list[Trajectory]] = {}
     native: dict[str, list[Trajectory]] = {}
     grids: list = [base] * count
-    want_x = positions or bool(save)
+    nonlinear = getattr(systems[0], "kind", "linear") != "linear"
+    want_x = positions or bool(save) or nonlinear       # the energy balance needs positions
     for name in order:
         s = solver(name)
         if s.own_grid:
@@ -298,8 +308,14 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
                 failures[n] = tr.message
         grid = grids[k] if grids[k] is not None else np.linspace(0.0, system.t_stop, p.steps + 1)
         ref = ref_name if ref_name in results else None
+        energy = {}
+        if nonlinear:
+            for n, tr in results.items():
+                if tr.positions is not None:
+                    residual, scale = system.energy_residual(tr)
+                    energy[n] = float(np.max(np.abs(residual))) / scale
         out.append(Comparison(system, p.name, grid, results, failures, ref, measured[k] if ref else {},
-                              p.bound))
+                              p.bound, energy))
     return out
 
 

@@ -77,6 +77,9 @@ class Trajectory:
         The reason of a failure, or a note.
     stats : SolverStats
         Wall time, steps and evaluations.
+    work : ndarray, shape (N,), or None
+        ∫(F − G)·q̇ − q̇ᵀBq̇ dt, where the solver integrates it (nonlinear systems):
+        the work of every force not in the kinetic and spring energies.
     """
 
     solver: str
@@ -88,6 +91,7 @@ class Trajectory:
     success: bool = True
     message: str = ""
     stats: SolverStats = field(default_factory=SolverStats)
+    work: np.ndarray | None = None
 
     @classmethod
     def failed(cls, solver: str, message: str, wall_time: float = math.nan) -> "Trajectory":

@@ -30,11 +30,12 @@ TOML_KEYS = {"robot": "[model] robot", "mass": "[model] mass", "damping": "[mode
              "stiffness": "[model] stiffness", "gravity": "[model] gravity", "q": "[configuration] q",
              "topology": "[configuration] topology", "forces": "[inputs] forces",
              "initial_rates": "[inputs] initial_rates", "t_stop": "[inputs] t_stop",
-             "parameters": "[parameters]", "model": "[model]", "inputs": "[inputs]"}
+             "parameters": "[parameters]", "model": "[model]", "inputs": "[inputs]",
+             "dynamics": "dynamics"}
 CLI_KEYS = {"robot": "--robot", "mass": "--mass", "damping": "--damping", "stiffness": "--stiffness",
             "gravity": "--gravity", "q": "--q", "topology": "--topology", "forces": "--force",
             "initial_rates": "--r0", "t_stop": "--t-stop", "parameters": "--param", "model": "--mass",
-            "inputs": "--force"}
+            "inputs": "--force", "dynamics": "--dynamics"}
 _QNAME = re.compile(r"^q[0-9]+$")
 _MODELS: dict = {}
 
@@ -329,7 +330,7 @@ def scene_system(scene: Scene, model=None) -> object:
         top = _topology(scene)
         params = scene.parameter_values if scene.model.robot is not None else None
         if scene.dynamics == "nonlinear":
-            with keyed(keys["model"]):
+            with keyed(keys["dynamics"]):
                 return nonlinear_system(m, q or [0.0] * n, parameters=params, topology=top,
                                         t_stop=scene.t_stop, info=info, **inputs)
         try:

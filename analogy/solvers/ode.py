@@ -61,17 +61,23 @@ def _linear(system):
 
 
 def _nonlinear(system):
+    """State [x, v, W]: W = ∫(iᵀv − vᵀB'v − G'ᵀv) dt, the work of the forces that are not
+    in the kinetic and spring energies, so that the energy balance can be checked."""
     n = system.dof
     forces, cmap, b = system.forces, system.current_map, system.damping
     k = system.stiffness
+    gravity = system.node_gravity
 
     def rhs(tt, yy):
-        x, v = yy[:n], yy[n:]
-        i = cmap @ _joint_force(forces, tt) - b @ v - system.node_load(x, v, tt)
+        x, v = yy[:n], yy[n:2 * n]
+        drive = cmap @ _joint_force(forces, tt)
+        loss = b @ v
+        i = drive - loss - system.node_load(x, v, tt)
         if k is not None:
             i = i - k @ x
-        return np.concatenate([v, np.linalg.solve(system.node_mass(x), i)])
-    y0 = np.concatenate([np.zeros(n), system.initial_voltages])
+        power = v @ (drive - loss - gravity(x))
+        return np.concatenate([v, np.linalg.solve(system.node_mass(x), i), [power]])
+    y0 = np.concatenate([np.zeros(n), system.initial_voltages, [0.0]])
     gain = float(np.max(np.abs(np.linalg.solve(system.node_mass(np.zeros(n)), cmap))))
     return rhs, None, y0, True, gain
 
@@ -92,7 +98,8 @@ def solve_ode(system, times=None, method: str = "DOP853", rtol: float = 1e-10,
         Tolerances; *atol* defaults to ``rtol * 1e-3`` times the response scale.
     positions : bool
         Also return the node positions x = ∫v (:attr:`Trajectory.positions`) when the
-        system has springs (they are then part of the integrated state).
+        system has springs or is nonlinear (they are then part of the integrated state).
+        A nonlinear system's trajectory also carries :attr:`Trajectory.work`.
     """
     if method not in ODE_METHODS:
         raise InputError(f"unknown ODE method {method!r}: use {', '.join(ODE_METHODS)}")
@@ -112,14 +119,18 @@ def solve_ode(system, times=None, method: str = "DOP853", rtol: float = 1e-10,
     cls = getattr(integrate, method)
     out = np.empty((t.size, n))
     pos = np.empty((t.size, n)) if positions and has_x else None
+    vs = slice(n, 2 * n) if not linear else slice(y.size - n, y.size)     # where v sits in the state
+    work = np.empty(t.size) if not linear else None
     steps = nfev = njev = 0
     for t0, t1 in system.segments():
         last = t1 >= system.t_stop
         idx = np.flatnonzero((t >= t0) & ((t <= t1) if last else (t < t1)))
         at_start = idx[t[idx] == t0]
-        out[at_start] = y[-n:]
+        out[at_start] = y[vs]
         if pos is not None:
             pos[at_start] = y[:n]
+        if work is not None:
+            work[at_start] = y[-1]
         idx = idx[t[idx] > t0]
         k = 0
         if t1 > t0:
@@ -134,15 +145,17 @@ def solve_ode(system, times=None, method: str = "DOP853", rtol: float = 1e-10,
                     stop += 1
                 if stop > k:
                     values = sol.dense_output()(t[idx[k:stop]])
-                    out[idx[k:stop]] = values[-n:].T
+                    out[idx[k:stop]] = values[vs].T
                     if pos is not None:
                         pos[idx[k:stop]] = values[:n].T
+                    if work is not None:
+                        work[idx[k:stop]] = values[-1]
                     k = stop
             nfev, njev = nfev + sol.nfev, njev + sol.njev
             y = sol.y
     elapsed = _time.perf_counter() - start
     stats = SolverStats(elapsed, steps, None, nfev, njev)
-    return Trajectory("ode", t, out, system.joint_rates(out), pos, stats=stats)
+    return Trajectory("ode", t, out, system.joint_rates(out), pos, stats=stats, work=work)
 
 
 class OdeSolver(Solver):

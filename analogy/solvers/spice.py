@@ -324,17 +324,21 @@ def _from_start(time: np.ndarray) -> tuple[np.ndarray, bool]:
     return time, False
 
 
-def _trajectory(system, time, prepended: bool, volts, currents, stats, elapsed) -> Trajectory:
+def _trajectory(system, time, prepended: bool, volts, currents, stats, elapsed,
+                positions=None) -> Trajectory:
     """A SPICE result on *time*; with *prepended*, its first row is the initial state."""
     if prepended:
         v0 = system.initial_voltages
         volts = np.vstack([v0, volts])
+        if positions is not None:
+            positions = np.vstack([np.zeros(system.dof), positions])
         if currents:
             first = element_currents(system, np.zeros(1), v0[None], np.zeros((1, system.dof)),
                                      list(currents))
             currents = {k: np.concatenate([first[k], x]) for k, x in currents.items()}
     info = SolverStats(elapsed, max(int(time.size) - 1, 0), stats.get("rejected"), stats.get("iterations"))
-    return Trajectory("spice", time, volts, system.joint_rates(volts), currents=currents, stats=info)
+    return Trajectory("spice", time, volts, system.joint_rates(volts), positions, currents=currents,
+                      stats=info)
 
 
 def solve_spice(system, preset="accurate", save=None) -> Trajectory:
@@ -342,15 +346,16 @@ def solve_spice(system, preset="accurate", save=None) -> Trajectory:
 
     Parameters
     ----------
-    system : NodeSystem
-        A linear node system.
+    system : NodeSystem or NonlinearNodeSystem
+        A linear system, or a nonlinear one with a symbolic model (its circuit has
+        charge-defined capacitors, behavioural currents and integrators).
     preset : str or Preset
         Accuracy preset.
     save : sequence of str, optional
         Element names whose currents to return in :attr:`Trajectory.currents`.
     """
     circ = circuit(system, describe=False)
-    names = [e for e in (save or []) if e not in system.nodes]
+    names = [e for e in (save or []) if e not in system.nodes] + circ.state_nodes
     vectors = save_vectors(circ, list(system.nodes) + names)
     text = netlist(circ, preset, save=list(system.nodes) + names, printing=False)
     sess = session()
@@ -359,17 +364,29 @@ def solve_spice(system, preset="accurate", save=None) -> Trajectory:
     data = sess.run(text, vectors, stats)
     elapsed = _time.perf_counter() - start
     v = np.column_stack([data[f"v({n})"] for n in system.nodes])
-    currents = {name: data[vec] for name, vec in zip(names, vectors[system.dof:])}
-    return _trajectory(system, *_from_start(data["time"]), v, currents, stats, elapsed)
+    x = np.column_stack([data[f"v({n})"] for n in circ.state_nodes]) if circ.state_nodes else None
+    currents = {name: data[vec] for name, vec in zip(names, vectors[system.dof:]) if name not in circ.state_nodes}
+    return _trajectory(system, *_from_start(data["time"]), v, currents, stats, elapsed, x)
 
 
 class SpiceSolver(Solver):
     """ngspice in process: the equivalent circuit, simulated on its own time points."""
 
     name = "spice"
-    linear_only = True          # the nonlinear circuit comes with behavioural elements
     own_grid = True
     label = "ngspice (shared library)"
+
+    def supports(self, system) -> str | None:
+        """Linear systems, and nonlinear ones with a symbolic model to write as a circuit.
+
+        Parameters
+        ----------
+        system : NodeDynamics
+            The system to be solved.
+        """
+        if getattr(system, "kind", "linear") != "linear" and getattr(system, "model", None) is None:
+            return "the spice solver needs the symbolic model of a nonlinear system"
+        return None
 
     def solve(self, system, times, preset: Preset, *, save=(), positions=False) -> Trajectory:
         """Simulate on SPICE's own points; given *times*, the result is interpolated onto them.

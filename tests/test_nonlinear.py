@@ -1,0 +1,186 @@
+"""Configuration-dependent dynamics inside SPICE: the nonlinear circuit is the Lagrange equations."""
+
+import re
+import shutil
+import subprocess
+
+import numpy as np
+import pytest
+import sympy as sp
+
+import analogy
+from analogy.circuit.description import BehaviouralCurrent, ChargeCapacitor, Integrator, circuit
+from analogy.errors import InputError
+from analogy.model.expressions import parse_expression
+from analogy.results.comparison import compare
+from analogy.results.metrics import relative_error
+from analogy.scenes.builtin import scene
+from analogy.scenes.toml import parse_toml
+from analogy.solvers.ode import solve_ode
+from analogy.solvers.reference import NONLINEAR_RTOL
+
+GRAVITY_ARM = """
+dynamics = "nonlinear"
+[model]
+mass = [["a + b*cos(q2)", "c + 0.5*b*cos(q2)"], ["c + 0.5*b*cos(q2)", "c"]]
+damping = [0.2, 0.1]
+stiffness = [0.5, 0.3]
+gravity = ["9.81*(m1*cos(q1) + m2*cos(q1 + q2))", "9.81*m2*cos(q1 + q2)"]
+[parameters]
+a = 3.0
+b = 1.0
+c = 0.5
+m1 = 0.3
+m2 = 0.1
+[configuration]
+q = [0.2, 0.3]
+topology = {topology}
+[inputs]
+forces = [1.0, 0.5]
+t_stop = 5.0
+"""
+
+
+def gravity_arm(topology='"parallel"'):
+    return parse_toml(GRAVITY_ARM.replace("{topology}", topology)).system()
+
+
+def nonlinear(name, **changes):
+    return scene(name).replace(dynamics="nonlinear", **changes).system()
+
+
+def test_nodal_equations_of_the_written_circuit_are_the_lagrange_equations():
+    """KCL of the netlist's own expressions, parsed back, equals T⁻ᵀ·(M q̈ + Ṁq̇ − ½∂(q̇ᵀMq̇)/∂q
+    + G + Bq̇ + K(q − q0) − F), derived here in joint space, at random states (to rounding)."""
+    for system in (nonlinear("default"), gravity_arm("[[1, 0], [1, 1]]")):
+        n = system.dof
+        x, v, a = (list(sp.symbols(f"{s}1:{n + 1}", real=True)) for s in ("x", "v", "a"))
+        f = list(sp.symbols(f"F1:{n + 1}", real=True))
+        names = {f"x{k + 1}": x[k] for k in range(n)} | {f"v{k + 1}": v[k] for k in range(n)}
+
+        def read(text):           # the SPICE expression back as sympy, by the restricted parser
+            text = re.sub(r"v\((x|n)(\d+)\)", lambda m: ("x" if m.group(1) == "x" else "v") + m.group(2), text)
+            return parse_expression(text, names)
+        out = [sp.S.Zero] * n     # current leaving each node through the circuit's parts
+        c = circuit(system)
+        for p in c.behavioural:
+            if isinstance(p, ChargeCapacitor):
+                q = read(p.charge)
+                i = sum(sp.diff(q, v[k]) * a[k] + sp.diff(q, x[k]) * v[k] for k in range(n))
+                out[p.a - 1] += i
+                if p.b:
+                    out[p.b - 1] -= i
+            elif isinstance(p, BehaviouralCurrent):
+                out[p.b - 1] += read(p.current)
+                if p.a:
+                    out[p.a - 1] -= read(p.current)
+            else:
+                assert isinstance(p, Integrator)
+        for e in c.elements:
+            across = (v if e.kind == "R" else x)[e.a - 1] - ((v if e.kind == "R" else x)[e.b - 1] if e.b else 0)
+            i = across / e.value
+            out[e.a - 1] += i
+            if e.b:
+                out[e.b - 1] -= i
+        for src in c.sources:
+            out[src.a - 1] -= src.scale * f[src.joint - 1]
+            if src.b:
+                out[src.b - 1] += src.scale * f[src.joint - 1]
+        # the Lagrange equations, in joint space
+        model = system.model
+        subs = {sym: system.parameters[k] for k, sym in model.symbols.items()}
+        qs = list(model.coordinates)
+        mass = model.mass_matrix.subs(subs)
+        qd = sp.Matrix(sp.symbols(f"qd1:{n + 1}", real=True))
+        qdd = sp.Matrix(sp.symbols(f"qdd1:{n + 1}", real=True))
+        mdot = sum((mass.diff(qk) * qd[k] for k, qk in enumerate(qs)), sp.zeros(n, n))
+        lagrange = mass * qdd + mdot * qd - sp.Matrix([(qd.T * mass.diff(qk) * qd)[0] / 2 for qk in qs])
+        if model.gravity is not None:
+            lagrange += model.gravity.subs(subs)
+        lagrange += sp.Matrix(system.functions.damping) * qd - sp.Matrix(f)
+        if system.functions.stiffness is not None:
+            lagrange += sp.Matrix(system.functions.stiffness) * (sp.Matrix(qs) - sp.Matrix(system.q0))
+        tinv = sp.Matrix(system.topology.inverse.tolist())
+        mapping = {qd[k]: (tinv * sp.Matrix(v))[k] for k in range(n)}
+        mapping |= {qdd[k]: (tinv * sp.Matrix(a))[k] for k in range(n)}
+        mapping |= {qk: float(system.q0[k]) + (tinv * sp.Matrix(x))[k] for k, qk in enumerate(qs)}
+        nodal_lagrange = tinv.T * lagrange.subs(mapping)
+        rng = np.random.default_rng(3)
+        for _ in range(5):
+            point = {s: float(rng.uniform(-1, 1)) for s in x + v + a + f}
+            got = np.array([float(e.subs(point)) for e in out])
+            want = np.array([float(e.subs(point)) for e in nodal_lagrange])
+            np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12 * np.abs(want).max())
+
+
+@pytest.mark.ngspice
+def test_the_charge_form_of_a_behavioural_capacitor_gives_d_cv_dt(tmp_path):
+    """With C = 1 + x and v = 2t: Q = {(1+x)·v} carries d(Cv)/dt = 2 + 4t; C = {1+x} only C·dv/dt."""
+    deck = tmp_path / "q.cir"
+    deck.write_text("* charge form against capacitance form\nVx x 0 PWL(0 0 1 1)\n"
+                    "Vq a 0 PWL(0 0 1 2)\nCq a 0 Q={(1+v(x))*v(a)}\n"
+                    "Vc b 0 PWL(0 0 1 2)\nCc b 0 C={1+v(x)}\n"
+                    ".tran 1e-3 1 0 1e-3\n.print tran i(Vq) i(Vc)\n.end\n")
+    res = subprocess.run([shutil.which("ngspice"), "-b", str(deck)], capture_output=True, text=True, timeout=60)
+    rows = np.array([[float(x) for x in ln.split()[1:]] for ln in res.stdout.splitlines()
+                     if len(ln.split()) == 4 and ln.split()[0].isdigit()])
+    # The trapezoidal rule makes a derivative ring from step to step, so compare the charge
+    # each form has passed, ∫i dt, on the ramp: Q form (1+t)·2t, C form ∫C·dv = 2t + t².
+    t, iq, ic = rows[:, 0], -rows[:, 1], -rows[:, 2]
+    ramp = t <= 1.0
+
+    def passed(i):
+        return np.concatenate([[0.0], np.cumsum(0.5 * (i[1:] + i[:-1]) * np.diff(t))])[ramp]
+    tr = t[ramp]
+    assert np.max(np.abs(passed(iq) - 2 * tr * (1 + tr))) <= 1e-4
+    assert np.max(np.abs(passed(ic) - (2 * tr + tr ** 2))) <= 1e-3
+    assert passed(iq)[-1] - passed(ic)[-1] >= 0.99          # they differ by ∫dC/dt·v dt = t²
+
+
+@pytest.mark.ngspice
+@pytest.mark.parametrize("make", [lambda: nonlinear("default"), lambda: nonlinear("serial3"),
+                                  gravity_arm], ids=["serial2", "serial3", "gravity"])
+def test_nonlinear_spice_and_ode_keep_the_preset_bounds_against_the_reference(make):
+    """SPICE ≤ 1e-3 (fast) and ≤ 1e-6 (accurate) of the peak rate, the ODE ≤ 1e-9 (accurate)."""
+    system = make()
+    for preset, spice_bound in (("fast", 1e-3), ("accurate", 1e-6)):
+        c = compare(system, preset, ["spice", "ode"])
+        assert c.reference == "reference" and not c.failures, c.failures
+        assert c.errors()["spice"][1] <= spice_bound
+        assert c.energy["reference"] <= 1e-9
+        if preset == "accurate":
+            assert c.errors()["ode"][1] <= 1e-9
+            assert c.energy["spice"] <= 1e-6
+        assert c.results["spice"].positions is not None
+
+
+def test_the_nonlinear_reference_is_converged():
+    """DOP853 at rtol 1e-13 agrees with rtol 2.5e-14 to 1e-10 of the peak: its own error is below that."""
+    for system in (nonlinear("default"), gravity_arm()):
+        t = np.linspace(0.0, system.t_stop, 201)
+        a = solve_ode(system, t, "DOP853", NONLINEAR_RTOL).rates
+        b = solve_ode(system, t, "DOP853", NONLINEAR_RTOL / 4).rates
+        assert relative_error(a, b) <= 1e-10
+
+
+@pytest.mark.ngspice
+@pytest.mark.parametrize("topology", ["serial", "parallel"])
+def test_the_nonlinear_netlist_runs_unchanged_in_plain_ngspice(topology, tmp_path):
+    """`analogy netlist --dynamics nonlinear` in `ngspice -b` gives the in-process result."""
+    from analogy.cli import main
+    out = tmp_path / "nl.cir"
+    assert main(["netlist", "--dynamics", "nonlinear", "--topology", topology, "--preset", "fast",
+                 "-o", str(out)]) == 0
+    res = subprocess.run([shutil.which("ngspice"), "-b", str(out)], capture_output=True, text=True,
+                         timeout=120)
+    rows = np.array([[float(x) for x in ln.split()[1:]] for ln in res.stdout.splitlines()
+                     if len(ln.split()) == 4 and ln.split()[0].isdigit()])
+    system = scene("default").replace(dynamics="nonlinear", topology=topology).system()
+    here = analogy.solve_spice(system, "fast")
+    np.testing.assert_allclose(rows[:, 0], here.time[1:], rtol=1e-6)
+    assert relative_error(rows[:, 1:], here.voltages[1:]) <= 1e-6       # 6 printed digits
+
+
+def test_closed_chains_are_refused_with_one_sentence():
+    with pytest.raises(InputError, match="parallel2 is a closed chain, whose M\\(q\\) has no closed form"):
+        scene("parallel2").replace(dynamics="nonlinear").system()
