@@ -59,23 +59,30 @@ def redundant_actuators(d1: float = 1.5, d2: float = 1.0, b1: float = 1.0,
 
 
 @lru_cache(maxsize=None)
-def _planar_serial_mass(n: int) -> sp.ImmutableMatrix:
+def _planar_serial_parts(n: int) -> tuple[sp.ImmutableMatrix, sp.ImmutableMatrix]:
     # Depends on n only (lengths and masses stay symbolic): derived once per process.
     q, l, d = _symbols("q", n), _symbols("l", n), _symbols("d", n)
+    g = sp.Symbol("g", real=True)
     positions, x, y, angle = [], 0, 0, 0
     for k in range(n):
         angle += q[k]
         x += l[k] * sp.cos(angle)
         y += l[k] * sp.sin(angle)
         positions.append(sp.Matrix([x, y]))
-    return sp.ImmutableMatrix(point_mass_matrix(d, positions, q))
+    # Gravity g along −y (the arm moves in a vertical plane when g > 0): G = ∂U/∂q, U = Σ d_k·g·y_k.
+    potential = g * sum(d[k] * positions[k][1] for k in range(n))
+    gravity = sp.Matrix([sp.diff(potential, qk) for qk in q])
+    return sp.ImmutableMatrix(point_mass_matrix(d, positions, q)), sp.ImmutableMatrix(gravity)
 
 
 def planar_serial(n: int, lengths: Sequence[float] | None = None,
                   masses: Sequence[float] | None = None,
                   dampings: Sequence[float] | None = None,
-                  stiffnesses: Sequence[float] | None = None) -> Model:
+                  stiffnesses: Sequence[float] | None = None, gravity: float = 0.0) -> Model:
     """Planar nR arm with a point mass d_k at the distal end of link k, joint dampers b_k.
+
+    The parameter ``g`` (default *gravity* = 0: a horizontal plane) turns on gravity
+    along −y, G(q) = ∂U/∂q with U = Σ d_k·g·y_k.
 
     Parameters
     ----------
@@ -89,6 +96,8 @@ def planar_serial(n: int, lengths: Sequence[float] | None = None,
         Joint dampers [N m s/rad].
     stiffnesses : sequence of float, optional
         Joint springs [N m/rad].
+    gravity : float
+        Default value of the parameter g [m/s²].
     """
     if n < 1:
         raise InputError("a serial arm needs at least one joint")
@@ -107,7 +116,9 @@ def planar_serial(n: int, lengths: Sequence[float] | None = None,
         k_syms = _symbols("k", n)
         params.update({str(s): float(v) for s, v in zip(k_syms, stiffnesses)})
         stiffness = k_syms
-    return Model(f"serial{n}" if n != 2 else "serial2", _planar_serial_mass(n),
+    params["g"] = float(gravity)
+    mass, load = _planar_serial_parts(n)
+    return Model(f"serial{n}" if n != 2 else "serial2", mass, gravity=list(load),
                  damping=b, stiffness=stiffness, parameters=params, coordinates=q,
                  topology="serial",
                  description=f"planar {n}R serial arm, point masses d_k at the end of link k")

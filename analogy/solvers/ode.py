@@ -110,9 +110,12 @@ def solve_ode(system, times=None, method: str = "DOP853", rtol: float = 1e-10,
     rhs, jac, y, has_x, gain = _linear(system) if linear else _nonlinear(system)
     if atol is None:
         # Scale from the steady response to the peak force, so atol is relative to the motion.
-        fmax = max(float(np.max(np.abs(joint_forces(system.forces, t)))) if t.size else 0.0, 1e-300)
+        fmax = float(np.max(np.abs(joint_forces(system.forces, t)))) if t.size else 0.0
+        if not linear and system.functions.gravity is not None:     # gravity drives the motion too
+            fmax = max(fmax, float(np.max(np.abs(system.functions.gravity(system.q0)))))
         scale = max(float(np.max(np.abs(system.initial_voltages))), fmax * gain * system.t_stop)
-        atol = rtol * 1e-3 * max(scale, 1e-300)
+        # A system that never moves has no scale to resolve: any atol serves.
+        atol = rtol * 1e-3 * (scale if scale > 0 else 1.0)
     extra = {}
     if jac is not None and method in _IMPLICIT:     # LSODA takes the Jacobian as a callable only
         extra["jac"] = (lambda tt, yy: jac) if method == "LSODA" else jac
