@@ -85,8 +85,9 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("compare", help="run SPICE, ODE and exact solvers and compare them")
     _scene_options(p)
     p.add_argument("--solvers", default="spice,ode,exact", help="comma-separated: spice, ode, exact")
-    p.add_argument("--dynamics", default="linear", choices=["linear", "nonlinear"],
-                   help="the circuit at q (linear) or the full configuration-dependent motion")
+    p.add_argument("--dynamics", default="linear", choices=["linear", "nonlinear", "both"],
+                   help="the circuit at q (linear), the full configuration-dependent motion, or both: "
+                        "how long the linear circuit holds")
     p.add_argument("--step", metavar="SECONDS", help="output step of the shared time grid "
                    "(default: SPICE's own points); errors are measured on each solver's own points")
     p.add_argument("--csv", metavar="FILE", help="write joint rates of every solver to CSV")
@@ -203,7 +204,7 @@ def scene_from_args(args) -> Scene:
         changes["initial_rates"] = tuple(parse_vector(args.r0, numeric=True))
     if args.t_stop is not None:
         changes["t_stop"] = parse_number(args.t_stop)
-    if getattr(args, "dynamics", None):
+    if getattr(args, "dynamics", None) in ("linear", "nonlinear"):      # "both" is the command's
         changes["dynamics"] = args.dynamics
     new = sc.replace(**changes)
     if new.key != sc.key:           # name and describe what was actually built
@@ -266,6 +267,8 @@ def _cmd_compare(args) -> int:
     for path in (args.csv, args.plot):
         _check_writable(path)
     step = None if args.step is None else parse_number(args.step)
+    if args.dynamics == "both":
+        return _compare_both(sc, args, solvers, step)
     result = compare(sc.system(), args.preset, solvers, step=step)
     print(result.table())
     # Results already computed are written even when a solver failed.
@@ -275,6 +278,42 @@ def _cmd_compare(args) -> int:
             print(f"wrote {args.csv}")
         if args.plot:
             result.plot(args.plot)
+            print(f"wrote {args.plot}")
+    except OSError as exc:
+        raise InputError(f"cannot write output: {exc}") from None
+    if result.failures:
+        return EXIT_FAILED
+    return _accuracy_exit(result.outside_bound(), result.preset, result.bound)
+
+
+def _compare_both(sc, args, solvers, step) -> int:
+    """The nonlinear motion against the circuit linearised at q0: how long the linear one holds."""
+    import numpy as np
+
+    from .results.comparison import compare
+    from .results.metrics import peak
+    result = compare(sc.replace(dynamics="nonlinear").system(), args.preset, solvers, step=step)
+    print(result.table())
+    ref = result.results.get(result.reference) if result.reference else None
+    if ref is None:
+        return EXIT_FAILED
+    linear = compare(sc.replace(dynamics="linear").system(), args.preset, ["exact"], times=result.time)
+    lin = linear.results["exact"].rates
+    deviation = np.max(np.abs(lin - ref.rates), axis=1) / peak(ref.rates)
+    thresholds = {}
+    for tol in (1e-3, 1e-2, 1e-1):
+        past = np.flatnonzero(deviation > tol)
+        thresholds[tol] = float(result.time[past[0]]) if past.size else float("inf")
+        held = f"until t = {thresholds[tol]:.4g} s" if past.size else "over the whole run"
+        print(f"the circuit linearised at q0 stays within {tol:g} of the peak rate {held}")
+    try:
+        if args.csv:
+            result.to_csv(args.csv)
+            print(f"wrote {args.csv}")
+        if args.plot:
+            from .results.plots import plot_linear_horizon
+            plot_linear_horizon(result.time, ref.rates, lin, deviation, thresholds,
+                                f"{sc.model.label}: nonlinear motion against the circuit at q0", args.plot)
             print(f"wrote {args.plot}")
     except OSError as exc:
         raise InputError(f"cannot write output: {exc}") from None

@@ -44,7 +44,10 @@ class Comparison:
     results : dict of str to Trajectory
         Successful solvers, in run order.
     failures : dict of str to str
-        Solvers that failed or do not apply, with the reason; the others are kept.
+        Solvers that failed, with the reason; the others are kept.
+    skipped : dict of str to str
+        Solvers asked for that do not apply to the system (the exact solver to a
+        nonlinear one), with the reason: not failures.
     reference : str or None
         The solver the errors are measured against (None: no reference applied).
     bound : float
@@ -66,6 +69,7 @@ class Comparison:
     measured: dict = field(default_factory=dict)
     bound: float = math.nan
     energy: dict = field(default_factory=dict)
+    skipped: dict = field(default_factory=dict)
 
     @property
     def peak(self) -> float:
@@ -77,6 +81,27 @@ class Comparison:
         """Per solver: (max |R − R_ref|, that divided by the peak); NaN without a reference."""
         nan = (math.nan, math.nan)
         return {name: self.measured.get(name, nan) for name in self.results}
+
+    def horizon(self, solver: str, tolerance: float = 1e-6) -> float:
+        """The first time at which *solver* leaves the reference by more than *tolerance* of
+        the peak rate (max over joints), on the shared points; inf if it never does.
+
+        For a chaotic motion this predictability horizon, not the error, is the figure.
+
+        Parameters
+        ----------
+        solver : str
+            A solver that ran.
+        tolerance : float
+            Relative deviation that ends the horizon.
+        """
+        ref = self.results.get(self.reference) if self.reference else None
+        tr = self.results.get(solver)
+        if ref is None or tr is None or tr.rates.shape != ref.rates.shape:
+            return math.nan
+        deviation = np.max(np.abs(tr.rates - ref.rates), axis=1) / peak(ref.rates)
+        past = np.flatnonzero(deviation > tolerance)
+        return float(self.time[past[0]]) if past.size else math.inf
 
     def outside_bound(self) -> dict[str, float]:
         """Solvers whose error / peak exceeds the preset's bound: a broken promise, flagged."""
@@ -106,7 +131,7 @@ class Comparison:
             if name in self.energy:
                 note = f"energy residual {self.energy[name]:.2e}" + (f", {note}" if note else "")
             rows.append([name, tr.run_time * 1e3, e, r, "" if st.steps is None else st.steps, note])
-        return rows
+        return rows + [[name, "skipped", "", "", "", why] for name, why in self.skipped.items()]
 
     def table(self) -> str:
         """A plain-text table of run time, error and steps per solver."""
@@ -117,8 +142,8 @@ class Comparison:
                  f"(errors on each solver's own points)",
                  f"{'solver':<10}{'run time [ms]':>15}{'max |error|':>14}{'error / peak':>14}{'steps':>8}"]
         for name, ms, e, r, steps, note in self._rows():
-            if ms == "failed":
-                lines.append(f"{name:<10}  failed: {note}")
+            if ms in ("failed", "skipped"):
+                lines.append(f"{name:<10}  {'failed' if ms == 'failed' else 'does not apply'}: {note}")
                 continue
             tail = f"  ({note})" if note else ""
             lines.append(f"{name:<10}{ms:>15.3f}{e:>14.3e}{r:>14.3e}{steps!s:>8}{tail}")
@@ -271,6 +296,12 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
     grids: list = [base] * count
     nonlinear = getattr(systems[0], "kind", "linear") != "linear"
     want_x = positions or bool(save) or nonlinear       # the energy balance needs positions
+    skipped = {}
+    for name in list(order):
+        reason = solver(name).supports(systems[0])
+        if reason is not None:
+            skipped[name] = reason
+            order.remove(name)
     for name in order:
         s = solver(name)
         if s.own_grid:
@@ -315,7 +346,7 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
                     residual, scale = system.energy_residual(tr)
                     energy[n] = float(np.max(np.abs(residual))) / scale
         out.append(Comparison(system, p.name, grid, results, failures, ref, measured[k] if ref else {},
-                              p.bound, energy))
+                              p.bound, energy, skipped))
     return out
 
 

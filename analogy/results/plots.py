@@ -10,7 +10,7 @@ from matplotlib.figure import Figure  # no pyplot: works headless, with no globa
 from ..errors import InputError
 from .output import check_plot_path
 
-__all__ = ["solver_style", "plot_trajectory", "plot_comparison", "plot_quantities"]
+__all__ = ["solver_style", "plot_trajectory", "plot_comparison", "plot_quantities", "plot_linear_horizon"]
 
 
 _STYLES = {"exact": dict(ls="-", lw=2.0, alpha=0.5), "spice": dict(ls="--", lw=1.2),
@@ -139,4 +139,44 @@ def plot_quantities(time: np.ndarray, groups: list, errors: dict, title: str, pa
         if ax.lines:
             ax.legend(fontsize="small")
     axes[-1].set_xlabel("time [s]")
+    return _save(fig, path)
+
+
+def plot_linear_horizon(time: np.ndarray, nonlinear: np.ndarray, linear: np.ndarray, deviation: np.ndarray,
+                        thresholds: dict, title: str, path=None) -> Figure:
+    """The full motion against the circuit linearised at q0, and how far apart they are.
+
+    Parameters
+    ----------
+    time : ndarray
+        Time points.
+    nonlinear, linear : ndarray, shape (N, n)
+        Joint rates of the nonlinear reference and of the linear circuit.
+    deviation : ndarray, shape (N,)
+        max over joints of |R_linear − R_nonlinear| / peak.
+    thresholds : dict of float to float
+        Relative deviation -> the time the linear circuit first exceeds it.
+    title : str
+        Heading.
+    path : str or Path, optional
+        Image file to write.
+    """
+    fig = Figure(figsize=(8, 6), layout="constrained")
+    ax, axe = fig.subplots(2, 1, sharex=True)
+    for j in range(nonlinear.shape[1]):
+        ax.plot(time, nonlinear[:, j], color=f"C{j % 10}", lw=2.0, alpha=0.6, label=f"r{j + 1} nonlinear")
+        ax.plot(time, linear[:, j], color=f"C{j % 10}", ls="--", lw=1.2, label=f"r{j + 1} linear at q0")
+    ax.set_ylabel("joint rate [rad/s or m/s]")
+    ax.set_title(title)
+    ax.legend(ncol=2, fontsize="small")
+    axe.semilogy(time, np.maximum(deviation, 1e-18), color="k", lw=1.2, label="deviation")
+    for k, (tol, t) in enumerate(sorted(thresholds.items())):
+        held = f"until t = {t:.3g} s" if np.isfinite(t) else "throughout"
+        axe.axhline(tol, color=f"C{k + 3}", ls=":", lw=1, label=f"within {tol:g} {held}")
+        if np.isfinite(t):
+            axe.axvline(t, color=f"C{k + 3}", ls=":", lw=1)
+    axe.set_ylim(max(1e-8, min(thresholds) / 1e4) if thresholds else 1e-8, 2.0)
+    axe.legend(fontsize="small", loc="lower right")
+    axe.set_xlabel("time [s]")
+    axe.set_ylabel("|linear - nonlinear| / peak")
     return _save(fig, path)
