@@ -25,6 +25,8 @@ OUTPUTS = {
     "lab_serial3.py": ["serial3.png", "serial3.csv", "serial3_sweep.png", *_diagrams("serial3")],
     "lab_parallel3.py": ["parallel3.png", "parallel3.csv", "parallel3_sweep.png", *_diagrams("parallel3")],
     "lab_many_poses.py": ["many_poses.png", "many_poses.csv"],
+    "lab_nonlinear.py": ["nonlinear.png", "nonlinear.csv", "nonlinear_mp.png", "nonlinear_energy.png",
+                         "nonlinear_linear.png", "pendulum.png"],
     "lab_mp_model.py": ["mp_loading.png", "mp_current.png", "mp_grounded_mass.csv", "mp_open.csv",
                         "mp_unloaded.csv", "mp_driven.csv"],
 }
