@@ -160,6 +160,47 @@ class NonlinearNodeSystem:
         residual = energy - energy[0] - work
         return residual, float(max(np.max(np.abs(energy)), np.max(np.abs(work)), np.finfo(float).tiny))
 
+    def jacobian(self, x: np.ndarray, v: np.ndarray, drive: np.ndarray) -> np.ndarray | None:
+        """∂f/∂y of the first-order form y = [x, v, W], y' = f (see :func:`~analogy.solvers.ode.solve_ode`).
+
+        With q = q0 + T⁻¹x and r = T⁻¹v: ∂M'/∂x_k = T⁻ᵀ(Σ_j ∂M/∂q_j·T⁻¹_jk)T⁻¹,
+        ∂h/∂x = T⁻ᵀ(∂c/∂q + ∂G/∂q)T⁻¹ and ∂h/∂v = T⁻ᵀ(∂c/∂r)T⁻¹; then
+        ∂(M'⁻¹ρ)/∂x_k = M'⁻¹(∂ρ/∂x_k − ∂M'/∂x_k·M'⁻¹ρ). None without model derivatives.
+
+        Parameters
+        ----------
+        x, v : ndarray
+            Node positions and rates.
+        drive : ndarray
+            Node currents i(t) at the time of evaluation.
+        """
+        if self.functions.derivatives is None:
+            return None
+        n = self.dof
+        ti = self.topology.inverse
+        q, r = self.configuration(x), self.joint_rates(v)
+        dm, dcq, dcr, dg = self.functions.derivatives(q, r)
+        mass = self.node_mass(x)
+        rho = drive - self.damping @ v - self.node_load(x, v, 0.0)
+        if self.stiffness is not None:
+            rho = rho - self.stiffness @ x
+        accel = np.linalg.solve(mass, rho)
+        dm_node = np.einsum("ai,jab,bk,jl->ikl", ti, dm, ti, ti)  # (i, k, l): ∂M'_ik/∂x_l
+        dh_dx = ti.T @ (dcq + dg) @ ti
+        dh_dv = ti.T @ dcr @ ti
+        drho_dx = -dh_dx - (self.stiffness if self.stiffness is not None else 0.0)
+        drho_dv = -dh_dv - self.damping
+        dfx = np.linalg.solve(mass, drho_dx - np.einsum("ikl,k->il", dm_node, accel))
+        dfv = np.linalg.solve(mass, drho_dv)
+        gravity = self.node_gravity(x)
+        dpv = drive - 2.0 * self.damping @ v - gravity
+        dpx = -v @ (ti.T @ dg @ ti)
+        jac = np.zeros((2 * n + 1, 2 * n + 1))
+        jac[:n, n:2 * n] = np.eye(n)
+        jac[n:2 * n, :n], jac[n:2 * n, n:2 * n] = dfx, dfv
+        jac[2 * n, :n], jac[2 * n, n:2 * n] = dpx, dpv
+        return jac
+
     def node_currents(self, t) -> np.ndarray:
         """Node currents i(t) = T⁻ᵀ·F(t), shape (len(t), n).
 

@@ -39,6 +39,7 @@ class NodeDynamics(Protocol):
     info: Mapping
     damping: np.ndarray
     stiffness: np.ndarray | None
+    derivatives: Callable | None = None
 
     @property
     def dof(self) -> int: ...
@@ -109,6 +110,8 @@ class MechanicalFunctions(NamedTuple):
 
     Each takes numeric q (and q̇) of shape (n,) and returns an array: M(q) (n, n),
     c(q, q̇) (n,), G(q) (n,) or None, and the constant B and K (None without springs).
+    *derivatives* (q, q̇) gives (∂M/∂q_k stacked on the first axis, ∂c/∂q, ∂c/∂q̇, ∂G/∂q),
+    for analytic Jacobians; None where the model does not provide them.
     """
 
     mass: Callable[[np.ndarray], np.ndarray]
@@ -116,3 +119,4 @@ class MechanicalFunctions(NamedTuple):
     gravity: Callable[[np.ndarray], np.ndarray] | None
     damping: np.ndarray
     stiffness: np.ndarray | None
+    derivatives: Callable | None = None

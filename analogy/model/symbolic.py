@@ -285,6 +285,17 @@ class Model:
         def gravity_at(x):
             return np.asarray(g_fn(x), dtype=float).reshape(n)
 
+        # Derivatives for the analytic Jacobian of the implicit integrators.
+        qm, rm = sp.Matrix(q), sp.Matrix(rates)
+        g_vec = gravity if gravity is not None and any(gravity) else sp.zeros(n, 1)
+        parts = [[mass.diff(qk) for qk in q], c.jacobian(qm), c.jacobian(rm), g_vec.jacobian(qm)]
+        d_fn = sp.lambdify([q, rates], parts, modules="numpy", cse=cse)
+
+        def derivatives_at(x, r):
+            dm, dcq, dcr, dg = d_fn(x, r)
+            return (np.array(dm, dtype=float).reshape(n, n, n), np.array(dcq, dtype=float).reshape(n, n),
+                    np.array(dcr, dtype=float).reshape(n, n), np.array(dg, dtype=float).reshape(n, n))
+
         return MechanicalFunctions(mass_at, velocity_at, None if g_fn is None else gravity_at,
                                    constant["damping"] if constant["damping"] is not None
-                                   else np.zeros((n, n)), constant["stiffness"])
+                                   else np.zeros((n, n)), constant["stiffness"], derivatives_at)

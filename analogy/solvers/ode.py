@@ -79,7 +79,11 @@ def _nonlinear(system):
         return np.concatenate([v, np.linalg.solve(system.node_mass(x), i), [power]])
     y0 = np.concatenate([np.zeros(n), system.initial_voltages, [0.0]])
     gain = float(np.max(np.abs(np.linalg.solve(system.node_mass(np.zeros(n)), cmap))))
-    return rhs, None, y0, True, gain
+    jac = None
+    if system.functions.derivatives is not None:
+        def jac(tt, yy):
+            return system.jacobian(yy[:n], yy[n:2 * n], cmap @ _joint_force(forces, tt))
+    return rhs, jac, y0, True, gain
 
 
 def solve_ode(system, times=None, method: str = "DOP853", rtol: float = 1e-10,
@@ -118,7 +122,7 @@ def solve_ode(system, times=None, method: str = "DOP853", rtol: float = 1e-10,
         atol = rtol * 1e-3 * (scale if scale > 0 else 1.0)
     extra = {}
     if jac is not None and method in _IMPLICIT:     # LSODA takes the Jacobian as a callable only
-        extra["jac"] = (lambda tt, yy: jac) if method == "LSODA" else jac
+        extra["jac"] = (lambda tt, yy: jac) if method == "LSODA" and not callable(jac) else jac
     cls = getattr(integrate, method)
     out = np.empty((t.size, n))
     pos = np.empty((t.size, n)) if positions and has_x else None
