@@ -26,13 +26,14 @@ from .scenes.builtin import scene
 from .scenes.scene import Scene
 from .scenes.spec import ModelSpec
 from .solvers.exact import solve_exact
-from .solvers.reference import solve_reference
+from .solvers.reference import NONLINEAR_RTOL, solve_reference
 from .solvers.spice import library_path, session, solve_spice
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-__all__ = ["BenchRow", "BenchResult", "bench", "bench_scenes", "throughput", "spice_grid", "ode_grid"]
+__all__ = ["BenchRow", "BenchResult", "bench", "bench_scenes", "throughput", "spice_grid", "ode_grid",
+           "nonlinear_spice_grid"]
 
 ODE_BENCH_METHODS = ("LSODA", "Radau", "BDF", "RK45", "DOP853")
 
@@ -80,11 +81,12 @@ class BenchResult:
         return path
 
     def table(self) -> str:
-        lines = [f"{'scene':<10}{'dof':>4}  {'solver':<7}{'setting':<32}{'median [ms]':>12}{'runs':>5}"
+        lines = [f"{'scene':<18}{'dof':>4}  {'solver':<10}{'setting':<40}{'median [ms]':>12}{'runs':>5}"
                  f"{'error/peak':>11}  status"]
         for r in self.rows:
-            lines.append(f"{r.scene:<10}{r.dof:>4}  {r.solver:<7}{r.setting:<32}{r.median_s * 1e3:>12.3f}"
+            lines.append(f"{r.scene:<18}{r.dof:>4}  {r.solver:<10}{r.setting:<40}{r.median_s * 1e3:>12.3f}"
                          f"{r.runs:>5}{r.error:>11.2e}  {r.status}")
+        lines += self.cost_lines()
         lines.append(f"{len(self.rows)} rows, {sum(r.status != 'ok' for r in self.rows)} failed; median of "
                      f"up to {self.repeats} warm runs (fewer for settings slower than "
                      f"{_BUDGET_S:g} s per run); {self.wall_s:.1f} s in all")
@@ -92,6 +94,23 @@ class BenchResult:
 
     def __str__(self):
         return self.table()
+
+    def cost_lines(self) -> list[str]:
+        """Per scene, the cheapest SPICE and ODE settings within 1e-6 of the peak, and their ratio."""
+        lines = []
+        for sc in dict.fromkeys(r.scene for r in self.rows):
+            best = {}
+            for solver in ("spice", "ode"):
+                ok = [r for r in self.rows if r.scene == sc and r.solver == solver and r.status == "ok"
+                      and r.error <= 1e-6]
+                if ok:
+                    best[solver] = min(ok, key=lambda r: r.median_s)
+            if len(best) == 2:
+                sp_, od = best["spice"], best["ode"]
+                lines.append(f"{sc}: cheapest within 1e-6: SPICE {sp_.median_s * 1e3:.2f} ms ({sp_.setting}), "
+                             f"ODE {od.median_s * 1e3:.2f} ms ({od.setting}), SPICE/ODE = "
+                             f"{sp_.median_s / od.median_s:.2f}")
+        return lines
 
     def plot(self, path=None) -> "Figure":
         """Work-precision diagram: median run time against max error / peak, log-log, per scene.
@@ -105,7 +124,7 @@ class BenchResult:
         scenes = list(dict.fromkeys(r.scene for r in self.rows))
         fig = Figure(figsize=(5.0 * len(scenes), 4.6), layout="constrained")
         axes = np.atleast_1d(fig.subplots(1, len(scenes), sharey=True))
-        markers = {"spice": "o", "ode": "s", "exact": "*"}
+        markers = {"spice": "o", "ode": "s", "exact": "*", "reference": "P"}
         for ax, sc in zip(axes, scenes):
             rows = [r for r in self.rows if r.scene == sc]
             families = dict.fromkeys((r.solver, r.setting.split(" ")[0]) for r in rows)
@@ -127,7 +146,7 @@ class BenchResult:
                 ax.text(0.02, 0.02, f"{len(failed)} settings failed", transform=ax.transAxes,
                         fontsize="small", color="tab:red")
             ax.set_title(f"{sc} ({rows[0].dof} DOF)")
-            ax.set_xlabel("max error / peak (vs exact)")
+            ax.set_xlabel("max error / peak (vs exact, or the reference if nonlinear)")
             ax.grid(True, which="both", alpha=0.3)
             ax.legend(fontsize="x-small", ncol=2)
         axes[0].set_ylabel(f"median run time [s] ({self.repeats} warm runs)")
@@ -137,11 +156,13 @@ class BenchResult:
 
 
 def bench_scenes() -> list[Scene]:
-    """The benchmark's scenes: 2, 10 and 50 DOF."""
+    """The benchmark's scenes: 2, 10 and 50 DOF, and the 2-DOF arm's nonlinear dynamics."""
     big = Scene.of("random50", ModelSpec(robot="random50", seed=2), topology="serial",
                    forces=tuple(["sine(0, 1, 0.7)"] + [f"step({1.0 / (k + 1)!r})" for k in range(1, 50)]),
                    t_stop=2.0, description="random SPD 50-DOF (seed 2), serial topology")
-    return [scene("default"), scene("random10"), big]
+    nonlinear = scene("default").replace(name="default-nonlinear", dynamics="nonlinear",
+                                         description="the default arm's full nonlinear dynamics")
+    return [scene("default"), scene("random10"), big, nonlinear]
 
 
 def spice_grid(full: bool = False) -> list[tuple]:
@@ -165,6 +186,20 @@ def spice_grid(full: bool = False) -> list[tuple]:
                     grid.append((f"{method} reltol={rt:g} trtol={tr} tmax=T/{ms}", opts, ms, rt))
     for name, p in PRESETS.items():
         grid.append((f"preset-{name}", dict(p.spice_options), p.max_steps, p.spice_options["reltol"]))
+    return grid
+
+
+def nonlinear_spice_grid():
+    """(label, options, max_steps, reltol) for nonlinear circuits: the step cap sets their accuracy.
+
+    Tight reltol with trtol = 1 is in the grid to show it failing ("timestep too small").
+    """
+    from .presets import PRESETS
+    grid = [(f"{m} default tolerances tmax=T/{ms}", {"method": m}, ms, 1e-3)
+            for m in ("trap", "gear") for ms in (500, 2000, 20000)]
+    grid.append(("trap reltol=1e-6 trtol=1 tmax=T/2000", {"method": "trap", "reltol": 1e-6, "trtol": 1}, 2000, 1e-6))
+    grid += [(f"preset-{name}", dict(p.behavioural_options), p.behavioural_max_steps, 1e-3)
+             for name, p in PRESETS.items()]
     return grid
 
 
@@ -213,9 +248,10 @@ def bench(repeats: int = 5, full: bool = False, scenes=None, progress: bool = Tr
     jobs = []
     for sc in scenes:
         system = sc.system()
-        jobs += [("spice", sc, system, g) for g in spice_grid(full)]
+        linear = getattr(system, "kind", "linear") == "linear"
+        jobs += [("spice", sc, system, g) for g in (spice_grid(full) if linear else nonlinear_spice_grid())]
         jobs += [("ode", sc, system, g) for g in ode_grid()]
-        jobs.append(("exact", sc, system, None))
+        jobs.append(("exact" if linear else "reference", sc, system, None))
     bar = None
     if progress:
         from tqdm import tqdm
@@ -223,10 +259,12 @@ def bench(repeats: int = 5, full: bool = False, scenes=None, progress: bool = Tr
     sess = session()
     for kind, sc, system, g in jobs:
         n = system.dof
+        linear = getattr(system, "kind", "linear") == "linear"
         try:
             if kind == "spice":
                 label, opts, ms, tol = g
-                text = netlist(system, Preset("bench", opts, steps=100, max_steps=ms))
+                text = netlist(system, Preset("bench", opts, steps=100, max_steps=ms, behavioural_options=opts,
+                                              behavioural_max_steps=ms), printing=False)
 
                 def run():
                     t0 = _time.perf_counter()
@@ -248,7 +286,7 @@ def bench(repeats: int = 5, full: bool = False, scenes=None, progress: bool = Tr
 
                 med, tr, runs = _median_time(run, repeats)
                 rates = tr.rates
-            else:
+            elif kind == "exact":
                 label, tol = "modal", 0.0
                 t = np.linspace(0.0, system.t_stop, 201)
 
@@ -258,7 +296,22 @@ def bench(repeats: int = 5, full: bool = False, scenes=None, progress: bool = Tr
 
                 med, tr, runs = _median_time(run, repeats)
                 rates = tr.rates
-            ref = solve_exact(system, t).rates
+            else:
+                label, tol = f"DOP853 rtol={NONLINEAR_RTOL:g}", NONLINEAR_RTOL
+                t = np.linspace(0.0, system.t_stop, 201)
+
+                def run():
+                    tr = solve_ode(system, t, "DOP853", NONLINEAR_RTOL)
+                    return tr, tr.run_time
+
+                med, tr, runs = _median_time(run, repeats)
+                rates = tr.rates
+            if kind == "reference":     # its own error: against a four times tighter run
+                ref = solve_ode(system, t, "DOP853", NONLINEAR_RTOL / 4).rates
+            elif linear:
+                ref = solve_exact(system, t).rates
+            else:
+                ref = solve_ode(system, t, "DOP853", NONLINEAR_RTOL).rates
             err = relative_error(rates, ref)
             if kind == "exact":
                 probe = np.linspace(0.0, system.t_stop, 5)
@@ -271,7 +324,7 @@ def bench(repeats: int = 5, full: bool = False, scenes=None, progress: bool = Tr
                     err = relative_error(ex, mp)
             result.rows.append(BenchRow(sc.name, n, kind, label, tol, med, err, len(t), runs=runs))
         except (AnalogyError, ArithmeticError, ValueError) as exc:
-            label = g[0] if kind == "spice" else (f"{g[0]} rtol={g[1]:g}" if kind == "ode" else "modal")
+            label = g[0] if kind == "spice" else (f"{g[0]} rtol={g[1]:g}" if kind == "ode" else kind)
             tol = g[3] if kind == "spice" else (g[1] if kind == "ode" else 0.0)
             result.rows.append(BenchRow(sc.name, n, kind, label, tol, float("nan"), float("nan"), 0,
                                         f"failed: {str(exc).splitlines()[0][:120]}"))
