@@ -189,12 +189,11 @@ def spice_grid(full: bool = False) -> list[tuple]:
     return grid
 
 
-def nonlinear_spice_grid():
+def nonlinear_spice_grid() -> list[tuple]:
     """(label, options, max_steps, reltol) for nonlinear circuits: the step cap sets their accuracy.
 
     Tight reltol with trtol = 1 is in the grid to show it failing ("timestep too small").
     """
-    from .presets import PRESETS
     grid = [(f"{m} default tolerances tmax=T/{ms}", {"method": m}, ms, 1e-3)
             for m in ("trap", "gear") for ms in (500, 2000, 20000)]
     grid.append(("trap reltol=1e-6 trtol=1 tmax=T/2000", {"method": "trap", "reltol": 1e-6, "trtol": 1}, 2000, 1e-6))
