@@ -52,6 +52,8 @@ def _scene_options(p: argparse.ArgumentParser, preset: str = "accurate"):
                    "may use --param names and q1..qn")
     g.add_argument("--damping", metavar="VECTOR|MATRIX", help="damping: diagonal '[b1, b2]' or a matrix")
     g.add_argument("--stiffness", metavar="VECTOR|MATRIX", help="stiffness: diagonal or a matrix")
+    g.add_argument("--gravity", metavar="VECTOR", help="gravity load G(q), one entry per joint, "
+                   "e.g. '[9.81*m*cos(q1), 0]'; with --mass")
     g.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                    help="parameter value (repeatable), e.g. l1=0.5; qK=VALUE sets joint "
                         "coordinate K, e.g. q2=pi/4")
@@ -107,6 +109,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("scene_file", help="path to a .toml scene")
     p.add_argument("--output-dir", help="folder for the scene's output files (default: next to it)")
     p.add_argument("--no-plot", action="store_true", help="skip plots even if the scene asks for one")
+    p.add_argument("--dynamics", choices=["linear", "nonlinear"], help="override the scene's dynamics")
     p = sub.add_parser("bench", help="run time against error: ngspice settings, ODE methods, exact solver")
     p.add_argument("--repeats", type=int, default=5, help="timed runs per setting (median; default 5)")
     p.add_argument("--full", action="store_true", help="the full ngspice grid (method x reltol x trtol x max step)")
@@ -166,12 +169,14 @@ def scene_from_args(args) -> Scene:
                     raise InputError(f"--mass: {exc}") from None
             raise InputError("--mass must be a matrix like [[m1, m3], [m3, m2]]")
         spec = ModelSpec.of(None, mass=mass, damping=_entries(args.damping, "--damping"),
-                            stiffness=_entries(args.stiffness, "--stiffness"))
+                            stiffness=_entries(args.stiffness, "--stiffness"),
+                            gravity=_entries(args.gravity, "--gravity"))
         n = len(mass)
         changes.update(model=spec, parameters=params, q=(0.0,) * n, initial_rates=None, topology=None,
                        forces=(1.0,) * n)
-    elif args.damping or args.stiffness:
-        raise InputError("--damping and --stiffness need --mass (built-in robots have their own)")
+    elif args.damping or args.stiffness or args.gravity:
+        raise InputError("--damping, --stiffness and --gravity need --mass (built-in robots have their own; "
+                         "the serial arms take --param g=9.81)")
     elif args.robot is not None and args.robot != sc.model.robot:
         probe = Scene.of(args.robot, args.robot, source="command line")
         model = scene_model(probe)          # one sentence on an unknown name
@@ -377,6 +382,9 @@ def _cmd_run(args) -> int:
     from .scenes.run import run_scene
     from .scenes.toml import load_scene
     job = load_scene(args.scene_file)
+    if args.dynamics is not None and args.dynamics != job.dynamics:
+        from .scenes.build import validated
+        job = validated(job.replace(dynamics=args.dynamics))
     if args.no_plot:
         job = job.replace(plot_file=None)
     result = run_scene(job, args.output_dir)

@@ -209,3 +209,28 @@ def test_implicit_integrators_take_the_analytic_jacobian_and_converge():
     for method in ("Radau", "BDF"):
         tr = solve_ode(system, t, method, 1e-9)
         assert tr.stats.jacobians >= 1 and relative_error(tr.rates, ref) <= 1e-6
+
+
+@pytest.mark.ngspice
+def test_a_symbolic_command_line_model_with_gravity_keeps_the_bounds(capsys):
+    from analogy.cli import main
+    code = main(["compare", "--mass", "[[a + b*cos(q2), c + 0.5*b*cos(q2)], [c + 0.5*b*cos(q2), c]]",
+                 "--param", "a=3", "--param", "b=1", "--param", "c=0.5", "--param", "m=0.2",
+                 "--gravity", "[9.81*m*cos(q1), 0]", "--damping", "[0.2, 0.1]", "--q", "0.2, 0.3",
+                 "--dynamics", "nonlinear", "--t-stop", "5"])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    rows = {ln.split()[0]: ln.split() for ln in out.splitlines()[2:] if ln.split()}
+    assert float(rows["spice"][3]) <= 1e-6 and float(rows["ode"][3]) <= 1e-9
+    assert "does not apply" in out
+
+
+@pytest.mark.ngspice
+def test_a_scene_file_runs_nonlinear_on_request(tmp_path, capsys):
+    from pathlib import Path
+
+    from analogy.cli import main
+    scene_file = Path(__file__).resolve().parent.parent / "examples" / "scenes" / "default.toml"
+    assert main(["run", str(scene_file), "--dynamics", "nonlinear", "--no-plot",
+                 "--output-dir", str(tmp_path)]) == 0
+    assert "reference" in capsys.readouterr().out

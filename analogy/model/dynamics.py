@@ -39,7 +39,6 @@ class NodeDynamics(Protocol):
     info: Mapping
     damping: np.ndarray
     stiffness: np.ndarray | None
-    derivatives: Callable | None = None
 
     @property
     def dof(self) -> int: ...
