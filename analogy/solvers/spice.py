@@ -217,6 +217,10 @@ class NgspiceSession:
     def _free(self):
         self._command("destroy all")
         self._command("remcirc")
+        # PySpice keeps every line ngspice prints; what a run said is read by then.
+        for kept in (getattr(self._ng, "_stdout", None), getattr(self._ng, "_stderr", None)):
+            if isinstance(kept, list):
+                kept.clear()
 
     def _healthy(self) -> bool:
         try:
