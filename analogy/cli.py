@@ -227,6 +227,8 @@ def _title(sc: Scene) -> str:
 def _check_writable(path):
     if path is None:
         return
+    if Path(path).is_dir():
+        raise InputError(f"cannot write {path}: it is a folder")
     folder = Path(path).resolve().parent
     if not folder.is_dir():
         raise InputError(f"cannot write {path}: folder {folder} does not exist")
@@ -334,12 +336,15 @@ def _cmd_verify(args) -> int:
     from .results.metrics import relative_error
     from .solvers.exact import solve_exact
     from .solvers.reference import solve_reference
-    names = list(SCENES) if args.scenes is None else [s.strip() for s in args.scenes.split(",")]
+    names = list(SCENES) if args.scenes is None else [s.strip() for s in args.scenes.split(",") if s.strip()]
+    systems = {name: scene(name).system() for name in names}      # every name checked before any work
+    if not names:
+        raise InputError("--scenes names no scene: see 'analogy scenes'")
     print(f"{'scene':<10}{'dof':>4}{'spice/peak':>13}{'ode/peak':>11}{'exact vs mpmath':>17}"
           f"{'spice [ms]':>12}")
     code, flags = EXIT_OK, {}
     for name in names:
-        system = scene(name).system()
+        system = systems[name]
         c = compare(system, args.preset)
         probe = np.linspace(0, system.t_stop, 9)
         mp_err = relative_error(solve_exact(system, probe).voltages, solve_reference(system, probe))

@@ -198,11 +198,16 @@ def test_the_circuit_reassembles_the_node_matrices_and_injects_the_node_currents
 def test_behavioural_parts_are_written_and_cannot_smuggle_control_lines():
     s = scene("default").system()
     base = circuit(s)
-    q = ChargeCapacitor("q1_2", 1, 2, "0.5*(v(n1)-v(n2))*(1+v(x1)^2)")
+    q = ChargeCapacitor("q1_2", 1, 2, "0.5*(v(n1)-v(n2))*(1+v(x1)^2)", 0.3)
     b = BehaviouralCurrent("h1", 1, 0, "0.1*v(n1)*v(n2)")
-    c = Circuit(base.nodes, base.elements, base.sources, base.initial, base.t_stop, behavioural=(q, b))
+    rest = ChargeCapacitor("q1", 1, 0, "2*v(n1)")
+    c = Circuit(base.nodes, base.elements, base.sources, base.initial, base.t_stop, behavioural=(q, b, rest))
     text = netlist(c, "fast")
-    assert "Cq1_2 n1 n2 Q={0.5*(v(n1)-v(n2))*(1+v(x1)^2)}" in text
+    assert "Cq1 n1 0 Q={2*v(n1)}" in text               # Q(0) = 0: ngspice's own charge form
+    # Q(0) ≠ 0: a charge follower, a node held at Q, 1 F on it, its current mirrored from n1 to n2
+    assert "Bmqq1_2 mqq1_2 0 V={0.5*(v(n1)-v(n2))*(1+v(x1)^2)}" in text
+    assert "Vmsq1_2 mqq1_2 mcq1_2 DC 0" in text and "Cmcq1_2 mcq1_2 0 1" in text
+    assert "Fmq1_2 n1 n2 Vmsq1_2 1" in text
     assert "Bh1 0 n1 I={0.1*v(n1)*v(n2)}" in text
     for evil in ("1\n.control", "v(n1)}\n.endc", "'x'", "{1}"):
         bad = Circuit(base.nodes, base.elements, base.sources, base.initial, base.t_stop,

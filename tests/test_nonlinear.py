@@ -138,8 +138,10 @@ def test_the_charge_form_of_a_behavioural_capacitor_gives_d_cv_dt(tmp_path):
 
 
 @pytest.mark.ngspice
-@pytest.mark.parametrize("make", [lambda: nonlinear("default"), lambda: nonlinear("serial3"),
-                                  gravity_arm], ids=["serial2", "serial3", "gravity"])
+@pytest.mark.parametrize("make", [lambda: nonlinear("default"), lambda: nonlinear("serial3"), gravity_arm,
+                                  lambda: nonlinear("default", initial_rates=(0.5, -0.2)),
+                                  lambda: nonlinear("redundant")],
+                         ids=["serial2", "serial3", "gravity", "serial2-moving", "redundant"])
 def test_nonlinear_spice_and_ode_keep_the_preset_bounds_against_the_reference(make):
     """SPICE ≤ 1e-3 (fast) and ≤ 1e-6 (accurate) of the peak rate, the ODE ≤ 1e-9 (accurate)."""
     system = make()
@@ -234,3 +236,21 @@ def test_a_scene_file_runs_nonlinear_on_request(tmp_path, capsys):
     assert main(["run", str(scene_file), "--dynamics", "nonlinear", "--no-plot",
                  "--output-dir", str(tmp_path)]) == 0
     assert "reference" in capsys.readouterr().out
+
+
+@pytest.mark.ngspice
+def test_the_charge_form_forgets_the_initial_condition_so_the_circuit_uses_a_follower(tmp_path):
+    """An RC discharge from v(0) = 1: a linear C follows e^(−t/2); ngspice's Q = {2·v} starts at 0
+    whatever .ic says, which is why charges are written as followers on a linear 1 F capacitor."""
+    deck = tmp_path / "ic.cir"
+    deck.write_text("* initial charge\nCq a 0 Q={2*v(a)}\nR1 a 0 1\nCl b 0 2\nR2 b 0 1\n"
+                    ".ic v(a)=1 v(b)=1\n.tran 0.01 1 0 0.01 uic\n.print tran v(a) v(b)\n.end\n")
+    res = subprocess.run([shutil.which("ngspice"), "-b", str(deck)], capture_output=True, text=True, timeout=60)
+    rows = np.array([[float(x) for x in ln.split()[1:]] for ln in res.stdout.splitlines()
+                     if len(ln.split()) == 4 and ln.split()[0].isdigit()])
+    t, va, vb = rows.T
+    assert np.max(np.abs(vb - np.exp(-t / 2))) <= 1e-3
+    assert np.max(np.abs(va)) <= 1e-12
+    moving = nonlinear("default", initial_rates=(0.5, -0.2))
+    tr = analogy.solve_spice(moving, "accurate")
+    np.testing.assert_allclose(tr.rates[1], [0.5, -0.2], atol=1e-3)     # its first step keeps r(0)

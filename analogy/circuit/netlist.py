@@ -96,8 +96,13 @@ def circuit_lines(c: Circuit, prefix: str = "", memo: dict | None = None) -> lis
             lines += [f"C{x} {x} 0 1", f"B{x} 0 {x} I={{v({n})}}"]
             continue
         a, b = _node(p.a, prefix), _node(p.b, prefix)
-        if isinstance(p, ChargeCapacitor):
+        if isinstance(p, ChargeCapacitor) and p.initial == 0.0:    # ngspice's Q form starts at Q = 0
             lines.append(f"C{prefix}{p.name} {a} {b} Q={{{_prefixed(spice_expression(p.charge), prefix)}}}")
+        elif isinstance(p, ChargeCapacitor):        # Q on a node, dQ/dt through 1 F, mirrored from a to b
+            qn, cn = (f"{prefix}{node}" for node in p.follower_nodes)
+            lines += [f"B{qn} {qn} 0 V={{{_prefixed(spice_expression(p.charge), prefix)}}}",
+                      f"V{prefix}ms{p.name} {qn} {cn} DC 0", f"C{cn} {cn} 0 1",
+                      f"F{prefix}m{p.name} {a} {b} V{prefix}ms{p.name} 1"]
         elif isinstance(p, BehaviouralCurrent):
             lines.append(f"B{prefix}{p.name} {b} {a} I={{{_prefixed(spice_expression(p.current), prefix)}}}")
     # 'I n+ n- value' drives current out of n+ and into n-: into a, out of b.

@@ -7,8 +7,11 @@ equations read
 
 Split as M' is split into elements (grounded c_a = Σ_j M'_aj, floating
 c_ab = −M'_ab), the first term is the sum of the currents d(c·(v_a − v_b))/dt of
-charge-defined capacitors, Q = c(x)·(v_a − v_b): ngspice's ``Q=`` form gives exactly
-that current (its ``C=`` form gives c(x)·dv/dt and misses dc/dt·Δv). The second and
+charge-defined capacitors, Q = c(x)·(v_a − v_b). ngspice's ``Q=`` form gives exactly
+that current (its ``C=`` form gives c(x)·dv/dt and misses dc/dt·Δv) but starts from
+zero charge whatever ``.ic`` says; so a charge with Q(0) ≠ 0 (the arm moving at t = 0)
+is written as a follower whose 1 F capacitor starts at Q(0) (see
+:class:`~analogy.circuit.parts.ChargeCapacitor`). The second and
 third terms are one behavioural current per node, h_a(x, v), drawn out of the node;
 springs stay inductors and dampers resistors; x_a = ∫v_a comes from an integrator
 node per joint.
@@ -149,17 +152,26 @@ def nonlinear_circuit(system, zero_tol: float = ZERO_TOL, describe: bool = True)
     """
     lag = node_lagrangian(system)
     n = system.dof
+    v0 = system.initial_voltages
+    at_start = {**{x: 0.0 for x in lag.x}}
+
+    def charge(c, a, b):
+        """Q = c(x)·(v_a − v_b) as text, and its value at t = 0."""
+        across = f"v(n{a})" if b == 0 else f"(v(n{a})-v(n{b}))"
+        q0 = float(c.subs(at_start)) * (v0[a - 1] - (v0[b - 1] if b else 0.0))
+        name = f"{a}" if b == 0 else f"{a}_{b}"
+        return ChargeCapacitor(name, a, b, f"({spice_text(c, lag)})*{across}", q0)
+
     parts = []
     for a in range(n):                  # grounded c_a = Σ_j M'_aj, floating c_ab = −M'_ab
         c = sp.expand(sum(lag.mass[a, j] for j in range(n)))
         if c != 0:
-            parts.append(ChargeCapacitor(f"{a + 1}", a + 1, 0, f"({spice_text(c, lag)})*v(n{a + 1})"))
+            parts.append(charge(c, a + 1, 0))
     for a in range(n):
         for b in range(a + 1, n):
             c = sp.expand(-lag.mass[a, b])
             if c != 0:
-                parts.append(ChargeCapacitor(f"{a + 1}_{b + 1}", a + 1, b + 1,
-                                             f"({spice_text(c, lag)})*(v(n{a + 1})-v(n{b + 1}))"))
+                parts.append(charge(c, a + 1, b + 1))
     for a in range(n):                  # h_a is drawn out of node a: driven from a to ground
         h = lag.load[a]
         if h != 0:
@@ -169,7 +181,8 @@ def nonlinear_circuit(system, zero_tol: float = ZERO_TOL, describe: bool = True)
     table = element_table(np.zeros((1, n, n)), system.damping[None], k, zero_tol)
     elements = tuple(Element(kind, a, b, float(spice_value(kind, c[0])), float(c[0]))
                      for kind, a, b, c in table if kind != "C" and c[0] != 0.0)
-    initial = tuple([(f"n{i + 1}", float(x)) for i, x in enumerate(system.initial_voltages)]
-                    + [(f"x{i + 1}", 0.0) for i in range(n)])
+    initial = tuple([(f"n{i + 1}", float(x)) for i, x in enumerate(v0)] + [(f"x{i + 1}", 0.0) for i in range(n)]
+                    + [(node, p.initial) for p in parts if isinstance(p, ChargeCapacitor) and p.initial != 0.0
+                       for node in p.follower_nodes])
     return Circuit(n, elements, current_sources(system, zero_tol), initial, system.t_stop, (),
                    tuple(parts), comments(system) if describe else ())

@@ -52,12 +52,26 @@ class Coupling(NamedTuple):
 
 
 class ChargeCapacitor(NamedTuple):
-    """A behavioural capacitor between *a* and *b* whose charge is the SPICE expression *charge*."""
+    """A capacitor between *a* and *b* holding the charge *charge* (a SPICE expression), Q(0) = *initial*.
+
+    Its current, from a to b, is dQ/dt: for Q = c(x)·(v_a − v_b), c·d(v_a − v_b)/dt + (dc/dt)·(v_a − v_b).
+    ngspice's ``C … Q={…}`` form carries that current but starts from zero charge
+    whatever ``.ic`` says, so it is written when Q(0) = 0. Otherwise the charge is
+    written as a follower: a behavioural voltage source sets a node to Q, a linear 1 F
+    capacitor on that node, starting at Q(0), carries dQ/dt, and a current-controlled
+    source mirrors that current between a and b.
+    """
 
     name: str
     a: int
     b: int
     charge: str
+    initial: float = 0.0
+
+    @property
+    def follower_nodes(self) -> tuple[str, str]:
+        """The node held at Q by the behavioural source, and the node of the 1 F capacitor."""
+        return f"mq{self.name}", f"mc{self.name}"
 
 
 class BehaviouralCurrent(NamedTuple):

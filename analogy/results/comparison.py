@@ -341,8 +341,9 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
         ref = ref_name if ref_name in results else None
         energy = {}
         if nonlinear:
-            for n, tr in results.items():
-                if tr.positions is not None:
+            for n in results:
+                tr = native[n][k] if n in native else results[n]     # on the solver's own points
+                if tr.success and tr.positions is not None:
                     residual, scale = system.energy_residual(tr)
                     energy[n] = float(np.max(np.abs(residual))) / scale
         out.append(Comparison(system, p.name, grid, results, failures, ref, measured[k] if ref else {},

@@ -22,12 +22,11 @@ def write_columns(path, columns: Mapping[str, np.ndarray]) -> Path:
     Parameters
     ----------
     path : str or Path
-        The file to write (its folder is created).
+        The file to write (its folder must exist).
     columns : mapping of str to array
         Column name to values.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     with path.open("w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(list(columns))

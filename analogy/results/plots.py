@@ -31,7 +31,6 @@ def solver_style(name: str) -> dict:
 def _save(fig: Figure, path) -> Figure:
     if path is not None:
         check_plot_path(path)
-        Path(path).parent.mkdir(parents=True, exist_ok=True)
         fig.savefig(path, dpi=110)
     return fig
 

@@ -340,8 +340,14 @@ def scene_system(scene: Scene, model=None) -> object:
             text = str(exc)
             if text.startswith(("topology", "unknown topology")):
                 raise InputError(f"{keys['topology']}: {text}") from None
+            if text.startswith("t_stop"):
+                raise InputError(f"{keys['t_stop']}: {text}") from None
+            if "does not assemble" in text:
+                raise InputError(f"{keys['q']}: {text}") from None
             if text.startswith(("mass", "damping", "stiffness", "gravity", "node mass", "model")):
-                raise InputError(f"{_joint_key(text, keys)}: {text}") from None
+                # a built-in robot's matrices come from its parameters
+                key = keys["parameters"] if scene.model.robot is not None else _joint_key(text, keys)
+                raise InputError(f"{key}: {text}") from None
             raise InputError(f"{keys['inputs']}: {text}") from None
 
 

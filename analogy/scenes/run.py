@@ -80,10 +80,13 @@ def run_scene(scene: Scene, output_dir=None) -> "SceneResult":
     if scene.joint_rates:
         result.comparison = comparison
     try:
-        if scene.csv_file:
-            result.written.append(result.to_csv(scene.path(scene.csv_file, output_dir)))
+        if scene.csv_file:          # a scene's files may sit in subfolders of its output folder
+            path = scene.path(scene.csv_file, output_dir)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            result.written.append(result.to_csv(path))
         if scene.plot_file:
             path = scene.path(scene.plot_file, output_dir)
+            path.parent.mkdir(parents=True, exist_ok=True)
             result.plot(path)
             result.written.append(path)
     except OSError as exc:
@@ -151,7 +154,7 @@ class SceneResult:
         return list(self.run_times)
 
     def __repr__(self) -> str:
-        files = f", wrote {len(self.written)} files" if self.written else ""
+        files = f", wrote {len(self.written)} file{'s' if len(self.written) > 1 else ''}" if self.written else ""
         failed = f", {len(self.failures)} failed" if self.failures else ""
         return f"<SceneResult {self.scene.name}: {', '.join(self.solvers) or 'no solver'}{failed}{files}>"
 
