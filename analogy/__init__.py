@@ -1,6 +1,6 @@
 """analogy: robot dynamics as electric circuits (masses as capacitors, MP models as floating ones)."""
 
-from importlib import import_module
+from importlib import import_module as _import_module
 
 __version__ = "0.1.0"
 
@@ -40,10 +40,10 @@ def __getattr__(name):
     module = _EXPORTS.get(name)
     if module is None:
         raise AttributeError(f"module 'analogy' has no attribute {name!r}")
-    value = getattr(import_module(f".{module}", __name__), name)
+    value = getattr(_import_module(f".{module}", __name__), name)
     globals()[name] = value
     return value
 
 
 def __dir__():
-    return sorted(list(globals()) + __all__)
+    return sorted(set(__all__) | {k for k in globals() if not k.startswith("_")})

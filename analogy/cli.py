@@ -86,7 +86,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "charge-defined capacitors, behavioural forces and integrators")
     p = sub.add_parser("compare", help="run SPICE, ODE and exact solvers and compare them")
     _scene_options(p)
-    p.add_argument("--solvers", default="spice,ode,exact", help="comma-separated: spice, ode, exact")
+    p.add_argument("--solvers", default="spice,ode,exact",
+                   help="comma-separated registered solvers: spice, ode, exact, reference")
     p.add_argument("--dynamics", default="linear", choices=["linear", "nonlinear", "both"],
                    help="the circuit at q (linear), the full configuration-dependent motion, or both: "
                         "how long the linear circuit holds")
@@ -265,7 +266,7 @@ def _cmd_compare(args) -> int:
     sc = scene_from_args(args)
     solvers = [s.strip() for s in args.solvers.split(",") if s.strip()]
     if not solvers:
-        raise InputError("--solvers names no solver: use spice, ode and/or exact")
+        raise InputError("--solvers names no solver: use spice, ode, exact and/or reference")
     if args.no_plot and args.plot:
         raise InputError("--plot and --no-plot contradict each other")
     # Output paths are checked before any work, so nothing computed is lost to a typo.
@@ -314,8 +315,11 @@ def _compare_both(sc, args, solvers, step) -> int:
         held = f"until t = {thresholds[tol]:.4g} s" if past.size else "over the whole run"
         print(f"the circuit linearised at q0 stays within {tol:g} of the peak rate {held}")
     try:
-        if args.csv:
-            result.to_csv(args.csv)
+        if args.csv:                # the nonlinear solvers' rates, then the linear circuit's
+            from .results.output import write_columns
+            columns = result.columns()
+            columns.update((f"r{j + 1}_linear", lin[:, j]) for j in range(lin.shape[1]))
+            write_columns(args.csv, columns)
             print(f"wrote {args.csv}")
         if args.plot:
             from .results.plots import plot_linear_horizon

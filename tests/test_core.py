@@ -11,7 +11,12 @@ import pytest
 import sympy as sp
 
 import analogy
-from analogy.circuit.description import BehaviouralCurrent, ChargeCapacitor, Circuit, circuit
+from analogy.circuit.description import (
+    BehaviouralCurrent,
+    ChargeCapacitor,
+    Circuit,
+    circuit,
+)
 from analogy.circuit.netlist import netlist
 from analogy.circuit.nonlinear import nonlinear_system
 from analogy.errors import InputError, SimulationError
@@ -23,7 +28,6 @@ from analogy.presets import preset
 from analogy.results.comparison import compare
 from analogy.results.metrics import relative_error
 from analogy.scenes.builtin import scene
-from analogy.scenes.scene import Scene
 from analogy.scenes.toml import parse_toml
 from analogy.solvers.ode import solve_ode
 from analogy.solvers.registry import SOLVER_NAMES, run, solver

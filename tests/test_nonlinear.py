@@ -9,7 +9,12 @@ import pytest
 import sympy as sp
 
 import analogy
-from analogy.circuit.description import BehaviouralCurrent, ChargeCapacitor, Integrator, circuit
+from analogy.circuit.description import (
+    BehaviouralCurrent,
+    ChargeCapacitor,
+    Integrator,
+    circuit,
+)
 from analogy.errors import InputError
 from analogy.model.expressions import parse_expression
 from analogy.results.comparison import compare

@@ -137,16 +137,17 @@ class Comparison:
         """A plain-text table of run time, error and steps per solver."""
         info = self.system.info
         ref = self.reference or "none"
+        where = " (errors on each solver's own points)" if self.reference else " (no errors measured)"
         lines = [f"robot {info.get('robot', 'custom')}, topology {self.system.topology.name}, "
-                 f"preset {self.preset}, {self.time.size} time points, reference {ref} "
-                 f"(errors on each solver's own points)",
+                 f"preset {self.preset}, {self.time.size} time points, reference {ref}{where}",
                  f"{'solver':<10}{'run time [ms]':>15}{'max |error|':>14}{'error / peak':>14}{'steps':>8}"]
         for name, ms, e, r, steps, note in self._rows():
             if ms in ("failed", "skipped"):
                 lines.append(f"{name:<10}  {'failed' if ms == 'failed' else 'does not apply'}: {note}")
                 continue
             tail = f"  ({note})" if note else ""
-            lines.append(f"{name:<10}{ms:>15.3f}{e:>14.3e}{r:>14.3e}{steps!s:>8}{tail}")
+            errs = f"{e:>14.3e}{r:>14.3e}" if self.reference else f"{'-':>14}{'-':>14}"
+            lines.append(f"{name:<10}{ms:>15.3f}{errs}{steps!s:>8}{tail}")
         return "\n".join(lines)
 
     def __str__(self) -> str:

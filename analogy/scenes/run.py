@@ -53,6 +53,8 @@ def run_scene(scene: Scene, output_dir=None) -> "SceneResult":
     output_dir : str or Path, optional
         Folder for the scene's output files.
     """
+    if not isinstance(scene, Scene):
+        raise InputError(f"run_scene takes a Scene, got {type(scene).__name__}: read a file with load_scene(path)")
     p = get_preset(scene.preset)
     system = scene.system()
     result = SceneResult(scene, system)
@@ -217,7 +219,8 @@ class SceneResult:
     def table(self) -> str:
         """Plain-text summary: solvers, run times, errors against the reference, files."""
         sc, system = self.scene, self.system
-        lines = [f"scene {sc.name}" + (f": {sc.description}" if sc.description else "")]
+        heading = f"scene {sc.name}" + (f": {sc.description}" if sc.description else "")
+        lines = [" ".join(heading.split())]         # a name or description prints as one line
         referenced = self.comparison is not None and self.reference is not None
         if self.comparison is not None:
             lines.append(self.comparison.table())
