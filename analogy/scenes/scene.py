@@ -6,14 +6,16 @@ import hashlib
 import math
 from dataclasses import dataclass, fields
 from pathlib import Path
-from typing import Mapping
+from typing import TYPE_CHECKING, Mapping
 
 from ..errors import InputError
 from ..model.dynamics import DYNAMICS, DynamicsKind
 from ..presets import PRESETS, PresetName
-from ..solvers.registry import SolverName
 from .build import scene_model, scene_system, scene_systems, symbolic_model
 from .spec import ModelSpec, freeze
+
+if TYPE_CHECKING:
+    from ..solvers.registry import SolverName
 
 __all__ = ["Scene", "OUTPUTS", "SCENE_SCHEMA", "content_key"]
 
