@@ -62,8 +62,9 @@ def _scene_options(p: argparse.ArgumentParser, preset: str = "accurate"):
                    help="joint-to-node map: serial, parallel or a matrix T with v = T r")
     g.add_argument("--force", action="append", metavar="SPEC",
                    help="force on the next joint (repeat once per joint): a number, step(a), "
-                        "step(a, delay, rise), pulse(v1, v2, delay, rise, fall, width, period), "
-                        "sine(offset, amplitude, freq), pwl(t1, v1, t2, v2, ...)")
+                        "step(a, delay, rise), pulse(v1, v2, delay=0, rise=1e-6, fall=1e-6, width=1, "
+                        "period=one pulse), sine(offset, amplitude, freq, delay=0, damping=0, "
+                        "phase_deg=0), pwl(t1, v1, t2, v2, ...)")
     g.add_argument("--r0", metavar="VALUES", help="initial joint rates, e.g. '0, 0'")
     g.add_argument("--t-stop", metavar="SECONDS", help="end time of the simulation")
     p.add_argument("--preset", default=preset, choices=list(PRESETS), help=_PRESET_HELP)
@@ -162,7 +163,9 @@ def scene_from_args(args) -> Scene:
     changes: dict = {"source": "command line"}
     if args.mass is not None:
         mass = _entries(args.mass, "--mass")
-        if not mass or not all(isinstance(r, list) for r in mass):
+        if not mass or not all(isinstance(r, list) and r for r in mass):
+            if not mass or any(r == [] for r in mass):
+                raise InputError("--mass must be a matrix like [[m1, m3], [m3, m2]], not empty")
             try:
                 parse_expression(args.mass, {})       # the grammar's own sentence first
             except InputError as exc:
@@ -189,6 +192,8 @@ def scene_from_args(args) -> Scene:
     if args.q is not None:
         changes["q"] = tuple(parse_vector(args.q, numeric=True))
     if coords:
+        if args.q is not None:
+            raise InputError(f"--q and --param {', '.join(coords)} both set the configuration: use one")
         q = list(changes.get("q", sc.q))
         for key, value in coords.items():
             k = int(key[1:])

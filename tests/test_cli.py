@@ -139,6 +139,11 @@ def test_help_says_what_the_tool_does():
     (["--robot", "serialN"], "serial<N> (a planar N-joint arm"),
     (["--mass", "[[1e-30, 0], [0, 1]]"], "element C1 = 1e-30 F is below the zero tolerance (1e-12"),
     (["--csv", "/nonexistent-folder/x.csv"], "cannot write /nonexistent-folder/x.csv"),
+    (["--csv", "/tmp"], "cannot write /tmp: it is a folder"),
+    (["--mass", "[]"], "--mass must be a matrix like [[m1, m3], [m3, m2]], not empty"),
+    (["--q", "0, 0.5", "--param", "q2=1"], "--q and --param q2 both set the configuration"),
+    (["--t-stop", "1e-12"], "--t-stop: t_stop must be a time between 1e-9 s and 1e9 s"),
+    (["--param", "d2=0"], "--param: mass matrix M is not positive definite"),
 ])
 def test_bad_input_is_refused_before_any_work(args, fragment):
     res = cli("compare", *args)
