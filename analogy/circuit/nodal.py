@@ -67,7 +67,7 @@ def nodal_analysis(elements, n: int | None = None) -> Nodal:
     entries and −y to (a, b) and (b, a); node 0 (ground) has no row. A current source
     ("I", a, b, i) adds i to J_a and −i to J_b. *n* defaults to the highest node used.
     Objects with ``kind``, ``a``, ``b`` and ``value`` attributes (such as
-    :class:`analogy.elements.Element`) are accepted too.
+    :class:`analogy.circuit.elements.Element`) are accepted too.
 
     Parameters
     ----------

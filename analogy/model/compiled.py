@@ -60,7 +60,7 @@ class CompiledModel:
         return self._m.DOF
 
     def joint_space(self, q=None, parameters=None) -> JointSpace:
-        """Evaluate at configuration *q*; same contract as :meth:`analogy.model.Model.joint_space`.
+        """Evaluate at configuration *q*; same contract as :meth:`analogy.model.symbolic.Model.joint_space`.
 
         Parameters
         ----------
@@ -73,7 +73,7 @@ class CompiledModel:
         return JointSpace(*(evaluate_entries(self.name, f, args, shape) for f, shape in self._parts()))
 
     def joint_stack(self, qs, parameters=None) -> JointStack:
-        """Evaluate at every row of *qs* at once; same contract as :meth:`analogy.model.Model.joint_stack`.
+        """Evaluate at every row of *qs* at once; same contract as :meth:`analogy.model.symbolic.Model.joint_stack`.
 
         Parameters
         ----------

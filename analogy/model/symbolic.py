@@ -86,7 +86,7 @@ def _as_matrix(value, n, name):
 
 
 def _bad_string(name):
-    raise InputError(f"{name}: parse strings with analogy.expressions first")
+    raise InputError(f"{name}: parse strings with analogy.model.expressions first")
 
 
 @dataclass
@@ -199,7 +199,7 @@ class Model:
     def joint_stack(self, qs, parameters: Mapping[str, float] | None = None) -> JointStack:
         """Evaluate at every row of *qs* at once (vectorised over configurations).
 
-        The values are not checked; :func:`analogy.system.node_systems` checks the stack.
+        The values are not checked; :func:`analogy.circuit.node_system.node_systems` checks the stack.
 
         Parameters
         ----------

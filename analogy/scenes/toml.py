@@ -7,7 +7,7 @@ the outputs wanted and the solvers that produce them. Example::
     description = "2-DOF serial arm at q2 = 0.3 rad, step torques"
 
     [model]
-    robot = "serial2"              # a built-in robot (analogy.robots.robot) ...
+    robot = "serial2"              # a built-in robot (analogy.model.robots.robot) ...
 
     [parameters]                   # ... with parameter overrides
     d2 = 1.0
