@@ -97,6 +97,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--csv", metavar="FILE", help="write joint rates of every solver to CSV")
     p.add_argument("--plot", metavar="FILE.png", help="write a plot of rates and errors")
     p.add_argument("--no-plot", action="store_true", help="never import the plotting library")
+    p = sub.add_parser("modes", help="natural frequencies and damping ratios of the linear system at q")
+    _scene_options(p)
+    p.add_argument("--locked", metavar="JOINTS", help="joints held clamped, e.g. '1' or '1,2'")
+    p.add_argument("--csv", metavar="FILE", help="write mode, omega_rad_s, f_hz, damping_ratio")
     p = sub.add_parser("verify", help="check every built-in example: SPICE and ODE against exact, "
                                       "exact against a 40-digit mpmath solution")
     p.add_argument("--preset", default="accurate", choices=list(PRESETS), help=_PRESET_HELP)
@@ -338,6 +342,27 @@ def _compare_both(sc, args, solvers, step) -> int:
     return _accuracy_exit(result.outside_bound(), result.preset, result.bound)
 
 
+def _cmd_modes(args) -> int:
+    from .results.modes import natural_modes
+    sc = scene_from_args(args)
+    _check_writable(args.csv)
+    locked = []
+    for item in (args.locked or "").split(","):
+        if item.strip():
+            if not item.strip().isdigit():
+                raise InputError(f"--locked needs joint numbers like 1,2, got {item.strip()!r}")
+            locked.append(int(item))
+    result = natural_modes(sc.system().joint, locked)
+    print(result.table())
+    if args.csv:
+        try:
+            result.to_csv(args.csv)
+        except OSError as exc:
+            raise InputError(f"cannot write {args.csv}: {exc.strerror}") from None
+        print(f"wrote {args.csv}")
+    return EXIT_OK
+
+
 def _cmd_verify(args) -> int:
     import numpy as np
 
@@ -450,7 +475,7 @@ def _cmd_scenes(args) -> int:
     return EXIT_OK
 
 
-_COMMANDS = {"netlist": _cmd_netlist, "compare": _cmd_compare, "verify": _cmd_verify,
+_COMMANDS = {"netlist": _cmd_netlist, "compare": _cmd_compare, "verify": _cmd_verify, "modes": _cmd_modes,
              "scenes": _cmd_scenes, "draw": _cmd_draw, "run": _cmd_run, "bench": _cmd_bench,
              "throughput": _cmd_throughput}
 
