@@ -305,35 +305,20 @@ def _cmd_compare(args) -> int:
 
 def _compare_both(sc, args, solvers, step) -> int:
     """The nonlinear motion against the circuit linearised at q0: how long the linear one holds."""
-    import numpy as np
-
-    from .results.comparison import compare
-    from .results.metrics import peak
-    result = compare(sc.replace(dynamics="nonlinear").system(), args.preset, solvers, step=step)
-    print(result.table())
-    ref = result.results.get(result.reference) if result.reference else None
-    if ref is None:
+    from .results.horizon import linear_horizon
+    horizon = linear_horizon(sc, args.preset, solvers, step)
+    if horizon is None:
+        print("analogy: simulation failed: the reference of the nonlinear motion did not run", file=sys.stderr)
         return EXIT_FAILED
-    linear = compare(sc.replace(dynamics="linear").system(), args.preset, ["exact"], times=result.time)
-    lin = linear.results["exact"].rates
-    deviation = np.max(np.abs(lin - ref.rates), axis=1) / peak(ref.rates)
-    thresholds = {}
-    for tol in (1e-3, 1e-2, 1e-1):
-        past = np.flatnonzero(deviation > tol)
-        thresholds[tol] = float(result.time[past[0]]) if past.size else float("inf")
-        held = f"until t = {thresholds[tol]:.4g} s" if past.size else "over the whole run"
-        print(f"the circuit linearised at q0 stays within {tol:g} of the peak rate {held}")
+    result = horizon.nonlinear
+    print(result.table())
+    print("\n".join(horizon.lines()))
     try:
-        if args.csv:                # the nonlinear solvers' rates, then the linear circuit's
-            from .results.output import write_columns
-            columns = result.columns()
-            columns.update((f"r{j + 1}_linear", lin[:, j]) for j in range(lin.shape[1]))
-            write_columns(args.csv, columns)
+        if args.csv:
+            horizon.to_csv(args.csv)
             print(f"wrote {args.csv}")
         if args.plot:
-            from .results.plots import plot_linear_horizon
-            plot_linear_horizon(result.time, ref.rates, lin, deviation, thresholds,
-                                f"{sc.model.label}: nonlinear motion against the circuit at q0", args.plot)
+            horizon.plot(args.plot)
             print(f"wrote {args.plot}")
     except OSError as exc:
         raise InputError(f"cannot write output: {exc}") from None

@@ -14,8 +14,8 @@ import numpy as np
 import sympy as sp
 
 import analogy
-from analogy.errors import InputError
 from analogy.circuit.topology import congruence
+from analogy.errors import InputError
 
 #: Tolerances every paper lab asserts, relative to the peak exact joint rate.
 SPICE_TOL = 1e-6

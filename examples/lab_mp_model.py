@@ -55,10 +55,10 @@ together with its results (<name>.csv).
 
 import csv
 
+import _lab
 import numpy as np
 import sympy as sp
 
-import _lab
 from analogy.circuit.netlist import analysis_lines
 from analogy.circuit.nodal import nodal_analysis
 from analogy.solvers.spice import run_netlist

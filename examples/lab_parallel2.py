@@ -27,9 +27,9 @@ Steps
    two poses (p'12 = 0), and M stays positive definite.
 """
 
+import _lab
 import numpy as np
 
-import _lab
 import analogy
 
 out = _lab.output_folder()

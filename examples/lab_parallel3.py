@@ -32,9 +32,9 @@ Steps
    even negative for a while, and M stays positive definite.
 """
 
+import _lab
 import numpy as np
 
-import _lab
 import analogy
 
 out = _lab.output_folder()

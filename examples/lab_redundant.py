@@ -27,10 +27,10 @@ Steps
 M does not depend on the configuration, so there is nothing to sweep over q.
 """
 
+import _lab
 import numpy as np
 import sympy as sp
 
-import _lab
 import analogy
 
 out = _lab.output_folder()

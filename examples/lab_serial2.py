@@ -24,10 +24,10 @@ Steps
    |q2| < pi/2, zero at +-pi/2 (the paper's M' diagonal case) and positive beyond.
 """
 
+import _lab
 import numpy as np
 import sympy as sp
 
-import _lab
 import analogy
 
 out = _lab.output_folder()

@@ -26,10 +26,10 @@ Steps
    angle does not change.
 """
 
+import _lab
 import numpy as np
 import sympy as sp
 
-import _lab
 import analogy
 
 out = _lab.output_folder()

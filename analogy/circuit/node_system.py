@@ -40,11 +40,77 @@ class Evaluable(Protocol):
             Parameter overrides.
         """
 
-__all__ = ["Evaluable", "NodeSystem", "Family", "stacked", "node_system", "node_systems", "output_times", "joint_forces",
+__all__ = ["Evaluable", "NodeCoordinates", "NodeSystem", "Family", "stacked", "node_system", "node_systems", "output_times", "joint_forces",
            "force_breakpoints", "waveforms"]
 
 
-class NodeSystem:
+class NodeCoordinates:
+    """What every node system shares: node names, v = T·r, the forces and their segments in time.
+
+    A subclass sets ``topology``, ``current_map``, ``forces``, ``t_stop`` and ``dof``.
+    """
+
+    @property
+    def nodes(self) -> list[str]:
+        """SPICE node names, n1 … nN."""
+        return [f"n{k + 1}" for k in range(self.dof)]
+
+    def node_currents(self, t) -> np.ndarray:
+        """Node currents i(t) = T⁻ᵀ·F(t), shape (len(t), n).
+
+        Parameters
+        ----------
+        t : float or array_like
+            Times.
+        """
+        return self.force(t) @ self.current_map.T
+
+    def joint_rates(self, node_voltages: np.ndarray) -> np.ndarray:
+        """R = T⁻¹·v for node voltages of shape (..., n).
+
+        Parameters
+        ----------
+        node_voltages : ndarray, shape (..., n)
+            Node velocities v.
+        """
+        return self.topology.joint_rates(node_voltages)
+
+    def time_points(self, times=None, default: int = 1001) -> np.ndarray:
+        """Sorted output times in [0, t_stop] (default: uniform); a time a rounding past
+        t_stop, as SPICE's last point can be, is taken as t_stop.
+
+        Parameters
+        ----------
+        times : array_like, optional
+            Requested times.
+        default : int
+            Number of uniform points without *times*.
+        """
+        return output_times(self.t_stop, times, default)
+
+    def force(self, t) -> np.ndarray:
+        """Joint forces F(t), shape (len(t), n) for an array of times.
+
+        Parameters
+        ----------
+        t : float or array_like
+            Times.
+        """
+        return joint_forces(self.forces, t)
+
+    def breakpoints(self) -> np.ndarray:
+        """Segment ends 0 < t_1 < … < t_stop between which every force is smooth."""
+        return force_breakpoints(self.forces, self.t_stop)
+
+    def segments(self) -> Iterator[tuple[float, float]]:
+        """Yield (t0, t1) intervals on which all forces are given by one closed form."""
+        t0 = 0.0
+        for t1 in self.breakpoints():
+            yield t0, float(t1)
+            t0 = float(t1)
+
+
+class NodeSystem(NodeCoordinates):
     """Linear dynamics in node coordinates v = T·r, driven by joint forces F(t).
 
     ``M'·dv/dt = i(t) − B'·v − K'·x`` with constant M' = T⁻ᵀ·M·T⁻¹ (B', K' likewise)
@@ -134,11 +200,6 @@ class NodeSystem:
         return (f"NodeSystem({self.info.get('robot', 'custom')}, {self.dof} nodes, "
                 f"{self.topology.name} topology{springs}, t_stop={self.t_stop:g} s)")
 
-    @property
-    def nodes(self) -> list[str]:
-        """SPICE node names, n1 … nN."""
-        return [f"n{k + 1}" for k in range(self.dof)]
-
     def node_mass(self, x: np.ndarray) -> np.ndarray:
         """M', the same at every x.
 
@@ -162,60 +223,6 @@ class NodeSystem:
             Time.
         """
         return np.zeros(self.dof)
-
-    def node_currents(self, t) -> np.ndarray:
-        """Node currents i(t) = T⁻ᵀ·F(t), shape (len(t), n).
-
-        Parameters
-        ----------
-        t : float or array_like
-            Times.
-        """
-        return self.force(t) @ self.current_map.T
-
-    def joint_rates(self, node_voltages: np.ndarray) -> np.ndarray:
-        """R = T⁻¹·v for node voltages of shape (..., n).
-
-        Parameters
-        ----------
-        node_voltages : ndarray, shape (..., n)
-            Node velocities v.
-        """
-        return self.topology.joint_rates(node_voltages)
-
-    def time_points(self, times=None, default: int = 1001) -> np.ndarray:
-        """Sorted output times in [0, t_stop] (default: uniform); a time a rounding past
-        t_stop, as SPICE's last point can be, is taken as t_stop.
-
-        Parameters
-        ----------
-        times : array_like, optional
-            Requested times.
-        default : int
-            Number of uniform points without *times*.
-        """
-        return output_times(self.t_stop, times, default)
-
-    def force(self, t) -> np.ndarray:
-        """Joint forces F(t), shape (len(t), n) for an array of times.
-
-        Parameters
-        ----------
-        t : float or array_like
-            Times.
-        """
-        return joint_forces(self.forces, t)
-
-    def breakpoints(self) -> np.ndarray:
-        """Segment ends 0 < t_1 < … < t_stop between which every force is smooth."""
-        return force_breakpoints(self.forces, self.t_stop)
-
-    def segments(self) -> Iterator[tuple[float, float]]:
-        """Yield (t0, t1) intervals on which all forces are given by one closed form."""
-        t0 = 0.0
-        for t1 in self.breakpoints():
-            yield t0, float(t1)
-            t0 = float(t1)
 
 
 class Family(NamedTuple):

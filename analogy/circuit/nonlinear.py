@@ -2,21 +2,21 @@
 
 from __future__ import annotations
 
-from typing import Iterator, Mapping, Sequence
+from typing import Mapping, Sequence
 
 import numpy as np
 
 from ..errors import InputError
 from ..model.dynamics import DynamicsKind, MechanicalFunctions
 from ..model.joint import check_square_symmetric, check_vector
-from .node_system import force_breakpoints, joint_forces, output_times, waveforms
+from .node_system import NodeCoordinates, force_breakpoints, waveforms
 from .topology import Topology
 from .topology import topology as make_topology
 
 __all__ = ["NonlinearNodeSystem", "nonlinear_system"]
 
 
-class NonlinearNodeSystem:
+class NonlinearNodeSystem(NodeCoordinates):
     """A robot's full dynamics in node coordinates, about the configuration q0 it starts at.
 
     With q = q0 + T⁻¹·x and r = T⁻¹·v, the Lagrange equations
@@ -79,11 +79,6 @@ class NonlinearNodeSystem:
     def dof(self) -> int:
         """Number of nodes (and joints) n."""
         return self.topology.dof
-
-    @property
-    def nodes(self) -> list[str]:
-        """SPICE node names, n1 … nN."""
-        return [f"n{k + 1}" for k in range(self.dof)]
 
     def configuration(self, x: np.ndarray) -> np.ndarray:
         """Joint coordinates q = q0 + T⁻¹·x at node positions *x*.
@@ -200,45 +195,6 @@ class NonlinearNodeSystem:
         jac[n:2 * n, :n], jac[n:2 * n, n:2 * n] = dfx, dfv
         jac[2 * n, :n], jac[2 * n, n:2 * n] = dpx, dpv
         return jac
-
-    def node_currents(self, t) -> np.ndarray:
-        """Node currents i(t) = T⁻ᵀ·F(t), shape (len(t), n).
-
-        Parameters
-        ----------
-        t : float or array_like
-            Times.
-        """
-        return joint_forces(self.forces, t) @ self.current_map.T
-
-    def joint_rates(self, node_voltages: np.ndarray) -> np.ndarray:
-        """R = T⁻¹·v for node voltages of shape (..., n).
-
-        Parameters
-        ----------
-        node_voltages : ndarray, shape (..., n)
-            Node velocities v.
-        """
-        return self.topology.joint_rates(node_voltages)
-
-    def time_points(self, times=None, default: int = 1001) -> np.ndarray:
-        """Sorted output times in [0, t_stop].
-
-        Parameters
-        ----------
-        times : array_like, optional
-            Requested times.
-        default : int
-            Number of uniform points without *times*.
-        """
-        return output_times(self.t_stop, times, default)
-
-    def segments(self) -> Iterator[tuple[float, float]]:
-        """Yield (t0, t1) intervals on which all forces are given by one closed form."""
-        t0 = 0.0
-        for t1 in force_breakpoints(self.forces, self.t_stop):
-            yield t0, float(t1)
-            t0 = float(t1)
 
 
 def nonlinear_system(model, q: Sequence[float], *, parameters: Mapping[str, float] | None = None,

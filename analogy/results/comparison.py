@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
@@ -15,11 +14,10 @@ from ..presets import Preset
 from ..presets import preset as get_preset
 from ..solvers.registry import SOLVER_NAMES, run_many, solver
 from .metrics import errors, peak
-from .output import html_table, write_columns
+from .output import Tabular, html_table
 from .trajectory import Trajectory
 
 if TYPE_CHECKING:
-    import pandas
     from matplotlib.figure import Figure
 
 __all__ = ["Comparison", "compare", "compare_many", "output_grid", "DEFAULT_SOLVERS"]
@@ -29,7 +27,7 @@ DEFAULT_SOLVERS: tuple[str, ...] = ("spice", "ode", "exact")
 
 
 @dataclass(eq=False, slots=True)
-class Comparison:
+class Comparison(Tabular):
     """Joint rates from several solvers on one time grid, with errors against a reference.
 
     Attributes
@@ -171,21 +169,6 @@ class Comparison:
         for s, tr in self.results.items():
             cols.update((f"r{j + 1}_{s}", tr.rates[:, j]) for j in range(n))
         return cols
-
-    def to_csv(self, path) -> Path:
-        """Write time, then every solver's joint rates r1…rn, one row per time point.
-
-        Parameters
-        ----------
-        path : str or Path
-            The file to write.
-        """
-        return write_columns(path, self.columns())
-
-    def to_frame(self) -> "pandas.DataFrame":
-        """The :meth:`columns` as a pandas DataFrame indexed by time."""
-        import pandas as pd
-        return pd.DataFrame(self.columns()).set_index("time")
 
     def plot(self, path=None) -> "Figure":
         """Joint rates of every solver and their errors against time; saved to *path* if given.

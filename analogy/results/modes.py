@@ -4,20 +4,19 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Sequence
 
 import numpy as np
 import scipy.linalg as la
 
 from ..errors import InputError
-from .output import html_table, write_columns
+from .output import Tabular, html_table
 
 __all__ = ["Modes", "natural_modes"]
 
 
 @dataclass(eq=False)
-class Modes:
+class Modes(Tabular):
     """The modes of K·φ = ω²·M·φ, with each mode's damping ratio.
 
     Attributes
@@ -72,16 +71,6 @@ class Modes:
         return html_table(["mode", "omega [rad/s]", "f [Hz]", "damping ratio"],
                           [[k + 1, float(w), float(w / (2 * math.pi)), float(z)]
                            for k, (w, z) in enumerate(zip(self.omega, self.damping_ratio))])
-
-    def to_csv(self, path) -> Path:
-        """Write the :meth:`columns`.
-
-        Parameters
-        ----------
-        path : str or Path
-            The file to write.
-        """
-        return write_columns(path, self.columns())
 
 
 def natural_modes(joint, locked: Sequence[int] = ()) -> Modes:

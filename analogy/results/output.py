@@ -4,13 +4,16 @@ from __future__ import annotations
 
 import csv
 from pathlib import Path
-from typing import Mapping
+from typing import TYPE_CHECKING, Mapping
 
 import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["write_columns", "html_table", "check_plot_path", "PLOT_FORMATS"]
+if TYPE_CHECKING:
+    import pandas
+
+__all__ = ["Tabular", "write_columns", "html_table", "check_plot_path", "PLOT_FORMATS"]
 
 #: File formats matplotlib writes here.
 PLOT_FORMATS = ("png", "svg", "pdf", "jpg", "jpeg", "eps", "ps", "tif", "tiff", "webp")
@@ -69,3 +72,29 @@ def check_plot_path(path) -> Path:
         raise InputError(f"cannot plot to {str(path)!r}: use one of "
                          f"{', '.join('.' + f for f in PLOT_FORMATS[:4])}")
     return path
+
+
+class Tabular:
+    """Results whose :meth:`columns` (first column the index) give their CSV and their DataFrame."""
+
+    __slots__ = ()
+
+    def columns(self) -> dict[str, np.ndarray]:
+        """Column name to values, the first column being the index (time, mode, scene)."""
+        raise NotImplementedError
+
+    def to_csv(self, path) -> Path:
+        """Write the :meth:`columns`, one row per entry of the first.
+
+        Parameters
+        ----------
+        path : str or Path
+            The file to write (its folder must exist).
+        """
+        return write_columns(path, self.columns())
+
+    def to_frame(self) -> "pandas.DataFrame":
+        """The :meth:`columns` as a pandas DataFrame indexed by the first of them."""
+        import pandas as pd
+        cols = self.columns()
+        return pd.DataFrame(cols).set_index(next(iter(cols)))

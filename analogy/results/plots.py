@@ -167,11 +167,13 @@ def plot_linear_horizon(time: np.ndarray, nonlinear: np.ndarray, linear: np.ndar
     ax.set_title(title)
     ax.legend(ncol=2, fontsize="small")
     axe.semilogy(time, np.maximum(deviation, 1e-18), color="k", lw=1.2, label="deviation")
+    colours = ("tab:green", "tab:purple", "tab:red", "tab:brown")   # apart from the joints' C0, C1
     for k, (tol, t) in enumerate(sorted(thresholds.items())):
         held = f"until t = {t:.3g} s" if np.isfinite(t) else "throughout"
-        axe.axhline(tol, color=f"C{k + 3}", ls=":", lw=1, label=f"within {tol:g} {held}")
+        colour = colours[k % len(colours)]
+        axe.axhline(tol, color=colour, ls=":", lw=1, label=f"within {tol:g} {held}")
         if np.isfinite(t):
-            axe.axvline(t, color=f"C{k + 3}", ls=":", lw=1)
+            axe.axvline(t, color=colour, ls=":", lw=1)
     axe.set_ylim(max(1e-8, min(thresholds) / 1e4) if thresholds else 1e-8, 2.0)
     axe.legend(fontsize="small", loc="lower right")
     axe.set_xlabel("time [s]")

@@ -4,15 +4,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .output import write_columns
+from .output import Tabular
 
 if TYPE_CHECKING:
-    import pandas
     from matplotlib.figure import Figure
 
 __all__ = ["Trajectory", "SolverStats"]
@@ -54,7 +52,7 @@ _EMPTY = np.empty((0, 0))
 
 
 @dataclass(eq=False, slots=True)
-class Trajectory:
+class Trajectory(Tabular):
     """Result of one solver: a success with its values, or a failure with the reason.
 
     Attributes
@@ -149,21 +147,6 @@ class Trajectory:
         cols.update((f"v_n{j + 1}", self.voltages[:, j]) for j in range(self.voltages.shape[1]))
         cols.update((f"i_{name}", values) for name, values in self.currents.items())
         return cols
-
-    def to_frame(self) -> "pandas.DataFrame":
-        """The :meth:`columns` as a pandas DataFrame indexed by time."""
-        import pandas as pd
-        return pd.DataFrame(self.columns()).set_index("time")
-
-    def to_csv(self, path) -> Path:
-        """Write the :meth:`columns`, one row per time point.
-
-        Parameters
-        ----------
-        path : str or Path
-            The file to write.
-        """
-        return write_columns(path, self.columns())
 
     def plot(self, path=None) -> "Figure":
         """Joint rates against time; saved to *path* if given.

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import re
 from contextlib import contextmanager
-from typing import TYPE_CHECKING, Iterator, Mapping
+from typing import Iterator, Mapping
 
 import numpy as np
 
@@ -17,10 +17,7 @@ from ..model.catalog import check_robot_name
 from ..model.compiled import compile_model, load_compiled
 from ..model.expressions import parse_expression, parse_number
 from ..model.joint import JointSpace
-from .spec import ModelSpec
-
-if TYPE_CHECKING:
-    from .scene import Scene
+from .spec import ModelSpec, SceneData
 
 __all__ = ["scene_model", "symbolic_model", "scene_system", "scene_systems", "validated", "entry_value", "TOML_KEYS",
            "CLI_KEYS", "keyed"]
@@ -57,11 +54,11 @@ def keyed(key: str | None) -> Iterator[None]:
         raise InputError(f"{key}: {' '.join(str(exc).split())}") from None
 
 
-def _keys(scene: Scene) -> dict:
+def _keys(scene: SceneData) -> dict:
     return CLI_KEYS if scene.source == "command line" else TOML_KEYS
 
 
-def _where(scene: Scene):
+def _where(scene: SceneData):
     """Prefix errors with the scene file, when the scene came from one."""
     src = scene.source
     return keyed(src if src not in (None, "command line") else None)
@@ -182,7 +179,7 @@ def _symbolic(parts: dict, params: Mapping[str, float], keys: dict):
                      parameters=dict(params), coordinates=qs if used_q else (), topology="parallel")
 
 
-def scene_model(scene: Scene) -> object:
+def scene_model(scene: SceneData) -> object:
     """The model a scene evaluates: a compiled or symbolic robot, a symbolic model or a JointSpace.
 
     Built-in robots are derived once per process (and kept compiled on disk); the
@@ -190,7 +187,7 @@ def scene_model(scene: Scene) -> object:
 
     Parameters
     ----------
-    scene : Scene
+    scene : SceneData
         The scene.
     """
     spec, keys = scene.model, _keys(scene)
@@ -236,12 +233,12 @@ def scene_model(scene: Scene) -> object:
         return model
 
 
-def symbolic_model(scene: Scene) -> object:
+def symbolic_model(scene: SceneData) -> object:
     """The scene's model as sympy expressions (a built-in robot is derived, not loaded compiled).
 
     Parameters
     ----------
-    scene : Scene
+    scene : SceneData
         The scene.
     """
     if scene.model.robot is not None:
@@ -265,7 +262,7 @@ def _robot(spec: ModelSpec, dynamics: str):
     return (compile_model(model, name) or model) if dynamics == "linear" else model
 
 
-def _configuration(scene: Scene, model, keys: dict) -> list[float] | None:
+def _configuration(scene: SceneData, model, keys: dict) -> list[float] | None:
     coords = [str(c) for c in getattr(model, "coordinates", ())]
     with keyed(keys["q"]):
         if isinstance(model, JointSpace) or not coords:
@@ -281,14 +278,14 @@ def _configuration(scene: Scene, model, keys: dict) -> list[float] | None:
         return [float(x) for x in scene.q]
 
 
-def _topology(scene: Scene):
+def _topology(scene: SceneData):
     t = scene.topology
     if isinstance(t, tuple):
         return np.array(t, dtype=float)
     return t
 
 
-def _inputs(scene: Scene, n: int, keys: dict) -> dict:
+def _inputs(scene: SceneData, n: int, keys: dict) -> dict:
     forces = scene.forces
     with keyed(keys["forces"]):
         if not forces:
@@ -310,12 +307,12 @@ def _inputs(scene: Scene, n: int, keys: dict) -> dict:
     return {"forces": out, "initial_rates": r0}
 
 
-def scene_system(scene: Scene, model=None) -> object:
+def scene_system(scene: SceneData, model=None) -> object:
     """The node system of *scene*: linear at q, or its full nonlinear dynamics from q.
 
     Parameters
     ----------
-    scene : Scene
+    scene : SceneData
         The scene.
     model : object, optional
         An already built model (from :func:`scene_model`).
@@ -351,12 +348,12 @@ def scene_system(scene: Scene, model=None) -> object:
             raise InputError(f"{keys['inputs']}: {text}") from None
 
 
-def scene_systems(scene: Scene, qs, model=None) -> list:
+def scene_systems(scene: SceneData, qs, model=None) -> list:
     """The linear node systems of *scene* at every row of *qs*, built as one stack.
 
     Parameters
     ----------
-    scene : Scene
+    scene : SceneData
         The scene (its q is replaced by each row).
     qs : array_like, shape (count, n)
         Configurations.
@@ -384,7 +381,7 @@ def _check_nodes(system, names) -> tuple[str, ...]:
     return tuple(dict.fromkeys(out))
 
 
-def validated(scene: Scene) -> Scene:
+def validated(scene: SceneData) -> SceneData:
     """*scene* with its outputs checked against its system (built here) and names made canonical.
 
     ``node_voltages = true`` becomes every node and ``element_currents = true`` every
@@ -392,7 +389,7 @@ def validated(scene: Scene) -> Scene:
 
     Parameters
     ----------
-    scene : Scene
+    scene : SceneData
         A parsed scene.
     """
     system = scene.system()

@@ -14,11 +14,10 @@ from ..errors import InputError
 from ..presets import preset as get_preset
 from ..results.comparison import compare
 from ..results.metrics import absolute_error, relative_error
-from ..results.output import html_table, write_columns
+from ..results.output import Tabular, html_table
 from .scene import Scene
 
 if TYPE_CHECKING:
-    import pandas
     from matplotlib.figure import Figure
 
 __all__ = ["SceneResult", "run_scene", "save_names"]
@@ -106,7 +105,7 @@ def _write_text(path: Path, text: str) -> Path:
 
 
 @dataclass(eq=False)
-class SceneResult:
+class SceneResult(Tabular):
     """What a scene asked for, computed.
 
     Attributes
@@ -271,21 +270,6 @@ class SceneResult:
                 for name, vals in (by_solver.get(s) or {}).items():
                     cols[f"{prefix}{name}_{s}"] = vals
         return cols
-
-    def to_csv(self, path) -> Path:
-        """Write the :meth:`columns`, one row per time point.
-
-        Parameters
-        ----------
-        path : str or Path
-            The file to write.
-        """
-        return write_columns(path, self.columns())
-
-    def to_frame(self) -> "pandas.DataFrame":
-        """The :meth:`columns` as a pandas DataFrame indexed by time."""
-        import pandas as pd
-        return pd.DataFrame(self.columns()).set_index("time")
 
     def plot(self, path=None) -> "Figure":
         """One panel per requested quantity and, with a reference, each solver's error / peak.

@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any, Mapping, Protocol
 
-__all__ = ["ModelSpec", "freeze"]
+__all__ = ["ModelSpec", "SceneData", "freeze"]
 
 
 def freeze(value) -> object:
@@ -63,3 +64,41 @@ class ModelSpec:
     def label(self) -> str:
         """The robot's name, or ``custom``."""
         return self.robot or "custom"
+
+
+class SceneData(Protocol):
+    """What building a scene reads of it (:class:`~analogy.scenes.scene.Scene` has it all)."""
+
+    name: str
+    model: ModelSpec
+    q: tuple
+    parameters: tuple
+    topology: Any
+    forces: tuple
+    initial_rates: tuple | None
+    t_stop: float
+    dynamics: str
+    node_voltages: Any
+    element_currents: Any
+    source: str | None
+
+    @property
+    def parameter_values(self) -> Mapping[str, float]: ...
+
+    def replace(self, **changes) -> "SceneData":
+        """A copy with *changes*.
+
+        Parameters
+        ----------
+        **changes
+            New field values.
+        """
+
+    def system(self, model=None) -> object:
+        """The scene's node system.
+
+        Parameters
+        ----------
+        model : object, optional
+            An already built model.
+        """

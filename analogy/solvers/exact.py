@@ -237,7 +237,7 @@ class ExactSolver(Solver):
         positions : bool
             Also return node positions where the system has springs.
         """
-        grid = np.linspace(0.0, system.t_stop, preset.steps + 1) if times is None else times
+        grid = self.grid(system, times, preset)
         return solve_exact(system, grid, positions)
 
     def solve_many(self, systems, times, preset: Preset, *, save=(), positions=False) -> list[Trajectory]:
@@ -258,9 +258,8 @@ class ExactSolver(Solver):
         """
         if positions or len(systems) == 1 or any(self.supports(s) for s in systems):
             return super().solve_many(systems, times, preset, positions=positions)
-        grid = np.linspace(0.0, systems[0].t_stop, preset.steps + 1) if times is None else times
         start = _time.perf_counter()
-        t = systems[0].time_points(grid)
+        t = self.grid(systems[0], times, preset)
         try:
             states = _solve(systems, t)
         except SimulationError:             # one by one, so that only a system it cannot take fails

@@ -187,7 +187,7 @@ class OdeSolver(Solver):
         positions : bool
             Also return node positions where the system has springs.
         """
-        grid = np.linspace(0.0, system.t_stop, preset.steps + 1) if times is None else times
+        grid = self.grid(system, times, preset)
         return solve_ode(system, grid, preset.ode_method, preset.ode_rtol, positions=positions)
 
 

@@ -125,7 +125,7 @@ class ReferenceSolver(Solver):
         positions : bool
             Unused.
         """
-        t = system.time_points(np.linspace(0.0, system.t_stop, preset.steps + 1) if times is None else times)
+        t = self.grid(system, times, preset)
         if getattr(system, "kind", "linear") != "linear":
             from .ode import solve_ode  # scipy: only for nonlinear systems
             tr = solve_ode(system, t, "DOP853", NONLINEAR_RTOL, positions=True)

@@ -104,6 +104,21 @@ class Solver:
         """
         raise NotImplementedError
 
+    @staticmethod
+    def grid(system, times, preset: Preset) -> np.ndarray:
+        """*times* checked against *system*, or the preset's uniform grid when None.
+
+        Parameters
+        ----------
+        system : NodeDynamics
+            The system.
+        times : array_like or None
+            Requested output times.
+        preset : Preset
+            Its ``steps`` set the default grid.
+        """
+        return system.time_points(np.linspace(0.0, system.t_stop, preset.steps + 1) if times is None else times)
+
     def solve_many(self, systems: Sequence, times, preset: Preset, *, save: Sequence[str] = (),
                    positions: bool = False) -> list[Trajectory]:
         """Solve each of *systems* at *times*; failures come back as failed trajectories.
