@@ -288,19 +288,7 @@ def _cmd_compare(args) -> int:
         return _compare_both(sc, args, solvers, step)
     result = compare(sc.system(), args.preset, solvers, step=step)
     print(result.table())
-    # Results already computed are written even when a solver failed.
-    try:
-        if args.csv:
-            result.to_csv(args.csv)
-            print(f"wrote {args.csv}")
-        if args.plot:
-            result.plot(args.plot)
-            print(f"wrote {args.plot}")
-    except OSError as exc:
-        raise InputError(f"cannot write output: {exc}") from None
-    if result.failures:
-        return EXIT_FAILED
-    return _accuracy_exit(result.outside_bound(), result.preset, result.bound)
+    return _written_and_judged(result, result, args)
 
 
 def _compare_both(sc, args, solvers, step) -> int:
@@ -310,15 +298,19 @@ def _compare_both(sc, args, solvers, step) -> int:
     if horizon is None:
         print("analogy: simulation failed: the reference of the nonlinear motion did not run", file=sys.stderr)
         return EXIT_FAILED
-    result = horizon.nonlinear
-    print(result.table())
+    print(horizon.nonlinear.table())
     print("\n".join(horizon.lines()))
+    return _written_and_judged(horizon, horizon.nonlinear, args)
+
+
+def _written_and_judged(output, result, args) -> int:
+    """Write --csv and --plot of *output* (even when a solver failed), then the exit code of *result*."""
     try:
         if args.csv:
-            horizon.to_csv(args.csv)
+            output.to_csv(args.csv)
             print(f"wrote {args.csv}")
         if args.plot:
-            horizon.plot(args.plot)
+            output.plot(args.plot)
             print(f"wrote {args.plot}")
     except OSError as exc:
         raise InputError(f"cannot write output: {exc}") from None
