@@ -399,7 +399,7 @@ def _cmd_run(args) -> int:
     from .scenes.toml import load_scene
     job = load_scene(args.scene_file)
     if args.dynamics is not None and args.dynamics != job.dynamics:
-        from .scenes.build import validated
+        from .scenes.toml import validated
         job = validated(job.replace(dynamics=args.dynamics))
     if args.no_plot:
         job = job.replace(plot_file=None)

@@ -8,8 +8,6 @@ from typing import Iterator, Mapping
 
 import numpy as np
 
-from ..circuit.currents import check_element_names
-from ..circuit.description import circuit
 from ..circuit.node_system import node_system, node_systems, waveforms
 from ..circuit.nonlinear import nonlinear_system
 from ..errors import InputError
@@ -19,7 +17,7 @@ from ..model.expressions import parse_expression, parse_number
 from ..model.joint import JointSpace
 from .spec import ModelSpec, SceneData
 
-__all__ = ["scene_model", "symbolic_model", "scene_system", "scene_systems", "validated", "entry_value", "TOML_KEYS",
+__all__ = ["scene_model", "symbolic_model", "scene_system", "scene_systems", "entry_value", "TOML_KEYS",
            "CLI_KEYS", "keyed"]
 
 #: How errors name each part of a scene: in a scene file, and on the command line.
@@ -367,44 +365,3 @@ def scene_systems(scene: SceneData, qs, model=None) -> list:
         params = scene.parameter_values if scene.model.robot is not None else None
         return node_systems(m, qs, parameters=params, topology=_topology(scene), t_stop=scene.t_stop,
                             info={"scene": scene.name}, **inputs)
-
-
-def _check_nodes(system, names) -> tuple[str, ...]:
-    nodes = system.nodes
-    out = []
-    for name in names:
-        if not isinstance(name, str) or name not in nodes:
-            raise InputError(f"unknown node {name!r}: nodes are {', '.join(nodes)}")
-        out.append(name)
-    if not out:
-        raise InputError("name at least one node (or write true for all)")
-    return tuple(dict.fromkeys(out))
-
-
-def validated(scene: SceneData) -> SceneData:
-    """*scene* with its outputs checked against its system (built here) and names made canonical.
-
-    ``node_voltages = true`` becomes every node and ``element_currents = true`` every
-    element; an unknown name is an :class:`InputError` naming the key.
-
-    Parameters
-    ----------
-    scene : SceneData
-        A parsed scene.
-    """
-    system = scene.system()
-    changes = {}
-    with _where(scene):
-        with keyed("[outputs] node_voltages"):
-            nv = scene.node_voltages
-            changes["node_voltages"] = tuple(system.nodes) if nv is True else \
-                (_check_nodes(system, nv) if nv else ())
-        with keyed("[outputs] element_currents"):
-            ec = scene.element_currents
-            if ec and getattr(system, "kind", "linear") != "linear":
-                raise InputError("element currents need the linear circuit (dynamics = \"linear\")")
-            if ec is True:
-                changes["element_currents"] = tuple(e.name for e in circuit(system).parts)
-            else:
-                changes["element_currents"] = check_element_names(system, ec) if ec else ()
-    return scene.replace(**changes)

@@ -52,17 +52,19 @@ import tomllib
 from contextlib import contextmanager
 from pathlib import Path
 
+from ..circuit.currents import check_element_names
+from ..circuit.description import circuit
 from ..errors import InputError
 from ..model.dynamics import DYNAMICS
 from ..model.expressions import parse_number
 from ..presets import preset as get_preset
 from ..results.output import check_plot_path
 from ..solvers.registry import SOLVER_NAMES
-from .build import validated
+from .build import keyed
 from .scene import OUTPUTS, Scene
 from .spec import ModelSpec, freeze
 
-__all__ = ["load_scene", "parse_scene", "parse_toml"]
+__all__ = ["load_scene", "parse_scene", "parse_toml", "validated"]
 
 _TABLES = {
     "model": ("robot", "mass", "damping", "stiffness", "gravity"),
@@ -183,7 +185,7 @@ def load_scene(path) -> Scene:
 
 
 def parse_scene(text: str, source="scene.toml") -> Scene:
-    """:func:`parse_toml`, then :func:`~analogy.scenes.build.validated`.
+    """:func:`parse_toml`, then :func:`validated`.
 
     Parameters
     ----------
@@ -463,3 +465,44 @@ def _solvers(ctx, data) -> dict:
                 raise InputError(f"must be a positive time, got {step!r}")
             out["step"] = step
     return out
+
+
+def _check_nodes(system, names) -> tuple[str, ...]:
+    nodes = system.nodes
+    out = []
+    for name in names:
+        if not isinstance(name, str) or name not in nodes:
+            raise InputError(f"unknown node {name!r}: nodes are {', '.join(nodes)}")
+        out.append(name)
+    if not out:
+        raise InputError("name at least one node (or write true for all)")
+    return tuple(dict.fromkeys(out))
+
+
+def validated(scene: Scene) -> Scene:
+    """*scene* with its outputs checked against its system (built here) and names made canonical.
+
+    ``node_voltages = true`` becomes every node and ``element_currents = true`` every
+    element; an unknown name is an :class:`InputError` naming the key.
+
+    Parameters
+    ----------
+    scene : Scene
+        A parsed scene.
+    """
+    system = scene.system()
+    changes = {}
+    with keyed(scene.source if scene.source not in (None, "command line") else None):
+        with keyed("[outputs] node_voltages"):
+            nv = scene.node_voltages
+            changes["node_voltages"] = tuple(system.nodes) if nv is True else \
+                (_check_nodes(system, nv) if nv else ())
+        with keyed("[outputs] element_currents"):
+            ec = scene.element_currents
+            if ec and getattr(system, "kind", "linear") != "linear":
+                raise InputError("element currents need the linear circuit (dynamics = \"linear\")")
+            if ec is True:
+                changes["element_currents"] = tuple(e.name for e in circuit(system).parts)
+            else:
+                changes["element_currents"] = check_element_names(system, ec) if ec else ()
+    return scene.replace(**changes)
