@@ -2,36 +2,42 @@
 
 Link i turns by θ_i from link i−1's undeformed axis, so its axis points along
 α_i = θ_1 + … + θ_i (the flexible-robot paper's eqs. 20–21). A point at x along it
-sits at p_i(x) = o_i + x·e_i + w_i(x)·n_i, with e_i = (cos α_i, sin α_i), n_i ⊥ e_i and
-the deflection w_i(x) = Σ_k φ_ik(x)·δ_ik; the next link starts at its tip,
-o_{i+1} = p_i(L_i). The coordinates are (θ_1 … θ_n, δ_11 …, δ_21 …, …).
+sits at r_i(x) = o_i + x·e_i + u_i(x)·n_i, with e_i = (cos α_i, sin α_i), n_i ⊥ e_i and
+the deflection u_i(x) = Σ_k ψ_ik(x)·δ_ik; the next link starts at its tip,
+o_{i+1} = r_i(l_i). The coordinates are (θ_1 … θ_n, δ_11 …, δ_21 …, …) unless an
+order is given.
 
-The kinetic energy is written with x and each φ_ik(x) as placeholders; the integrand
-is a polynomial in them, and each monomial x^a·φ_ik·φ_jl is replaced by its integral
-∫ρA·x^a·φ_ik·φ_jl dx, computed by Gauss–Legendre quadrature (converged below 1e-14,
-see tests/test_flexible.py). M is the Hessian of T in the rates, K the modal bending
-stiffness ∫EI·φ''φ'' dx, and G = ∂U/∂q with U the potential of gravity along −y.
+The Jacobians J_i = ∂r_i/∂q are taken by sympy with x and each ψ_ik(x) as symbols;
+the entries of JᵀJ are polynomials in them, and each monomial x^a·ψ_ik·ψ_jl is
+replaced by its integral ∫ρA·x^a·ψ_ik·ψ_jl dx, computed by Gauss–Legendre quadrature
+(converged below 1e-14, see tests/test_flexible.py). G_i = g·Σ∫ρA·J[y, i] dx (the
+y row, gravity along −y), and K is the modal bending stiffness ∫EI·ψ''ψ'' dx.
 """
 
 from __future__ import annotations
 
-from typing import NamedTuple, Sequence
+from typing import Literal, NamedTuple, Sequence
 
 import numpy as np
 import sympy as sp
 
 from ..errors import InputError
-from .beams import BeamModes, beam_modes, gauss_points
+from .beams import BeamModes, Normalisation, beam_modes, gauss_points
 from .symbolic import Model
 
-__all__ = ["FlexibleLink", "flexible_chain"]
+__all__ = ["FlexibleLink", "ChainKinematics", "chain_kinematics", "flexible_chain", "LinkModes"]
+
+#: Mode shapes: each link clamped-free (the paper's), or clamped and loaded by what its tip carries.
+LinkModes = Literal["clamped-free", "clamped-mass"]
+_QUADRATURE_POINTS = 96
 
 
 class FlexibleLink(NamedTuple):
     """One link: length [m], ρA [kg/m], EI [N·m²] and its number of assumed modes (0: rigid).
 
-    *tip_mass* and *tip_inertia* are what the link carries at its tip (the next
-    joint's motor, or the payload of the last link); *hub_inertia* is at its joint.
+    *tip_mass* [kg] and *tip_inertia* [kg·m²] are what the link carries at its tip (the
+    next joint's motor, or the payload of the last link); *hub_inertia* [kg·m²] turns
+    with the link's joint; *modal_damping* is the damping ratio of each of its modes.
     """
 
     length: float
@@ -41,14 +47,85 @@ class FlexibleLink(NamedTuple):
     hub_inertia: float = 0.0
     tip_mass: float = 0.0
     tip_inertia: float = 0.0
+    modal_damping: float = 0.0
+
+
+class ChainKinematics(NamedTuple):
+    """Positions of a deformed planar chain, with the mode shapes as symbols.
+
+    ``points[i]`` is r_i(x) in terms of ``x`` and the shape symbols ``shapes[i][k]`` =
+    ψ_ik(x); ``tips[i]`` is r_i(l_i), written with ``tip_shapes[i][k]`` = ψ_ik(l_i);
+    ``tip_angles[i]`` is the direction of link i's tip, α_i + Σ ψ'_ik(l_i)·δ_ik, with
+    ``tip_slopes[i][k]`` = ψ'_ik(l_i).
+    """
+
+    coordinates: list
+    angles: list
+    modal: list
+    x: sp.Symbol
+    shapes: list
+    tip_shapes: list
+    tip_slopes: list
+    points: list
+    tips: list
+    tip_angles: list
+
+    def jacobians(self) -> list:
+        """J_i = ∂r_i(x)/∂q, one 2 × dof matrix per link."""
+        return [p.jacobian(self.coordinates) for p in self.points]
 
 
 def _rot(v, angle):
     return sp.Matrix([v[0] * sp.cos(angle) - v[1] * sp.sin(angle), v[0] * sp.sin(angle) + v[1] * sp.cos(angle)])
 
 
-def flexible_chain(links: Sequence[FlexibleLink], *, gravity: float = 0.0, clamped_mass: bool = False,
-                   damping: Sequence[float] | None = None, name: str = "flexible") -> Model:
+def chain_kinematics(lengths: Sequence, modes: Sequence[int], order: Sequence[int] | None = None) -> ChainKinematics:
+    """The deformed positions of a planar chain (eqs. 20–21 for two links), symbolically.
+
+    Parameters
+    ----------
+    lengths : sequence
+        l_i [m], numbers or sympy symbols.
+    modes : sequence of int
+        Assumed modes per link (0: a rigid link).
+    order : sequence of int, optional
+        A permutation of the default coordinates (θ…, δ_1…, δ_2…): coordinate k of the
+        model is default coordinate ``order[k]``.
+    """
+    n = len(lengths)
+    if n == 0 or len(modes) != n:
+        raise InputError("a flexible chain needs one mode count per link")
+    theta = list(sp.symbols(f"theta1:{n + 1}", real=True))
+    modal = [list(sp.symbols(f"delta{i + 1}_1:{m + 1}", real=True)) if m else [] for i, m in enumerate(modes)]
+    q = theta + [d for ds in modal for d in ds]
+    if order is not None:
+        if sorted(order) != list(range(len(q))):
+            raise InputError(f"the coordinate order must be a permutation of 0 … {len(q) - 1}")
+        q = [q[k] for k in order]
+    x = sp.Symbol("x", real=True)
+
+    def named(stem, i, m):
+        return list(sp.symbols(f"{stem}{i + 1}_1:{m + 1}", real=True)) if m else []
+
+    shapes = [named("psi", i, m) for i, m in enumerate(modes)]
+    tip_shapes = [named("psie", i, m) for i, m in enumerate(modes)]
+    tip_slopes = [named("dpsie", i, m) for i, m in enumerate(modes)]
+    points, tips, tip_angles = [], [], []
+    origin, alpha = sp.Matrix([0, 0]), sp.S.Zero
+    for i, length in enumerate(lengths):
+        alpha = alpha + theta[i]
+        u = sum((p * d for p, d in zip(shapes[i], modal[i])), sp.S.Zero)
+        points.append(origin + _rot([x, u], alpha))
+        u_tip = sum((p * d for p, d in zip(tip_shapes[i], modal[i])), sp.S.Zero)
+        origin = origin + _rot([length, u_tip], alpha)
+        tips.append(origin)
+        tip_angles.append(alpha + sum((p * d for p, d in zip(tip_slopes[i], modal[i])), sp.S.Zero))
+    return ChainKinematics(q, theta, modal, x, shapes, tip_shapes, tip_slopes, points, tips, tip_angles)
+
+
+def flexible_chain(links: Sequence[FlexibleLink], *, gravity: float = 0.0, link_modes: LinkModes = "clamped-free",
+                   normalisation: Normalisation = "link-mass", damping: Sequence[float] | None = None,
+                   order: Sequence[int] | None = None, name: str = "flexible") -> Model:
     """The assumed-modes model of a planar chain of flexible links on revolute joints.
 
     Parameters
@@ -57,89 +134,109 @@ def flexible_chain(links: Sequence[FlexibleLink], *, gravity: float = 0.0, clamp
         The links from the base out.
     gravity : float
         g [m/s²] along −y (0: a horizontal plane).
-    clamped_mass : bool
-        Mode shapes of each link clamped at its joint and loaded by its tip mass and
-        inertia; else clamped-free shapes (the paper's setting).
+    link_modes : {"clamped-free", "clamped-mass"}
+        Each link's mode shapes: those of a cantilever (the paper's setting), or of a
+        link clamped at its joint and loaded by its tip mass and inertia.
+    normalisation : {"link-mass", "unit"}
+        Each mode's modal mass: the link's mass ρA·l, or 1 kg (see `beam_modes`).
     damping : sequence of float, optional
         Joint dampers [N·m·s/rad], one per link.
+    order : sequence of int, optional
+        A permutation of the default coordinates (see `chain_kinematics`).
     name : str
         The model's name.
     """
     if not links:
         raise InputError("a flexible chain needs at least one link")
+    if link_modes not in ("clamped-free", "clamped-mass"):
+        raise InputError(f"unknown link modes {link_modes!r}: use clamped-free or clamped-mass")
     n = len(links)
-    theta = list(sp.symbols(f"theta1:{n + 1}", real=True))
-    deltas = [list(sp.symbols(f"delta{i + 1}_1:{ln.modes + 1}", real=True)) if ln.modes else []
-              for i, ln in enumerate(links)]
-    q = theta + [d for ds in deltas for d in ds]
-    qd = list(sp.symbols(f"qd1:{len(q) + 1}", real=True))
-    rate = dict(zip(q, qd))
-    X = sp.Symbol("X", real=True)
+    kin = chain_kinematics([ln.length for ln in links], [ln.modes for ln in links], order)
+    q = kin.coordinates
     modes: list[BeamModes | None] = []
     for ln in links:
-        if ln.modes:
-            tip = (ln.tip_mass, ln.tip_inertia) if clamped_mass else (0.0, 0.0)
-            modes.append(beam_modes(ln.modes, ln.length, ln.rho_a, ln.ei, *tip))
-        else:
-            modes.append(None)
-
-    def d_dt(expr):
-        return sum(sp.diff(expr, c) * rate[c] for c in q)
-
-    kinetic, potential = sp.S.Zero, sp.S.Zero
-    origin, alpha = sp.Matrix([0, 0]), sp.S.Zero
+        tip = (ln.tip_mass, ln.tip_inertia) if link_modes == "clamped-mass" else (0.0, 0.0)
+        modes.append(beam_modes(ln.modes, ln.length, ln.rho_a, ln.ei, *tip, normalisation=normalisation)
+                     if ln.modes else None)
+    tip_values = {}
+    for i, md in enumerate(modes):
+        if md is not None:
+            tip_values |= dict(zip(kin.tip_shapes[i], md.shape([links[i].length])[0].tolist()))
+            tip_values |= dict(zip(kin.tip_slopes[i], md.shape([links[i].length], 1)[0].tolist()))
+    dof = len(q)
+    mass = sp.zeros(dof, dof)
+    grav = sp.zeros(1, dof)
+    mass[q.index(kin.angles[0]), q.index(kin.angles[0])] += links[0].hub_inertia
+    for i, (ln, md, jac) in enumerate(zip(links, modes, kin.jacobians())):
+        mass += _integrate(jac.T * jac, kin.x, kin.shapes[i], ln, md)
+        grav += gravity * _integrate(jac[1, :], kin.x, kin.shapes[i], ln, md)
+        tip_jac = kin.tips[i].jacobian(q)
+        turn = sp.Matrix([kin.tip_angles[i]]).jacobian(q)
+        mass += ln.tip_mass * tip_jac.T * tip_jac + ln.tip_inertia * turn.T * turn
+        grav += gravity * ln.tip_mass * tip_jac[1, :]
+        if i > 0:
+            mass += ln.hub_inertia * _turn(kin, i, q).T * _turn(kin, i, q)
+    mass = _trig_reduced(mass.subs(tip_values), kin.angles)
+    grav = _trig_reduced(grav.subs(tip_values), kin.angles)
+    stiffness = np.zeros((dof, dof))
+    modal_damping = np.zeros((dof, dof))
     for i, (ln, md) in enumerate(zip(links, modes)):
-        alpha = alpha + theta[i]
-        if i == 0:
-            kinetic += ln.hub_inertia * rate[theta[0]] ** 2 / 2
-        placeholders = list(sp.symbols(f"P{i + 1}_1:{ln.modes + 1}", real=True)) if ln.modes else []
-        w = sum((p * d for p, d in zip(placeholders, deltas[i])), sp.S.Zero)
-        point = origin + _rot([X, w], alpha)
-        velocity = sp.Matrix([d_dt(point[0]), d_dt(point[1])])
-        density = sp.expand(velocity.dot(velocity) / 2)
-        kinetic += _integrate(density, X, placeholders, ln, md)
-        potential += gravity * _integrate(sp.expand(point[1]), X, placeholders, ln, md)
-        # the tip: its deflection and slope, then what it carries
-        tip_w = sum((float(md.shape([ln.length])[0][k]) * d for k, d in enumerate(deltas[i])), sp.S.Zero) \
-            if md is not None else sp.S.Zero
-        tip_slope = sum((float(md.shape([ln.length], 1)[0][k]) * d for k, d in enumerate(deltas[i])), sp.S.Zero) \
-            if md is not None else sp.S.Zero
-        origin = origin + _rot([ln.length, tip_w], alpha)
-        tip_velocity = sp.Matrix([d_dt(origin[0]), d_dt(origin[1])])
-        kinetic += ln.tip_mass * tip_velocity.dot(tip_velocity) / 2
-        kinetic += ln.tip_inertia * d_dt(alpha + tip_slope) ** 2 / 2
-        potential += gravity * ln.tip_mass * origin[1]
-    mass = sp.Matrix(len(q), len(q), lambda a, b: sp.expand(sp.diff(kinetic, qd[a], qd[b])))
-    stiffness = np.zeros((len(q), len(q)))
-    k = n
-    for ln, md in zip(links, modes):
         if md is None:
             continue
-        xg, wg = gauss_points(96)
+        xg, wg = gauss_points(_QUADRATURE_POINTS)
         d2 = md.shape(xg * ln.length, 2)
         block = ln.ei * ln.length * (d2.T * wg) @ d2
-        stiffness[k:k + ln.modes, k:k + ln.modes] = 0.5 * (block + block.T)
-        k += ln.modes
-    grav = [sp.expand(sp.diff(potential, c)) for c in q]
-    damp = [0.0] * len(q) if damping is None else list(damping) + [0.0] * (len(q) - n)
-    if len(damp) != len(q):
+        at = [q.index(d) for d in kin.modal[i]]
+        stiffness[np.ix_(at, at)] = 0.5 * (block + block.T)
+        # ratio ζ per mode of the clamped link: b_k = 2ζ·ω_k·(its modal mass)
+        modal_mass = ln.rho_a * ln.length if normalisation == "link-mass" else 1.0
+        modal_damping[at, at] = 2.0 * ln.modal_damping * md.omega * modal_mass
+    joint = np.zeros(n) if damping is None else np.asarray(damping, dtype=float)
+    if joint.shape != (n,):
         raise InputError(f"damping needs one value per joint ({n})")
+    for k, th in enumerate(kin.angles):
+        modal_damping[q.index(th), q.index(th)] += joint[k]
+    damp = np.diag(modal_damping).tolist() if not np.any(modal_damping - np.diag(np.diag(modal_damping))) \
+        else sp.Matrix(modal_damping.tolist())
+    g = list(grav)
     return Model(name, mass, damping=damp, stiffness=sp.Matrix(stiffness.tolist()),
-                 gravity=grav if any(g != 0 for g in grav) else None, coordinates=q, topology="parallel",
+                 gravity=g if any(v != 0 for v in g) else None, coordinates=q, topology="parallel",
                  description=f"planar chain of {n} flexible links, assumed modes")
 
 
-def _integrate(density, x, placeholders, link: FlexibleLink, modes: BeamModes | None):
-    """∫ρA·density dx over the link, the placeholders standing for the mode shapes φ_k(x)."""
-    xg, wg = gauss_points(96)
+def _trig_reduced(matrix: sp.MatrixBase, angles) -> sp.MatrixBase:
+    """Entries as polynomials in sin θ_i and cos θ_i with cos² θ_i = 1 − sin² θ_i, so that
+    M shows that it depends on the relative angles only."""
+    square = {sp.cos(a) ** 2: 1 - sp.sin(a) ** 2 for a in angles}
+    return matrix.applyfunc(lambda e: sp.expand(sp.expand(sp.expand_trig(e)).subs(square)))
+
+
+def _turn(kin: ChainKinematics, i: int, q) -> sp.Matrix:
+    """∂α_i/∂q: how link i's joint rotor turns (θ_1 + … + θ_i)."""
+    return sp.Matrix([sum(kin.angles[:i + 1], sp.S.Zero)]).jacobian(q)
+
+
+def _integrate(matrix: sp.MatrixBase, x, shapes, link: FlexibleLink, modes: BeamModes | None):
+    """∫ρA·matrix dx over the link, the shape symbols standing for the mode shapes ψ_k(x)."""
+    xg, wg = gauss_points(_QUADRATURE_POINTS)
     xs = xg * link.length
-    phi = modes.shape(xs) if modes is not None else np.zeros((xs.size, 0))
-    poly = sp.Poly(density, x, *placeholders)
-    total = sp.S.Zero
-    for powers, coefficient in poly.terms():
-        values = xs ** powers[0]
-        for k, p in enumerate(powers[1:]):
-            if p:
-                values = values * phi[:, k] ** p
-        total += coefficient * float(link.rho_a * link.length * (wg @ values))
-    return total
+    psi = modes.shape(xs) if modes is not None else np.zeros((xs.size, 0))
+    cache: dict = {}
+
+    def integral(powers):
+        if powers not in cache:
+            values = xs ** powers[0]
+            for k, p in enumerate(powers[1:]):
+                if p:
+                    values = values * psi[:, k] ** p
+            cache[powers] = float(link.rho_a * link.length * (wg @ values))
+        return cache[powers]
+
+    def entry(expr):
+        expr = sp.expand(expr)
+        if expr == 0:
+            return sp.S.Zero
+        poly = sp.Poly(expr, x, *shapes)
+        return sum((c * integral(p) for p, c in poly.terms()), sp.S.Zero)
+
+    return matrix.applyfunc(entry)
