@@ -23,7 +23,7 @@ def assert_rounding_equal(a, b):
 
 
 def sprung_model(skew: float = 0.0) -> Model:
-    """A symbolic 2-DOF model whose M, K and G depend on q; K and G vanish at q1 = 0.
+    """A symbolic 2-DOF model whose M, K and G depend on q; K, G and ∂G/∂q vanish at q1 = 0.
 
     *skew* makes M symmetric only to within a relative *skew*, as rounding in a
     model's own expressions can.
@@ -33,7 +33,7 @@ def sprung_model(skew: float = 0.0) -> Model:
     mass = sp.Matrix([[3 + sp.cos(q2), m12], [m12 * (1 + skew), 1]])
     spring = k * sp.sin(q1) ** 2
     return Model("sprung", mass, damping=[1, 0.5], stiffness=sp.Matrix([[spring, 0], [0, 2 * spring]]),
-                 gravity=[g * sp.sin(q1), 0], parameters={"k": 2.0, "g": 9.81}, coordinates=(q1, q2),
+                 gravity=[g * sp.sin(q1) ** 2, 0], parameters={"k": 2.0, "g": 9.81}, coordinates=(q1, q2),
                  topology="serial")
 
 
@@ -66,9 +66,9 @@ def test_stack_equals_one_at_a_time(name):
 def test_gravity_and_springs_follow_each_row_and_vanish_where_they_vanish():
     qs = np.array([[0.0, 0.2], [np.pi / 3, 0.2], [np.pi / 2, 0.2]])
     systems = node_systems(sprung_model(), qs, forces=(1.0, 0.0))
-    # F_1 = 1 − g·sin q1: the step of −G sums with the applied step
+    # F_1 = 1 − g·sin² q1: the step of −G sums with the applied step
     for s, q in zip(systems, qs):
-        assert s.force([0.5])[0, 0] == pytest.approx(1.0 - 9.81 * np.sin(q[0]), abs=1e-12)
+        assert s.force([0.5])[0, 0] == pytest.approx(1.0 - 9.81 * np.sin(q[0]) ** 2, abs=1e-12)
     assert systems[0].joint.gravity is None and systems[0].stiffness is None
     assert systems[1].stiffness is not None and [e.kind for e in elements(systems[1])].count("L") == 2
     assert elements(systems[0]) == elements(node_system(sprung_model(), [0.0, 0.2], forces=(1.0, 0.0)))

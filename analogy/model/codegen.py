@@ -12,7 +12,7 @@ __all__ = ["module_source"]
 
 
 def module_source(model) -> str:
-    """Python source of *model*'s M, B, K and G as numpy functions, with its names and defaults.
+    """Python source of *model*'s M, B, K and G, linearised (`Model.linear_parts`), as numpy functions, with its names and defaults.
 
     Parameters
     ----------
@@ -25,8 +25,7 @@ def module_source(model) -> str:
               f"TOPOLOGY = {model.topology!r}", f"DESCRIPTION = {model.description!r}",
               f"DOF = {model.dof}", ""]
     body, used = [], set()
-    for label, expr in (("mass_matrix", model.mass_matrix), ("damping", model.damping),
-                        ("stiffness", model.stiffness), ("gravity", model.gravity)):
+    for label, expr in zip(("mass_matrix", "damping", "stiffness", "gravity"), model.linear_parts()):
         if expr is None:
             body += [f"{label} = None", ""]
             continue

@@ -8,7 +8,7 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["JointSpace", "JointStack", "check_square_symmetric", "check_vector",
+__all__ = ["JointSpace", "unstable_stiffness", "JointStack", "check_square_symmetric", "check_vector",
            "evaluation_arguments", "configuration_stack", "evaluate_entries", "part_shapes",
            "stack_fault"]
 
@@ -246,7 +246,9 @@ class JointSpace:
     damping : array_like, shape (n, n), optional
         Symmetric positive semidefinite B (default zero).
     stiffness : array_like, shape (n, n), optional
-        Symmetric positive semidefinite K; all zeros is stored as None.
+        Symmetric K; all zeros is stored as None. It may be indefinite: gravity's
+        stiffness is negative about a pose above the horizontal, an unstable equilibrium
+        whose modes grow (see :attr:`unstable`).
     gravity : array_like, shape (n,), optional
         Gravity load G; all zeros is stored as None.
     """
@@ -259,7 +261,7 @@ class JointSpace:
         b = np.zeros((n, n)) if damping is None else \
             check_square_symmetric("damping matrix B", damping, n=n, semidefinite=True)
         k = None if stiffness is None else \
-            check_square_symmetric("stiffness matrix K", stiffness, n=n, semidefinite=True)
+            check_square_symmetric("stiffness matrix K", stiffness, n=n)
         g = None if gravity is None else check_vector("gravity vector G", gravity, n)
         self._store(m, b, k, g)
 
@@ -292,10 +294,28 @@ class JointSpace:
         """Number of joints n."""
         return self.mass_matrix.shape[0]
 
+    @property
+    def unstable(self) -> bool:
+        """True when K has a negative eigenvalue: the pose is an unstable equilibrium."""
+        return unstable_stiffness(self.stiffness)
+
     def __repr__(self) -> str:
         parts = ["M", "B"] + (["K"] if self.stiffness is not None else []) + \
             (["G"] if self.gravity is not None else [])
         return f"JointSpace({self.dof} joints: {', '.join(parts)})"
+
+
+def unstable_stiffness(stiffness: np.ndarray | None) -> bool:
+    """True when the symmetric *stiffness* has an eigenvalue below −1e-12 of its largest entry.
+
+    Parameters
+    ----------
+    stiffness : ndarray or None
+        K (or K').
+    """
+    if stiffness is None:
+        return False
+    return bool(np.linalg.eigvalsh(stiffness)[0] < -1e-12 * max(np.abs(stiffness).max(), 1e-300))
 
 
 def stack_fault(stack: JointStack, node_mass: np.ndarray | None = None) -> bool:
@@ -321,7 +341,7 @@ def stack_fault(stack: JointStack, node_mass: np.ndarray | None = None) -> bool:
             np.linalg.cholesky(node_mass)
     except np.linalg.LinAlgError:
         return True
-    for x in (b, k):
+    for x in (b,):
         if x is not None:
             floor = -1e-12 * np.maximum(np.abs(x).max(axis=(1, 2)), 1.0)
             if np.any(np.linalg.eigvalsh(x)[:, 0] < floor):

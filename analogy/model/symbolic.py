@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Mapping, Sequence
+from typing import Callable, Mapping, Sequence
 
 import numpy as np
 import sympy as sp
@@ -109,6 +109,20 @@ class Model:
         Joint coordinates q the matrices may depend on.
     topology : str
         Default joint-to-node map (``"serial"`` or ``"parallel"``).
+    description : str
+        One line for reports.
+    spring_rest : sequence of float, optional
+        The configuration at which K is unstretched (the flexible links' modal
+        coordinates rest at 0); by default the springs rest at the pose linearised at.
+    builder : callable, optional
+        ``builder(**parameters)`` rebuilds the model for other parameter values, for
+        models whose matrices are numbers computed from them (mode shapes of flexible
+        links, whose count sets the coordinates).
+
+    Notes
+    -----
+    Linearised at q0, the model gives M(q0), B, K + ∂G/∂q(q0) (gravity's stiffness,
+    negative where the pose is unstable) and the constant load G(q0) + K·(q0 − rest).
     """
 
     name: str
@@ -120,6 +134,8 @@ class Model:
     coordinates: Sequence = ()
     topology: str = "parallel"
     description: str = ""
+    spring_rest: Sequence[float] | None = None
+    builder: Callable[..., "Model"] | None = None
 
     def __post_init__(self):
         if isinstance(self.mass_matrix, sp.MatrixBase):
@@ -145,7 +161,47 @@ class Model:
                 raise InputError(f"{label} matrix must be {n}x{n}, got {mat.shape[0]}x{mat.shape[1]}")
         self.coordinates = tuple(self.coordinates)
         self.parameters = dict(self.parameters)
+        if self.spring_rest is not None:
+            self.spring_rest = tuple(float(x) for x in self.spring_rest)
+            if len(self.spring_rest) != n or len(self.coordinates) != n:
+                raise InputError(f"spring_rest needs {n} entries and the model {n} coordinates")
         self._compiled = None
+        self._rebuilt: dict = {}
+
+    def with_parameters(self, parameters: Mapping[str, float] | None = None) -> "Model":
+        """The model at other parameter values: rebuilt by its builder, else itself.
+
+        Parameters
+        ----------
+        parameters : mapping, optional
+            Overrides of :attr:`parameters` by name.
+        """
+        if self.builder is None or not parameters:
+            return self
+        values = dict(self.parameters)
+        for key, value in parameters.items():
+            if key not in values:
+                raise InputError(f"model {self.name!r} has no parameter {key!r} "
+                                 f"(it has: {', '.join(values)})")
+            values[key] = float(value)
+        if values == self.parameters:
+            return self
+        key = tuple(sorted(values.items()))
+        if key not in self._rebuilt:
+            self._rebuilt[key] = self.builder(**values)
+        return self._rebuilt[key]
+
+    def linear_parts(self) -> tuple:
+        """M, B, the linearised stiffness K + ∂G/∂q and the static load G + K·(q − rest), symbolically."""
+        stiffness, load = self.stiffness, self.gravity
+        q = sp.Matrix(self.coordinates)
+        if load is not None and self.coordinates and load.free_symbols & set(self.coordinates):
+            hessian = load.jacobian(q)
+            stiffness = hessian if stiffness is None else stiffness + hessian
+        if self.spring_rest is not None and self.stiffness is not None and any(self.stiffness):
+            elastic = self.stiffness * (q - sp.Matrix(self.spring_rest))
+            load = elastic if load is None else load + elastic
+        return self.mass_matrix, self.damping, stiffness, load
 
     @property
     def dof(self) -> int:
@@ -161,7 +217,7 @@ class Model:
         params = list(self.symbols.values())
         args = list(self.coordinates) + params
         free = set()
-        parts = [self.mass_matrix, self.damping, self.stiffness, self.gravity]
+        parts = list(self.linear_parts())
         for p in parts:
             if p is not None:
                 free |= p.free_symbols
@@ -191,6 +247,10 @@ class Model:
         parameters : mapping, optional
             Overrides of :attr:`parameters` by name.
         """
+        if self.builder is not None and parameters:
+            rebuilt = self.with_parameters(parameters)
+            if rebuilt is not self:
+                return rebuilt.joint_space(q)
         fns, qnames, pnames = self._compiled or self._compile()
         args = evaluation_arguments(self.name, qnames, self.parameters, q, parameters)
         m, b, k, g = (evaluate_entries(self.name, f, args, shape) for f, shape in zip(fns, self._shapes()))
@@ -208,6 +268,10 @@ class Model:
         parameters : mapping, optional
             Parameter overrides.
         """
+        if self.builder is not None and parameters:
+            rebuilt = self.with_parameters(parameters)
+            if rebuilt is not self:
+                return rebuilt.joint_stack(qs)
         fns, qnames, _ = self._compiled or self._compile()
         q = configuration_stack(self.name, qnames, qs)
         args = list(q.T) + evaluation_arguments(self.name, (), self.parameters, None, parameters)
@@ -229,6 +293,10 @@ class Model:
             If B or K depend on q (the nonlinear node dynamics take them constant), or
             the model's coordinates do not match its joints.
         """
+        if self.builder is not None and parameters:
+            rebuilt = self.with_parameters(parameters)
+            if rebuilt is not self:
+                return rebuilt.mechanical_functions()
         values = dict(self.parameters)
         for key, value in (parameters or {}).items():
             if key not in values:
