@@ -57,6 +57,9 @@ def _scene_options(p: argparse.ArgumentParser, preset: str = "accurate"):
     g.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                    help="parameter value (repeatable), e.g. l1=0.5; qK=VALUE sets joint "
                         "coordinate K, e.g. q2=pi/4")
+    g.add_argument("--link-modes", choices=("clamped-free", "clamped-mass"),
+                   help="flexible arms: each link's mode shapes, a cantilever's (default) or "
+                        "loaded by the tip mass and inertia the link carries")
     g.add_argument("--q", metavar="VALUES", help="configuration, e.g. '0, 0.3'")
     g.add_argument("--topology", metavar="serial|parallel|MATRIX",
                    help="joint-to-node map: serial, parallel or a matrix T with v = T r")
@@ -185,12 +188,17 @@ def scene_from_args(args) -> Scene:
     elif args.damping or args.stiffness or args.gravity:
         raise InputError("--damping, --stiffness and --gravity need --mass (built-in robots have their own; "
                          "the serial arms take --param g=9.81)")
-    elif args.robot is not None and args.robot != sc.model.robot:
-        probe = Scene.of(args.robot, args.robot, source="command line")
-        model = scene_model(probe)          # one sentence on an unknown name
-        n = model.dof
-        changes.update(model=probe.model, q=(0.0,) * len(model.coordinates), parameters=params,
-                       forces=(1.0,) * n, initial_rates=None, topology=None)
+    elif args.robot is not None and (args.robot != sc.model.robot or args.link_modes is not None):
+        spec = ModelSpec(robot=args.robot, link_modes=args.link_modes)
+        probe = Scene.of(args.robot, spec, parameters=params, source="command line")
+        model = scene_model(probe)          # one sentence on an unknown name or parameter
+        # joints are driven by unit steps; a flexible link's modal coordinates are not actuated
+        forces = tuple(0.0 if str(c).startswith("delta") else 1.0 for c in model.coordinates) \
+            or (1.0,) * model.dof
+        changes.update(model=spec, q=(0.0,) * len(model.coordinates), parameters=params,
+                       forces=forces, initial_rates=None, topology=None)
+    elif args.link_modes is not None:
+        raise InputError("--link-modes applies to the flexible arms: give --robot flex1 or flex2")
     elif params:
         changes["parameters"] = dict(sc.parameters, **params)
     if args.q is not None:

@@ -7,7 +7,7 @@ from ..errors import InputError
 __all__ = ["ROBOT_NAMES", "check_robot_name", "MAX_SERIAL", "MAX_RANDOM"]
 
 #: Fixed built-in robots; ``serial<N>`` and ``random<N>`` name families.
-ROBOT_NAMES = ("redundant", "serial2", "parallel2", "serial3", "parallel3")
+ROBOT_NAMES = ("redundant", "serial2", "parallel2", "serial3", "parallel3", "flex1", "flex2")
 MAX_SERIAL = 50
 MAX_RANDOM = 2000
 
@@ -18,7 +18,7 @@ def check_robot_name(name) -> str:
     Parameters
     ----------
     name : str
-        ``redundant``, ``serial2``, ``serial3``, ``parallel2``, ``parallel3``,
+        ``redundant``, ``serial2``, ``serial3``, ``parallel2``, ``parallel3``, ``flex1``, ``flex2``,
         ``serial<N>`` (a planar N-joint arm) or ``random<N>`` (a random SPD N-joint system).
     """
     if isinstance(name, str):

@@ -16,6 +16,8 @@ y row, gravity along −y), and K is the modal bending stiffness ∫EI·ψ''ψ''
 
 from __future__ import annotations
 
+from dataclasses import replace
+from functools import partial
 from typing import Literal, NamedTuple, Sequence
 
 import numpy as np
@@ -25,7 +27,8 @@ from ..errors import InputError
 from .beams import BeamModes, Normalisation, beam_modes, gauss_points
 from .symbolic import Model
 
-__all__ = ["FlexibleLink", "ChainKinematics", "chain_kinematics", "flexible_chain", "LinkModes"]
+__all__ = ["FlexibleLink", "ChainKinematics", "chain_kinematics", "flexible_chain", "LinkModes",
+           "FLEXIBLE_DEFAULTS", "flexible_arm"]
 
 #: Mode shapes: each link clamped-free (the paper's), or clamped and loaded by what its tip carries.
 LinkModes = Literal["clamped-free", "clamped-mass"]
@@ -177,6 +180,7 @@ def flexible_chain(links: Sequence[FlexibleLink], *, gravity: float = 0.0, link_
         if i > 0:
             mass += ln.hub_inertia * _turn(kin, i, q).T * _turn(kin, i, q)
     mass = _trig_reduced(mass.subs(tip_values), kin.angles)
+    mass = sp.Matrix(dof, dof, lambda a, b: mass[min(a, b), max(a, b)])    # exactly symmetric
     grav = _trig_reduced(grav.subs(tip_values), kin.angles)
     stiffness = np.zeros((dof, dof))
     modal_damping = np.zeros((dof, dof))
@@ -240,3 +244,67 @@ def _integrate(matrix: sp.MatrixBase, x, shapes, link: FlexibleLink, modes: Beam
         return sum((c * integral(p) for p, c in poly.terms()), sp.S.Zero)
 
     return matrix.applyfunc(entry)
+
+
+#: The built-in flexible arms' parameters and their defaults: aluminium strips
+#: (E = 70 GPa, ρ = 2700 kg/m³) 50 mm × 4 mm in section, bending in the arm's plane,
+#: so ρA = 0.54 kg/m and EI = 18.67 N·m²; 0.5 m links; a 0.5 kg motor at the elbow.
+FLEXIBLE_DEFAULTS = {
+    "l1": 0.5, "l2": 0.5,                  # link lengths [m]
+    "rhoA1": 0.54, "rhoA2": 0.54,          # mass per length [kg/m]
+    "EI1": 18.67, "EI2": 18.67,            # bending stiffness [N·m²]
+    "Jh1": 0.01,                           # hub of joint 1 [kg·m²]
+    "mh2": 0.5, "Jh2": 5e-4,               # motor of joint 2 at link 1's tip [kg], [kg·m²]
+    "mp": 0.1, "Jp": 5e-5,                 # payload at the last tip [kg], [kg·m²]
+    "g": 9.81,                             # gravity along −y [m/s²]; 0 turns it off
+    "modes1": 2.0, "modes2": 2.0,          # assumed modes per link (0: rigid)
+    "zeta1": 0.0, "zeta2": 0.0,            # damping ratio of each link's modes
+    "b1": 0.0, "b2": 0.0,                  # joint dampers [N·m·s/rad]
+}
+MAX_MODES = 8
+
+
+def flexible_arm(links: int = 2, link_modes: LinkModes = "clamped-free", normalisation: Normalisation = "link-mass",
+                 **parameters: float) -> Model:
+    """The built-in arm ``flex1`` (one flexible link on a hub) or ``flex2`` (the paper's two-link arm).
+
+    Parameters
+    ----------
+    links : {1, 2}
+        Number of links.
+    link_modes : {"clamped-free", "clamped-mass"}
+        Mode shapes (see :func:`flexible_chain`).
+    normalisation : {"link-mass", "unit"}
+        Modal mass of each mode.
+    **parameters : float
+        Overrides of :data:`FLEXIBLE_DEFAULTS` (for ``flex1``, those of link 1, the hub,
+        the payload, g, modes1, zeta1 and b1).
+    """
+    if links not in (1, 2):
+        raise InputError("the built-in flexible arms have 1 or 2 links")
+    names = [k for k in FLEXIBLE_DEFAULTS if links == 2 or not k.endswith("2")]
+    values = {k: FLEXIBLE_DEFAULTS[k] for k in names}
+    for key, value in parameters.items():
+        if key not in values:
+            raise InputError(f"flex{links} has no parameter {key!r} (it has: {', '.join(names)})")
+        values[key] = float(value)
+    for k in range(1, links + 1):
+        m = values[f"modes{k}"]
+        if m != int(m) or not 0 <= m <= MAX_MODES:
+            raise InputError(f"modes{k} must be a whole number of modes from 0 to {MAX_MODES}, got {m:g}")
+        if min(values[f"l{k}"], values[f"rhoA{k}"], values[f"EI{k}"]) <= 0:
+            raise InputError(f"l{k}, rhoA{k} and EI{k} must be positive")
+    masses = [values["Jh1"], values["mp"], values["Jp"]] + ([values["mh2"], values["Jh2"]] if links == 2 else [])
+    if min(masses) < 0 or min(values[f"zeta{k}"] for k in range(1, links + 1)) < 0:
+        raise InputError("masses, inertias and damping ratios cannot be negative")
+    tips = [(values["mh2"], values["Jh2"]), (values["mp"], values["Jp"])] if links == 2 \
+        else [(values["mp"], values["Jp"])]
+    chain = [FlexibleLink(values[f"l{k}"], values[f"rhoA{k}"], values[f"EI{k}"], int(values[f"modes{k}"]),
+                          values["Jh1"] if k == 1 else 0.0, *tips[k - 1], values[f"zeta{k}"])
+             for k in range(1, links + 1)]
+    model = flexible_chain(chain, gravity=values["g"], link_modes=link_modes, normalisation=normalisation,
+                           damping=[values[f"b{k}"] for k in range(1, links + 1)], name=f"flex{links}")
+    counts = "+".join(str(int(values[f"modes{k}"])) for k in range(1, links + 1))
+    return replace(model, parameters=values, spring_rest=(0.0,) * model.dof,
+                   builder=partial(flexible_arm, links, link_modes, normalisation),
+                   description=f"{'two' if links == 2 else 'one'}-link flexible arm, {counts} {link_modes} modes")

@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 from dataclasses import replace
-from functools import lru_cache
+from functools import lru_cache, partial
 from typing import Sequence
 
 import numpy as np
 import sympy as sp
 
 from ..errors import InputError
+from .flexible import flexible_arm
 from .linkages import ClosedChainModel, link_mass_matrix
 from .symbolic import Model
 
@@ -414,19 +415,25 @@ ROBOTS = {
     "parallel2": five_bar,
     "serial3": serial_3dof,
     "parallel3": _parallel_3dof,
+    "flex1": partial(flexible_arm, 1),
+    "flex2": partial(flexible_arm, 2),
 }
 
 
-def robot(name: str) -> Model:
+def robot(name: str, link_modes: str | None = None) -> Model:
     """A built-in model by name (see :data:`ROBOTS`); ``serialN`` gives a planar N-joint arm.
 
     Parameters
     ----------
     name : str
         A built-in robot (see :func:`analogy.model.catalog.check_robot_name`).
+    link_modes : {"clamped-free", "clamped-mass"}, optional
+        The flexible arms' mode shapes (see :func:`analogy.model.flexible.flexible_chain`).
     """
+    if link_modes is not None and not name.startswith("flex"):
+        raise InputError(f"link modes apply to the flexible arms flex1 and flex2, not to {name}")
     if name in ROBOTS:
-        return ROBOTS[name]()
+        return ROBOTS[name](**({} if link_modes is None else {"link_modes": link_modes}))
     if name.startswith("serial") and name[6:].isdigit() and 1 <= int(name[6:]) <= 50:
         return planar_serial(int(name[6:]))
     raise InputError(f"unknown robot {name!r}: use {', '.join(ROBOTS)} or serial<N> (N = 1 to 50)")

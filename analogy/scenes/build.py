@@ -26,11 +26,11 @@ TOML_KEYS = {"robot": "[model] robot", "mass": "[model] mass", "damping": "[mode
              "topology": "[configuration] topology", "forces": "[inputs] forces",
              "initial_rates": "[inputs] initial_rates", "t_stop": "[inputs] t_stop",
              "parameters": "[parameters]", "model": "[model]", "inputs": "[inputs]",
-             "dynamics": "dynamics"}
+             "dynamics": "dynamics", "link_modes": "[model] link_modes"}
 CLI_KEYS = {"robot": "--robot", "mass": "--mass", "damping": "--damping", "stiffness": "--stiffness",
             "gravity": "--gravity", "q": "--q", "topology": "--topology", "forces": "--force",
             "initial_rates": "--r0", "t_stop": "--t-stop", "parameters": "--param", "model": "--mass",
-            "inputs": "--force", "dynamics": "--dynamics"}
+            "inputs": "--force", "dynamics": "--dynamics", "link_modes": "--link-modes"}
 _QNAME = re.compile(r"^q[0-9]+$")
 _MODELS: dict = {}
 
@@ -205,6 +205,9 @@ def scene_model(scene: SceneData) -> object:
                 if key not in model.parameters:
                     raise InputError(f"{keys['parameters']} {key}: robot {spec.robot} has no such "
                                      f"parameter (it has: {', '.join(model.parameters) or 'none'})")
+            if getattr(model, "builder", None) is not None and params:
+                with keyed(keys["parameters"]):
+                    return model.with_parameters(params)    # mode shapes follow the parameters
             return model
         if spec.mass is None:
             raise InputError(f"{keys['model']}: give a built-in robot or a mass matrix")
@@ -251,6 +254,9 @@ def _robot(spec: ModelSpec, dynamics: str):
     if name.startswith("random"):
         from ..model.robots import random_spd_model
         return random_spd_model(int(name[6:]), seed=spec.seed)
+    if name.startswith("flex") or spec.link_modes is not None:
+        from ..model.robots import robot
+        return robot(name, spec.link_modes)     # numeric matrices, rebuilt per parameter set
     if dynamics == "linear":
         cached = load_compiled(name)
         if cached is not None:

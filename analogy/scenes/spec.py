@@ -38,6 +38,8 @@ class ModelSpec:
         One entry per joint.
     seed : int
         Random robots only: the seed of their mass matrix.
+    link_modes : str or None
+        Flexible arms only: ``"clamped-free"`` (the default) or ``"clamped-mass"`` mode shapes.
     """
 
     robot: str | None = None
@@ -46,6 +48,7 @@ class ModelSpec:
     stiffness: tuple | None = None
     gravity: tuple | None = None
     seed: int = 0
+    link_modes: str | None = None
 
     @classmethod
     def of(cls, robot: str | None = None, **parts) -> "ModelSpec":
@@ -56,7 +59,7 @@ class ModelSpec:
         robot : str, optional
             A built-in robot name.
         **parts
-            ``mass``, ``damping``, ``stiffness``, ``gravity`` and ``seed``.
+            ``mass``, ``damping``, ``stiffness``, ``gravity``, ``seed`` and ``link_modes``.
         """
         return cls(robot, **{k: freeze(v) for k, v in parts.items()})
 

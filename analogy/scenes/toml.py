@@ -67,7 +67,7 @@ from .spec import ModelSpec, freeze
 __all__ = ["load_scene", "parse_scene", "parse_toml", "validated"]
 
 _TABLES = {
-    "model": ("robot", "mass", "damping", "stiffness", "gravity"),
+    "model": ("robot", "mass", "damping", "stiffness", "gravity", "link_modes"),
     "parameters": None,         # free names
     "configuration": ("q", "topology"),
     "inputs": ("forces", "initial_rates", "t_stop"),
@@ -285,7 +285,13 @@ def _model_fields(ctx: _Context, data: dict) -> dict:
             if key in model:
                 raise ctx.error(f"[model] {key}", "a built-in robot has its own; set its [parameters] "
                                                   "instead, or give mass = [[...]] without robot")
-        out["model"] = ModelSpec(robot=model["robot"])
+        link_modes = model.get("link_modes")
+        if link_modes is not None and link_modes not in ("clamped-free", "clamped-mass"):
+            raise ctx.error("[model] link_modes", f"expected \"clamped-free\" or \"clamped-mass\", "
+                                                  f"got {link_modes!r}")
+        out["model"] = ModelSpec(robot=model["robot"], link_modes=link_modes)
+    elif "link_modes" in model:
+        raise ctx.error("[model] link_modes", "applies to the flexible arms: give robot = \"flex2\"")
     elif "mass" in model:
         parts = {}
         for key in ("mass", "damping", "stiffness", "gravity"):
