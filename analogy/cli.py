@@ -104,6 +104,13 @@ def build_parser() -> argparse.ArgumentParser:
     _scene_options(p)
     p.add_argument("--locked", metavar="JOINTS", help="joints held clamped, e.g. '1' or '1,2'")
     p.add_argument("--csv", metavar="FILE", help="write mode, omega_rad_s, f_hz, damping_ratio")
+    p = sub.add_parser("ac", help="ngspice's .ac sweep against the exact mobility (M's + B' + K'/s)^-1")
+    _scene_options(p)
+    for flag, what in (("--f-start", "first frequency (default: modes / 10)"), ("--f-stop", "last (modes x 10)")):
+        p.add_argument(flag, type=float, metavar="HZ", help=what)
+    p.add_argument("--points", type=int, default=500, help="points per decade (default 500)")
+    for flag, what in (("--csv", "|Y| and phase of SPICE's mobilities"), ("--plot", "a Bode plot")):
+        p.add_argument(flag, metavar="FILE", help=f"write {what}")
     p = sub.add_parser("verify", help="check every built-in example: SPICE and ODE against exact, "
                                       "exact against a 40-digit mpmath solution")
     p.add_argument("--preset", default="accurate", choices=list(PRESETS), help=_PRESET_HELP)
@@ -179,9 +186,8 @@ def scene_from_args(args) -> Scene:
                 if "unknown name" not in str(exc):
                     raise InputError(f"--mass: {exc}") from None
             raise InputError("--mass must be a matrix like [[m1, m3], [m3, m2]]")
-        spec = ModelSpec.of(None, mass=mass, damping=_entries(args.damping, "--damping"),
-                            stiffness=_entries(args.stiffness, "--stiffness"),
-                            gravity=_entries(args.gravity, "--gravity"))
+        spec = ModelSpec.of(None, mass=mass, **{k: _entries(getattr(args, k), f"--{k}")
+                                                for k in ("damping", "stiffness", "gravity")})
         n = len(mass)
         changes.update(model=spec, parameters=params, q=(0.0,) * n, initial_rates=None, topology=None,
                        forces=(1.0,) * n)
@@ -192,9 +198,8 @@ def scene_from_args(args) -> Scene:
         spec = ModelSpec(robot=args.robot, link_modes=args.link_modes)
         probe = Scene.of(args.robot, spec, parameters=params, source="command line")
         model = scene_model(probe)          # one sentence on an unknown name or parameter
-        # joints are driven by unit steps; a flexible link's modal coordinates are not actuated
-        forces = tuple(0.0 if str(c).startswith("delta") else 1.0 for c in model.coordinates) \
-            or (1.0,) * model.dof
+        # unit steps on the joints; a flexible link's modal coordinates are not actuated
+        forces = tuple(float(not str(c).startswith("delta")) for c in model.coordinates) or (1.0,) * model.dof
         changes.update(model=spec, q=(0.0,) * len(model.coordinates), parameters=params,
                        forces=forces, initial_rates=None, topology=None)
     elif args.link_modes is not None:
@@ -454,13 +459,29 @@ def _cmd_throughput(args) -> int:
     return EXIT_OK
 
 
+def _cmd_ac(args) -> int:
+    from .solvers.ac import mobility_check
+    sc = scene_from_args(args)
+    _check_writable(args.csv)
+    plot = check_plot_path(args.plot) if args.plot else None
+    check = mobility_check(sc.system(), args.f_start, args.f_stop, args.points)
+    print(check.report)
+    if args.csv:
+        print(f"wrote {check.spice.to_csv(args.csv)}")
+    if plot is not None:
+        check.spice.plot(plot, check.exact)
+        print(f"wrote {plot}")
+    bound = PRESETS[args.preset].bound
+    return _accuracy_exit({"spice mobility": check.error} if check.error > bound else {}, args.preset, bound)
+
+
 def _cmd_scenes(args) -> int:
     for name, sc in SCENES.items():
         print(f"{name:<10} {sc.description}")
     return EXIT_OK
 
 
-_COMMANDS = {"netlist": _cmd_netlist, "compare": _cmd_compare, "verify": _cmd_verify, "modes": _cmd_modes,
+_COMMANDS = {"netlist": _cmd_netlist, "compare": _cmd_compare, "verify": _cmd_verify, "modes": _cmd_modes, "ac": _cmd_ac,
              "scenes": _cmd_scenes, "draw": _cmd_draw, "run": _cmd_run, "bench": _cmd_bench,
              "throughput": _cmd_throughput}
 

@@ -18,7 +18,7 @@ from .description import (
 from .description import circuit as describe
 from .elements import ZERO_TOL
 
-__all__ = ["netlist", "batch_netlist", "circuit_lines", "analysis_lines", "save_vectors",
+__all__ = ["netlist", "ac_netlist", "batch_netlist", "circuit_lines", "analysis_lines", "save_vectors",
            "comment_text", "spice_expression"]
 
 _SAFE_COMMENT = re.compile(r"[^A-Za-z0-9 _.,:;=+\-*/()\[\]{}<>'#%@!?|~^&$]")
@@ -263,3 +263,42 @@ def batch_netlist(systems: Sequence, preset: str | Preset = "fast") -> str:
         ic += [(prefix + n, v) for n, v in c.initial]
         save += [f"v({prefix}{n})" for n in c.node_names]
     return "\n".join(lines + analysis_lines(preset, t_stop, ic, save) + [".end"]) + "\n"
+
+
+def ac_netlist(system, joint: int, f_start: float, f_stop: float, per_decade: int,
+               zero_tol: float = ZERO_TOL) -> str:
+    """An ``.ac`` sweep of *system*'s circuit driven by a unit force on *joint* alone.
+
+    The sources of the other joints are left out (zero); every node has a 1e12 Ω
+    shunt (``rshunt``) so that the operating point exists where only capacitors reach
+    ground: a damper of 1e-12 N·s/m, below double precision against any real one.
+
+    Parameters
+    ----------
+    system : NodeSystem
+        A linear node system.
+    joint : int
+        The driven joint (1-based).
+    f_start, f_stop : float
+        The sweep [Hz].
+    per_decade : int
+        Points per decade.
+    zero_tol : float
+        Relative tolerance under which an element is left out.
+    """
+    c = describe(system, zero_tol, False)
+    if c.behavioural:
+        raise InputError("an AC sweep needs a linear circuit: linearise the model at a configuration")
+    # one source per terminal pair: a joint's force may be written as several terms
+    driven = list({(s.a, s.b, s.scale): s for s in reversed(c.sources) if s.joint == joint}.values())[::-1]
+    if not driven:
+        raise InputError(f"joint {joint} drives no source: the circuit has joints 1 to {system.dof}")
+    nodes = [f"v({n})" for n in c.node_names]
+    robot = next((line.split(": ", 1)[1] for line in c.comments if line.startswith("robot: ")), "custom")
+    lines = _header(c, f"analogy AC sweep of {robot}: unit force on joint {joint}", False)
+    lines += circuit_lines(c._replace(sources=()))
+    lines += [f"I{s.name[1:]} {_node(s.b)} {_node(s.a)} DC 0 AC {_num(s.scale)}" for s in driven]
+    lines += [".options rshunt=1e12", f".ac dec {int(per_decade)} {_num(f_start)} {_num(f_stop)}",
+              ".save " + " ".join(nodes), ".print ac " + " ".join(f"vr({n}) vi({n})" for n in c.node_names),
+              ".end"]
+    return "\n".join(lines) + "\n"

@@ -8,7 +8,8 @@ from matplotlib.figure import Figure  # no pyplot: works headless, with no globa
 from ..errors import InputError
 from .output import check_plot_path
 
-__all__ = ["solver_style", "plot_trajectory", "plot_comparison", "plot_quantities", "plot_linear_horizon"]
+__all__ = ["solver_style", "plot_trajectory", "plot_comparison", "plot_quantities", "plot_linear_horizon",
+           "plot_bode"]
 
 
 _STYLES = {"exact": dict(ls="-", lw=2.0, alpha=0.5), "spice": dict(ls="--", lw=1.2),
@@ -178,4 +179,39 @@ def plot_linear_horizon(time: np.ndarray, nonlinear: np.ndarray, linear: np.ndar
     axe.legend(fontsize="small", loc="lower right")
     axe.set_xlabel("time [s]")
     axe.set_ylabel("|linear - nonlinear| / peak")
+    return _save(fig, path)
+
+
+def plot_bode(response, reference=None, path=None) -> Figure:
+    """Bode plot of the driving-point mobilities R_j/F_j and their phase, one colour per joint.
+
+    Parameters
+    ----------
+    response : FrequencyResponse
+        The response drawn in its solver's line style.
+    reference : FrequencyResponse, optional
+        Drawn beneath in its own style (the exact mobility).
+    path : str or Path, optional
+        Image file to write.
+    """
+    fig = Figure(figsize=(8, 5.5), layout="constrained")
+    mag, phase = fig.subplots(2, 1, sharex=True)
+    joints = response.mobility.shape[2]
+    for r in ([reference] if reference is not None else []) + [response]:
+        style = solver_style(r.solver)
+        points = r.driving_point()
+        for j in range(joints):
+            y = points[:, j]
+            label = f"joint {j + 1}" if r is response else None
+            mag.loglog(r.frequency, np.abs(y), color=f"C{j % 10}", label=label, **style)
+            phase.semilogx(r.frequency, np.degrees(np.angle(y)), color=f"C{j % 10}", **style)
+    for f in response.resonances():
+        mag.axvline(f, color="0.8", lw=0.6, zorder=0)
+    mag.set_ylabel("|R_j / F_j| [(rad/s)/(N·m) or (m/s)/N]")
+    phase.set_ylabel("phase [deg]")
+    phase.set_yticks([-90, -45, 0, 45, 90])
+    phase.set_xlabel("frequency [Hz]")
+    solvers = response.solver + (f" ({reference.solver} beneath)" if reference is not None else "")
+    mag.set_title(f"driving-point mobilities, {solvers}; grey lines: resonances")
+    mag.legend(fontsize="small", loc="center left", bbox_to_anchor=(1.0, 0.5))
     return _save(fig, path)

@@ -208,9 +208,15 @@ class NgspiceSession:
         out = {}
         for name in names:
             info = self._lib.ngGet_Vec_Info(f"{plot}.{name}".encode())
-            if info == ffi.NULL or info.v_realdata == ffi.NULL:
+            if info == ffi.NULL:
                 continue
-            data = np.frombuffer(ffi.buffer(info.v_realdata, info.v_length * 8), dtype=np.float64).copy()
+            if info.v_realdata != ffi.NULL:
+                data = np.frombuffer(ffi.buffer(info.v_realdata, info.v_length * 8), dtype=np.float64).copy()
+            elif info.v_compdata != ffi.NULL:      # an AC sweep: (re, im) pairs
+                pairs = np.frombuffer(ffi.buffer(info.v_compdata, info.v_length * 16), dtype=np.float64)
+                data = pairs[0::2] + 1j * pairs[1::2]
+            else:
+                continue
             out[vector_key(name)] = data
         return out
 
@@ -233,8 +239,9 @@ class NgspiceSession:
         except SpiceError:
             return False
 
-    def run(self, netlist: str, vectors=None, stats: dict | None = None) -> dict[str, np.ndarray]:
-        """Run a transient netlist and return ``{"time": …, node: …}``.
+    def run(self, netlist: str, vectors=None, stats: dict | None = None,
+            analysis: str = "tran") -> dict[str, np.ndarray]:
+        """Run a transient (or, with *analysis* ``"ac"``, an AC) netlist: ``{"time": …, node: …}``.
 
         Parameters
         ----------
@@ -245,6 +252,8 @@ class NgspiceSession:
             so ``n1``, ``v(n1)`` and ``@c1_2[i]`` all work.
         stats : dict, optional
             Filled with ngspice's ``iterations`` and ``rejected`` time points.
+        analysis : {"tran", "ac"}
+            The netlist's analysis; an AC run returns ``"frequency"`` and complex vectors.
 
         Raises
         ------
@@ -253,14 +262,15 @@ class NgspiceSession:
         """
         with self._lock:
             try:
-                return self._run(netlist, vectors, stats)
+                return self._run(netlist, vectors, stats, analysis)
             except SpiceError:
                 # Leave a clean instance for the next run, whatever state ngspice is in.
                 if self._ng.exited or not self._healthy():
                     self._reload()
                 raise
 
-    def _run(self, netlist, vectors, stats=None):
+    def _run(self, netlist, vectors, stats=None, analysis="tran"):
+        index = "time" if analysis == "tran" else "frequency"
         try:
             netlist.encode("ascii")
         except UnicodeEncodeError:
@@ -274,9 +284,10 @@ class NgspiceSession:
         failed = [t for s, t in ran if _is_error(t)]
         plot_c = self._lib.ngSpice_CurPlot()
         plot = self._ffi.string(plot_c).decode() if plot_c != self._ffi.NULL else ""
-        if failed or self._ng.exited or not plot.startswith("tran"):
+        if failed or self._ng.exited or not plot.startswith(analysis):
             self._free()
-            raise SpiceError(_describe_failure([t for s, t in ran], "transient analysis failed"))
+            stage = "transient analysis failed" if analysis == "tran" else "AC analysis failed"
+            raise SpiceError(_describe_failure([t for s, t in ran], stage))
         data = self._vectors(plot)
         if stats is not None:
             for _, text in self._command("rusage rejected"):
@@ -285,13 +296,15 @@ class NgspiceSession:
                 if key and value.strip().isdigit():
                     stats[key] = int(value)
         self._free()
-        if "time" not in data:
-            raise SpiceError("ngspice returned no time vector")
+        if index not in data:
+            raise SpiceError(f"ngspice returned no {index} vector")
+        if index == "frequency":
+            data[index] = data[index].real
         if vectors is not None:
             missing = [v for v in vectors if vector_key(v) not in data]
             if missing:
                 raise SpiceError(f"ngspice did not save vector {missing[0]!r}")
-            data = {"time": data["time"], **{v: data[vector_key(v)] for v in vectors}}
+            data = {index: data[index], **{v: data[vector_key(v)] for v in vectors}}
         return data
 
 

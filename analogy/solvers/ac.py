@@ -1,0 +1,82 @@
+"""Frequency response of a node system's circuit by ngspice's ``.ac`` sweep, one driven joint at a time."""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from ..circuit.netlist import ac_netlist
+from ..circuit.node_system import NodeSystem
+from ..errors import InputError, SimulationError, SpiceError
+from ..results.frequency import FrequencyResponse, exact_mobility, frequency_grid, resonance_report, sweep_range
+from ..results.modes import natural_modes
+
+__all__ = ["spice_mobility", "MobilityCheck", "mobility_check"]
+
+
+def spice_mobility(system, f_start: float, f_stop: float, per_decade: int = 200) -> FrequencyResponse:
+    """Mobilities Y[f, node, joint] of *system*'s circuit from one ngspice AC run per joint.
+
+    Parameters
+    ----------
+    system : NodeSystem
+        A linear node system.
+    f_start, f_stop : float
+        The sweep [Hz].
+    per_decade : int
+        Points per decade (the grid of :func:`~analogy.results.frequency.frequency_grid`).
+
+    Raises
+    ------
+    SimulationError
+        If ngspice fails, with its sentence.
+    """
+    from .spice import session
+    grid = frequency_grid(f_start, f_stop, per_decade)       # checks the sweep before any run
+    if not isinstance(system, NodeSystem):
+        raise InputError("an AC sweep needs a linear node system")
+    n = system.dof
+    out = np.zeros((grid.size, n, n), dtype=complex)
+    for j in range(n):
+        text = ac_netlist(system, j + 1, f_start, f_stop, per_decade)
+        try:
+            data = session().run(text, [f"v(n{k + 1})" for k in range(n)], analysis="ac")
+        except SpiceError as exc:
+            raise SimulationError(str(exc)) from None
+        if data["frequency"].size != grid.size or not np.allclose(data["frequency"], grid, rtol=1e-9):
+            raise SimulationError("ngspice swept other frequencies than asked for")
+        for k in range(n):
+            out[:, k, j] = data[f"v(n{k + 1})"]
+    return FrequencyResponse(grid, out, "spice", np.linalg.inv(system.topology.matrix))
+
+
+class MobilityCheck(NamedTuple):
+    """SPICE's swept mobilities against the exact ones: the two responses, the report and the error."""
+
+    spice: FrequencyResponse
+    exact: FrequencyResponse
+    report: str
+    worst_resonance: float
+    error: float
+
+
+def mobility_check(system, f_start: float | None = None, f_stop: float | None = None,
+                   per_decade: int = 500) -> MobilityCheck:
+    """Sweep *system*'s circuit in ngspice and compare with (M's + B' + K'/s)⁻¹ and the natural frequencies.
+
+    Parameters
+    ----------
+    system : NodeSystem
+        A linear node system.
+    f_start, f_stop : float, optional
+        The sweep [Hz]; by default a decade beyond the natural frequencies each way.
+    per_decade : int
+        Points per decade.
+    """
+    modes = natural_modes(system.joint)
+    natural = modes.omega / (2 * np.pi)
+    lo, hi = sweep_range(natural)
+    spice = spice_mobility(system, f_start or lo, f_stop or hi, per_decade)
+    exact = exact_mobility(system, spice.frequency)
+    return MobilityCheck(spice, exact, *resonance_report(natural, modes.unstable, spice, exact))
