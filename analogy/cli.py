@@ -336,13 +336,11 @@ def _cmd_modes(args) -> int:
     from .results.modes import natural_modes
     sc = scene_from_args(args)
     _check_writable(args.csv)
-    locked = []
-    for item in (args.locked or "").split(","):
-        if item.strip():
-            if not item.strip().isdigit():
-                raise InputError(f"--locked needs joint numbers like 1,2, got {item.strip()!r}")
-            locked.append(int(item))
-    result = natural_modes(sc.system().joint, locked)
+    locked = [item.strip() for item in (args.locked or "").split(",") if item.strip()]
+    for item in locked:
+        if not item.isdigit():
+            raise InputError(f"--locked needs joint numbers like 1,2, got {item!r}")
+    result = natural_modes(sc.system().joint, [int(x) for x in locked])
     print(result.table())
     if args.csv:
         try:
