@@ -69,3 +69,12 @@ def test_impossible_links_are_refused():
         beam_modes(2, 0.0, 0.4, 2.0)
     with pytest.raises(InputError, match="at least one mode"):
         frequency_roots(0)
+
+
+def test_more_modes_than_the_frequency_equation_resolves_are_refused():
+    """Root errors grow as e^λ·eps (3e-7 at mode 8): a ninth mode is refused, not returned wrong."""
+    from analogy.errors import InputError
+    from analogy.model.beams import MAX_BEAM_MODES, beam_modes
+    beam_modes(MAX_BEAM_MODES, 0.5, 0.4, 2.0)
+    with pytest.raises(InputError, match="1 to 8 assumed modes"):
+        beam_modes(MAX_BEAM_MODES + 1, 0.5, 0.4, 2.0)

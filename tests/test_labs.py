@@ -29,6 +29,9 @@ OUTPUTS = {
                          "nonlinear_linear.png", "pendulum.png"],
     "lab_mp_model.py": ["mp_loading.png", "mp_current.png", "mp_grounded_mass.csv", "mp_open.csv",
                         "mp_unloaded.csv", "mp_driven.csv"],
+    "lab_flexible_arm.py": ["flexible_modes.png", "flexible_mass_matrix.png", "flexible_step.png",
+                            "flexible_step.csv", "flexible_bode.png", "flexible_convergence.png",
+                            *_diagrams("flex2")],
 }
 
 LABS = sorted(p.name for p in EXAMPLES.glob("lab_*.py"))

@@ -22,8 +22,10 @@ from scipy.optimize import brentq
 
 from ..errors import InputError
 
-__all__ = ["Normalisation", "BeamModes", "frequency_equation", "frequency_roots", "beam_modes", "gauss_points"]
+__all__ = ["MAX_BEAM_MODES", "Normalisation", "BeamModes", "frequency_equation", "frequency_roots", "beam_modes", "gauss_points"]
 
+#: Most assumed modes per link: beyond, the frequency equation's roots lose their digits.
+MAX_BEAM_MODES = 8
 #: How mode shapes are scaled: ∫ρA·φ² dx + M·φ(L)² + J·φ'(L)² = 1 kg, or = ρA·L (the link's mass).
 Normalisation = Literal["unit", "link-mass"]
 
@@ -168,6 +170,9 @@ def beam_modes(count: int, length: float, rho_a: float, ei: float, tip_mass: flo
     normalisation : {"link-mass", "unit"}
         Modal mass ∫ρA·φ² dx + M·φ(L)² + J·φ'(L)² equal to ρA·L, or to 1 kg.
     """
+    if not 1 <= count <= MAX_BEAM_MODES:
+        # the frequency equation loses digits as e^λ: root errors reach 3e-7 at mode 8
+        raise InputError(f"a link takes 1 to {MAX_BEAM_MODES} assumed modes, got {count}")
     if min(length, rho_a, ei) <= 0:
         raise InputError("a flexible link needs a positive length, mass per length and bending stiffness")
     if normalisation not in ("link-mass", "unit"):

@@ -10,7 +10,7 @@ order is given.
 The Jacobians J_i = ∂r_i/∂q are taken by sympy with x and each ψ_ik(x) as symbols;
 the entries of JᵀJ are polynomials in them, and each monomial x^a·ψ_ik·ψ_jl is
 replaced by its integral ∫ρA·x^a·ψ_ik·ψ_jl dx, computed by Gauss–Legendre quadrature
-(converged below 1e-14, see tests/test_flexible.py). G_i = g·Σ∫ρA·J[y, i] dx (the
+(converged below 1e-14, see tests/test_beams.py). G_i = g·Σ∫ρA·J[y, i] dx (the
 y row, gravity along −y), and K is the modal bending stiffness ∫EI·ψ''ψ'' dx.
 """
 
