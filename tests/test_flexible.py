@@ -119,3 +119,16 @@ def test_the_linearised_arm_integrated_by_the_ode_solver_matches_the_exact_solut
     t = np.linspace(0, 0.5, 501)
     exact, ode = (run(name, s, t, PRESETS["accurate"]) for name in ("exact", "ode"))
     assert np.max(np.abs(ode.rates - exact.rates)) <= 1e-9 * np.max(np.abs(exact.rates))
+
+
+def test_a_comparison_above_the_horizontal_says_the_equilibrium_is_unstable():
+    """θ1 = 0.3 rad up: gravity's stiffness is negative; the exact solution grows and the report says so."""
+    from analogy.results.comparison import compare
+    from analogy.scenes.scene import Scene
+    from analogy.scenes.spec import ModelSpec
+    sc = Scene.of("up", ModelSpec(robot="flex1"), q=[0.3, 0, 0], forces=[0, 0, 0], t_stop=0.5)
+    result = compare(sc.system(), "accurate", ["ode", "exact"])
+    assert "unstable equilibrium" in result.table()
+    rates = result.results["exact"].rates
+    assert abs(rates[-1, 0]) > abs(rates[len(rates) // 2, 0]) > 0     # it falls, faster and faster
+    assert result.errors()["ode"][1] <= 1e-9

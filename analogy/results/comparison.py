@@ -146,6 +146,8 @@ class Comparison(Tabular):
             tail = f"  ({note})" if note else ""
             errs = f"{e:>14.3e}{r:>14.3e}" if self.reference else f"{'-':>14}{'-':>14}"
             lines.append(f"{name:<10}{ms:>15.3f}{errs}{steps!s:>8}{tail}")
+        if getattr(getattr(self.system, "joint", None), "unstable", False):
+            lines.append("unstable equilibrium: K + ∂G/∂q has a negative eigenvalue, so the motion grows")
         return "\n".join(lines)
 
     def __str__(self) -> str:
