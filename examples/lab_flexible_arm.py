@@ -52,7 +52,7 @@ for tip, style in (((0.0, 0.0), "-"), ((p["mh2"], p["Jh2"]), "--")):
         ax.plot(x, modes.shape(x)[:, k], ls=style, color=f"C{k}",
                 label=f"mode {k + 1}, {'clamped-free' if tip[0] == 0 else 'with motor'}")
 ax.set_xlabel("position along link 1 x [m]")
-ax.set_ylabel("mode shape ψ_k(x) [-] (link-mass normalised)")
+ax.set_ylabel("ψ_k(x) [-], link-mass normalised")
 ax.legend(fontsize="small", loc="center left", bbox_to_anchor=(1.0, 0.5))
 _lab.save(fig, out / "flexible_modes.png")
 

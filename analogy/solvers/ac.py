@@ -15,7 +15,7 @@ from ..results.modes import natural_modes
 __all__ = ["spice_mobility", "MobilityCheck", "mobility_check"]
 
 
-def spice_mobility(system, f_start: float, f_stop: float, per_decade: int = 200) -> FrequencyResponse:
+def spice_mobility(system, f_start: float, f_stop: float, per_decade: int = 500) -> FrequencyResponse:
     """Mobilities Y[f, node, joint] of *system*'s circuit from one ngspice AC run per joint.
 
     Parameters
