@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -22,7 +23,7 @@ class Preset:
     spice_options : dict
         ``.options`` for ngspice (integration method, tolerances).
     steps : int
-        ``.tran`` print step is t_stop/steps.
+        ``.tran`` print step is t_stop/steps, or shorter (see *first_phase_step*).
     max_steps : int
         ``.tran`` maximum internal step is t_stop/max_steps.
     ode_method, ode_rtol :
@@ -30,11 +31,28 @@ class Preset:
     bound : float
         The promised worst error / peak of SPICE and the ODE against the exact solution,
         measured on the built-in scenes (``analogy verify``); a result above it is flagged.
+    phase_step : float
+        Largest ω_max·h: the step cap from the system's fastest rate (see
+        :class:`~analogy.circuit.scales.Scales`), where t_stop/max_steps is longer.
+        Trapezoidal phase error grows as (ω·h)², and ngspice's per-device truncation
+        check misses it when M' couples fast and slow modes.
+    step_budget : int
+        The most steps the time-scale cap may ask for: over a t_stop that would need
+        more, the cap is t_stop/step_budget and the bound may fail (then it is flagged
+        against the exact solution), rather than the run taking without end.
+    first_phase_step : float
+        Largest ω_max·h of ngspice's first step, a backward-Euler step it never checks
+        (about a hundredth of the print step, which is shortened for it): on flex2 its
+        error is 0.13·(ω·h)² of the peak, so this keeps it under 5% of the bound.
     behavioural_options, behavioural_max_steps :
         ``.options`` and step cap t_stop/behavioural_max_steps for circuits with
         behavioural parts (the nonlinear circuits). Tight reltol with trtol = 1 makes
         ngspice 39 stop these with "timestep too small" at the first steps, so they keep
         ngspice's default tolerances and take their accuracy from the step cap.
+
+    The absolute tolerances in *spice_options* (``abstol``, ``vntol``, ``chgtol``) are
+    relative to the circuit's own current, velocity and charge scales, so the netlist
+    of a system in any units gets the same relative accuracy.
     """
 
     name: str
@@ -47,6 +65,9 @@ class Preset:
     bound: float = 1e-3
     behavioural_options: dict = field(default_factory=lambda: {"method": "trap"})
     behavioural_max_steps: int = 200
+    phase_step: float = math.inf
+    first_phase_step: float = math.inf
+    step_budget: int = 10_000_000
 
 
 PRESETS = {
@@ -58,16 +79,18 @@ PRESETS = {
         # costs time without gaining accuracy.
         spice_options={"method": "trap", "reltol": 1e-5, "abstol": 1e-12, "vntol": 1e-9,
                        "chgtol": 1e-16, "trtol": 1},
-        steps=100, max_steps=50, ode_method="LSODA", ode_rtol=1e-6,
+        steps=100, max_steps=50, ode_method="LSODA", ode_rtol=1e-6, phase_step=0.5, first_phase_step=0.02,
+        step_budget=1_000_000,
         description="better than 1e-3 of the peak, lowest run time", bound=1e-3,
         behavioural_options={"method": "trap"}, behavioural_max_steps=500),
     "accurate": Preset(
         "accurate",
         # Measured against the exact solution on every built-in scene: worst 2.1e-7 of the
         # peak. The step cap t_stop/20000 dominates; gear-2 at the same cap gives 7.6e-7.
-        spice_options={"method": "trap", "reltol": 1e-9, "abstol": 1e-15,
-                       "vntol": 1e-13, "chgtol": 1e-20, "trtol": 1},
+        spice_options={"method": "trap", "reltol": 1e-10, "abstol": 1e-15,
+                       "vntol": 1e-11, "chgtol": 1e-20, "trtol": 1},
         steps=1000, max_steps=20000, ode_method="DOP853", ode_rtol=1e-12,
+        phase_step=0.016, first_phase_step=3e-4, step_budget=20_000_000,
         description="better than 1e-6 of the peak", bound=1e-6,
         behavioural_options={"method": "trap"}, behavioural_max_steps=20000),
 }

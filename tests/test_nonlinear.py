@@ -199,7 +199,7 @@ def test_the_analytic_jacobian_is_the_derivative_of_the_dynamics(make):
     """∂f/∂y of y = [x, v, W] equals central differences of f to 1e-7 at random states."""
     from analogy.solvers import ode
     system = make()
-    rhs, jac, _, _, _ = ode._nonlinear(system)
+    rhs, jac, _, _ = ode._nonlinear(system)
     n = system.dof
     rng = np.random.default_rng(5)
     for _ in range(3):

@@ -20,6 +20,7 @@ from .parts import (
     current_sources,
     describe_forces,
 )
+from .scales import system_scales
 
 __all__ = ["CurrentSource", "Coupling", "ChargeCapacitor", "BehaviouralCurrent", "Integrator", "Circuit",
            "circuit", "circuits", "current_sources", "describe_forces", "comments"]
@@ -97,7 +98,7 @@ def circuit(system, zero_tol: float = ZERO_TOL, realizable: bool = False, descri
             across = (v0[e.b - 1] if e.b else 0.0) - v0[e.a - 1]
             initial += [(node, float(across)) for node in c.auxiliary_nodes]
     return Circuit(system.dof, tuple(parts), current_sources(system, zero_tol), tuple(initial),
-                   system.t_stop, couplings, (), comments(system) if describe else ())
+                   system.t_stop, couplings, (), comments(system) if describe else (), system_scales(system))
 
 
 def circuits(systems: Sequence, zero_tol: float = ZERO_TOL) -> list[Circuit]:
@@ -134,5 +135,6 @@ def circuits(systems: Sequence, zero_tol: float = ZERO_TOL) -> list[Circuit]:
                 src = sources[key] = current_sources(s, zero_tol)
             if dropped[j]:                  # a capacitor under the tolerance: is the rest singular?
                 _check_dropped(s.mass, list(parts), zero_tol)
-            out[k] = Circuit(s.dof, parts, src, tuple(zip(names, s.initial_voltages.tolist())), s.t_stop)
+            out[k] = Circuit(s.dof, parts, src, tuple(zip(names, s.initial_voltages.tolist())), s.t_stop,
+                             scales=system_scales(s))
     return out

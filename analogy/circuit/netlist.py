@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import re
 from typing import Iterable, Sequence
 
@@ -17,6 +18,7 @@ from .description import (
 )
 from .description import circuit as describe
 from .elements import ZERO_TOL
+from .scales import Scales, combined_scales
 
 __all__ = ["netlist", "ac_netlist", "batch_netlist", "circuit_lines", "analysis_lines", "save_vectors",
            "comment_text", "spice_expression"]
@@ -118,7 +120,7 @@ def circuit_lines(c: Circuit, prefix: str = "", memo: dict | None = None) -> lis
 
 def analysis_lines(preset: str | Preset, t_stop: float, ic: Iterable[tuple[str, float]],
                    save: Iterable[str], options: dict | None = None, printing: bool = False,
-                   behavioural: bool = False) -> list[str]:
+                   behavioural: bool = False, scales: Scales | None = None) -> list[str]:
     """``.ic``, ``.options``, ``.tran`` (uic), ``.save`` and, with *printing*, ``.print``.
 
     Parameters
@@ -137,16 +139,33 @@ def analysis_lines(preset: str | Preset, t_stop: float, ic: Iterable[tuple[str, 
         Add ``.print tran`` of the saved vectors, so that ``ngspice -b`` prints them.
     behavioural : bool
         The circuit has behavioural parts: the preset's behavioural options and step cap.
+    scales : Scales, optional
+        The circuit's scales: the absolute tolerances are taken relative to them (abstol
+        no lower than :attr:`Scales.rounding_current`), the
+        step cap to ``preset.phase_step`` of the fastest rate (within
+        ``preset.step_budget``), and the print step (which
+        sets ngspice's unchecked first step, a hundredth of it) to a whole
+        divisor of t_stop/steps that meets ``preset.first_phase_step``.
     """
     p = get_preset(preset)
     base = p.behavioural_options if behavioural else p.spice_options
     opts = dict(base, **(options or {}))
-    cap = p.behavioural_max_steps if behavioural else p.max_steps
+    tmax = t_stop / (p.behavioural_max_steps if behavioural else p.max_steps)
+    tstep = t_stop / p.steps
+    if scales is not None:
+        for key, size in (("abstol", scales.current), ("vntol", scales.peak_velocity),
+                          ("chgtol", scales.charge)):
+            if key in opts and key not in (options or {}):
+                floor = scales.rounding_current if key == "abstol" else 0.0
+                opts[key] = f"{max(float(opts[key]) * size, floor):.3g}"
+        tmax = min(tmax, max(scales.step_limit(p.phase_step), t_stop / p.step_budget))
+        # a whole divisor of the preset's print step, so the preset's grid stays in it
+        tstep /= math.ceil(tstep / min(tstep, 100 * scales.step_limit(p.first_phase_step)))
     save = list(save)
     lines = [
         ".ic " + " ".join(f"v({n})={_num(v)}" for n, v in ic),
         ".options " + " ".join(f"{k}={v}" for k, v in opts.items()),
-        f".tran {_num(t_stop / p.steps)} {_num(t_stop)} 0 {_num(t_stop / cap)} uic",
+        f".tran {_num(tstep)} {_num(t_stop)} 0 {_num(tmax)} uic",
         ".save " + " ".join(save),
     ]
     if printing:
@@ -233,7 +252,7 @@ def netlist(system, preset: str | Preset = "accurate", save: Iterable[str] | Non
     # step, and tight step control then collapses; gear damps it.
     options = {"method": "gear"} if c.couplings else None
     tail = analysis_lines(preset, c.t_stop, c.initial, vectors, options, printing,
-                          behavioural=bool(c.behavioural)) + [".end"]
+                          behavioural=bool(c.behavioural), scales=c.scales) + [".end"]
     return "\n".join(_header(c, title, bool(c.couplings)) + body + tail) + "\n"
 
 
@@ -257,12 +276,15 @@ def batch_netlist(systems: Sequence, preset: str | Preset = "fast") -> str:
         raise InputError("systems in one ngspice run must share t_stop")
     lines, ic, save = [f"* analogy batch of {len(systems)} independent circuits"], [], []
     memo: dict = {}         # circuits of one family share their sources, and t_stop
-    for k, c in enumerate(circuits(systems)):
+    described = circuits(systems)
+    for k, c in enumerate(described):
         prefix = f"x{k}_"
         lines += circuit_lines(c, prefix, memo)
         ic += [(prefix + n, v) for n, v in c.initial]
         save += [f"v({prefix}{n})" for n in c.node_names]
-    return "\n".join(lines + analysis_lines(preset, t_stop, ic, save) + [".end"]) + "\n"
+    known = [c.scales for c in described if c.scales is not None]
+    scales = combined_scales(known) if known else None
+    return "\n".join(lines + analysis_lines(preset, t_stop, ic, save, scales=scales) + [".end"]) + "\n"
 
 
 def ac_netlist(system, joint: int, f_start: float, f_stop: float, per_decade: int,

@@ -8,7 +8,7 @@ import numpy as np
 import scipy.linalg as la
 from scipy import integrate
 
-from ..circuit.node_system import joint_forces
+from ..circuit.scales import system_scales
 from ..errors import InputError, SimulationError
 from ..presets import Preset
 from ..results.trajectory import SolverStats, Trajectory
@@ -48,7 +48,7 @@ def _joint_force(forces, tt: float) -> np.ndarray:
 
 
 def _linear(system):
-    """(rhs, jacobian, state size, initial state, whether x is in the state)."""
+    """(rhs, jacobian, initial state, whether x is in the state)."""
     a, g = state_matrices(system)
     forces = system.forces
     springs = system.stiffness is not None
@@ -57,7 +57,7 @@ def _linear(system):
 
     def rhs(tt, yy):
         return a @ yy + g @ _joint_force(forces, tt)
-    return rhs, a, y0, springs, float(np.max(np.abs(g))) if g.size else 0.0
+    return rhs, a, y0, springs
 
 
 def _nonlinear(system):
@@ -78,12 +78,11 @@ def _nonlinear(system):
         power = v @ (drive - loss - gravity(x))
         return np.concatenate([v, np.linalg.solve(system.node_mass(x), i), [power]])
     y0 = np.concatenate([np.zeros(n), system.initial_voltages, [0.0]])
-    gain = float(np.max(np.abs(np.linalg.solve(system.node_mass(np.zeros(n)), cmap))))
     jac = None
     if system.functions.derivatives is not None:
         def jac(tt, yy):
             return system.jacobian(yy[:n], yy[n:2 * n], cmap @ _joint_force(forces, tt))
-    return rhs, jac, y0, True, gain
+    return rhs, jac, y0, True
 
 
 def solve_ode(system, times=None, method: str = "DOP853", rtol: float = 1e-10,
@@ -99,7 +98,8 @@ def solve_ode(system, times=None, method: str = "DOP853", rtol: float = 1e-10,
     method : str
         One of :data:`ODE_METHODS`.
     rtol, atol : float
-        Tolerances; *atol* defaults to ``rtol * 1e-3`` times the response scale.
+        Tolerances; *atol* defaults to ``rtol * 1e-3`` times each state's scale
+        (:func:`~analogy.circuit.scales.system_scales`).
     positions : bool
         Also return the node positions x = ∫v (:attr:`Trajectory.positions`) when the
         system has springs or is nonlinear (they are then part of the integrated state).
@@ -111,15 +111,14 @@ def solve_ode(system, times=None, method: str = "DOP853", rtol: float = 1e-10,
     t = system.time_points(times)
     n = system.dof
     linear = getattr(system, "kind", "linear") == "linear"
-    rhs, jac, y, has_x, gain = _linear(system) if linear else _nonlinear(system)
+    rhs, jac, y, has_x = _linear(system) if linear else _nonlinear(system)
     if atol is None:
-        # Scale from the steady response to the peak force, so atol is relative to the motion.
-        fmax = float(np.max(np.abs(joint_forces(system.forces, t)))) if t.size else 0.0
-        if not linear and system.functions.gravity is not None:     # gravity drives the motion too
-            fmax = max(fmax, float(np.max(np.abs(system.functions.gravity(system.q0)))))
-        scale = max(float(np.max(np.abs(system.initial_voltages))), fmax * gain * system.t_stop)
-        # A system that never moves has no scale to resolve: any atol serves.
-        atol = rtol * 1e-3 * (scale if scale > 0 else 1.0)
+        # Per state component, relative to the motion it can have (small modal nodes too).
+        sc = system_scales(system)
+        parts = ([sc.position] if has_x else []) + [sc.velocity]
+        if not linear:
+            parts.append([sc.current * sc.peak_velocity * system.t_stop])
+        atol = rtol * 1e-3 * np.concatenate(parts)
     extra = {}
     if jac is not None and method in _IMPLICIT:     # LSODA takes the Jacobian as a callable only
         extra["jac"] = (lambda tt, yy: jac) if method == "LSODA" and not callable(jac) else jac

@@ -1,0 +1,82 @@
+"""A node system's scales, read before it is solved: they bound its motion and set SPICE's steps."""
+
+import numpy as np
+import pytest
+
+from analogy.circuit.netlist import netlist
+from analogy.circuit.node_system import node_system
+from analogy.circuit.scales import combined_scales, system_scales
+from analogy.model.joint import JointSpace
+from analogy.presets import PRESETS
+from analogy.scenes.builtin import SCENES, scene
+from analogy.solvers.exact import solve_exact
+
+
+def tran_line(text):
+    line = next(ln for ln in text.splitlines() if ln.startswith(".tran"))
+    tstep, t_stop, _, tmax = map(float, line.split()[1:5])
+    return tstep, t_stop, tmax
+
+
+def options(text):
+    line = next(ln for ln in text.splitlines() if ln.startswith(".options"))
+    return {k: v for k, v in (item.split("=") for item in line.split()[1:])}
+
+
+@pytest.mark.parametrize("name", SCENES)
+def test_the_velocity_scale_is_each_nodes_peak_within_a_modest_factor(name):
+    """The modal estimate is within a factor 2.5 below and 10 above each node's exact peak
+    (measured 0.48 to 6.1): damping that couples the modes lets some nodes pass it."""
+    s = scene(name).system()
+    peak = np.max(np.abs(solve_exact(s, np.linspace(0, s.t_stop, 2001)).voltages), axis=0)
+    ratio = system_scales(s).velocity / peak
+    assert np.all(ratio >= 0.4) and np.all(ratio <= 10)
+
+
+def test_the_fastest_rate_is_the_largest_natural_frequency_or_damping_rate():
+    """M = 1, K = ω²: ω_max = ω; a damper b on mass m adds the rate b/m."""
+    springs = node_system(JointSpace([[1.0, 0], [0, 1.0]], stiffness=[[4e6, 0], [0, 1.0]]), forces=[1, 0])
+    assert system_scales(springs).omega_max == pytest.approx(2e3, rel=1e-12)
+    damped = node_system(JointSpace([[2.0, 0], [0, 1.0]], damping=[[600.0, 0], [0, 1.0]]), forces=[1, 0])
+    assert system_scales(damped).omega_max == pytest.approx(300, rel=1e-12)
+
+
+def test_a_fast_mode_caps_the_step_and_shortens_the_print_step_to_a_divisor():
+    """ω = 2000 rad/s over 1 s: tmax = 0.016/ω at accurate (not t_stop/20000); the print step
+    divides t_stop/1000 and is short enough for a first step of 3e-4/ω."""
+    s = node_system(JointSpace([[1.0, 0], [0, 1.0]], stiffness=[[4e6, 0], [0, 1.0]]), forces=[1, 0],
+                    t_stop=1.0)
+    tstep, t_stop, tmax = tran_line(netlist(s, "accurate"))
+    assert tmax == pytest.approx(0.016 / 2e3, rel=1e-12)
+    k = round(t_stop / 1000 / tstep)
+    assert tstep == pytest.approx(t_stop / 1000 / k, rel=1e-12) and tstep / 100 <= 3e-4 / 2e3
+
+
+def test_absolute_tolerances_follow_the_units_of_the_system():
+    """The same system with forces 1e6 times larger: abstol and vntol 1e6 times larger too."""
+    js = JointSpace([[2.0, 0.3], [0.3, 1.0]], damping=[[1.0, 0], [0, 0.5]])
+    small, large = (options(netlist(node_system(js, forces=[f, 0.5 * f]), "accurate")) for f in (1.0, 1e6))
+    for key in ("abstol", "vntol"):
+        assert float(large[key]) == pytest.approx(1e6 * float(small[key]), rel=1e-2)
+
+
+def test_abstol_stays_above_the_rounding_of_a_capacitor_current():
+    """A stiff, heavy circuit: abstol ≥ 1e4·ε·q·ω_max, or rounding reads as truncation error."""
+    s = node_system(JointSpace([[50.0, 0], [0, 1.0]], stiffness=[[5e7, 0], [0, 1.0]]), forces=[1, 0])
+    sc = system_scales(s)
+    assert float(options(netlist(s, "accurate"))["abstol"]) >= 0.999 * sc.rounding_current > 1e-15 * sc.current
+
+
+def test_a_step_budget_bounds_the_work_of_a_long_run():
+    """10^6 s of a 2000 rad/s mode at fast: the cap is t_stop/10^6, not 0.5/ω (4·10^9 steps)."""
+    s = node_system(JointSpace([[1.0, 0], [0, 1.0]], stiffness=[[4e6, 0], [0, 1.0]]), forces=[1, 0],
+                    t_stop=1e6)
+    assert tran_line(netlist(s, "fast"))[2] == pytest.approx(1e6 / PRESETS["fast"].step_budget, rel=1e-12)
+
+
+def test_circuits_run_together_share_the_fastest_rate_and_the_largest_scales():
+    a = system_scales(node_system(JointSpace([[1.0]], stiffness=[[100.0]]), forces=[2.0]))
+    b = system_scales(node_system(JointSpace([[1.0]], stiffness=[[1e4]]), forces=[1.0]))
+    both = combined_scales([a, b])
+    assert both.omega_max == b.omega_max == pytest.approx(100)
+    assert both.current == a.current == 2.0 and both.peak_velocity == max(a.peak_velocity, b.peak_velocity)
