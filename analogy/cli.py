@@ -70,6 +70,8 @@ def _scene_options(p: argparse.ArgumentParser, preset: str = "accurate"):
                         "phase_deg=0), pwl(t1, v1, t2, v2, ...)")
     g.add_argument("--r0", metavar="VALUES", help="initial joint rates, e.g. '0, 0'")
     g.add_argument("--t-stop", metavar="SECONDS", help="end time of the simulation")
+    g.add_argument("--equilibrium", action="store_true", help="settle the elastic (modal) coordinates "
+                   "at the static equilibrium under gravity first, the joints held at --q")
     p.add_argument("--preset", default=preset, choices=list(PRESETS), help=_PRESET_HELP)
 
 
@@ -213,8 +215,7 @@ def scene_from_args(args) -> Scene:
             raise InputError(f"--q and --param {', '.join(coords)} both set the configuration: use one")
         q = list(changes.get("q", sc.q))
         for key, value in coords.items():
-            k = int(key[1:])
-            if not 1 <= k <= len(q):
+            if not 1 <= (k := int(key[1:])) <= len(q):
                 raise InputError(f"--param {key}: the model has joint coordinates q1 to q{len(q)}")
             q[k - 1] = value
         changes["q"] = tuple(q)
@@ -232,6 +233,8 @@ def scene_from_args(args) -> Scene:
         changes["initial_rates"] = tuple(parse_vector(args.r0, numeric=True))
     if args.t_stop is not None:
         changes["t_stop"] = parse_number(args.t_stop)
+    if args.equilibrium:
+        changes["equilibrium"] = True
     if getattr(args, "dynamics", None) in ("linear", "nonlinear"):      # "both" is the command's
         changes["dynamics"] = args.dynamics
     new = sc.replace(**changes)
@@ -327,9 +330,7 @@ def _written_and_judged(output, result, args) -> int:
             print(f"wrote {args.plot}")
     except OSError as exc:
         raise InputError(f"cannot write output: {exc}") from None
-    if result.failures:
-        return EXIT_FAILED
-    return _accuracy_exit(result.outside_bound(), result.preset, result.bound)
+    return EXIT_FAILED if result.failures else _accuracy_exit(result.outside_bound(), result.preset, result.bound)
 
 
 def _cmd_modes(args) -> int:
@@ -337,9 +338,8 @@ def _cmd_modes(args) -> int:
     sc = scene_from_args(args)
     _check_writable(args.csv)
     locked = [item.strip() for item in (args.locked or "").split(",") if item.strip()]
-    for item in locked:
-        if not item.isdigit():
-            raise InputError(f"--locked needs joint numbers like 1,2, got {item!r}")
+    if bad := [item for item in locked if not item.isdigit()]:
+        raise InputError(f"--locked needs joint numbers like 1,2, got {bad[0]!r}")
     result = natural_modes(sc.system().joint, [int(x) for x in locked])
     print(result.table())
     if args.csv:

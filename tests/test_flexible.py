@@ -147,3 +147,18 @@ def test_a_comparison_above_the_horizontal_says_the_equilibrium_is_unstable():
     rates = result.results["exact"].rates
     assert abs(rates[-1, 0]) > abs(rates[len(rates) // 2, 0]) > 0     # it falls, faster and faster
     assert result.errors()["ode"][1] <= 1e-9
+
+
+def test_the_static_equilibrium_under_gravity_leaves_no_load_on_the_modes():
+    """flex2 held at a pose: Newton on the modal rows of G + K·δ makes them vanish to rounding,
+    the joints keep the holding torque; hanging straight down, nothing bends."""
+    from analogy.model.equilibrium import elastic_coordinates, static_equilibrium
+    from analogy.model.robots import robot
+    arm2 = robot("flex2")
+    assert elastic_coordinates(arm2) == [2, 3, 4, 5]
+    q = static_equilibrium(arm2, [-0.6, 0.3, 0, 0, 0, 0])
+    load = arm2.joint_space(q).gravity
+    assert q[:2].tolist() == [-0.6, 0.3] and np.max(np.abs(q[2:])) > 1e-3       # the links sag
+    assert np.max(np.abs(load[2:])) <= 1e-12 * np.max(np.abs(load[:2]))
+    hanging = static_equilibrium(robot("flex1"), [-np.pi / 2, 0, 0])
+    assert np.max(np.abs(hanging[1:])) <= 1e-15

@@ -13,6 +13,7 @@ from ..circuit.nonlinear import nonlinear_system
 from ..errors import InputError
 from ..model.catalog import check_robot_name
 from ..model.compiled import compile_model, load_compiled
+from ..model.equilibrium import static_equilibrium
 from ..model.expressions import parse_expression, parse_number
 from ..model.joint import JointSpace
 from .spec import ModelSpec, SceneData
@@ -330,6 +331,8 @@ def scene_system(scene: SceneData, model=None) -> object:
         info = {"scene": scene.name}
         top = _topology(scene)
         params = scene.parameter_values if scene.model.robot is not None else None
+        if scene.equilibrium and q is not None:
+            q = [float(x) for x in static_equilibrium(m, q, params)]
         if scene.dynamics == "nonlinear":
             with keyed(keys["dynamics"]):
                 return nonlinear_system(m, q or [0.0] * n, parameters=params, topology=top,

@@ -56,6 +56,10 @@ class Scene:
         Joint rates at t = 0 (None: zero).
     t_stop : float
         End of the simulated interval [s].
+    equilibrium : bool
+        Move q's elastic coordinates (a flexible link's modes) to the static equilibrium
+        under gravity first, the joints held where q puts them
+        (:func:`~analogy.model.equilibrium.static_equilibrium`).
     dynamics : {"linear", "nonlinear"}
         The circuit at q (linear) or the full configuration-dependent motion.
     joint_rates : bool
@@ -86,6 +90,7 @@ class Scene:
     forces: tuple = ()
     initial_rates: tuple | None = None
     t_stop: float = 10.0
+    equilibrium: bool = False
     dynamics: DynamicsKind = "linear"
     joint_rates: bool = True
     node_voltages: object = ()
