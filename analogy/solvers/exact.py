@@ -106,13 +106,30 @@ def _modes(systems, n: int, springs: bool):
     if not np.all(np.isfinite(lam)):
         raise SimulationError("the system has infinite or undefined modal rates")
     cond = np.linalg.cond(vec)
+    if np.any(cond > 1e10) and len(systems) == 1:
+        # Free (rigid) directions of K' make x and v a Jordan chain at λ = 0: keep only
+        # w = U_rᵀ·x, the extensions the springs feel, so each λ = 0 mode is a plain rate.
+        a, lam, vec = _spring_state(m[0], k[0], mb[0])
+        cond = np.array([np.linalg.cond(vec[0])])
     if np.any(cond > 1e10):
         raise SimulationError(f"the modes are nearly defective (condition number {cond.max():.2g}); "
                               "the exact solver cannot resolve them accurately")
-    y0 = np.concatenate([np.zeros_like(v0), v0], 1).astype(complex)
+    r = vec.shape[1] - n                    # state y = [x or w, v]
+    y0 = np.concatenate([np.zeros((v0.shape[0], r)), v0], 1).astype(complex)
     z = np.linalg.solve(vec, y0[..., None])[..., 0]
-    beta = np.linalg.solve(vec, np.concatenate([np.zeros_like(mc), mc], 1).astype(complex))
+    beta = np.linalg.solve(vec, np.concatenate([np.zeros((mc.shape[0], r, mc.shape[2])), mc], 1).astype(complex))
     return lam, vec, z, beta
+
+
+def _spring_state(m, k, mb):
+    """The first-order matrix on y = [w, v], w = U_rᵀ·x over the range of K' = U_r·κ·U_rᵀ, and its modes."""
+    kappa, u = np.linalg.eigh(0.5 * (k + k.T))
+    live = np.abs(kappa) > 1e-12 * np.max(np.abs(kappa))
+    ur = u[:, live]
+    r = ur.shape[1]
+    a = np.block([[np.zeros((r, r)), ur.T], [-np.linalg.solve(m, ur * kappa[live]), -mb]])
+    lam, vec = np.linalg.eig(a)
+    return a[None], lam[None], vec[None]
 
 
 def _states(systems, t, n: int, springs: bool) -> np.ndarray:
@@ -209,6 +226,9 @@ def solve_exact(system, times=None, positions: bool = False) -> Trajectory:
     y = _solve([system], t)[0]
     n = system.dof
     voltages = y[:, -n:]
+    if positions and system.stiffness is not None and y.shape[1] != 2 * n:
+        raise SimulationError("the exact solver keeps only the spring extensions of a system with "
+                              "free (rigid) modes, not its positions: use the ode solver for them")
     pos = y[:, :n] if positions and system.stiffness is not None else None
     elapsed = _time.perf_counter() - start
     return Trajectory("exact", t, voltages, system.joint_rates(voltages), pos, stats=SolverStats(elapsed))
