@@ -36,6 +36,9 @@ class Preset:
         :class:`~analogy.circuit.scales.Scales`), where t_stop/max_steps is longer.
         Trapezoidal phase error grows as (ω·h)², and ngspice's per-device truncation
         check misses it when M' couples fast and slow modes.
+    timeout : float
+        Wall-time limit [s] of the ODE integration (SPICE's work is bounded by
+        *step_budget*, the exact solver's by its time points).
     step_budget : int
         The most steps the time-scale cap may ask for: over a t_stop that would need
         more, the cap is t_stop/step_budget and the bound may fail (then it is flagged
@@ -68,6 +71,7 @@ class Preset:
     phase_step: float = math.inf
     first_phase_step: float = math.inf
     step_budget: int = 10_000_000
+    timeout: float = 300.0
 
 
 PRESETS = {

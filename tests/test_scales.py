@@ -33,12 +33,17 @@ def test_the_velocity_scale_is_each_nodes_peak_within_a_modest_factor(name):
     assert np.all(ratio >= 0.4) and np.all(ratio <= 10)
 
 
-def test_the_fastest_rate_is_the_largest_natural_frequency_or_damping_rate():
-    """M = 1, K = ω²: ω_max = ω; a damper b on mass m adds the rate b/m."""
+def test_the_fastest_oscillation_is_the_largest_damped_natural_frequency():
+    """M = 1, K = ω²: ω_max = ω; damping b lowers it to √(ω² − b²/4); an overdamped mode
+    (the stiff example: ζ = 5e5) only decays and sets no step; a sine force does."""
     springs = node_system(JointSpace([[1.0, 0], [0, 1.0]], stiffness=[[4e6, 0], [0, 1.0]]), forces=[1, 0])
     assert system_scales(springs).omega_max == pytest.approx(2e3, rel=1e-12)
-    damped = node_system(JointSpace([[2.0, 0], [0, 1.0]], damping=[[600.0, 0], [0, 1.0]]), forces=[1, 0])
-    assert system_scales(damped).omega_max == pytest.approx(300, rel=1e-12)
+    damped = JointSpace([[1.0, 0], [0, 1.0]], damping=[[2400.0, 0], [0, 0.0]], stiffness=[[4e6, 0], [0, 1.0]])
+    assert system_scales(node_system(damped, forces=[1, 0])).omega_max == pytest.approx(1.6e3, rel=1e-12)
+    stiff = JointSpace([[1e-9, 0], [0, 1.0]], damping=[[1e6, 0], [0, 1.0]], stiffness=[[1e9, 0], [0, 1.0]])
+    assert system_scales(node_system(stiff, forces=[1, 1])).omega_max == pytest.approx(np.sqrt(0.75), rel=1e-9)
+    shaken = node_system(JointSpace([[1.0]], damping=[[1.0]]), forces=["sine(0, 1, 50)"])
+    assert system_scales(shaken).omega_max == pytest.approx(2 * np.pi * 50, rel=1e-12)
 
 
 def test_a_fast_mode_caps_the_step_and_shortens_the_print_step_to_a_divisor():

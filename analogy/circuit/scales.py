@@ -20,7 +20,8 @@ class Scales:
     From the undamped modes K'·φ = ω²·M'·φ (M'-normalised) and the forces' peaks F̂:
     a mode driven by f_k = Σ_j |φ_kᵀ·T⁻ᵀ·e_j|·F̂_j moves at most at f_k·t_k, with
     t_k = min(t_stop, 1/ω_k, 1/β_k) and β_k = φ_kᵀB'φ_k its damping rate (times
-    e^{σ·t_stop} for a mode that grows at σ), plus its share of the initial velocity.
+    e^{σ·t_stop} for a mode that grows at σ), plus its share of the initial velocity; it
+    moves at most f_k·min(t_stop², 1/ω_k², t_stop/β_k).
     Node i's scale sums |φ_ik| times these: a bound on an undamped step response, and an
     estimate otherwise (damping that couples the modes, or a sine near resonance, can pass
     it: 0.48 to 6.1 times the exact peak on the built-in scenes). A nonlinear system is
@@ -29,9 +30,10 @@ class Scales:
     Attributes
     ----------
     omega_max : float
-        Fastest rate [rad/s]: the largest of ω_k, the largest damping rate of B̃ =
-        L⁻¹B'L⁻ᵀ (M' = LLᵀ) and the forces' sine frequencies. Zero for a system that
-        has none (then t_stop alone sets the steps).
+        Fastest oscillation [rad/s]: the largest damped frequency ω_k·√(1 − ζ_k²) of an
+        underdamped mode (ζ_k = β_k/2ω_k), or of the forces' sines. A decay, however fast,
+        is left to ngspice's truncation check: it dies out, while an oscillation keeps
+        its phase error. Zero for a system that has none (then t_stop alone sets the steps).
     velocity : ndarray, shape (n,)
         Per node, the velocity scale [V, i.e. m/s or rad/s].
     position : ndarray, shape (n,)
@@ -104,7 +106,6 @@ def system_scales(system) -> Scales:
     mu, psi = np.linalg.eigh(0.5 * (kt + kt.T))
     phi = np.linalg.solve(chol.T, psi)                  # M'-orthonormal mode shapes
     bt = whiten(b)
-    rate = float(np.max(np.abs(np.linalg.eigvalsh(0.5 * (bt + bt.T))))) if np.any(b) else 0.0
     beta = np.einsum("ik,ij,jk->k", psi, bt, psi)      # modal damping rates
     omega = np.sqrt(np.abs(mu))
     peaks, sine = _force_peaks(system)
@@ -117,14 +118,20 @@ def system_scales(system) -> Scales:
     growth = np.exp(np.minimum(np.where(mu < 0, omega, 0.0) * t_stop, 700.0))
     amplitude = (drive * span + start) * growth
     velocity = np.abs(phi) @ amplitude
-    position = np.abs(phi) @ (amplitude * span)
+    # displacement: f·t²/2 while free, f/ω² against a spring, f·t/β drifting through a damper
+    with np.errstate(divide="ignore"):
+        reach = np.minimum.reduce([np.full(n, t_stop ** 2), np.where(mu > 0, 1 / np.abs(mu), np.inf),
+                                   np.where(beta > 0, t_stop / np.abs(beta), np.inf)])
+    position = np.abs(phi) @ ((drive * reach + start * span) * growth)
     top = float(np.max(velocity)) if velocity.size else 0.0
     if top <= 0 or not np.isfinite(top):                 # nothing moves: any unit scale serves
         velocity, position = np.ones(n), np.full(n, t_stop)
     velocity = np.maximum(velocity, 1e-12 * float(np.max(velocity)))
     position = np.maximum(position, 1e-12 * float(np.max(position)))
     current = float(np.max(np.abs(system.current_map) @ peaks)) if peaks.size else 0.0
-    omega_max = max(float(np.max(omega)) if n else 0.0, rate, sine)
+    with np.errstate(invalid="ignore"):
+        damped = np.where(mu > 0, np.sqrt(np.maximum(mu - beta ** 2 / 4, 0.0)), 0.0)
+    omega_max = max(float(np.max(damped)) if n else 0.0, sine)
     return Scales(omega_max, velocity, position, current if current > 0 else 1.0,
                   float(np.max(np.diag(m))) * float(np.max(velocity)))
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time as _time
+import warnings
 
 import numpy as np
 import scipy.linalg as la
@@ -14,11 +15,44 @@ from ..presets import Preset
 from ..results.trajectory import SolverStats, Trajectory
 from .registry import Solver
 
-__all__ = ["solve_ode", "ODE_METHODS", "state_matrices", "OdeSolver", "SOLVER"]
+__all__ = ["solve_ode", "ODE_METHODS", "STIFF_STEPS", "stiff_method", "state_matrices", "OdeSolver", "SOLVER"]
 
 #: scipy.integrate methods; the implicit ones receive the constant analytic Jacobian of a linear system.
 ODE_METHODS = ("LSODA", "Radau", "BDF", "RK45", "RK23", "DOP853")
 _IMPLICIT = {"LSODA", "Radau", "BDF"}
+#: How far each explicit method's stability region reaches along the negative real axis, |h·λ|.
+_REACH = {"RK45": 3.3, "RK23": 2.5, "DOP853": 4.0}
+#: An explicit method that would need more steps than this for stability alone is replaced.
+STIFF_STEPS = 100_000
+
+
+def stiff_method(system, method: str, jac, y0: np.ndarray) -> tuple[str, str]:
+    """(the method to use, why): Radau where stability, not accuracy, would set an explicit method's steps.
+
+    A system is stiff here when its largest rate |λ| would hold an explicit method to more
+    than :data:`STIFF_STEPS` steps over t_stop, and |λ| is more than 100 times its fastest
+    oscillation (which needs short steps anyway) and 1/t_stop.
+
+    Parameters
+    ----------
+    system : NodeDynamics
+        The system.
+    method : str
+        The method asked for.
+    jac : ndarray or callable or None
+        The Jacobian of the first-order form (callable: evaluated at t = 0, *y0*).
+    y0 : ndarray
+        The initial state.
+    """
+    reach = _REACH.get(method)
+    if reach is None or jac is None:
+        return method, ""
+    a = jac(0.0, y0) if callable(jac) else jac
+    rho = float(np.max(np.abs(np.linalg.eigvals(a)))) if a.size else 0.0
+    t_stop = float(system.t_stop)
+    if rho * t_stop / reach <= STIFF_STEPS or rho <= 100 * max(system_scales(system).omega_max, 1 / t_stop):
+        return method, ""
+    return "Radau", f"stiff, |λ|·t_stop = {rho * t_stop:.2g}: Radau with the analytic Jacobian, not {method}"
 
 
 def state_matrices(system) -> tuple[np.ndarray, np.ndarray]:
@@ -86,8 +120,11 @@ def _nonlinear(system):
 
 
 def solve_ode(system, times=None, method: str = "DOP853", rtol: float = 1e-10,
-              atol: float | None = None, positions: bool = False) -> Trajectory:
+              atol: float | None = None, positions: bool = False, timeout: float | None = None) -> Trajectory:
     """Integrate *system* with a scipy ODE solver, restarting at every force breakpoint.
+
+    An explicit *method* on a stiff system is replaced by Radau (:func:`stiff_method`),
+    and the trajectory's :attr:`~Trajectory.message` says so.
 
     Parameters
     ----------
@@ -98,12 +135,14 @@ def solve_ode(system, times=None, method: str = "DOP853", rtol: float = 1e-10,
     method : str
         One of :data:`ODE_METHODS`.
     rtol, atol : float
-        Tolerances; *atol* defaults to ``rtol * 1e-3`` times each state's scale
+        Tolerances; *atol* defaults to ``rtol * 1e-2`` times each state's scale
         (:func:`~analogy.circuit.scales.system_scales`).
     positions : bool
         Also return the node positions x = ∫v (:attr:`Trajectory.positions`) when the
         system has springs or is nonlinear (they are then part of the integrated state).
         A nonlinear system's trajectory also carries :attr:`Trajectory.work`.
+    timeout : float, optional
+        Wall-time limit [s]; past it the integration stops with :class:`SimulationError`.
     """
     if method not in ODE_METHODS:
         raise InputError(f"unknown ODE method {method!r}: use {', '.join(ODE_METHODS)}")
@@ -118,7 +157,8 @@ def solve_ode(system, times=None, method: str = "DOP853", rtol: float = 1e-10,
         parts = ([sc.position] if has_x else []) + [sc.velocity]
         if not linear:
             parts.append([sc.current * sc.peak_velocity * system.t_stop])
-        atol = rtol * 1e-3 * np.concatenate(parts)
+        atol = rtol * 1e-2 * np.concatenate(parts)
+    method, note = stiff_method(system, method, jac, y)
     extra = {}
     if jac is not None and method in _IMPLICIT:     # LSODA takes the Jacobian as a callable only
         extra["jac"] = (lambda tt, yy: jac) if method == "LSODA" and not callable(jac) else jac
@@ -142,9 +182,16 @@ def solve_ode(system, times=None, method: str = "DOP853", rtol: float = 1e-10,
         if t1 > t0:
             sol = cls(rhs, t0, y, t1, rtol=rtol, atol=atol, **extra)
             while sol.status == "running":
-                message = sol.step()
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")     # scipy's notes become the sentence below
+                    message = sol.step()
                 if sol.status == "failed":
-                    raise SimulationError(f"ODE solver {method} failed at t = {sol.t:.6g}: {message}")
+                    raise SimulationError(f"the ODE solver {method} could not continue at t = {sol.t:.6g} s "
+                                          f"({_plain(message)}): try the other preset or the exact solver")
+                if timeout is not None and _time.perf_counter() - start > timeout:
+                    raise SimulationError(f"the ODE solver {method} passed its time limit of {timeout:g} s at "
+                                          f"t = {sol.t:.6g} of {system.t_stop:g} s: raise --timeout or use "
+                                          "the fast preset")
                 steps += 1
                 stop = k
                 while stop < idx.size and t[idx[stop]] <= sol.t:
@@ -161,7 +208,13 @@ def solve_ode(system, times=None, method: str = "DOP853", rtol: float = 1e-10,
             y = sol.y
     elapsed = _time.perf_counter() - start
     stats = SolverStats(elapsed, steps, None, nfev, njev)
-    return Trajectory("ode", t, out, system.joint_rates(out), pos, stats=stats, work=work)
+    return Trajectory("ode", t, out, system.joint_rates(out), pos, stats=stats, work=work, message=note)
+
+
+def _plain(message) -> str:
+    """scipy's failure text without its codes (LSODA's "istate")."""
+    text = str(message or "").strip().rstrip(".")
+    return "its step size fell to rounding" if "istate" in text.lower() or not text else text
 
 
 class OdeSolver(Solver):
@@ -187,7 +240,8 @@ class OdeSolver(Solver):
             Also return node positions where the system has springs.
         """
         grid = self.grid(system, times, preset)
-        return solve_ode(system, grid, preset.ode_method, preset.ode_rtol, positions=positions)
+        return solve_ode(system, grid, preset.ode_method, preset.ode_rtol, positions=positions,
+                         timeout=preset.timeout)
 
 
 SOLVER = OdeSolver()
