@@ -348,3 +348,36 @@ def test_evaluation_does_not_call_sympy_again(monkeypatch, build, q0, spread):
               for _ in range(200)]
     assert calls == first
     assert len({m.tobytes() for m in masses}) == 200
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 5])
+def test_the_numeric_serial_chain_is_the_symbolic_arm(n):
+    """M = Σ d_k J_kᵀJ_k, G = ∂U/∂q and K = ∂G/∂q by cumulative sums equal sympy's derivation
+    to 1e-13, with gravity on and off, at random poses."""
+    from analogy.model.robots import planar_serial
+    from analogy.model.serial_chain import SerialChain
+    symbolic, numeric = planar_serial(n), SerialChain(n)
+    assert dict(symbolic.parameters) == numeric.parameters
+    rng = np.random.default_rng(n)
+    for g in (0.0, 9.81):
+        q = rng.uniform(-2, 2, n)
+        a, b = symbolic.joint_space(q, {"g": g}), numeric.joint_space(q, {"g": g})
+        scale = np.max(np.abs(a.mass_matrix))
+        np.testing.assert_allclose(b.mass_matrix, a.mass_matrix, rtol=0, atol=1e-13 * scale)
+        np.testing.assert_allclose(b.damping, a.damping, rtol=0, atol=0)
+        if g:
+            np.testing.assert_allclose(b.stiffness, a.stiffness, rtol=0, atol=1e-13 * g * scale)
+            np.testing.assert_allclose(b.gravity, a.gravity, rtol=0, atol=1e-13 * g * scale)
+
+
+def test_long_serial_arms_are_numeric_and_their_symbolic_model_is_refused_with_a_reason():
+    from analogy.errors import InputError
+    from analogy.model.robots import robot
+    from analogy.model.serial_chain import SerialChain
+    from analogy.scenes.build import scene_model
+    from analogy.scenes.scene import Scene
+    from analogy.scenes.spec import ModelSpec
+    model = scene_model(Scene.of("long", ModelSpec(robot="serial200"), q=[0.1] * 200))
+    assert isinstance(model, SerialChain) and model.joint_space([0.1] * 200).mass_matrix.shape == (200, 200)
+    with pytest.raises(InputError, match="symbolic model .* up to 12 joints"):
+        robot("serial13")

@@ -4,11 +4,13 @@ from __future__ import annotations
 
 from ..errors import InputError
 
-__all__ = ["ROBOT_NAMES", "check_robot_name", "MAX_SERIAL", "MAX_RANDOM"]
+__all__ = ["ROBOT_NAMES", "check_robot_name", "MAX_SERIAL", "MAX_SYMBOLIC_SERIAL", "MAX_RANDOM"]
 
 #: Fixed built-in robots; ``serial<N>`` and ``random<N>`` name families.
 ROBOT_NAMES = ("redundant", "serial2", "parallel2", "serial3", "parallel3", "flex1", "flex2")
-MAX_SERIAL = 50
+MAX_SERIAL = 500
+#: serial<N> beyond this is numeric only (its linear dynamics): sympy takes minutes past it.
+MAX_SYMBOLIC_SERIAL = 12
 MAX_RANDOM = 2000
 
 

@@ -10,7 +10,10 @@ import numpy as np
 import sympy as sp
 
 from ..errors import InputError
+from .catalog import MAX_SERIAL, MAX_SYMBOLIC_SERIAL
+from .constant import ConstantModel
 from .flexible import flexible_arm
+from .joint import JointSpace
 from .linkages import ClosedChainModel, link_mass_matrix
 from .symbolic import Model
 
@@ -149,7 +152,7 @@ def serial_3dof(**kw) -> Model:
 
 
 def numeric_model(name: str, mass_matrix, damping=None, stiffness=None,
-                  topology: str = "parallel", description: str = "") -> Model:
+                  topology: str = "parallel", description: str = "") -> ConstantModel:
     """A model with constant numeric matrices (no configuration dependence).
 
     Parameters
@@ -167,16 +170,14 @@ def numeric_model(name: str, mass_matrix, damping=None, stiffness=None,
     description : str
         A few words.
     """
-    return Model(name, sp.Matrix(np.asarray(mass_matrix, dtype=float).tolist()),
-                 damping=None if damping is None else sp.Matrix(np.asarray(damping, dtype=float).tolist())
-                 if np.ndim(damping) == 2 else list(map(float, damping)),
-                 stiffness=None if stiffness is None else sp.Matrix(np.asarray(stiffness, dtype=float).tolist())
-                 if np.ndim(stiffness) == 2 else list(map(float, stiffness)),
-                 topology=topology, description=description)
+    def square(a):
+        return None if a is None else (np.asarray(a, dtype=float) if np.ndim(a) == 2 else np.diag(np.asarray(a, dtype=float)))
+    joint = JointSpace(np.asarray(mass_matrix, dtype=float), square(damping), square(stiffness))
+    return ConstantModel(name, joint, topology=topology, description=description)
 
 
 def random_spd_model(n: int, seed: int = 0, topology: str = "serial",
-                     stiffness: bool = False) -> Model:
+                     stiffness: bool = False) -> ConstantModel:
     """A random well-conditioned SPD mass matrix with positive diagonal damping.
 
     Parameters
@@ -434,6 +435,11 @@ def robot(name: str, link_modes: str | None = None) -> Model:
         raise InputError(f"link modes apply to the flexible arms flex1 and flex2, not to {name}")
     if name in ROBOTS:
         return ROBOTS[name](**({} if link_modes is None else {"link_modes": link_modes}))
-    if name.startswith("serial") and name[6:].isdigit() and 1 <= int(name[6:]) <= 50:
+    if name.startswith("serial") and name[6:].isdigit() and 1 <= int(name[6:]) <= MAX_SYMBOLIC_SERIAL:
         return planar_serial(int(name[6:]))
-    raise InputError(f"unknown robot {name!r}: use {', '.join(ROBOTS)} or serial<N> (N = 1 to 50)")
+    if name.startswith("serial") and name[6:].isdigit() and int(name[6:]) <= MAX_SERIAL:
+        raise InputError(f"{name}'s symbolic model (needed for its nonlinear dynamics) is built up to "
+                         f"{MAX_SYMBOLIC_SERIAL} joints; its linear dynamics are numeric at any size "
+                         "(analogy.model.serial_chain.SerialChain)")
+    raise InputError(f"unknown robot {name!r}: use {', '.join(ROBOTS)} or serial<N> "
+                     f"(N = 1 to {MAX_SYMBOLIC_SERIAL})")

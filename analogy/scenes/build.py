@@ -11,10 +11,11 @@ import numpy as np
 from ..circuit.node_system import node_system, node_systems, waveforms
 from ..circuit.nonlinear import nonlinear_system
 from ..errors import InputError
-from ..model.catalog import check_robot_name
+from ..model.catalog import ROBOT_NAMES, check_robot_name
 from ..model.compiled import compile_model, load_compiled
 from ..model.equilibrium import static_equilibrium
 from ..model.expressions import parse_expression, parse_number
+from ..model.serial_chain import SerialChain
 from ..model.joint import JointSpace
 from .spec import ModelSpec, SceneData
 
@@ -258,6 +259,8 @@ def _robot(spec: ModelSpec, dynamics: str):
     if name.startswith("flex") or spec.link_modes is not None:
         from ..model.robots import robot
         return robot(name, spec.link_modes)     # numeric matrices, rebuilt per parameter set
+    if dynamics == "linear" and name.startswith("serial") and name not in ROBOT_NAMES:
+        return SerialChain(int(name[6:]))       # numeric at any size: no sympy
     if dynamics == "linear":
         cached = load_compiled(name)
         if cached is not None:
