@@ -14,26 +14,26 @@ from pathlib import Path
 from . import __version__
 from .circuit.netlist import netlist
 from .errors import AccuracyError, AnalogyError, InputError, SimulationError
-from .model.catalog import MAX_SERIAL, ROBOT_NAMES
 from .model.expressions import (
-    parse_expression,
-    parse_matrix,
     parse_number,
-    parse_vector,
-    split_entries,
 )
 from .presets import PRESETS
 from .results.output import check_plot_path
-from .scenes.build import scene_model
+from .scenes.arguments import PRESET_HELP, scene_from_args, scene_options
 from .scenes.builtin import SCENES, scene
 from .scenes.scene import Scene
-from .scenes.spec import ModelSpec
 
-__all__ = ["main", "build_parser", "scene_from_args", "EXIT_OK", "EXIT_FAILED", "EXIT_USAGE",
-           "EXIT_ACCURACY"]
+__all__ = [
+    "EXIT_ACCURACY",
+    "EXIT_FAILED",
+    "EXIT_OK",
+    "EXIT_USAGE",
+    "build_parser",
+    "main",
+    "scene_from_args",
+]
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_ACCURACY = 0, 1, 2, 3
-_PRESET_HELP = "accuracy preset: " + "; ".join(f"{k} ({p.description})" for k, p in PRESETS.items())
 
 
 class _Parser(argparse.ArgumentParser):
@@ -43,38 +43,6 @@ class _Parser(argparse.ArgumentParser):
         raise InputError(f"{message} (see {self.prog} --help)")
 
 
-def _scene_options(p: argparse.ArgumentParser, preset: str = "accurate"):
-    g = p.add_argument_group("scene (defaults: the built-in default scene; SI units throughout)")
-    g.add_argument("--scene", default="default", help="built-in scene to start from (see 'analogy scenes')")
-    g.add_argument("--robot", help=f"built-in robot: {', '.join(ROBOT_NAMES)}, serial<N> (a planar "
-                                   f"N-joint arm, e.g. serial4, N up to {MAX_SERIAL}) or random<N>")
-    g.add_argument("--mass", metavar="MATRIX", help="mass matrix, e.g. '[[m1, m3], [m3, m2]]'; "
-                   "may use --param names and q1..qn")
-    g.add_argument("--damping", metavar="VECTOR|MATRIX", help="damping: diagonal '[b1, b2]' or a matrix")
-    g.add_argument("--stiffness", metavar="VECTOR|MATRIX", help="stiffness: diagonal or a matrix")
-    g.add_argument("--gravity", metavar="VECTOR", help="gravity load G(q), one entry per joint, "
-                   "e.g. '[9.81*m*cos(q1), 0]'; with --mass")
-    g.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
-                   help="parameter value (repeatable), e.g. l1=0.5; qK=VALUE sets joint "
-                        "coordinate K, e.g. q2=pi/4")
-    g.add_argument("--link-modes", choices=("clamped-free", "clamped-mass"),
-                   help="flexible arms: each link's mode shapes, a cantilever's (default) or "
-                        "loaded by the tip mass and inertia the link carries")
-    g.add_argument("--q", metavar="VALUES", help="configuration, e.g. '0, 0.3'")
-    g.add_argument("--topology", metavar="serial|parallel|MATRIX",
-                   help="joint-to-node map: serial, parallel or a matrix T with v = T r")
-    g.add_argument("--force", action="append", metavar="SPEC",
-                   help="force on the next joint (repeat once per joint): a number, step(a), "
-                        "step(a, delay, rise), pulse(v1, v2, delay=0, rise=1e-6, fall=1e-6, width=1, "
-                        "period=one pulse), sine(offset, amplitude, freq, delay=0, damping=0, "
-                        "phase_deg=0), pwl(t1, v1, t2, v2, ...)")
-    g.add_argument("--r0", metavar="VALUES", help="initial joint rates, e.g. '0, 0'")
-    g.add_argument("--t-stop", metavar="SECONDS", help="end time of the simulation")
-    g.add_argument("--equilibrium", action="store_true", help="settle the elastic (modal) coordinates "
-                   "at the static equilibrium under gravity first, the joints held at --q")
-    p.add_argument("--preset", default=preset, choices=list(PRESETS), help=_PRESET_HELP)
-
-
 def build_parser() -> argparse.ArgumentParser:
     """The ``analogy`` argument parser, with one subcommand per task."""
     parser = _Parser(prog="analogy",
@@ -82,7 +50,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"analogy {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     p = sub.add_parser("netlist", help="write the equivalent-circuit SPICE netlist")
-    _scene_options(p)
+    scene_options(p)
     p.add_argument("-o", "--output", help="file to write (default: stdout)")
     p.add_argument("--save", metavar="NAMES", help="nodes or elements to save, e.g. 'n1, C1_2' (default: all nodes)")
     p.add_argument("--realizable", action="store_true",
@@ -91,7 +59,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the circuit at q (linear), or the robot's full nonlinear circuit: "
                         "charge-defined capacitors, behavioural forces and integrators")
     p = sub.add_parser("compare", help="run SPICE, ODE and exact solvers and compare them")
-    _scene_options(p)
+    scene_options(p)
     p.add_argument("--solvers", default="spice,ode,exact",
                    help="comma-separated registered solvers: spice, ode, exact, reference")
     p.add_argument("--dynamics", default="linear", choices=["linear", "nonlinear", "both"],
@@ -103,11 +71,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--plot", metavar="FILE.png", help="write a plot of rates and errors")
     p.add_argument("--no-plot", action="store_true", help="never import the plotting library")
     p = sub.add_parser("modes", help="natural frequencies and damping ratios of the linear system at q")
-    _scene_options(p)
+    scene_options(p)
     p.add_argument("--locked", metavar="JOINTS", help="joints held clamped, e.g. '1' or '1,2'")
     p.add_argument("--csv", metavar="FILE", help="write mode, omega_rad_s, f_hz, damping_ratio")
     p = sub.add_parser("ac", help="ngspice's .ac sweep against the exact mobility (M's + B' + K'/s)^-1")
-    _scene_options(p)
+    scene_options(p)
     for flag, what in (("--f-start", "first frequency (default: modes / 10)"), ("--f-stop", "last (modes x 10)")):
         p.add_argument(flag, type=float, metavar="HZ", help=what)
     p.add_argument("--points", type=int, default=500, help="points per decade (default 500)")
@@ -115,11 +83,11 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument(flag, metavar="FILE", help=f"write {what}")
     p = sub.add_parser("verify", help="check every built-in example: SPICE and ODE against exact, "
                                       "exact against a 40-digit mpmath solution")
-    p.add_argument("--preset", default="accurate", choices=list(PRESETS), help=_PRESET_HELP)
+    p.add_argument("--preset", default="accurate", choices=list(PRESETS), help=PRESET_HELP)
     p.add_argument("--scenes", default=None, help="comma-separated scene names (default: all)")
     sub.add_parser("scenes", help="list the built-in scenes")
     p = sub.add_parser("draw", help="draw the equivalent circuit and the mechanical system (SVG and PNG)")
-    _scene_options(p)
+    scene_options(p)
     p.add_argument("-o", "--output-dir", default=".", help="folder for the drawings (default: .)")
     p.add_argument("--stem", help="file name stem (default: the scene's name, with its content "
                                   "key when changed from a built-in scene)")
@@ -134,116 +102,23 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--csv", default="bench.csv", help="CSV output (default: bench.csv)")
     p.add_argument("--plot", default="bench.png", help="work-precision plot (default: bench.png)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p = sub.add_parser("stress", help="stress-test numerical stability: families of hard cases, each run by "
+                                      "every solver that applies (CSV, a plot per family, a summary)")
+    p.add_argument("--quick", action="store_true", help="only the ends of each sweep (under a minute)")
+    p.add_argument("--families", default="abcdefg", help="family letters (default abcdefg): a conditioning, "
+                   "b time scales, c long runs, d size, e units, f near-singular, g nonlinear")
+    p.add_argument("-o", "--output", default="stress", help="folder for stress.csv, stress.md and "
+                   "stress_<family>.png (made if missing; default: stress)")
+    p.add_argument("--timeout", type=float, default=30.0, help="wall-time limit of each ODE run [s] (default 30)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p = sub.add_parser("throughput", help="scenes per second: batched ngspice runs against per-scene loops")
     p.add_argument("-n", type=int, default=10_000, help="number of 2-DOF scenes (default 10000)")
     p.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
     p.add_argument("--group-size", type=int, default=100, help="scenes per ngspice run (default 100)")
     p.add_argument("--baseline", type=int, default=500, help="scenes for the per-scene loops (default 500)")
     p.add_argument("--repeats", type=int, default=3, help="turns of every path; medians are reported (default 3)")
-    p.add_argument("--preset", default="fast", choices=list(PRESETS), help=_PRESET_HELP)
+    p.add_argument("--preset", default="fast", choices=list(PRESETS), help=PRESET_HELP)
     return parser
-
-
-def _split_param(text: str) -> tuple[str, float]:
-    name, sep, value = text.partition("=")
-    if not sep or not name.strip().isidentifier():
-        raise InputError(f"--param needs NAME=VALUE, got {text!r}")
-    try:
-        return name.strip(), parse_number(value)
-    except InputError as exc:
-        raise InputError(f"--param {name.strip()}: {exc}") from None
-
-
-def _entries(text: str | None, label: str):
-    if text is None:
-        return None
-    try:
-        return split_entries(text)
-    except InputError as exc:
-        raise InputError(f"{label}: {exc}") from None
-
-
-def scene_from_args(args) -> Scene:
-    """The scene the CLI options describe: a built-in scene with the options' changes.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        Parsed scene options (see :func:`build_parser`).
-    """
-    # A robot with a scene of its own starts from that scene (a configuration that assembles).
-    start = args.robot if args.robot in SCENES and args.scene == "default" else args.scene
-    sc = scene(start)
-    params = dict(_split_param(p) for p in args.param)
-    coords = {k: params.pop(k) for k in list(params) if k[0] == "q" and k[1:].isdigit()}
-    changes: dict = {"source": "command line"}
-    if args.mass is not None:
-        mass = _entries(args.mass, "--mass")
-        if not mass or not all(isinstance(r, list) and r for r in mass):
-            if not mass or any(r == [] for r in mass):
-                raise InputError("--mass must be a matrix like [[m1, m3], [m3, m2]], not empty")
-            try:
-                parse_expression(args.mass, {})       # the grammar's own sentence first
-            except InputError as exc:
-                if "unknown name" not in str(exc):
-                    raise InputError(f"--mass: {exc}") from None
-            raise InputError("--mass must be a matrix like [[m1, m3], [m3, m2]]")
-        spec = ModelSpec.of(None, mass=mass, **{k: _entries(getattr(args, k), f"--{k}")
-                                                for k in ("damping", "stiffness", "gravity")})
-        n = len(mass)
-        changes.update(model=spec, parameters=params, q=(0.0,) * n, initial_rates=None, topology=None,
-                       forces=(1.0,) * n)
-    elif args.damping or args.stiffness or args.gravity:
-        raise InputError("--damping, --stiffness and --gravity need --mass (built-in robots have their own; "
-                         "the serial arms take --param g=9.81)")
-    elif args.robot is not None and (args.robot != sc.model.robot or args.link_modes is not None):
-        spec = ModelSpec(robot=args.robot, link_modes=args.link_modes)
-        probe = Scene.of(args.robot, spec, parameters=params, source="command line")
-        model = scene_model(probe)          # one sentence on an unknown name or parameter
-        # unit steps on the joints; a flexible link's modal coordinates are not actuated
-        forces = tuple(float(not str(c).startswith("delta")) for c in model.coordinates) or (1.0,) * model.dof
-        changes.update(model=spec, q=(0.0,) * len(model.coordinates), parameters=params,
-                       forces=forces, initial_rates=None, topology=None)
-    elif args.link_modes is not None:
-        raise InputError("--link-modes applies to the flexible arms: give --robot flex1 or flex2")
-    elif params:
-        changes["parameters"] = dict(sc.parameters, **params)
-    if args.q is not None:
-        changes["q"] = tuple(parse_vector(args.q, numeric=True))
-    if coords:
-        if args.q is not None:
-            raise InputError(f"--q and --param {', '.join(coords)} both set the configuration: use one")
-        q = list(changes.get("q", sc.q))
-        for key, value in coords.items():
-            if not 1 <= (k := int(key[1:])) <= len(q):
-                raise InputError(f"--param {key}: the model has joint coordinates q1 to q{len(q)}")
-            q[k - 1] = value
-        changes["q"] = tuple(q)
-    if args.topology is not None:
-        t = args.topology.strip()
-        if t.startswith("["):
-            changes["topology"] = tuple(tuple(r) for r in parse_matrix(t, numeric=True))
-        elif t in ("serial", "parallel"):
-            changes["topology"] = t
-        else:
-            raise InputError(f"unknown topology {t!r}: use serial, parallel or a matrix like [[1, 0], [1, 1]]")
-    if args.force:
-        changes["forces"] = tuple(args.force)
-    if args.r0 is not None:
-        changes["initial_rates"] = tuple(parse_vector(args.r0, numeric=True))
-    if args.t_stop is not None:
-        changes["t_stop"] = parse_number(args.t_stop)
-    if args.equilibrium:
-        changes["equilibrium"] = True
-    if getattr(args, "dynamics", None) in ("linear", "nonlinear"):      # "both" is the command's
-        changes["dynamics"] = args.dynamics
-    new = sc.replace(**changes)
-    if new.key != sc.key:           # name and describe what was actually built
-        label = new.model.label
-        new = new.replace(name=label if label != sc.name else sc.name,
-                          description=f"{label}, changed from the built-in scene {sc.name!r} on the "
-                                      "command line")
-    return new
 
 
 def _title(sc: Scene) -> str:
@@ -447,6 +322,26 @@ def _cmd_bench(args) -> int:
     return EXIT_OK
 
 
+def _cmd_stress(args) -> int:
+    from .stress import stress, write_report
+    out = Path(args.output)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"cannot write into {out}: it is a file")
+    if not args.timeout > 0:
+        raise InputError(f"--timeout must be positive, got {args.timeout:g}")
+    families = args.families.strip().lower()
+    report = stress(families, quick=args.quick, timeout=args.timeout,
+                    progress=not args.no_progress and sys.stderr.isatty())
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        written = write_report(report, out)
+    except OSError as exc:
+        raise InputError(f"cannot write the stress report: {exc}") from None
+    print(report.summary())
+    print("wrote " + ", ".join(str(p) for p in written))
+    return EXIT_OK
+
+
 def _cmd_throughput(args) -> int:
     from .bench import throughput
     print(throughput(n=_positive(args.n, "-n"), preset=args.preset,
@@ -481,7 +376,7 @@ def _cmd_scenes(args) -> int:
 
 _COMMANDS = {"netlist": _cmd_netlist, "compare": _cmd_compare, "verify": _cmd_verify, "modes": _cmd_modes, "ac": _cmd_ac,
              "scenes": _cmd_scenes, "draw": _cmd_draw, "run": _cmd_run, "bench": _cmd_bench,
-             "throughput": _cmd_throughput}
+             "throughput": _cmd_throughput, "stress": _cmd_stress}
 
 
 def main(argv=None) -> int:

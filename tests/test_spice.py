@@ -138,3 +138,18 @@ def test_custom_topology_sources_are_simulated_correctly():
 def test_every_waveform_means_the_same_to_spice_and_the_solvers(forces):
     s = scene("default").replace(forces=tuple(forces), t_stop=8.0).system()
     assert compare(s, "accurate", ["spice"]).max_relative_error("spice") <= 1e-6
+
+
+@pytest.mark.ngspice
+def test_a_collapsed_step_is_retried_with_looser_absolute_tolerances_and_says_so():
+    """Two identical oscillators joined by an MP capacitance that never charges (v1 = v2):
+    at accurate ngspice stops at the first breakpoint with "time step too small"; the retry
+    with abstol and vntol × 1000 runs and keeps the bound (1.4e-7 measured)."""
+    from analogy.circuit.node_system import node_system
+    from analogy.model.joint import JointSpace
+    from analogy.results.comparison import compare
+    s = node_system(JointSpace(np.array([[1.0, 0.2], [0.2, 1.0]]), np.diag([0.02, 0.02]), np.eye(2)),
+                    forces=[1.0, 1.0], t_stop=10.0)
+    c = compare(s, "accurate", ["spice", "exact"])
+    assert "retried with abstol and vntol × 1000" in c.results["spice"].message
+    assert c.errors()["spice"][1] <= 1e-6

@@ -120,7 +120,7 @@ def circuit_lines(c: Circuit, prefix: str = "", memo: dict | None = None) -> lis
 
 def analysis_lines(preset: str | Preset, t_stop: float, ic: Iterable[tuple[str, float]],
                    save: Iterable[str], options: dict | None = None, printing: bool = False,
-                   behavioural: bool = False, scales: Scales | None = None) -> list[str]:
+                   behavioural: bool = False, scales: Scales | None = None, loosen: float = 1.0) -> list[str]:
     """``.ic``, ``.options``, ``.tran`` (uic), ``.save`` and, with *printing*, ``.print``.
 
     Parameters
@@ -146,6 +146,9 @@ def analysis_lines(preset: str | Preset, t_stop: float, ic: Iterable[tuple[str, 
         ``preset.step_budget``), and the print step (which
         sets ngspice's unchecked first step, a hundredth of it) to a whole
         divisor of t_stop/steps that meets ``preset.first_phase_step``.
+    loosen : float
+        Factor on the absolute tolerances ``abstol`` and ``vntol``: the retry of a run
+        whose step collapsed on rounding (see :func:`~analogy.solvers.spice.solve_spice`).
     """
     p = get_preset(preset)
     base = p.behavioural_options if behavioural else p.spice_options
@@ -157,7 +160,8 @@ def analysis_lines(preset: str | Preset, t_stop: float, ic: Iterable[tuple[str, 
                           ("chgtol", scales.charge)):
             if key in opts and key not in (options or {}):
                 floor = scales.rounding_current if key == "abstol" else 0.0
-                opts[key] = f"{max(float(opts[key]) * size, floor):.3g}"
+                factor = loosen if key in ("abstol", "vntol") else 1.0
+                opts[key] = f"{factor * max(float(opts[key]) * size, floor):.3g}"
         tmax = min(tmax, max(scales.step_limit(p.phase_step), t_stop / p.step_budget))
         # a whole divisor of the preset's print step, so the preset's grid stays in it
         tstep /= math.ceil(tstep / min(tstep, 100 * scales.step_limit(p.first_phase_step)))
@@ -223,7 +227,7 @@ def _header(c: Circuit, title: str | None, realizable: bool) -> list[str]:
 
 def netlist(system, preset: str | Preset = "accurate", save: Iterable[str] | None = None,
             zero_tol: float = ZERO_TOL, title: str | None = None, realizable: bool = False,
-            printing: bool = True) -> str:
+            printing: bool = True, loosen: float = 1.0) -> str:
     """Write *system* as a SPICE netlist that ``ngspice -b`` runs and prints unchanged.
 
     Parameters
@@ -244,6 +248,8 @@ def netlist(system, preset: str | Preset = "accurate", save: Iterable[str] | Non
     printing : bool
         End with ``.print tran`` of the saved vectors (``ngspice -b`` prints them; the
         in-process run ignores the line).
+    loosen : float
+        Factor on the absolute tolerances (see :func:`analysis_lines`).
     """
     c = system if isinstance(system, Circuit) else describe(system, zero_tol, realizable)
     vectors = save_vectors(c, save)
@@ -252,7 +258,7 @@ def netlist(system, preset: str | Preset = "accurate", save: Iterable[str] | Non
     # step, and tight step control then collapses; gear damps it.
     options = {"method": "gear"} if c.couplings else None
     tail = analysis_lines(preset, c.t_stop, c.initial, vectors, options, printing,
-                          behavioural=bool(c.behavioural), scales=c.scales) + [".end"]
+                          behavioural=bool(c.behavioural), scales=c.scales, loosen=loosen) + [".end"]
     return "\n".join(_header(c, title, bool(c.couplings)) + body + tail) + "\n"
 
 

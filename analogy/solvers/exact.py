@@ -138,7 +138,7 @@ def _refined(m, b, k, lam, vec, spread: float = 1e6):
     wide = np.flatnonzero(size.max(axis=1) > spread * low)
     if wide.size == 0:
         return lam, vec
-    lam, vec = lam.copy(), vec.copy()
+    lam, vec = lam.astype(complex), vec.astype(complex)
     n = m.shape[1]
     for s in wide:
         for i in np.flatnonzero(live[s]):

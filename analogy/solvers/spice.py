@@ -12,6 +12,7 @@ import shutil
 import tempfile
 import threading
 import time as _time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -26,7 +27,10 @@ from ..results.trajectory import SolverStats, Trajectory
 from .registry import Solver, stacked_trajectories
 
 __all__ = ["NgspiceSession", "session", "run_netlist", "solve_spice", "library_path", "vector_key",
-           "SpiceSolver", "SOLVER"]
+           "SpiceSolver", "SOLVER", "RETRY_LOOSEN"]
+
+#: Factors on abstol and vntol of the first run and of the retries after "time step too small".
+RETRY_LOOSEN = (1.0, 1e3, 1e6)
 
 _INFO_PREFIXES = ("warning", "note", "using", "doing analysis", "reference value",
                   "circuit:", "no. of data rows")
@@ -361,6 +365,10 @@ def _trajectory(system, time, prepended: bool, volts, currents, stats, elapsed,
 def solve_spice(system, preset="accurate", save=None) -> Trajectory:
     """Simulate *system*'s netlist in ngspice and recover joint rates from node voltages.
 
+    A run whose step collapses ("time step too small": rounding read as truncation error)
+    is run again with abstol and vntol :data:`RETRY_LOOSEN` times larger; the
+    trajectory's :attr:`~Trajectory.message` says so, and the bound judges the result.
+
     Parameters
     ----------
     system : NodeSystem or NonlinearNodeSystem
@@ -374,16 +382,27 @@ def solve_spice(system, preset="accurate", save=None) -> Trajectory:
     circ = circuit(system, describe=False)
     names = [e for e in (save or []) if e not in system.nodes] + circ.state_nodes
     vectors = save_vectors(circ, list(system.nodes) + names)
-    text = netlist(circ, preset, save=list(system.nodes) + names, printing=False)
     sess = session()
-    stats: dict = {}
     start = _time.perf_counter()
-    data = sess.run(text, vectors, stats)
+    note = ""
+    for loosen in RETRY_LOOSEN:
+        stats: dict = {}
+        text = netlist(circ, preset, save=list(system.nodes) + names, printing=False, loosen=loosen)
+        try:
+            data = sess.run(text, vectors, stats)
+            break
+        except SimulationError as exc:
+            # Rounding read as truncation error collapses the step: retry with looser
+            # absolute tolerances, say so, and let the bound judge the result.
+            if "time step too small" not in str(exc) or loosen == RETRY_LOOSEN[-1]:
+                raise
+            note = f"retried with abstol and vntol × {RETRY_LOOSEN[RETRY_LOOSEN.index(loosen) + 1]:g} ({exc})"
     elapsed = _time.perf_counter() - start
     v = np.column_stack([data[f"v({n})"] for n in system.nodes])
     x = np.column_stack([data[f"v({n})"] for n in circ.state_nodes]) if circ.state_nodes else None
     currents = {name: data[vec] for name, vec in zip(names, vectors[system.dof:]) if name not in circ.state_nodes}
-    return _trajectory(system, *_from_start(data["time"]), v, currents, stats, elapsed, x)
+    tr = _trajectory(system, *_from_start(data["time"]), v, currents, stats, elapsed, x)
+    return replace(tr, message=note) if note else tr
 
 
 class SpiceSolver(Solver):

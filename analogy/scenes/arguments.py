@@ -1,0 +1,168 @@
+"""Command-line scene flags: the options every scene command shares, and the Scene they describe."""
+
+from __future__ import annotations
+
+import argparse
+
+from ..errors import InputError
+from ..model.catalog import MAX_SERIAL, ROBOT_NAMES
+from ..model.expressions import (
+    parse_expression,
+    parse_matrix,
+    parse_number,
+    parse_vector,
+    split_entries,
+)
+from ..presets import PRESETS
+from .build import scene_model
+from .builtin import SCENES, scene
+from .scene import Scene
+from .spec import ModelSpec
+
+__all__ = ["PRESET_HELP", "scene_from_args", "scene_options"]
+
+#: The --preset help text: each preset and what it promises.
+PRESET_HELP = "accuracy preset: " + "; ".join(f"{k} ({p.description})" for k, p in PRESETS.items())
+
+
+def scene_options(p: argparse.ArgumentParser, preset: str = "accurate") -> None:
+    """Add the scene flags (model, configuration, inputs, t_stop) and ``--preset`` to *p*.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        A command's parser.
+    preset : str
+        The default preset.
+    """
+    g = p.add_argument_group("scene (defaults: the built-in default scene; SI units throughout)")
+    g.add_argument("--scene", default="default", help="built-in scene to start from (see 'analogy scenes')")
+    g.add_argument("--robot", help=f"built-in robot: {', '.join(ROBOT_NAMES)}, serial<N> (a planar "
+                                   f"N-joint arm, e.g. serial4, N up to {MAX_SERIAL}) or random<N>")
+    g.add_argument("--mass", metavar="MATRIX", help="mass matrix, e.g. '[[m1, m3], [m3, m2]]'; "
+                   "may use --param names and q1..qn")
+    g.add_argument("--damping", metavar="VECTOR|MATRIX", help="damping: diagonal '[b1, b2]' or a matrix")
+    g.add_argument("--stiffness", metavar="VECTOR|MATRIX", help="stiffness: diagonal or a matrix")
+    g.add_argument("--gravity", metavar="VECTOR", help="gravity load G(q), one entry per joint, "
+                   "e.g. '[9.81*m*cos(q1), 0]'; with --mass")
+    g.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
+                   help="parameter value (repeatable), e.g. l1=0.5; qK=VALUE sets joint "
+                        "coordinate K, e.g. q2=pi/4")
+    g.add_argument("--link-modes", choices=("clamped-free", "clamped-mass"),
+                   help="flexible arms: each link's mode shapes, a cantilever's (default) or "
+                        "loaded by the tip mass and inertia the link carries")
+    g.add_argument("--q", metavar="VALUES", help="configuration, e.g. '0, 0.3'")
+    g.add_argument("--topology", metavar="serial|parallel|MATRIX",
+                   help="joint-to-node map: serial, parallel or a matrix T with v = T r")
+    g.add_argument("--force", action="append", metavar="SPEC",
+                   help="force on the next joint (repeat once per joint): a number, step(a), "
+                        "step(a, delay, rise), pulse(v1, v2, delay=0, rise=1e-6, fall=1e-6, width=1, "
+                        "period=one pulse), sine(offset, amplitude, freq, delay=0, damping=0, "
+                        "phase_deg=0), pwl(t1, v1, t2, v2, ...)")
+    g.add_argument("--r0", metavar="VALUES", help="initial joint rates, e.g. '0, 0'")
+    g.add_argument("--t-stop", metavar="SECONDS", help="end time of the simulation")
+    g.add_argument("--equilibrium", action="store_true", help="settle the elastic (modal) coordinates "
+                   "at the static equilibrium under gravity first, the joints held at --q")
+    p.add_argument("--preset", default=preset, choices=list(PRESETS), help=PRESET_HELP)
+
+
+def _split_param(text: str) -> tuple[str, float]:
+    name, sep, value = text.partition("=")
+    if not sep or not name.strip().isidentifier():
+        raise InputError(f"--param needs NAME=VALUE, got {text!r}")
+    try:
+        return name.strip(), parse_number(value)
+    except InputError as exc:
+        raise InputError(f"--param {name.strip()}: {exc}") from None
+
+
+def _entries(text: str | None, label: str):
+    if text is None:
+        return None
+    try:
+        return split_entries(text)
+    except InputError as exc:
+        raise InputError(f"{label}: {exc}") from None
+
+
+def scene_from_args(args) -> Scene:
+    """The scene the CLI options describe: a built-in scene with the options' changes.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed scene options (see :func:`build_parser`).
+    """
+    # A robot with a scene of its own starts from that scene (a configuration that assembles).
+    start = args.robot if args.robot in SCENES and args.scene == "default" else args.scene
+    sc = scene(start)
+    params = dict(_split_param(p) for p in args.param)
+    coords = {k: params.pop(k) for k in list(params) if k[0] == "q" and k[1:].isdigit()}
+    changes: dict = {"source": "command line"}
+    if args.mass is not None:
+        mass = _entries(args.mass, "--mass")
+        if not mass or not all(isinstance(r, list) and r for r in mass):
+            if not mass or any(r == [] for r in mass):
+                raise InputError("--mass must be a matrix like [[m1, m3], [m3, m2]], not empty")
+            try:
+                parse_expression(args.mass, {})       # the grammar's own sentence first
+            except InputError as exc:
+                if "unknown name" not in str(exc):
+                    raise InputError(f"--mass: {exc}") from None
+            raise InputError("--mass must be a matrix like [[m1, m3], [m3, m2]]")
+        spec = ModelSpec.of(None, mass=mass, **{k: _entries(getattr(args, k), f"--{k}")
+                                                for k in ("damping", "stiffness", "gravity")})
+        n = len(mass)
+        changes.update(model=spec, parameters=params, q=(0.0,) * n, initial_rates=None, topology=None,
+                       forces=(1.0,) * n)
+    elif args.damping or args.stiffness or args.gravity:
+        raise InputError("--damping, --stiffness and --gravity need --mass (built-in robots have their own; "
+                         "the serial arms take --param g=9.81)")
+    elif args.robot is not None and (args.robot != sc.model.robot or args.link_modes is not None):
+        spec = ModelSpec(robot=args.robot, link_modes=args.link_modes)
+        probe = Scene.of(args.robot, spec, parameters=params, source="command line")
+        model = scene_model(probe)          # one sentence on an unknown name or parameter
+        # unit steps on the joints; a flexible link's modal coordinates are not actuated
+        forces = tuple(float(not str(c).startswith("delta")) for c in model.coordinates) or (1.0,) * model.dof
+        changes.update(model=spec, q=(0.0,) * len(model.coordinates), parameters=params,
+                       forces=forces, initial_rates=None, topology=None)
+    elif args.link_modes is not None:
+        raise InputError("--link-modes applies to the flexible arms: give --robot flex1 or flex2")
+    elif params:
+        changes["parameters"] = dict(sc.parameters, **params)
+    if args.q is not None:
+        changes["q"] = tuple(parse_vector(args.q, numeric=True))
+    if coords:
+        if args.q is not None:
+            raise InputError(f"--q and --param {', '.join(coords)} both set the configuration: use one")
+        q = list(changes.get("q", sc.q))
+        for key, value in coords.items():
+            if not 1 <= (k := int(key[1:])) <= len(q):
+                raise InputError(f"--param {key}: the model has joint coordinates q1 to q{len(q)}")
+            q[k - 1] = value
+        changes["q"] = tuple(q)
+    if args.topology is not None:
+        t = args.topology.strip()
+        if t.startswith("["):
+            changes["topology"] = tuple(tuple(r) for r in parse_matrix(t, numeric=True))
+        elif t in ("serial", "parallel"):
+            changes["topology"] = t
+        else:
+            raise InputError(f"unknown topology {t!r}: use serial, parallel or a matrix like [[1, 0], [1, 1]]")
+    if args.force:
+        changes["forces"] = tuple(args.force)
+    if args.r0 is not None:
+        changes["initial_rates"] = tuple(parse_vector(args.r0, numeric=True))
+    if args.t_stop is not None:
+        changes["t_stop"] = parse_number(args.t_stop)
+    if args.equilibrium:
+        changes["equilibrium"] = True
+    if getattr(args, "dynamics", None) in ("linear", "nonlinear"):      # "both" is the command's
+        changes["dynamics"] = args.dynamics
+    new = sc.replace(**changes)
+    if new.key != sc.key:           # name and describe what was actually built
+        label = new.model.label
+        new = new.replace(name=label if label != sc.name else sc.name,
+                          description=f"{label}, changed from the built-in scene {sc.name!r} on the "
+                                      "command line")
+    return new
