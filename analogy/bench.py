@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import csv
 import logging
 import multiprocessing
 import os
@@ -22,6 +21,7 @@ from .errors import AnalogyError, InputError
 from .presets import PRESETS, Preset
 from .presets import preset as get_preset
 from .results.metrics import relative_error
+from .results.output import write_rows
 from .scenes.builtin import scene
 from .scenes.scene import Scene
 from .scenes.spec import ModelSpec
@@ -70,15 +70,10 @@ class BenchResult:
         path : str or Path
             The file to write.
         """
-        path = Path(path)
-        with path.open("w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(["scene", "dof", "solver", "setting", "tolerance", "median_s", "runs",
-                        "error_over_peak", "points", "status"])
-            for r in self.rows:
-                w.writerow([r.scene, r.dof, r.solver, r.setting, repr(r.tolerance), repr(r.median_s),
-                            r.runs, repr(r.error), r.points, r.status])
-        return path
+        return write_rows(path, ["scene", "dof", "solver", "setting", "tolerance", "median_s", "runs",
+                                 "error_over_peak", "points", "status"],
+                          ([r.scene, r.dof, r.solver, r.setting, float(r.tolerance), float(r.median_s), r.runs,
+                            float(r.error), r.points, r.status] for r in self.rows))
 
     def table(self) -> str:
         lines = [f"{'scene':<18}{'dof':>4}  {'solver':<10}{'setting':<40}{'median [ms]':>12}{'runs':>5}"

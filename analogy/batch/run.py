@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import csv
 import multiprocessing
 import threading
 import time as _time
@@ -16,7 +15,7 @@ import numpy as np
 from ..errors import AnalogyError, InputError
 from ..presets import preset as get_preset
 from ..results.comparison import compare_many
-from ..results.output import html_table
+from ..results.output import html_table, write_rows
 from ..scenes.scene import Scene
 from ..solvers.registry import solver
 
@@ -102,15 +101,10 @@ class BatchResult:
         path : str or Path
             The file to write.
         """
-        path = Path(path)
         cols = self.columns()
-        with path.open("w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(list(cols) + ["failure"])
-            for k in range(len(self.errors)):
-                w.writerow([k] + [repr(float(c[k])) for c in list(cols.values())[1:]]
-                           + [self.failures.get(k, "")])
-        return path
+        return write_rows(path, list(cols) + ["failure"],
+                          ([k] + [float(c[k]) for c in list(cols.values())[1:]] + [self.failures.get(k, "")]
+                           for k in range(len(self.errors))))
 
     def plot(self, path=None) -> "Figure":
         """Histogram of the per-scene errors (log scale).

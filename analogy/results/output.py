@@ -13,7 +13,7 @@ from ..errors import InputError
 if TYPE_CHECKING:
     import pandas
 
-__all__ = ["Tabular", "write_columns", "html_table", "check_plot_path", "PLOT_FORMATS"]
+__all__ = ["Tabular", "write_columns", "write_rows", "html_table", "check_plot_path", "PLOT_FORMATS"]
 
 #: File formats matplotlib writes here.
 PLOT_FORMATS = ("png", "svg", "pdf", "jpg", "jpeg", "eps", "ps", "tif", "tiff", "webp")
@@ -35,6 +35,27 @@ def write_columns(path, columns: Mapping[str, np.ndarray]) -> Path:
         w.writerow(list(columns))
         for row in zip(*columns.values()):
             w.writerow([repr(float(x)) for x in row])
+    return path
+
+
+def write_rows(path, header: list[str], rows) -> Path:
+    """Write mixed rows as CSV: floats at full double precision (``repr``), the rest as text.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file to write (its folder must exist).
+    header : list of str
+        Column names.
+    rows : iterable of sequence
+        The rows.
+    """
+    path = Path(path)
+    with path.open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(header)
+        for row in rows:
+            w.writerow([repr(float(x)) if isinstance(x, (float, np.floating)) else x for x in row])
     return path
 
 

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import csv
 import math
 import textwrap
 import time as _time
@@ -15,7 +14,7 @@ import numpy as np
 from ..errors import AnalogyError, InputError
 from ..results.comparison import compare
 from ..results.metrics import relative_error
-from ..results.output import Tabular
+from ..results.output import Tabular, write_rows
 from .families import FAMILY_TITLES, StressCase, cases
 
 __all__ = ["StressRow", "StressReport", "stress", "write_report", "EXACT_BOUND"]
@@ -68,14 +67,8 @@ class StressReport(Tabular):
         path : str or Path
             The file to write.
         """
-        path = Path(path)
         names = list(StressRow.__dataclass_fields__)
-        with path.open("w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(names)
-            for r in self.rows:
-                w.writerow([repr(v) if isinstance(v, float) else v for v in (getattr(r, n) for n in names)])
-        return path
+        return write_rows(path, names, ([getattr(r, n) for n in names] for r in self.rows))
 
     def growth(self) -> dict[str, float]:
         """Family d: per solver, the exponent p of seconds ∝ n^p, fitted over n ≥ 10."""
