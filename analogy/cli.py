@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 from . import __version__
@@ -18,6 +19,7 @@ from .model.expressions import (
     parse_number,
 )
 from .presets import PRESETS
+from .presets import preset as get_preset
 from .results.output import check_plot_path
 from .scenes.arguments import PRESET_HELP, scene_from_args, scene_options
 from .scenes.builtin import SCENES, scene
@@ -67,6 +69,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "how long the linear circuit holds")
     p.add_argument("--step", metavar="SECONDS", help="output step of the shared time grid "
                    "(default: SPICE's own points); errors are measured on each solver's own points")
+    p.add_argument("--timeout", metavar="SECONDS", help="wall-time limit of each ODE integration "
+                   "(default: the preset's, 300 s); past it the solver fails with one sentence")
     p.add_argument("--csv", metavar="FILE", help="write joint rates of every solver to CSV")
     p.add_argument("--plot", metavar="FILE.png", help="write a plot of rates and errors")
     p.add_argument("--no-plot", action="store_true", help="never import the plotting library")
@@ -109,7 +113,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "b time scales, c long runs, d size, e units, f near-singular, g nonlinear")
     p.add_argument("-o", "--output", default="stress", help="folder for stress.csv, stress.md and "
                    "stress_<family>.png (made if missing; default: stress)")
-    p.add_argument("--timeout", type=float, default=30.0, help="wall-time limit of each ODE run [s] (default 30)")
+    p.add_argument("--timeout", type=float, default=10.0, help="wall-time limit of each ODE run [s] (default 10)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p = sub.add_parser("throughput", help="scenes per second: batched ngspice runs against per-scene loops")
     p.add_argument("-n", type=int, default=10_000, help="number of 2-DOF scenes (default 10000)")
@@ -175,9 +179,14 @@ def _cmd_compare(args) -> int:
     for path in (args.csv, args.plot):
         _check_writable(path)
     step = None if args.step is None else parse_number(args.step)
+    preset = get_preset(args.preset)
+    if args.timeout is not None:
+        if not (limit := parse_number(args.timeout)) > 0:
+            raise InputError(f"--timeout must be positive, got {args.timeout}")
+        preset = replace(preset, timeout=limit)
     if args.dynamics == "both":
         return _compare_both(sc, args, solvers, step)
-    result = compare(sc.system(), args.preset, solvers, step=step)
+    result = compare(sc.system(), preset, solvers, step=step)
     print(result.table())
     return _written_and_judged(result, result, args)
 

@@ -190,10 +190,10 @@ def test_a_failing_ngspice_run_is_retried_scene_by_scene(monkeypatch):
     real = spice.session()
 
     class Failing:                  # ngspice that fails on any netlist holding the culprit
-        def run(self, text, vectors=None, stats=None):
+        def run(self, text, vectors=None, stats=None, timeout=None):
             if repr(c12.value) in text:
                 raise analogy.SpiceError("ngspice transient analysis failed: time step too small")
-            return real.run(text, vectors, stats)
+            return real.run(text, vectors, stats, timeout=timeout)
 
     monkeypatch.setattr(spice, "session", Failing)
     items = [scene("default").replace(q=(0.0, q), t_stop=2.0) for q in (0.1, culprit, 1.3)]

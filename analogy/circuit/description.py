@@ -104,7 +104,9 @@ def circuit(system, zero_tol: float = ZERO_TOL, realizable: bool = False, descri
 def circuits(systems: Sequence, zero_tol: float = ZERO_TOL) -> list[Circuit]:
     """The circuits of many linear systems, their elements split as one stack per size.
 
-    Systems that share forces and topology share their sources, derived once.
+    Systems that share forces and topology share their sources, derived once. Their
+    :attr:`Circuit.scales` are left out: :func:`~analogy.circuit.scales.stack_scales`
+    gives them for a whole stack at once.
 
     Parameters
     ----------
@@ -135,6 +137,5 @@ def circuits(systems: Sequence, zero_tol: float = ZERO_TOL) -> list[Circuit]:
                 src = sources[key] = current_sources(s, zero_tol)
             if dropped[j]:                  # a capacitor under the tolerance: is the rest singular?
                 _check_dropped(s.mass, list(parts), zero_tol)
-            out[k] = Circuit(s.dof, parts, src, tuple(zip(names, s.initial_voltages.tolist())), s.t_stop,
-                             scales=system_scales(s))
+            out[k] = Circuit(s.dof, parts, src, tuple(zip(names, s.initial_voltages.tolist())), s.t_stop)
     return out

@@ -18,7 +18,7 @@ from .description import (
 )
 from .description import circuit as describe
 from .elements import ZERO_TOL
-from .scales import Scales, combined_scales
+from .scales import Scales, combined_scales, stack_scales
 
 __all__ = ["netlist", "ac_netlist", "batch_netlist", "circuit_lines", "analysis_lines", "save_vectors",
            "comment_text", "spice_expression"]
@@ -262,7 +262,7 @@ def netlist(system, preset: str | Preset = "accurate", save: Iterable[str] | Non
     return "\n".join(_header(c, title, bool(c.couplings)) + body + tail) + "\n"
 
 
-def batch_netlist(systems: Sequence, preset: str | Preset = "fast") -> str:
+def batch_netlist(systems: Sequence, preset: str | Preset = "fast", scales: Scales | None = None) -> str:
     """One netlist holding every system as an independent sub-circuit (prefix ``x<k>_``).
 
     All systems must share t_stop, so that one ``.tran`` serves them all; their
@@ -274,6 +274,8 @@ def batch_netlist(systems: Sequence, preset: str | Preset = "fast") -> str:
         The systems, sharing t_stop.
     preset : str or Preset
         Accuracy preset for ``.options`` and ``.tran``.
+    scales : Scales, optional
+        Their combined scales, if already known (else computed here).
     """
     if not systems:
         raise InputError("a batch needs at least one system")
@@ -288,8 +290,7 @@ def batch_netlist(systems: Sequence, preset: str | Preset = "fast") -> str:
         lines += circuit_lines(c, prefix, memo)
         ic += [(prefix + n, v) for n, v in c.initial]
         save += [f"v({prefix}{n})" for n in c.node_names]
-    known = [c.scales for c in described if c.scales is not None]
-    scales = combined_scales(known) if known else None
+    scales = scales or combined_scales(stack_scales(systems))
     return "\n".join(lines + analysis_lines(preset, t_stop, ic, save, scales=scales) + [".end"]) + "\n"
 
 

@@ -8,9 +8,9 @@ from typing import Sequence
 
 import numpy as np
 
-from .node_system import joint_forces
+from .node_system import joint_forces, stacked
 
-__all__ = ["Scales", "system_scales", "combined_scales"]
+__all__ = ["Scales", "system_scales", "stack_scales", "combined_scales"]
 
 
 @dataclass(frozen=True)
@@ -80,10 +80,19 @@ class Scales:
 
 def _force_peaks(system) -> tuple[np.ndarray, float]:
     """Per joint max |F(t)| (sampled and at every breakpoint), and the largest sine frequency."""
-    t = np.union1d(system.time_points(), np.concatenate([[0.0], system.breakpoints()]))
-    peaks = np.max(np.abs(joint_forces(system.forces, t)), axis=0) if t.size else np.zeros(system.dof)
-    freq = max((float(getattr(w, "frequency", 0.0)) for ws in system.forces for w in ws), default=0.0)
-    return peaks, 2 * math.pi * freq
+    key = (system.forces, float(system.t_stop))     # systems of one family share their forces
+    hit = _PEAKS.get(key)
+    if hit is None:
+        t = np.union1d(system.time_points(), np.concatenate([[0.0], system.breakpoints()]))
+        peaks = np.max(np.abs(joint_forces(system.forces, t)), axis=0) if t.size else np.zeros(system.dof)
+        freq = max((float(getattr(w, "frequency", 0.0)) for ws in system.forces for w in ws), default=0.0)
+        if len(_PEAKS) >= 64:
+            _PEAKS.pop(next(iter(_PEAKS)))
+        hit = _PEAKS[key] = (peaks, 2 * math.pi * freq)
+    return hit
+
+
+_PEAKS: dict = {}
 
 
 def system_scales(system) -> Scales:
@@ -94,46 +103,70 @@ def system_scales(system) -> Scales:
     system : NodeDynamics
         The system; a nonlinear one is evaluated at x = 0.
     """
-    n = system.dof
-    m = np.asarray(system.node_mass(np.zeros(n)), dtype=float)
-    b = np.asarray(system.damping, dtype=float)
-    k = system.stiffness
+    m = np.asarray(system.node_mass(np.zeros(system.dof)), dtype=float)[None]
+    k = None if system.stiffness is None else np.asarray(system.stiffness, dtype=float)[None]
+    return _stack_scales(system, m, np.asarray(system.damping, dtype=float)[None], k,
+                         np.asarray(system.initial_voltages, dtype=float)[None])[0]
+
+
+def stack_scales(systems: Sequence) -> list[Scales]:
+    """:func:`system_scales` of linear systems, vectorised over each family (same size, forces, topology).
+
+    Parameters
+    ----------
+    systems : sequence of NodeSystem
+        Linear systems.
+    """
+    out: list = [None] * len(systems)
+    groups: dict = {}
+    for i, s in enumerate(systems):
+        groups.setdefault((s.dof, s.stiffness is None, id(s.forces), id(s.topology), s.t_stop), []).append(i)
+    for (_, springless, _, _, _), idx in groups.items():
+        group = [systems[i] for i in idx]
+        k = None if springless else stacked(group, "stiffness")
+        for i, sc in zip(idx, _stack_scales(group[0], stacked(group, "mass"), stacked(group, "damping"), k,
+                                            stacked(group, "initial_voltages"))):
+            out[i] = sc
+    return out
+
+
+def _stack_scales(first, m, b, k, v0) -> list[Scales]:
+    """Scales of a stack sharing *first*'s forces, topology and t_stop (arrays with a leading axis)."""
+    count, n = m.shape[0], m.shape[1]
     chol = np.linalg.cholesky(m)
     def whiten(a):
         half = np.linalg.solve(chol, a)
-        return np.linalg.solve(chol, half.T)
-    kt = np.zeros((n, n)) if k is None else whiten(np.asarray(k, dtype=float))
-    mu, psi = np.linalg.eigh(0.5 * (kt + kt.T))
-    phi = np.linalg.solve(chol.T, psi)                  # M'-orthonormal mode shapes
-    bt = whiten(b)
-    beta = np.einsum("ik,ij,jk->k", psi, bt, psi)      # modal damping rates
+        return np.linalg.solve(chol, np.swapaxes(half, 1, 2))
+    kt = np.zeros_like(m) if k is None else whiten(k)
+    mu, psi = np.linalg.eigh(0.5 * (kt + np.swapaxes(kt, 1, 2)))
+    phi = np.linalg.solve(np.swapaxes(chol, 1, 2), psi)          # M'-orthonormal mode shapes
+    beta = np.einsum("sik,sij,sjk->sk", psi, whiten(b), psi)      # modal damping rates
     omega = np.sqrt(np.abs(mu))
-    peaks, sine = _force_peaks(system)
-    drive = np.abs(phi.T @ system.current_map) @ peaks
-    start = np.abs(phi.T @ m @ system.initial_voltages)
-    t_stop = float(system.t_stop)
+    peaks, sine = _force_peaks(first)
+    drive = np.abs(np.swapaxes(phi, 1, 2) @ first.current_map) @ peaks
+    start = np.abs(np.einsum("sik,sij,sj->sk", phi, m, v0))
+    t_stop = float(first.t_stop)
     with np.errstate(divide="ignore"):
-        span = np.minimum.reduce([np.full(n, t_stop), np.where(mu > 0, 1 / omega, np.inf),
+        span = np.minimum.reduce([np.full(mu.shape, t_stop), np.where(mu > 0, 1 / omega, np.inf),
                                   np.where(beta > 0, 1 / np.abs(beta), np.inf)])
-    growth = np.exp(np.minimum(np.where(mu < 0, omega, 0.0) * t_stop, 700.0))
-    amplitude = (drive * span + start) * growth
-    velocity = np.abs(phi) @ amplitude
-    # displacement: f·t²/2 while free, f/ω² against a spring, f·t/β drifting through a damper
-    with np.errstate(divide="ignore"):
-        reach = np.minimum.reduce([np.full(n, t_stop ** 2), np.where(mu > 0, 1 / np.abs(mu), np.inf),
+        # displacement: f·t² while free, f/ω² against a spring, f·t/β drifting through a damper
+        reach = np.minimum.reduce([np.full(mu.shape, t_stop ** 2), np.where(mu > 0, 1 / np.abs(mu), np.inf),
                                    np.where(beta > 0, t_stop / np.abs(beta), np.inf)])
-    position = np.abs(phi) @ ((drive * reach + start * span) * growth)
-    top = float(np.max(velocity)) if velocity.size else 0.0
-    if top <= 0 or not np.isfinite(top):                 # nothing moves: any unit scale serves
-        velocity, position = np.ones(n), np.full(n, t_stop)
-    velocity = np.maximum(velocity, 1e-12 * float(np.max(velocity)))
-    position = np.maximum(position, 1e-12 * float(np.max(position)))
-    current = float(np.max(np.abs(system.current_map) @ peaks)) if peaks.size else 0.0
+    growth = np.exp(np.minimum(np.where(mu < 0, omega, 0.0) * t_stop, 700.0))
+    velocity = np.einsum("sik,sk->si", np.abs(phi), (drive * span + start) * growth)
+    position = np.einsum("sik,sk->si", np.abs(phi), (drive * reach + start * span) * growth)
     with np.errstate(invalid="ignore"):
         damped = np.where(mu > 0, np.sqrt(np.maximum(mu - beta ** 2 / 4, 0.0)), 0.0)
-    omega_max = max(float(np.max(damped)) if n else 0.0, sine)
-    return Scales(omega_max, velocity, position, current if current > 0 else 1.0,
-                  float(np.max(np.diag(m))) * float(np.max(velocity)))
+    current = float(np.max(np.abs(first.current_map) @ peaks)) if peaks.size else 0.0
+    top = np.max(velocity, axis=1) if n else np.zeros(count)
+    still = ~(np.isfinite(top) & (top > 0))               # nothing moves: any unit scale serves
+    velocity[still], position[still] = 1.0, t_stop
+    velocity = np.maximum(velocity, 1e-12 * np.max(velocity, axis=1, keepdims=True))
+    position = np.maximum(position, 1e-12 * np.max(position, axis=1, keepdims=True))
+    fastest = np.maximum(np.max(damped, axis=1) if n else np.zeros(count), sine)
+    charge = np.max(np.diagonal(m, axis1=1, axis2=2), axis=1) * np.max(velocity, axis=1)
+    current = current if current > 0 else 1.0
+    return [Scales(float(fastest[j]), velocity[j], position[j], current, float(charge[j])) for j in range(count)]
 
 
 def combined_scales(scales: Sequence[Scales]) -> Scales:

@@ -217,7 +217,7 @@ def _case_rows(case: StressCase) -> list[StressRow]:
     return rows
 
 
-def stress(families: str = "abcdefg", quick: bool = False, timeout: float = 30.0,
+def stress(families: str = "abcdefg", quick: bool = False, timeout: float = 10.0,
            progress: bool = True) -> StressReport:
     """Run every case of the chosen families and collect a :class:`StressReport`.
 

@@ -1,0 +1,351 @@
+"""The ngspice shared library in process: one session, a clean state after every run, failures as one sentence."""
+
+from __future__ import annotations
+
+import ctypes.util
+import itertools
+import locale
+import logging
+import os
+import re
+import shutil
+import tempfile
+import threading
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import SpiceError
+
+__all__ = ["NgspiceSession", "session", "run_netlist", "library_path", "vector_key"]
+
+_INFO_PREFIXES = ("warning", "note", "using", "doing analysis", "reference value",
+                  "circuit:", "no. of data rows")
+_CDEF_DONE = False
+_CANARY = "* canary\nI1 0 n1 DC 1\nR1 n1 0 1\nC1 n1 0 1\n.tran 0.1 1 uic\n.end\n"
+
+
+def vector_key(name: str) -> str:
+    """The key of a vector in :meth:`NgspiceSession.run`'s result.
+
+    ngspice names device vectors in lower case, so keys are lower case, and a node
+    voltage ``v(n1)`` is keyed by its node, ``n1``; a device current ``@C1_2[i]`` is
+    ``@c1_2[i]``.
+
+    Parameters
+    ----------
+    name : str
+        A vector name such as ``v(n1)`` or ``@C1_2[i]``.
+    """
+    key = name.strip().lower()
+    if key.startswith("v(") and key.endswith(")"):
+        key = key[2:-1]
+    return key
+
+
+def library_path() -> str:
+    """The ngspice shared library to load: $NGSPICE_LIBRARY_PATH or the system's libngspice."""
+    path = os.environ.get("NGSPICE_LIBRARY_PATH") or ctypes.util.find_library("ngspice")
+    if not path:
+        raise SpiceError("the ngspice shared library was not found: install the Debian package "
+                         "libngspice0 (bash setup.sh does) or set NGSPICE_LIBRARY_PATH")
+    return path
+
+
+def _shared_class():
+    """A PySpice NgSpiceShared subclass that records output instead of judging it."""
+    logging.getLogger("PySpice").setLevel(logging.CRITICAL)  # it logs harmless notes as errors
+    from PySpice.Spice.NgSpice import Shared
+
+    class _Shared(Shared.NgSpiceShared):
+
+        def __init__(self, path: str):
+            self._path = path
+            self.lines: list[tuple[str, str]] = []
+            self.exited = False
+            self.finished = threading.Event()       # set when a bg_run ends
+            super().__init__(ngspice_id=0, send_data=False, verbose=False)
+
+        @property
+        def library_path(self):
+            return self._path
+
+        def _load_library(self, verbose):
+            locale.setlocale(locale.LC_NUMERIC, "C")   # ngspice parses numbers with the C locale
+            global _CDEF_DONE
+            if not _CDEF_DONE:        # PySpice's one ffi object takes the declarations once
+                api = Path(Shared.__file__).with_name("api.h").read_text()
+                Shared.ffi.cdef(api)
+                _CDEF_DONE = True
+            self._ngspice_shared = Shared.ffi.dlopen(self._path)
+
+        def send_char(self, message, ngspice_id):
+            stream, _, text = message.partition(" ")
+            self.lines.append((stream, text.strip()))
+            return 0
+
+        @staticmethod
+        def _background_thread_running(exited, ngspice_id, user_data):
+            # ngspice passes True when its background thread ends (PySpice's own returns
+            # None, which cffi reports on stderr at every bg_run)
+            if exited:
+                Shared.ffi.from_handle(user_data).finished.set()
+            return 0
+
+        @staticmethod
+        def _exit(exit_status, immediate_unloading, quit_exit, ngspice_id, user_data):
+            self = Shared.ffi.from_handle(user_data)
+            self.exited = True
+            return exit_status
+
+    return _Shared, Shared.ffi
+
+
+def _is_error(text: str) -> bool:
+    low = text.lower()
+    if low.startswith(_INFO_PREFIXES):
+        return False
+    return ("error" in low or "aborted" in low or "too small" in low or "not parsed" in low
+            or "fatal" in low)
+
+
+def _describe_failure(lines: list[str], stage: str) -> str:
+    text = " ".join(lines)
+    node = None
+    m = re.search(r"(?:check node|trouble with node)\s+\"?([\w#.()-]+)\"?", text, re.I)
+    if m:
+        node = m.group(1)
+    m = re.search(r"timestep too small; time = ([0-9.eE+-]+)", text, re.I)
+    if m:
+        msg = f"ngspice {stage}: time step too small at t = {float(m.group(1)):.6g} s"
+        if "singular" in text.lower():
+            msg += ", singular matrix"
+        return msg + (f" at node {node}" if node else "")
+    if "singular matrix" in text.lower():
+        return f"ngspice {stage}: singular matrix" + (f" at node {node}" if node else "")
+    m = re.search(r"error on line (\d+)[^:]*:\s*(.*)", text, re.I)
+    if m:
+        return f"ngspice {stage}: error on netlist line {m.group(1)}: {m.group(2).strip()}"
+    errors = [ln for ln in lines if _is_error(ln)]
+    detail = errors[0] if errors else (lines[-1] if lines else "no output")
+    return f"ngspice {stage}: {detail}"
+
+
+class NgspiceSession:
+    """One loaded ngspice library: load a netlist, run it, read vectors, free the circuit.
+
+    Each :meth:`run` ends with ``destroy all`` and ``remcirc`` so that memory stays
+    flat over thousands of runs. If ngspice asks to exit or fails its canary after an
+    error, the library is loaded afresh from a private copy, since ngspice keeps
+    global state that a fatal error can leave broken.
+    """
+
+    def __init__(self, path: str | None = None):
+        self._lock = threading.Lock()
+        self._source = path or library_path()
+        self._tmp: tempfile.TemporaryDirectory | None = None
+        self._generation = 0
+        self._open(self._source)
+
+    def _open(self, path: str):
+        cls, self._ffi = _shared_class()
+        try:
+            self._ng = cls(path)
+        except OSError as exc:
+            raise SpiceError(f"cannot load the ngspice shared library {path}: {exc}") from None
+        self._lib = self._ng._ngspice_shared
+        self._command("set nomoremode")
+
+    def _reload(self):
+        # A fresh copy has its own global state; dlopen of the same path would share it.
+        if self._tmp is None:
+            self._tmp = tempfile.TemporaryDirectory(prefix="analogy-ngspice-")
+        src = Path(self._resolve(self._source))
+        self._generation += 1
+        dst = Path(self._tmp.name) / f"libngspice-{self._generation}.so"
+        shutil.copy(src, dst)
+        self._open(str(dst))
+
+    @staticmethod
+    def _resolve(name: str) -> str:
+        if os.path.sep in name:
+            return name
+        for d in ("/usr/lib/x86_64-linux-gnu", "/usr/lib/aarch64-linux-gnu", "/usr/lib", "/usr/local/lib"):
+            p = Path(d) / name
+            if p.exists():
+                return str(p)
+        raise SpiceError(f"cannot locate {name} on disk to reload ngspice")
+
+    @property
+    def version(self) -> int | None:
+        return self._ng.ngspice_version
+
+    def _command(self, cmd: str) -> list[tuple[str, str]]:
+        self._ng.lines = []
+        rc = self._lib.ngSpice_Command(cmd.encode("ascii"))
+        if rc:
+            raise SpiceError(f"ngspice rejected the command {cmd!r}")
+        return self._ng.lines
+
+    def _load(self, netlist: str) -> list[tuple[str, str]]:
+        ffi = self._ffi
+        raw = [line.encode("ascii", "replace") for line in netlist.splitlines() if line]
+        # One buffer of NUL-terminated lines and pointers into it: one allocation, not one per line.
+        buf = ffi.new("char[]", b"\0".join(raw) + b"\0")
+        array = ffi.new("char *[]", len(raw) + 1)       # zero-filled: the last pointer is NULL
+        for i, off in zip(range(len(raw)), itertools.accumulate((len(r) + 1 for r in raw), initial=0)):
+            array[i] = buf + off
+        self._ng.lines = []
+        rc = self._lib.ngSpice_Circ(array)
+        lines = self._ng.lines
+        if rc:
+            lines = lines + [("stderr", f"error: ngSpice_Circ returned {rc}")]
+        return lines
+
+    def _vectors(self, plot: str) -> dict[str, np.ndarray]:
+        ffi = self._ffi
+        names = self._ng._convert_string_array(self._lib.ngSpice_AllVecs(plot.encode()))
+        out = {}
+        for name in names:
+            info = self._lib.ngGet_Vec_Info(f"{plot}.{name}".encode())
+            if info == ffi.NULL:
+                continue
+            if info.v_realdata != ffi.NULL:
+                data = np.frombuffer(ffi.buffer(info.v_realdata, info.v_length * 8), dtype=np.float64).copy()
+            elif info.v_compdata != ffi.NULL:      # an AC sweep: (re, im) pairs
+                pairs = np.frombuffer(ffi.buffer(info.v_compdata, info.v_length * 16), dtype=np.float64)
+                data = pairs[0::2] + 1j * pairs[1::2]
+            else:
+                continue
+            out[vector_key(name)] = data
+        return out
+
+    def _free(self):
+        self._command("destroy all")
+        self._command("remcirc")
+        # PySpice keeps every line ngspice prints; what a run said is read by then.
+        for kept in (getattr(self._ng, "_stdout", None), getattr(self._ng, "_stderr", None)):
+            if isinstance(kept, list):
+                kept.clear()
+
+    def _healthy(self) -> bool:
+        try:
+            lines = self._load(_CANARY) + self._command("run")
+            ok = not any(_is_error(t) for s, t in lines) and not self._ng.exited
+            ok = ok and self._lib.ngSpice_CurPlot() != self._ffi.NULL and \
+                self._ffi.string(self._lib.ngSpice_CurPlot()).decode().startswith("tran")
+            self._free()
+            return ok
+        except SpiceError:
+            return False
+
+    def run(self, netlist: str, vectors=None, stats: dict | None = None,
+            analysis: str = "tran", timeout: float | None = None) -> dict[str, np.ndarray]:
+        """Run a transient (or, with *analysis* ``"ac"``, an AC) netlist: ``{"time": …, node: …}``.
+
+        Parameters
+        ----------
+        netlist : str
+            The netlist text (ASCII).
+        vectors : sequence of str, optional
+            Return only these, keyed as given; each is looked up by :func:`vector_key`,
+            so ``n1``, ``v(n1)`` and ``@c1_2[i]`` all work.
+        stats : dict, optional
+            Filled with ngspice's ``iterations`` and ``rejected`` time points.
+        analysis : {"tran", "ac"}
+            The netlist's analysis; an AC run returns ``"frequency"`` and complex vectors.
+        timeout : float, optional
+            Wall-time limit [s]: the run goes to ngspice's background thread and is
+            halted past it (:class:`SpiceError`, "time limit").
+
+        Raises
+        ------
+        SpiceError
+            With one sentence naming the failure and, where ngspice says, the node.
+        """
+        with self._lock:
+            try:
+                return self._run(netlist, vectors, stats, analysis, timeout)
+            except SpiceError:
+                # Leave a clean instance for the next run, whatever state ngspice is in.
+                if self._ng.exited or not self._healthy():
+                    self._reload()
+                raise
+
+    def _timed(self, timeout: float) -> list[tuple[str, str]]:
+        """``bg_run``, halted with ``bg_halt`` past *timeout*: ngspice's own steps have no other bound."""
+        self._ng.lines = []
+        self._ng.finished.clear()
+        if self._lib.ngSpice_Command(b"bg_run"):
+            raise SpiceError("ngspice rejected the command 'bg_run'")
+        if not self._ng.finished.wait(timeout):
+            self._lib.ngSpice_Command(b"bg_halt")
+            self._ng.finished.wait(60.0)
+            self._free()
+            raise SpiceError(f"ngspice passed its time limit of {timeout:g} s: the circuit needs more "
+                             "steps than that allows (raise the timeout, or use the fast preset)")
+        return self._ng.lines
+
+    def _run(self, netlist, vectors, stats=None, analysis="tran", timeout=None):
+        index = "time" if analysis == "tran" else "frequency"
+        try:
+            netlist.encode("ascii")
+        except UnicodeEncodeError:
+            raise SpiceError("netlist contains non-ASCII characters") from None
+        load = self._load(netlist)
+        errors = [t for s, t in load if _is_error(t)]
+        if errors or self._ng.exited:
+            self._free()
+            raise SpiceError(_describe_failure([t for s, t in load], "could not parse the netlist"))
+        ran = self._command("run") if timeout is None else self._timed(timeout)
+        failed = [t for s, t in ran if _is_error(t)]
+        plot_c = self._lib.ngSpice_CurPlot()
+        plot = self._ffi.string(plot_c).decode() if plot_c != self._ffi.NULL else ""
+        if failed or self._ng.exited or not plot.startswith(analysis):
+            self._free()
+            stage = "transient analysis failed" if analysis == "tran" else "AC analysis failed"
+            raise SpiceError(_describe_failure([t for s, t in ran], stage))
+        data = self._vectors(plot)
+        if stats is not None:
+            for _, text in self._command("rusage rejected"):
+                name, _, value = text.partition(" = ")
+                key = {"Transient iterations": "iterations", "Rejected timepoints": "rejected"}.get(name)
+                if key and value.strip().isdigit():
+                    stats[key] = int(value)
+        self._free()
+        if index not in data:
+            raise SpiceError(f"ngspice returned no {index} vector")
+        if index == "frequency":
+            data[index] = data[index].real
+        if vectors is not None:
+            missing = [v for v in vectors if vector_key(v) not in data]
+            if missing:
+                raise SpiceError(f"ngspice did not save vector {missing[0]!r}")
+            data = {index: data[index], **{v: data[vector_key(v)] for v in vectors}}
+        return data
+
+
+_SESSION: NgspiceSession | None = None
+_SESSION_LOCK = threading.Lock()
+
+
+def session() -> NgspiceSession:
+    """The process's ngspice session, loaded on first use (once, whichever thread asks)."""
+    global _SESSION
+    with _SESSION_LOCK:
+        if _SESSION is None:
+            _SESSION = NgspiceSession()
+        return _SESSION
+
+
+def run_netlist(netlist: str, vectors=None) -> dict[str, np.ndarray]:
+    """Run *netlist* in the process's ngspice session.
+
+    Parameters
+    ----------
+    netlist : str
+        The netlist text.
+    vectors : sequence of str, optional
+        Vectors to return (see :meth:`NgspiceSession.run`).
+    """
+    return session().run(netlist, vectors)
