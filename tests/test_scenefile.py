@@ -546,3 +546,25 @@ def test_scene_outputs_stay_inside_the_output_folder(where, tmp_path):
                     f'[inputs]\nforces = [1, 0]\n[outputs]\nnetlist = "{where}"\n')
     with pytest.raises(InputError, match="relative path inside the output folder"):
         load_scene(path)
+
+
+def test_a_scene_file_can_settle_the_flexible_arm_at_its_static_equilibrium():
+    """[configuration] equilibrium = true: the links sag, and the modal rows of the constant
+    load vanish while the joints carry the holding torques."""
+    text = textwrap.dedent("""
+        [model]
+        robot = "flex2"
+        [configuration]
+        q = [-0.6, 0.3, 0, 0, 0, 0]
+        equilibrium = true
+        [inputs]
+        forces = [1, 1, 0, 0, 0, 0]
+        t_stop = 0.2
+    """)
+    settled, plain = parse_scene(text), parse_scene(text.replace("equilibrium = true", ""))
+    assert settled.equilibrium and not plain.equilibrium and settled.key != plain.key
+    load = settled.system().joint.gravity
+    assert np.max(np.abs(load[2:])) <= 1e-12 * np.max(np.abs(load[:2]))
+    assert np.max(np.abs(plain.system().joint.gravity[2:])) > 1.0
+    with pytest.raises(InputError, match="expected true or false"):
+        parse_scene(text.replace("equilibrium = true", "equilibrium = 1"))

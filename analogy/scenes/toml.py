@@ -69,7 +69,7 @@ __all__ = ["load_scene", "parse_scene", "parse_toml", "validated"]
 _TABLES = {
     "model": ("robot", "mass", "damping", "stiffness", "gravity", "link_modes"),
     "parameters": None,         # free names
-    "configuration": ("q", "topology"),
+    "configuration": ("q", "topology", "equilibrium"),
     "inputs": ("forces", "initial_rates", "t_stop"),
     "outputs": ("joint_rates", "node_voltages", "element_currents", "netlist", "csv", "plot"),
     "solvers": ("use", "preset", "errors", "step"),
@@ -304,6 +304,10 @@ def _model_fields(ctx: _Context, data: dict) -> dict:
     if "q" in config:
         with ctx.key("[configuration] q"):
             out["q"] = tuple(_numbers(config["q"]))
+    if "equilibrium" in config:
+        if not isinstance(config["equilibrium"], bool):
+            raise ctx.error("[configuration] equilibrium", f"expected true or false, got {_kind(config['equilibrium'])}")
+        out["equilibrium"] = config["equilibrium"]
     if "topology" in config:
         spec = config["topology"]
         with ctx.key("[configuration] topology"):
