@@ -162,7 +162,7 @@ def analysis_lines(preset: str | Preset, t_stop: float, ic: Iterable[tuple[str, 
                 floor = scales.rounding_current if key == "abstol" else 0.0
                 factor = loosen if key in ("abstol", "vntol") else 1.0
                 opts[key] = f"{factor * max(float(opts[key]) * size, floor):.3g}"
-        tmax = min(tmax, max(scales.step_limit(p.phase_step), t_stop / p.step_budget))
+        tmax = min(tmax, max(scales.step_limit(p.phase_step, p.bound), t_stop / p.step_budget))
         # a whole divisor of the preset's print step, so the preset's grid stays in it
         tstep /= math.ceil(tstep / min(tstep, 100 * scales.step_limit(p.first_phase_step)))
     save = list(save)
