@@ -27,7 +27,6 @@ class ConstantModel:
         A few words.
     """
 
-    parameters: dict = {}
     coordinates: tuple = ()
 
     def __init__(self, name: str, joint: JointSpace, topology: str = "parallel", description: str = ""):

@@ -26,7 +26,7 @@ _REACH = {"RK45": 3.3, "RK23": 2.5, "DOP853": 4.0}
 STIFF_STEPS = 100_000
 
 
-def stiff_method(system, method: str, jac, y0: np.ndarray) -> tuple[str, str]:
+def stiff_method(system, method: str, jac, y0: np.ndarray, scales=None) -> tuple[str, str]:
     """(the method to use, why): Radau where stability, not accuracy, would set an explicit method's steps.
 
     A system is stiff here when its largest rate |λ| would hold an explicit method to more
@@ -43,6 +43,8 @@ def stiff_method(system, method: str, jac, y0: np.ndarray) -> tuple[str, str]:
         The Jacobian of the first-order form (callable: evaluated at t = 0, *y0*).
     y0 : ndarray
         The initial state.
+    scales : Scales, optional
+        The system's scales, if already computed.
     """
     reach = _REACH.get(method)
     if reach is None or jac is None:
@@ -50,7 +52,9 @@ def stiff_method(system, method: str, jac, y0: np.ndarray) -> tuple[str, str]:
     a = jac(0.0, y0) if callable(jac) else jac
     rho = float(np.max(np.abs(np.linalg.eigvals(a)))) if a.size else 0.0
     t_stop = float(system.t_stop)
-    if rho * t_stop / reach <= STIFF_STEPS or rho <= 100 * max(system_scales(system).omega_max, 1 / t_stop):
+    if rho * t_stop / reach <= STIFF_STEPS:
+        return method, ""
+    if rho <= 100 * max((scales or system_scales(system)).omega_max, 1 / t_stop):
         return method, ""
     return "Radau", f"stiff, |λ|·t_stop = {rho * t_stop:.2g}: Radau with the analytic Jacobian, not {method}"
 
@@ -151,6 +155,7 @@ def solve_ode(system, times=None, method: str = "DOP853", rtol: float = 1e-10,
     n = system.dof
     linear = getattr(system, "kind", "linear") == "linear"
     rhs, jac, y, has_x = _linear(system) if linear else _nonlinear(system)
+    sc = None
     if atol is None:
         # Per state component, relative to the motion it can have (small modal nodes too).
         sc = system_scales(system)
@@ -158,7 +163,7 @@ def solve_ode(system, times=None, method: str = "DOP853", rtol: float = 1e-10,
         if not linear:
             parts.append([sc.current * sc.peak_velocity * system.t_stop])
         atol = rtol * 1e-2 * np.concatenate(parts)
-    method, note = stiff_method(system, method, jac, y)
+    method, note = stiff_method(system, method, jac, y, sc)
     extra = {}
     if jac is not None and method in _IMPLICIT:     # LSODA takes the Jacobian as a callable only
         extra["jac"] = (lambda tt, yy: jac) if method == "LSODA" and not callable(jac) else jac

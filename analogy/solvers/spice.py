@@ -52,11 +52,11 @@ def _trajectory(system, time, prepended: bool, volts, currents, stats, elapsed,
 
 
 def _limit(scales, t_stop: float, preset: Preset) -> float | None:
-    """The preset's wall-time limit where the run may be long (ω_max·t_stop > 10^4 or a step cap
-    under t_stop/10^5); None runs in the foreground, which costs a quarter millisecond less."""
+    """The preset's wall-time limit where the run may be long (its fastest rate times t_stop past
+    10^4); None runs in the foreground, which costs a quarter millisecond less."""
     if scales is None or preset.timeout is None or not math.isfinite(preset.timeout):
         return None
-    short = scales.omega_max * t_stop <= 1e4 and preset.max_steps <= 1e5
+    short = scales.fastest(preset.bound) * t_stop <= 1e4
     return None if short else preset.timeout
 
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import Callable, Iterator
 
 import numpy as np
@@ -57,7 +57,6 @@ class StressCase:
     build: Callable[[], object]
     runs: tuple = ()
     horizon: bool = False
-    extra: dict = field(default_factory=dict)
 
 
 def _timed(p: Preset, seconds: float) -> Preset:
@@ -106,8 +105,7 @@ def _time_scales(quick: bool, p: Preset) -> Iterator[StressCase]:
                 m = np.array([[1.0, 0.2], [0.2, 1.0]])
                 return node_system(JointSpace(m, np.diag(2 * z * w), np.diag(w ** 2)), forces=[1.0, 1.0],
                                    t_stop=10.0)
-            yield StressCase("b", "omega ratio", r, f"ratio {r:.0e} zeta {z:g}", build, _runs(p),
-                             extra={"zeta": z})
+            yield StressCase("b", "omega ratio", r, f"ratio {r:.0e} zeta {z:g}", build, _runs(p))
 
 
 def _long_runs(quick: bool, p: Preset) -> Iterator[StressCase]:
@@ -147,7 +145,7 @@ def _units(quick: bool, p: Preset) -> Iterator[StressCase]:
                                   "velocity": (1.0, 1.0, 1.0, s, 1.0)}[kind]
             def build(sm=sm, sb=sb, sk=sk, sf=sf, st=st):
                 return node_system(JointSpace(sm * m, sb * b, sk * k), forces=list(sf * f), t_stop=10.0 * st)
-            yield StressCase("e", f"{kind} scale", s, f"{kind} × {s:g}", build, _runs(p), extra={"kind": kind})
+            yield StressCase("e", f"{kind} scale", s, f"{kind} × {s:g}", build, _runs(p))
 
 
 def _singular(quick: bool, p: Preset) -> Iterator[StressCase]:
