@@ -200,3 +200,26 @@ def test_a_failing_ngspice_run_is_retried_scene_by_scene(monkeypatch):
     res = run_batch(items, "fast", workers=1)
     assert list(res.failures) == [1] and "time step too small" in res.failures[1]
     assert np.all(res.errors[[0, 2]] <= 1e-3)
+
+
+def test_parameters_per_row_build_the_systems_each_scene_builds_alone():
+    """A family of scenes differing in q and a robot's parameters is one stack, row by row exact."""
+    base = scene("default")
+    rng = np.random.default_rng(3)
+    items = [base.replace(q=(0.0, float(x)), parameters={"d1": float(a), "d2": float(b)})
+             for x, a, b in zip(rng.uniform(-3, 3, 6), rng.uniform(0.5, 3, 6), rng.uniform(0.5, 2, 6))]
+    assert len({s.family() for s in items}) == 1
+    qs = np.array([s.q for s in items])
+    per_row = {k: np.array([s.parameter_values[k] for s in items]) for k in ("d1", "d2")}
+    for alone, stacked in zip((s.system() for s in items), items[0].systems(qs, parameters=per_row)):
+        np.testing.assert_array_equal(stacked.mass, alone.mass)
+        np.testing.assert_array_equal(stacked.damping, alone.damping)
+        assert stacked.info["parameters"] == alone.info["parameters"]
+
+
+def test_nonlinear_and_equilibrium_scenes_form_no_stack():
+    """Stacks are linear systems at q: a scene whose system is built otherwise has no family."""
+    base = scene("default")
+    assert base.family() is not None
+    assert base.replace(dynamics="nonlinear").family() is None
+    assert base.replace(equilibrium=True).family() is None

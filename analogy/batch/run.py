@@ -136,16 +136,19 @@ def _system(item):
 def _systems(task) -> tuple[list, dict]:
     """Build a task's systems; return them (None where a build failed) and the failures.
 
-    A task is ("family", scene, configurations), scenes that differ only in q and are
-    built as one stack, or ("items", [Scene or NodeSystem, ...]).
+    A task is ("family", scene, configurations, parameters per row), scenes that differ
+    only in q and a robot's parameter values and are built as one stack, or
+    ("items", [Scene or NodeSystem, ...]).
     """
     kind, *rest = task
     if kind == "family":
-        base, qs = rest
+        base, qs, params = rest
         try:
-            return base.systems(qs), {}
+            return base.systems(qs, parameters=params), {}
         except AnalogyError:            # one row is bad: build row by row to keep the others
-            items = [base.replace(q=tuple(row)) for row in np.asarray(qs).tolist()]
+            items = [base.replace(q=tuple(row), parameters={**dict(base.parameters),
+                                  **{k: float(v[i]) for k, v in params.items()}})
+                     for i, row in enumerate(np.asarray(qs).tolist())]
     else:
         items = rest[0]
     systems, failures = [], {}
@@ -190,7 +193,8 @@ def _group(payload):
 def _tasks(systems, group_size: int) -> list[tuple[list[int], tuple]]:
     """Split *systems* into (indices, task) groups of at most *group_size* with one time grid.
 
-    Scenes that differ only in their configuration form one family, built as a stack.
+    Scenes that differ only in their configuration and a robot's parameter values form
+    one family, built as a stack.
     """
     kinds: dict = {}
     for k, item in enumerate(systems):
@@ -202,8 +206,14 @@ def _tasks(systems, group_size: int) -> list[tuple[list[int], tuple]]:
         for i in range(0, len(idx), group_size):
             chunk = idx[i:i + group_size]
             if kind == "family":
+                first = systems[chunk[0]]
                 qs = np.array([systems[k].q for k in chunk], dtype=float).reshape(len(chunk), -1)
-                tasks.append((chunk, ("family", systems[chunk[0]], qs)))
+                params = {}
+                if first.model.robot is not None and first.parameters:
+                    values = np.array([[v for _, v in systems[k].parameters] for k in chunk], dtype=float)
+                    params = {name: values[:, j] for j, (name, _) in enumerate(first.parameters)
+                              if np.any(values[:, j] != values[0, j])}
+                tasks.append((chunk, ("family", first, qs, params)))
             else:
                 tasks.append((chunk, ("items", [systems[k] for k in chunk])))
     return tasks

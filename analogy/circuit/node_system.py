@@ -415,8 +415,8 @@ def node_systems(model, qs, *, parameters: Mapping[str, float] | None = None,
                  info: Mapping | None = None) -> list[NodeSystem]:
     """:func:`node_system` at every row of *qs*, evaluated and checked as one stack.
 
-    The configurations share everything else (parameters, topology, forces, initial
-    rates, t_stop), so those are checked once, and M(q), B(q), K(q), G(q) are evaluated
+    The configurations share everything else (topology, forces, initial rates, t_stop,
+    and the parameters that are not given per row), so those are checked once, and M(q), B(q), K(q), G(q) are evaluated
     vectorised over the rows and checked with stacked factorizations. The systems are
     the ones :func:`node_system` builds, to rounding (the same numbers on the platforms
     tested); a configuration that fails a check raises the error :func:`node_system`
@@ -429,7 +429,7 @@ def node_systems(model, qs, *, parameters: Mapping[str, float] | None = None,
     qs : array_like, shape (count, n)
         Configurations.
     parameters : mapping, optional
-        Parameter overrides.
+        Parameter overrides: one number for every row, or a sequence of one per row.
     topology : str, Topology or array_like, optional
         Joint-to-node map T.
     forces : sequence, optional
@@ -444,10 +444,18 @@ def node_systems(model, qs, *, parameters: Mapping[str, float] | None = None,
     if not hasattr(model, "joint_stack"):
         raise InputError("node_systems needs a Model or CompiledModel, not a JointSpace")
     q = configuration_stack(model.name, [str(c) for c in model.coordinates], qs)
-    kw = dict(parameters=parameters, topology=topology, forces=forces,
-              initial_rates=initial_rates, t_stop=t_stop, info=info)
+    kw = dict(topology=topology, forces=forces, initial_rates=initial_rates, t_stop=t_stop, info=info)
+    varying = {k: np.asarray(v, dtype=float) for k, v in (parameters or {}).items() if np.ndim(v)}
+    for name, v in varying.items():
+        if v.shape != (len(q),):
+            raise InputError(f"parameter {name!r} needs one value or {len(q)} (one per configuration), "
+                             f"got shape {v.shape}")
+
+    def row(k: int) -> dict | None:
+        return None if parameters is None else {
+            name: float(varying[name][k]) if name in varying else v for name, v in parameters.items()}
     try:
-        evaluated = _evaluated(model, q[0].tolist(), parameters, topology)
+        evaluated = _evaluated(model, q[0].tolist(), row(0), topology)
     except InputError as exc:
         raise InputError(f"configuration 1: {exc}") from None
     first = _mapped(*evaluated, forces, initial_rates, t_stop, info)    # checks what the rows share
@@ -461,9 +469,9 @@ def node_systems(model, qs, *, parameters: Mapping[str, float] | None = None,
         fault = True
     if fault:               # one at a time: a bad row raises its own error, with its number
         out = []
-        for k, row in enumerate(q):
+        for k, qk in enumerate(q):
             try:
-                out.append(node_system(model, row.tolist(), **kw))
+                out.append(node_system(model, qk.tolist(), parameters=row(k), **kw))
             except InputError as exc:
                 raise InputError(f"configuration {k + 1}: {exc}") from None
         return out
@@ -475,18 +483,18 @@ def node_systems(model, qs, *, parameters: Mapping[str, float] | None = None,
     shared_forces = first.forces if stack.gravity is None else waveforms(forces, first.dof)
     coords = [str(c) for c in model.coordinates]
     r0, t_end = first.initial_rates, first.t_stop
-    all_stiff = kk is not None and all(np.any(row) for row in kk)
+    all_stiff = kk is not None and all(np.any(r) for r in kk)
     v0 = np.broadcast_to(first.initial_voltages, (len(q), first.dof))
     family = Family(node_mass, node_damping, node_stiffness if all_stiff else None, v0, len(q))
     out = []
-    for k, row in enumerate(q):
+    for k, qk in enumerate(q):
         stiff = None if kk is None or not np.any(kk[k]) else kk[k]
         grav = None if stack.gravity is None or not np.any(stack.gravity[k]) else stack.gravity[k]
         ws = shared_forces if grav is None else \
             tuple(w + (Step(-x),) if x else w for w, x in zip(shared_forces, grav))
         joint = JointSpace.from_checked(m[k], b[k], stiff, grav)
-        item_info = {**first.info, "parameters": dict(first.info["parameters"]),
-                     "configuration": dict(zip(coords, row.tolist()))}
+        item_info = {**first.info, "parameters": {**first.info["parameters"], **row(k)} if varying
+                     else dict(first.info["parameters"]), "configuration": dict(zip(coords, qk.tolist()))}
         out.append(NodeSystem.from_checked(joint, top, ws, r0.copy(), t_end, item_info, node_mass[k],
                                            node_damping[k], None if stiff is None else node_stiffness[k],
                                            (family, k)))

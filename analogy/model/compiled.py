@@ -13,6 +13,7 @@ from .joint import (
     configuration_stack,
     evaluate_entries,
     evaluation_arguments,
+    stack_arguments,
     part_shapes,
 )
 
@@ -83,7 +84,7 @@ class CompiledModel:
             Parameter overrides.
         """
         q = configuration_stack(self.name, self.coordinates, qs)
-        args = list(q.T) + evaluation_arguments(self.name, (), self.parameters, None, parameters)
+        args = list(q.T) + stack_arguments(self.name, self.parameters, parameters, len(q))
         return JointStack(*(evaluate_entries(self.name, f, args, shape, len(q)) for f, shape in self._parts()))
 
     def _parts(self):

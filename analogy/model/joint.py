@@ -9,7 +9,7 @@ import numpy as np
 from ..errors import InputError
 
 __all__ = ["JointSpace", "unstable_stiffness", "JointStack", "check_square_symmetric", "check_vector",
-           "evaluation_arguments", "configuration_stack", "evaluate_entries", "part_shapes",
+           "evaluation_arguments", "stack_arguments", "configuration_stack", "evaluate_entries", "part_shapes",
            "stack_fault"]
 
 
@@ -126,6 +126,43 @@ def evaluation_arguments(name: str, coordinates, defaults: Mapping[str, float], 
         values[key] = value
     args = list(check_vector("configuration q", q, len(q))) if q else []
     return args + (list(check_vector("parameters", list(values.values()), len(values))) if values else [])
+
+
+def stack_arguments(name: str, defaults: Mapping[str, float], overrides: Mapping | None,
+                    count: int) -> list:
+    """Checked parameter arguments for a stack of *count* rows: a float, or an array per row.
+
+    An override may be one number for every row or a sequence of *count* numbers, so
+    that scenes differing in their parameters are evaluated as one stack.
+
+    Parameters
+    ----------
+    name : str
+        The model's name, for messages.
+    defaults : mapping
+        The model's parameter values.
+    overrides : mapping, optional
+        Parameter overrides: numbers or sequences of *count* numbers.
+    count : int
+        Rows of the stack.
+    """
+    values: dict = dict(defaults)
+    for key, value in (overrides or {}).items():
+        if key not in values:
+            raise InputError(f"model {name!r} has no parameter {key!r} "
+                             f"(it has: {', '.join(values) or 'none'})")
+        values[key] = value
+    out = []
+    for key, value in values.items():
+        v = np.asarray(value, dtype=float)
+        if v.ndim == 0:
+            v = float(v)
+        elif v.shape != (count,):
+            raise InputError(f"parameter {key!r} needs one value or {count} (one per row), got shape {v.shape}")
+        if not np.all(np.isfinite(v)):
+            raise InputError(f"parameter {key!r} has a non-finite value")
+        out.append(v)
+    return out
 
 
 def configuration_stack(name: str, coordinates, qs) -> np.ndarray:

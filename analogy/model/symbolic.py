@@ -16,6 +16,7 @@ from .joint import (
     configuration_stack,
     evaluate_entries,
     evaluation_arguments,
+    stack_arguments,
     part_shapes,
 )
 
@@ -269,12 +270,15 @@ class Model:
             Parameter overrides.
         """
         if self.builder is not None and parameters:
+            if any(np.ndim(v) for v in parameters.values()):
+                raise InputError(f"model {self.name!r} is rebuilt for new parameter values, "
+                                 "so its parameters cannot vary along a stack")
             rebuilt = self.with_parameters(parameters)
             if rebuilt is not self:
                 return rebuilt.joint_stack(qs)
         fns, qnames, _ = self._compiled or self._compile()
         q = configuration_stack(self.name, qnames, qs)
-        args = list(q.T) + evaluation_arguments(self.name, (), self.parameters, None, parameters)
+        args = list(q.T) + stack_arguments(self.name, self.parameters, parameters, len(q))
         return JointStack(*(evaluate_entries(self.name, f, args, shape, len(q))
                             for f, shape in zip(fns, self._shapes())))
 

@@ -358,7 +358,7 @@ def scene_system(scene: SceneData, model=None) -> object:
             raise InputError(f"{keys['inputs']}: {text}") from None
 
 
-def scene_systems(scene: SceneData, qs, model=None) -> list:
+def scene_systems(scene: SceneData, qs, model=None, parameters=None) -> list:
     """The linear node systems of *scene* at every row of *qs*, built as one stack.
 
     Parameters
@@ -369,11 +369,17 @@ def scene_systems(scene: SceneData, qs, model=None) -> list:
         Configurations.
     model : object, optional
         An already built model.
+    parameters : mapping of str to array_like, optional
+        A built-in robot's parameter values per row, replacing the scene's own.
     """
     m = scene_model(scene) if model is None else model
     keys = _keys(scene)
     with _where(scene):
         inputs = _inputs(scene, m.dof, keys)
         params = scene.parameter_values if scene.model.robot is not None else None
+        if parameters:
+            if params is None:
+                raise InputError(f"{keys['parameters']}: only a built-in robot's parameters vary along a stack")
+            params = {**params, **parameters}
         return node_systems(m, qs, parameters=params, topology=_topology(scene), t_stop=scene.t_stop,
                             info={"scene": scene.name}, **inputs)

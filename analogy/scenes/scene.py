@@ -5,6 +5,7 @@ from __future__ import annotations
 import hashlib
 import math
 from dataclasses import dataclass, fields
+from functools import lru_cache
 from pathlib import Path
 from typing import TYPE_CHECKING, Mapping
 
@@ -209,7 +210,7 @@ class Scene:
         """
         return scene_system(self, model)
 
-    def systems(self, qs, model=None) -> list:
+    def systems(self, qs, model=None, parameters=None) -> list:
         """The scene's node systems at every configuration in *qs*, built as one stack.
 
         Parameters
@@ -218,18 +219,24 @@ class Scene:
             Configurations.
         model : object, optional
             An already built model.
+        parameters : mapping of str to array_like, optional
+            Parameter values per row, replacing the scene's own.
         """
-        return scene_systems(self, qs, model)
+        return scene_systems(self, qs, model, parameters)
 
     def family(self) -> tuple | None:
-        """What the scene shares with scenes that differ only in q, as a hashable key.
+        """What the scene shares with scenes that differ only in q and parameter values, as a hashable key.
 
-        None when q is not a flat tuple of real numbers.
+        Such scenes are built as one stack (:meth:`systems`); only a built-in robot's
+        parameters vary along a stack, since other models are derived with theirs. None
+        when the scene is not built that way: nonlinear dynamics, a static equilibrium
+        first, or a q that is not a flat tuple of real numbers.
         """
-        if not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in self.q):
+        if self.dynamics != "linear" or self.equilibrium or not all(
+                isinstance(x, (int, float)) and not isinstance(x, bool) for x in self.q):
             return None
-        return (self.model, self.parameters, self.topology, self.forces, self.initial_rates,
-                self.t_stop, self.dynamics, len(self.q))
+        shared = tuple(k for k, _ in self.parameters) if self.model.robot is not None else self.parameters
+        return (self.model, shared, self.topology, self.forces, self.initial_rates, self.t_stop, len(self.q))
 
 
 def _canonical(value):
@@ -259,7 +266,16 @@ def content_key(scene: Scene) -> str:
     scene : Scene
         The scene.
     """
-    data = sorted((f.name, _canonical(getattr(scene, f.name))) for f in fields(scene)
-                  if f.name not in _NOT_CONTENT)
-    # repr of nested lists of str, bool, None and float reprs is the same in every process.
-    return hashlib.sha256(repr([SCENE_SCHEMA, data]).encode()).hexdigest()
+    # The text hashed is repr([SCENE_SCHEMA, sorted (name, canonical value) pairs]), built
+    # field by field so that a model shared by many scenes is written out once.
+    parts = ", ".join(f"({name!r}, {_model_text(value) if name == 'model' else repr(_canonical(value))})"
+                      for name, value in sorted((n, getattr(scene, n)) for n in _CONTENT))
+    return hashlib.sha256(f"[{SCENE_SCHEMA!r}, [{parts}]]".encode()).hexdigest()
+
+
+_CONTENT = tuple(f.name for f in fields(Scene) if f.name not in _NOT_CONTENT)
+
+
+@lru_cache(maxsize=256)
+def _model_text(spec: ModelSpec) -> str:
+    return repr(_canonical(spec))

@@ -52,19 +52,17 @@ import tomllib
 from contextlib import contextmanager
 from pathlib import Path
 
-from ..circuit.currents import check_element_names
-from ..circuit.description import circuit
 from ..errors import InputError
 from ..model.dynamics import DYNAMICS
 from ..model.expressions import parse_number
 from ..presets import preset as get_preset
 from ..results.output import check_plot_path
 from ..solvers.registry import SOLVER_NAMES
-from .build import keyed
 from .scene import OUTPUTS, Scene
 from .spec import ModelSpec, freeze
+from .validate import validated
 
-__all__ = ["load_scene", "parse_scene", "parse_toml", "validated"]
+__all__ = ["load_scene", "parse_scene", "parse_toml", "scene_from_table", "toml_table", "validated"]
 
 _TABLES = {
     "model": ("robot", "mass", "damping", "stiffness", "gravity", "link_modes"),
@@ -208,16 +206,42 @@ def parse_toml(text: str, source="scene.toml") -> Scene:
     source : str or Path
         The file the text came from, named in errors.
     """
-    label = str(source)
-    ctx = _Context(label)
+    return scene_from_table(toml_table(text, source), source)
+
+
+def toml_table(text: str, source="scene.toml") -> dict:
+    """The TOML *text* as a dict; a syntax error is one line naming the file and the line.
+
+    Parameters
+    ----------
+    text : str
+        TOML text.
+    source : str or Path
+        The file the text came from, named in errors.
+    """
     try:
-        data = tomllib.loads(text)
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         message = str(exc)
         if "(at end of document)" in message:
             last = max(len(text.splitlines()), 1)
             message = message.replace("(at end of document)", f"(at line {last}, the end of the document)")
-        raise ctx.error(None, f"TOML syntax error: {message}") from None
+        raise _Context(str(source)).error(None, f"TOML syntax error: {message}") from None
+
+
+def scene_from_table(data: dict, source="scene.toml") -> Scene:
+    """A :class:`Scene` from a parsed scene table (see :func:`parse_toml`).
+
+    Parameters
+    ----------
+    data : dict
+        The parsed TOML.
+    source : str or Path
+        The file it came from, named in errors.
+    """
+    ctx = _Context(str(source))
+    if "sweep" in data:
+        raise ctx.error("[sweep]", "makes this file a sweep of many scenes: run it with analogy batch")
     for key in data:
         if key not in _TOP:
             kind = "table" if isinstance(data[key], dict) else "key"
@@ -475,44 +499,3 @@ def _solvers(ctx, data) -> dict:
                 raise InputError(f"must be a positive time, got {step!r}")
             out["step"] = step
     return out
-
-
-def _check_nodes(system, names) -> tuple[str, ...]:
-    nodes = system.nodes
-    out = []
-    for name in names:
-        if not isinstance(name, str) or name not in nodes:
-            raise InputError(f"unknown node {name!r}: nodes are {', '.join(nodes)}")
-        out.append(name)
-    if not out:
-        raise InputError("name at least one node (or write true for all)")
-    return tuple(dict.fromkeys(out))
-
-
-def validated(scene: Scene) -> Scene:
-    """*scene* with its outputs checked against its system (built here) and names made canonical.
-
-    ``node_voltages = true`` becomes every node and ``element_currents = true`` every
-    element; an unknown name is an :class:`InputError` naming the key.
-
-    Parameters
-    ----------
-    scene : Scene
-        A parsed scene.
-    """
-    system = scene.system()
-    changes = {}
-    with keyed(scene.source if scene.source not in (None, "command line") else None):
-        with keyed("[outputs] node_voltages"):
-            nv = scene.node_voltages
-            changes["node_voltages"] = tuple(system.nodes) if nv is True else \
-                (_check_nodes(system, nv) if nv else ())
-        with keyed("[outputs] element_currents"):
-            ec = scene.element_currents
-            if ec and getattr(system, "kind", "linear") != "linear":
-                raise InputError("element currents need the linear circuit (dynamics = \"linear\")")
-            if ec is True:
-                changes["element_currents"] = tuple(e.name for e in circuit(system).parts)
-            else:
-                changes["element_currents"] = check_element_names(system, ec) if ec else ()
-    return scene.replace(**changes)
