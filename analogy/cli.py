@@ -95,11 +95,29 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output-dir", default=".", help="folder for the drawings (default: .)")
     p.add_argument("--stem", help="file name stem (default: the scene's name, with its content "
                                   "key when changed from a built-in scene)")
-    p = sub.add_parser("run", help="run a scene file (TOML): exactly what it asks for")
-    p.add_argument("scene_file", help="path to a .toml scene")
+    p = sub.add_parser("run", help="run scene files (TOML): exactly what each asks for")
+    p.add_argument("scene_files", nargs="+", metavar="SCENE.toml", help="one or more .toml scenes")
+    p.add_argument("--preset", choices=list(PRESETS), help="override each scene's accuracy preset")
+    p.add_argument("--solvers", help="override each scene's solvers, e.g. spice,exact")
     p.add_argument("--output-dir", help="folder for the scene's output files (default: next to it)")
     p.add_argument("--no-plot", action="store_true", help="skip plots even if the scene asks for one")
     p.add_argument("--dynamics", choices=["linear", "nonlinear"], help="override the scene's dynamics")
+    p = sub.add_parser("batch", help="run a sweep file's scenes into a resumable Parquet store; "
+                                     "'analogy batch report DIR' summarises one")
+    p.add_argument("sweep_file", metavar="SWEEP.toml", help="a scene file with a [sweep] table, or 'report'")
+    p.add_argument("report_dir", nargs="?", metavar="DIR", help="with 'report': the store to summarise")
+    p.add_argument("-o", "--output", metavar="DIR", help="the results store (required for a run; for a "
+                   "report, the folder for report.md and its plots, default DIR/_report)")
+    p.add_argument("--workers", type=int, default=2, help="local worker processes (default 2)")
+    p.add_argument("--dask", action="store_true", help="run on a Dask LocalCluster of --workers processes")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="run on the Dask cluster at ADDRESS")
+    p.add_argument("--isolated", action="store_true",
+                   help="one ngspice run per scene: each error exactly as alone, but slower")
+    p.add_argument("--trajectories", type=int, default=0, metavar="N",
+                   help="also store N evenly spaced points of every solver's joint rates")
+    p.add_argument("--preset", choices=list(PRESETS), help="override the sweep's accuracy preset")
+    p.add_argument("--solvers", help="override the sweep's solvers, e.g. spice,exact")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar (plain lines stay)")
     p = sub.add_parser("bench", help="run time against error: ngspice settings, ODE methods, exact solver")
     p.add_argument("--repeats", type=int, default=5, help="timed runs per setting (median; default 5)")
     p.add_argument("--full", action="store_true", help="the full ngspice grid (method x reltol x trtol x max step)")
@@ -289,26 +307,49 @@ def _cmd_draw(args) -> int:
     return EXIT_OK
 
 
+def _solver_list(text: str | None) -> tuple[str, ...] | None:
+    if text is None:
+        return None
+    from .solvers.registry import SOLVER_NAMES
+    names = tuple(dict.fromkeys(s.strip() for s in text.split(",") if s.strip()))
+    if not names or (bad := [s for s in names if s not in SOLVER_NAMES]):
+        raise InputError(f"--solvers: unknown solver {bad[0]!r}" if names else "--solvers names no solver")
+    return names
+
+
 def _cmd_run(args) -> int:
     from .scenes.run import run_scene
-    from .scenes.toml import load_scene
-    job = load_scene(args.scene_file)
-    if args.dynamics is not None and args.dynamics != job.dynamics:
-        from .scenes.toml import validated
-        job = validated(job.replace(dynamics=args.dynamics))
-    if args.no_plot:
-        job = job.replace(plot_file=None)
-    result = run_scene(job, args.output_dir)
-    print(result.table())
-    if job.netlist and not job.netlist_file:
-        sys.stdout.write(result.netlist)
-    for written in result.written:
-        print(f"wrote {written}")
-    if result.failures:
-        return EXIT_FAILED
-    if result.comparison is not None:
-        return _accuracy_exit(result.comparison.outside_bound(), job.preset, PRESETS[job.preset].bound)
-    return EXIT_OK
+    from .scenes.toml import load_scene, validated
+    solvers = _solver_list(args.solvers)
+    jobs = []
+    for path in args.scene_files:           # every file is read and checked before any work
+        job = load_scene(path)
+        changes = {k: v for k, v in (("dynamics", args.dynamics), ("preset", args.preset),
+                                      ("solvers", solvers)) if v is not None and v != getattr(job, k)}
+        if changes:
+            job = validated(job.replace(**changes))
+        jobs.append(job.replace(plot_file=None) if args.no_plot else job)
+    codes = []
+    for job in jobs:
+        if len(jobs) > 1:
+            print(f"== {job.source}")
+        result = run_scene(job, args.output_dir)
+        print(result.table())
+        if job.netlist and not job.netlist_file:
+            sys.stdout.write(result.netlist)
+        for written in result.written:
+            print(f"wrote {written}")
+        if result.failures:
+            codes.append(EXIT_FAILED)
+        elif result.comparison is not None:
+            codes.append(_accuracy_exit(result.comparison.outside_bound(), job.preset,
+                                        PRESETS[job.preset].bound))
+    return EXIT_FAILED if EXIT_FAILED in codes else max(codes, default=EXIT_OK)
+
+
+def _cmd_batch(args) -> int:
+    from .batch.cli import batch_command
+    return batch_command(args)
 
 
 def _positive(value: int, what: str) -> int:
@@ -385,7 +426,7 @@ def _cmd_scenes(args) -> int:
 
 _COMMANDS = {"netlist": _cmd_netlist, "compare": _cmd_compare, "verify": _cmd_verify, "modes": _cmd_modes, "ac": _cmd_ac,
              "scenes": _cmd_scenes, "draw": _cmd_draw, "run": _cmd_run, "bench": _cmd_bench,
-             "throughput": _cmd_throughput, "stress": _cmd_stress}
+             "throughput": _cmd_throughput, "stress": _cmd_stress, "batch": _cmd_batch}
 
 
 def main(argv=None) -> int:

@@ -165,13 +165,16 @@ def _group(payload):
     """Worker: a group's systems, compared through the orchestrator in one go.
 
     SPICE runs the group as one circuit; if that run fails, each scene runs alone, so
-    that one scene's failure is its own. Errors are against the exact solution.
+    that one scene's failure is its own. Errors are against the exact solution. Returns
+    per scene: errors and seconds per solver, failures (index to reason), the indices
+    that could not be built, and the kept trajectories.
     """
     task, preset, solvers, reference, keep = payload
     built, failures = _systems(task)
+    invalid = set(failures)
     ok = [k for k, s in enumerate(built) if s is not None]
     errors = {name: np.full(len(built), np.nan) for name in solvers}
-    seconds = {name: 0.0 for name in solvers}
+    seconds = {name: np.zeros(len(built)) for name in solvers}
     rates: list = [None] * len(built)
     comparisons = compare_many([built[k] for k in ok], preset, solvers, reference=reference) if ok else []
     for k, c in zip(ok, comparisons):
@@ -181,13 +184,13 @@ def _group(payload):
         for name in solvers:
             tr = c.results.get(name)
             if tr is not None:
-                seconds[name] += tr.run_time
-                if name in measured:
+                seconds[name][k] = tr.run_time
+                if name in measured and name != c.reference:     # the yardstick has no error
                     errors[name][k] = measured[name][1]
-        first = next((c.results[s] for s in solvers if s in c.results), None)
-        if keep and first is not None:
-            rates[k] = (first.time, first.rates)
-    return errors, seconds, failures, (rates if keep else None)
+        if keep:
+            rates[k] = {s: (c.results[s].time, c.results[s].rates) for s in solvers
+                        if s in c.results and c.results[s].success}
+    return errors, seconds, failures, invalid, (rates if keep else None)
 
 
 def _tasks(systems, group_size: int) -> list[tuple[list[int], tuple]]:
@@ -292,14 +295,14 @@ def run_batch(systems: Sequence, preset="fast", *, solvers: Sequence[str] = ("sp
         errors = {name: np.full(len(systems), np.nan) for name in names}
         seconds = {name: 0.0 for name in names}
         failures, times, rates = {}, [None] * len(systems), [None] * len(systems)
-        for (idx, _), (errs, sec, failed, kept) in zip(tasks, outputs):
+        for (idx, _), (errs, sec, failed, _invalid, kept) in zip(tasks, outputs):
             for name in names:
                 errors[name][idx] = errs[name]
-                seconds[name] += sec[name]
+                seconds[name] += float(sec[name].sum())
             failures.update((idx[j], why) for j, why in failed.items())
             for j, k in enumerate(idx):
-                if kept is not None and kept[j] is not None:
-                    times[k], rates[k] = kept[j]
+                if kept is not None and kept[j]:
+                    times[k], rates[k] = kept[j][names[0]] if names[0] in kept[j] else next(iter(kept[j].values()))
     finally:
         if own is not None:
             own.shutdown()

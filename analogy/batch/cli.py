@@ -1,0 +1,119 @@
+"""The ``analogy batch`` command: a sweep into a store on local processes or Dask, or a store's report."""
+
+from __future__ import annotations
+
+import sys
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Iterator
+
+from ..errors import InputError
+
+__all__ = ["batch_command", "dask_executor"]
+
+EXIT_OK, EXIT_FAILED, EXIT_ACCURACY, EXIT_INTERRUPTED = 0, 1, 3, 130
+
+
+@contextmanager
+def dask_executor(workers: int, scheduler: str | None = None) -> Iterator[object]:
+    """A ``concurrent.futures`` executor over Dask: the cluster at *scheduler*, or a LocalCluster.
+
+    The local cluster has *workers* processes of one thread each, since ngspice's
+    shared library is not thread-safe.
+
+    Parameters
+    ----------
+    workers : int
+        Worker processes of a local cluster.
+    scheduler : str, optional
+        Address of a running scheduler.
+    """
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        raise InputError("Dask is not installed: pip install 'analogy[dask]'") from None
+    cluster = None
+    try:
+        if scheduler is None:
+            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                   dashboard_address=None, silence_logs="error")
+            client = Client(cluster)
+        else:
+            client = Client(scheduler, timeout="10s")
+    except OSError as exc:
+        raise InputError(f"cannot reach the Dask scheduler {scheduler}: {exc}") from None
+    try:
+        yield client.get_executor()
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def batch_command(args) -> int:
+    """Run ``analogy batch`` from parsed arguments; return the exit code.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed arguments.
+    """
+    if args.sweep_file == "report":
+        return _report(args)
+    if args.report_dir is not None:
+        raise InputError(f"unexpected argument {args.report_dir!r}: give one sweep file and -o DIR")
+    if args.output is None:
+        raise InputError("give the results folder with -o DIR")
+    if args.workers < 1:
+        raise InputError("--workers must be at least 1")
+    from .runner import run_sweep, with_overrides
+    from .sweep import load_sweep
+    solvers = None
+    if args.solvers is not None:
+        solvers = tuple(dict.fromkeys(s.strip() for s in args.solvers.split(",") if s.strip()))
+        if not solvers:
+            raise InputError("--solvers names no solver")
+    sweep = with_overrides(load_sweep(args.sweep_file), args.preset, solvers)
+    progress = False if args.no_progress else None
+    if args.dask or args.scheduler:
+        with dask_executor(args.workers, args.scheduler) as executor:
+            run = run_sweep(sweep, args.output, executor=executor, isolated=args.isolated,
+                            trajectories=args.trajectories, progress=progress)
+    else:
+        run = run_sweep(sweep, args.output, workers=args.workers, isolated=args.isolated,
+                        trajectories=args.trajectories, progress=progress)
+    print(run.summary())
+    if run.interrupted:
+        print(f"analogy: interrupted: finished groups are stored in {args.output}; "
+              "run the same command to resume", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    print(f"stored in {args.output} (read it with pandas.read_parquet or 'analogy batch report {args.output}')")
+    if any(run.statuses.get(s) for s in ("failed", "invalid", "worker-died")):
+        return EXIT_FAILED
+    if run.statuses.get("inaccurate"):
+        print(f"analogy: accuracy: {run.statuses['inaccurate']} scenes are outside their preset's bound "
+              "(status 'inaccurate' in the store)", file=sys.stderr)
+        return EXIT_ACCURACY
+    return EXIT_OK
+
+
+def _report(args) -> int:
+    from .report import batch_report
+    if args.report_dir is None:
+        raise InputError("give the store to report on: analogy batch report DIR")
+    report = batch_report(args.report_dir)
+    store = Path(args.report_dir).resolve()
+    folder = Path(args.output) if args.output else Path(args.report_dir) / "_report"
+    inside = folder.resolve().relative_to(store).parts if folder.resolve().is_relative_to(store) else None
+    if inside is not None and (not inside or not inside[0].startswith("_")):
+        raise InputError(f"a report inside the store {args.report_dir} goes in a folder whose name starts "
+                         "with _ (the default is _report), so that the store stays a Parquet dataset")
+    if folder.exists() and not folder.is_dir():
+        raise InputError(f"cannot write the report into {folder}: it is a file")
+    try:
+        written = report.write(folder)
+    except OSError as exc:
+        raise InputError(f"cannot write the report: {exc}") from None
+    print(report.summary())
+    print("wrote " + ", ".join(str(p) for p in written))
+    return EXIT_OK

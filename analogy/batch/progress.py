@@ -1,0 +1,74 @@
+"""Progress of long work: a tqdm bar on a terminal, plain dated lines in a log."""
+
+from __future__ import annotations
+
+import sys
+import time as _time
+
+__all__ = ["Progress"]
+
+
+class Progress:
+    """Counts finished items; a bar with rate and ETA on a terminal, else a line every *every* seconds.
+
+    Parameters
+    ----------
+    total : int
+        Items in all.
+    initial : int
+        Items already done (a resumed run).
+    bar : bool, optional
+        Force the bar on or off (default: when *stream* is a terminal).
+    stream : file
+        Where progress goes.
+    unit : str
+        What an item is.
+    every : float
+        Seconds between plain lines.
+    """
+
+    def __init__(self, total: int, initial: int = 0, bar: bool | None = None, stream=None,
+                 unit: str = "scene", every: float = 10.0):
+        self.stream = stream or sys.stderr
+        self.total, self.done, self.unit, self.every = total, initial, unit, every
+        self._start = self._last = _time.monotonic()
+        self._first = initial
+        tty = getattr(self.stream, "isatty", lambda: False)()
+        self._bar = None
+        if (tty if bar is None else bar) and total > 0:
+            from tqdm import tqdm
+            self._bar = tqdm(total=total, initial=initial, unit=unit, file=self.stream, smoothing=0.05,
+                             mininterval=0.5, dynamic_ncols=True)
+
+    def update(self, count: int) -> None:
+        """Add *count* finished items.
+
+        Parameters
+        ----------
+        count : int
+            Items just finished.
+        """
+        self.done += count
+        if self._bar is not None:
+            self._bar.update(count)
+            return
+        now = _time.monotonic()
+        if now - self._last >= self.every:
+            self._last = now
+            print(self.line(), file=self.stream, flush=True)
+
+    def line(self) -> str:
+        """Done, rate and time left, in one line."""
+        elapsed = _time.monotonic() - self._start
+        rate = (self.done - self._first) / elapsed if elapsed > 0 else 0.0
+        left = (self.total - self.done) / rate if rate > 0 else float("nan")
+        share = 100.0 * self.done / self.total if self.total else 100.0
+        eta = f"{left / 60:.1f} min left" if left == left else "time left unknown"
+        return f"{self.done:,} of {self.total:,} {self.unit}s ({share:.1f}%), {rate:,.0f} {self.unit}s/s, {eta}"
+
+    def close(self) -> None:
+        """End the bar (a plain log gets a last line)."""
+        if self._bar is not None:
+            self._bar.close()
+        elif self.done > self._first:
+            print(self.line(), file=self.stream, flush=True)

@@ -1,0 +1,252 @@
+"""A results store summarised: error quantiles per solver and axis, the worst scenes, failures, plots."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..errors import InputError
+from .store import manifest, read
+
+if TYPE_CHECKING:
+    import pandas
+    from matplotlib.figure import Figure
+
+__all__ = ["BatchReport", "batch_report"]
+
+_QUANTILES = (0.5, 0.9, 0.99, 1.0)
+
+
+def _fmt(x) -> str:
+    return "n/a" if x is None or not np.isfinite(x) else f"{x:.2e}"
+
+
+@dataclass(eq=False)
+class BatchReport:
+    """What a sweep's results say: a markdown summary and plots of error against each axis.
+
+    Attributes
+    ----------
+    frame : pandas.DataFrame
+        The store's rows.
+    info : dict
+        The sweep's manifest.
+    """
+
+    frame: "pandas.DataFrame"
+    info: dict
+
+    @property
+    def solvers(self) -> list[str]:
+        """Solvers with an error column that holds at least one number."""
+        return [c[6:] for c in self.frame.columns if c.startswith("error_") and self.frame[c].notna().any()]
+
+    @property
+    def axes(self) -> list[str]:
+        """The swept axes."""
+        return [a["name"] for a in self.info.get("axes", [])]
+
+    def __repr__(self) -> str:
+        return f"<BatchReport {len(self.frame)} of {self.info.get('count', '?')} scenes, solvers {self.solvers}>"
+
+    def summary(self, worst: int = 10) -> str:
+        """The report as markdown: quantiles, errors by axis, worst scenes, failures.
+
+        Parameters
+        ----------
+        worst : int
+            How many of the worst scenes to list.
+        """
+        f, info = self.frame, self.info
+        lines = [f"# Sweep {info.get('scene', '')}: {len(f):,} of {info.get('count', 0):,} scenes stored", "",
+                 f"Design {info.get('method')} (seed {info.get('seed')}), {info.get('group_size')} scenes per "
+                 f"group{', each scene in its own ngspice run' if info.get('isolated') else ''}; errors are "
+                 "max |R − R_ref| / peak |R_ref| against the exact solution.", ""]
+        counts = f["status"].value_counts() if len(f) else {}
+        lines += ["Status: " + ", ".join(f"{n:,} {s}" for s, n in counts.items()), ""]
+        if not self.info.get("isolated"):
+            lines += ["Scenes of a group share one ngspice run, so its step control follows the fastest of "
+                      "them: a scene's error can differ from its error alone (run with --isolated for that).", ""]
+        if self.solvers:
+            lines += ["| solver | median | 90 % | 99 % | max | median seconds |", "|---|---|---|---|---|---|"]
+            for s in self.solvers:
+                e = f[f"error_{s}"].dropna()
+                q = [e.quantile(p) if len(e) else np.nan for p in _QUANTILES]
+                sec = f[f"seconds_{s}"].median()
+                lines.append(f"| {s} | " + " | ".join(_fmt(x) for x in q) + f" | {sec:.2e} |")
+            lines.append("")
+        for axis in self.axes:
+            if axis not in f or not self.solvers:
+                continue
+            col = f[axis]
+            if col.dtype.kind == "f" and col.nunique() > 8:
+                import pandas as pd
+                bins = pd.qcut(col, 5, duplicates="drop")
+            else:
+                bins = col
+            lines += [f"## Error against {axis}", "",
+                      "| " + axis + " | scenes | " + " | ".join(f"{s} median | {s} max" for s in self.solvers) + " |",
+                      "|---|---|" + "---|---|" * len(self.solvers)]
+            for label, part in f.groupby(bins, observed=True):
+                cells = []
+                for s in self.solvers:
+                    e = part[f"error_{s}"].dropna()
+                    cells += [_fmt(e.median() if len(e) else np.nan), _fmt(e.max() if len(e) else np.nan)]
+                lines.append(f"| {label} | {len(part):,} | " + " | ".join(cells) + " |")
+            lines.append("")
+        if self.solvers:
+            first = f"error_{self.solvers[0]}"
+            top = f.dropna(subset=[first]).nlargest(worst, first)
+            lines += [f"## The {len(top)} worst scenes ({self.solvers[0]})", "",
+                      "| index | " + " | ".join(self.axes) + " | error | key |",
+                      "|---|" + "---|" * len(self.axes) + "---|---|"]
+            for _, row in top.iterrows():
+                vals = " | ".join(f"{row[a]:.6g}" if isinstance(row[a], float) else str(row[a]) for a in self.axes)
+                lines.append(f"| {row['index']} | {vals} | {_fmt(row[first])} | {row['key'][:12]} |")
+            lines.append("")
+        bad = f[f["status"] != "ok"]
+        if len(bad):
+            lines += ["## Not ok, by reason", "", "| status | scenes | reason (first seen) |", "|---|---|---|"]
+            for (status, message), part in bad.groupby(["status", "message"]):
+                lines.append(f"| {status} | {len(part):,} | {' '.join(str(message).split())[:200]} |")
+            lines.append("")
+        return "\n".join(lines)
+
+    def plot_axes(self, path=None) -> "Figure":
+        """Error against each swept axis (one panel per axis, every solver), log scale.
+
+        Parameters
+        ----------
+        path : str or Path, optional
+            Image file to write.
+        """
+        from matplotlib.figure import Figure
+        axes = [a for a in self.axes if a in self.frame] or ["index"]
+        fig = Figure(figsize=(4.2 * len(axes), 3.6), layout="constrained")
+        panels = np.atleast_1d(fig.subplots(1, len(axes), sharey=True))
+        f = self.frame.sample(min(len(self.frame), 20_000), random_state=0) if len(self.frame) else self.frame
+        for ax, axis in zip(panels, axes):
+            for s, marker in zip(self.solvers, "o^sv"):
+                e = f[f"error_{s}"]
+                ok = e > 0
+                x = f[axis][ok]
+                ax.scatter(x if x.dtype.kind in "fi" else x.astype(str), e[ok], s=4, alpha=0.4,
+                           marker=marker, label=s, rasterized=True)
+            ax.set_yscale("log")
+            ax.set_xlabel(_label(axis))
+            ax.grid(alpha=0.3)
+        panels[0].set_ylabel("max error / peak rate (1)")
+        if self.solvers:
+            fig.legend(*panels[0].get_legend_handles_labels(), loc="outside upper right", ncols=len(self.solvers),
+                       markerscale=3)
+        fig.suptitle(f"{self.info.get('scene', '')}: error against each swept axis "
+                     f"({len(f):,} scenes shown)", fontsize="medium")
+        if path is not None:
+            fig.savefig(path, dpi=110)
+        return fig
+
+    def plot_histogram(self, path=None) -> "Figure":
+        """Histograms of each solver's error (log10).
+
+        Parameters
+        ----------
+        path : str or Path, optional
+            Image file to write.
+        """
+        from matplotlib.figure import Figure
+        fig = Figure(figsize=(6, 3.6), layout="constrained")
+        ax = fig.subplots()
+        for s in self.solvers:
+            e = self.frame[f"error_{s}"]
+            e = e[e > 0]
+            if len(e):
+                ax.hist(np.log10(e), bins=60, histtype="step", linewidth=1.5, label=s)
+        ax.set_xlabel("log10(max error / peak rate)")
+        ax.set_ylabel("scenes")
+        if self.solvers:
+            ax.legend(loc="upper left", frameon=False)
+        ax.set_title(f"{self.info.get('scene', '')}: {len(self.frame):,} scenes", fontsize="medium")
+        if path is not None:
+            fig.savefig(path, dpi=110)
+        return fig
+
+    def plot_map(self, path=None, solver: str | None = None) -> "Figure | None":
+        """The error over the first two numeric axes, as a coloured map (None with fewer than two).
+
+        Parameters
+        ----------
+        path : str or Path, optional
+            Image file to write.
+        solver : str, optional
+            Whose error (default: the first solver).
+        """
+        from matplotlib.colors import LogNorm
+        from matplotlib.figure import Figure
+        numeric = [a for a in self.axes if a in self.frame and self.frame[a].dtype.kind == "f"]
+        if len(numeric) < 2 or not self.solvers:
+            return None
+        solver = solver or self.solvers[0]
+        x, y = numeric[:2]
+        f = self.frame
+        e = f[f"error_{solver}"]
+        fig = Figure(figsize=(6.4, 5), layout="constrained")
+        ax = fig.subplots()
+        good = e > 0
+        sc = ax.scatter(f[x][good], f[y][good], c=e[good], s=max(2.0, 3e4 / max(len(f), 1)), marker="s",
+                        norm=LogNorm(), cmap="viridis", rasterized=True)
+        failed = f["status"].isin(["failed", "invalid", "worker-died"])
+        if failed.any():
+            ax.scatter(f[x][failed], f[y][failed], s=6, c="red", marker="x", label="no result")
+            ax.legend(loc="outside lower center")
+        fig.colorbar(sc, ax=ax, label=f"{solver} max error / peak rate (1)")
+        ax.set_xlabel(_label(x))
+        ax.set_ylabel(_label(y))
+        ax.set_title(f"{self.info.get('scene', '')}: {solver} error over ({x}, {y})", fontsize="medium")
+        if path is not None:
+            fig.savefig(path, dpi=110)
+        return fig
+
+    def write(self, folder) -> list[Path]:
+        """Write ``report.md``, ``errors_by_axis.png``, ``error_histogram.png`` and ``error_map.png``.
+
+        Parameters
+        ----------
+        folder : str or Path
+            Where (made if missing).
+        """
+        out = Path(folder)
+        out.mkdir(parents=True, exist_ok=True)
+        written = [out / "report.md"]
+        written[0].write_text(self.summary() + "\n")
+        if len(self.frame) and self.solvers:
+            self.plot_axes(out / "errors_by_axis.png")
+            self.plot_histogram(out / "error_histogram.png")
+            written += [out / "errors_by_axis.png", out / "error_histogram.png"]
+            if self.plot_map(out / "error_map.png") is not None:
+                written.append(out / "error_map.png")
+        return written
+
+
+def _label(axis: str) -> str:
+    """An axis name with its unit where the name says it (joint angles in rad, rates in rad/s)."""
+    from .sweep import axis_kind
+    kind, _ = axis_kind(axis)
+    unit = {"q": " [rad or m]", "rate": " [rad/s or m/s]", "t_stop": " [s]", "force": " [N·m or N]"}.get(kind, "")
+    return axis + unit
+
+
+def batch_report(directory) -> BatchReport:
+    """The report of the results store *directory*.
+
+    Parameters
+    ----------
+    directory : str or Path
+        A folder ``analogy batch`` wrote.
+    """
+    frame = read(directory)
+    if frame.empty:
+        raise InputError(f"{directory} holds no results yet")
+    return BatchReport(frame, manifest(directory))
