@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+import logging
 import sys
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator
 
-from ..errors import InputError
+from ..errors import InputError, SimulationError
 
 __all__ = ["batch_command", "dask_executor"]
 
@@ -36,12 +37,14 @@ def dask_executor(workers: int, scheduler: str | None = None) -> Iterator[object
     try:
         if scheduler is None:
             cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                   dashboard_address=None, silence_logs="error")
+                                   dashboard_address=None, silence_logs=logging.ERROR)
             client = Client(cluster)
         else:
             client = Client(scheduler, timeout="10s")
-    except OSError as exc:
+    except (OSError, TimeoutError) as exc:
         raise InputError(f"cannot reach the Dask scheduler {scheduler}: {exc}") from None
+    except RuntimeError as exc:
+        raise SimulationError(f"the Dask cluster did not start: {exc}") from None
     try:
         yield client.get_executor()
     finally:
