@@ -140,6 +140,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--baseline", type=int, default=500, help="scenes for the per-scene loops (default 500)")
     p.add_argument("--repeats", type=int, default=3, help="turns of every path; medians are reported (default 3)")
     p.add_argument("--preset", default="fast", choices=list(PRESETS), help=PRESET_HELP)
+    p.add_argument("--sweep", metavar="SWEEP.toml", help="instead: this sweep into the store -o DIR, "
+                   "beside the in-memory batched path on its first --baseline scenes, with peak memory")
+    p.add_argument("-o", "--output", metavar="DIR", help="the store of --sweep")
     return parser
 
 
@@ -393,6 +396,14 @@ def _cmd_stress(args) -> int:
 
 
 def _cmd_throughput(args) -> int:
+    if args.sweep is not None:
+        from .batch.benchmark import store_throughput
+        from .batch.sweep import load_sweep
+        if args.output is None:
+            raise InputError("--sweep needs the results folder -o DIR")
+        print(store_throughput(load_sweep(args.sweep), args.output, sample=_positive(args.baseline, "--baseline"),
+                               workers=_positive(args.workers, "--workers")))
+        return EXIT_OK
     from .bench import throughput
     print(throughput(n=_positive(args.n, "-n"), preset=args.preset,
                      group_size=_positive(args.group_size, "--group-size"),

@@ -11,7 +11,7 @@ import time as _time
 from concurrent.futures import FIRST_COMPLETED, Executor, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field, replace
-from typing import Sequence
+from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
@@ -24,7 +24,11 @@ from .run import _group, _tasks, _worker_context
 from .store import ResultStore
 from .sweep import Sweep
 
-__all__ = ["SweepRun", "run_sweep", "solve_group", "row_schema"]
+if TYPE_CHECKING:
+    import pandas
+    import pyarrow
+
+__all__ = ["SweepRun", "row_schema", "run_sweep", "solve_group", "with_overrides"]
 
 _ATTEMPTS = 2           # a group whose worker died is retried once
 
@@ -74,13 +78,13 @@ class SweepRun:
     def __repr__(self) -> str:
         return f"<SweepRun {self.summary()}>"
 
-    def to_frame(self):
+    def to_frame(self) -> "pandas.DataFrame":
         """The whole store as a DataFrame (:func:`analogy.batch.store.read`)."""
         from .store import read
         return read(self.directory)
 
 
-def row_schema(sweep: Sweep, solvers: Sequence[str]):
+def row_schema(sweep: Sweep, solvers: Sequence[str]) -> "pyarrow.Schema":
     """The Parquet schema of a sweep's rows.
 
     Parameters

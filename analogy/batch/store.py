@@ -16,7 +16,7 @@ if TYPE_CHECKING:
     import pandas
     import pyarrow
 
-__all__ = ["ResultStore", "read", "read_trajectories", "STATUSES"]
+__all__ = ["ResultStore", "STATUSES", "manifest", "read", "read_trajectories"]
 
 #: Row status: solved within the bound, outside it, a solver failed, the scene is invalid, its worker died.
 STATUSES = ("ok", "inaccurate", "failed", "invalid", "worker-died")
@@ -146,12 +146,14 @@ class ResultStore:
         if not pending:
             self._pending_rows = 0
             return
-        stored = set(self._index_column().tolist()) if self._parts else set()
+        stored = np.sort(self._index_column()) if self._parts else np.empty(0, dtype=np.int64)
         tables, done = [], []
         for p in pending:
             t = _read_ipc(p)
             done.append(p)
-            if stored and int(t.column("index")[0].as_py()) in stored:
+            first = int(t.column("index")[0].as_py())
+            at = np.searchsorted(stored, first)
+            if at < stored.size and stored[at] == first:
                 continue        # merged before a kill stopped the clean-up
             tables.append(t)
             traj = p.with_name(p.name.replace(".arrow", ".traj.arrow"))
