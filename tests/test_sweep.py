@@ -239,3 +239,59 @@ def test_batch_report_summarises_quantiles_axes_and_worst_scenes(tmp_path, capsy
     for name in ("report.md", "errors_by_axis.png", "error_histogram.png", "error_map.png"):
         assert (tmp_path / "s" / "_report" / name).stat().st_size > 0
     assert len(pd.read_parquet(tmp_path / "s")) == 200       # the report leaves the dataset readable
+
+
+@pytest.mark.ngspice
+def test_trajectories_are_kept_downsampled_in_a_second_table(tmp_path):
+    from analogy.batch import read_trajectories
+    sw = load_sweep(sweep_file(tmp_path, count=6, group=3))
+    run_sweep(sw, tmp_path / "s", workers=1, trajectories=11, progress=False)
+    traj = read_trajectories(tmp_path / "s")
+    assert set(traj["solver"]) == {"spice", "exact"}
+    assert len(traj) == 6 * 2 * 11 and set(traj["key"]) == set(read(tmp_path / "s")["key"])
+    one = traj[(traj["solver"] == "exact") & (traj["key"] == traj["key"].iloc[0])]
+    np.testing.assert_allclose(one["t"], np.linspace(0.0, 10.0, 11))
+    assert len(pd.read_parquet(tmp_path / "s")) == 6          # the second table is not in the rows
+
+
+@pytest.mark.ngspice
+@pytest.mark.slow
+def test_groups_of_a_killed_worker_are_retried_and_every_scene_stored_once(tmp_path):
+    path = sweep_file(tmp_path, count=4000, group=50)
+    store = tmp_path / "s"
+    proc = _start_batch(path, store)
+    _wait_for_groups(store, proc, 5)
+    victim = _children(proc.pid)[0]
+    os.kill(victim, signal.SIGKILL)
+    out, err = proc.communicate(timeout=120)
+    assert proc.returncode == 0, err
+    frame = read(store)
+    assert len(frame) == 4000 and frame["index"].is_unique
+    assert set(frame["status"]) == {"ok"}          # retried groups were solved, not lost
+
+
+@pytest.mark.ngspice
+def test_run_takes_several_scene_files_and_overrides_their_preset(tmp_path, capsys):
+    for name, q in (("a", "0.3"), ("b", "-1.0")):
+        (tmp_path / f"{name}.toml").write_text(
+            f'[model]\nrobot = "serial2"\n[configuration]\nq = [0, {q}]\n[inputs]\nforces = [1, 0]\n'
+            't_stop = 2\n[solvers]\nuse = ["spice", "exact"]\npreset = "accurate"\n')
+    assert main(["run", str(tmp_path / "a.toml"), str(tmp_path / "b.toml"), "--preset", "fast",
+                 "--solvers", "spice,ode"]) == 0
+    out = capsys.readouterr().out
+    assert out.count("== ") == 2 and "ode" in out and "fast" in out
+    assert main(["run", str(tmp_path / "a.toml"), str(tmp_path / "missing.toml")]) == 2
+    assert "a.toml" not in capsys.readouterr().out          # nothing ran before every file was read
+
+
+def test_progress_is_plain_lines_when_stderr_is_not_a_terminal():
+    import io
+
+    from analogy.batch.progress import Progress
+    log = io.StringIO()
+    bar = Progress(1000, initial=100, stream=log, every=0.0)
+    bar.update(450)
+    bar.close()
+    lines = log.getvalue().splitlines()
+    assert lines and all("of 1,000 scenes" in line and "\r" not in line for line in lines)
+    assert lines[-1].startswith("550 of 1,000 scenes (55.0%)")

@@ -321,6 +321,7 @@ def run_sweep(sweep: Sweep, directory, *, workers: int = 2, executor: Executor |
     inflight: dict = {}
     attempts: dict = {}
     retry: list = []
+    deaths = (BrokenProcessPool,) + _worker_death_types()
     old_term = None
     if threading.current_thread() is threading.main_thread():
         def _term(signum, frame):
@@ -344,7 +345,7 @@ def run_sweep(sweep: Sweep, directory, *, workers: int = 2, executor: Executor |
                 a, b, pts = item
                 try:
                     cols, traj = fut.result()
-                except (BrokenProcessPool, _worker_death_types()) as exc:
+                except deaths as exc:
                     broken = broken or isinstance(exc, BrokenProcessPool)
                     attempts[a] = attempts.get(a, 0) + 1
                     if attempts[a] < _ATTEMPTS:
