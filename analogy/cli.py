@@ -95,6 +95,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output-dir", default=".", help="folder for the drawings (default: .)")
     p.add_argument("--stem", help="file name stem (default: the scene's name, with its content "
                                   "key when changed from a built-in scene)")
+    p.add_argument("--schematic", action="store_true", help="draw schematics even past 6 nodes "
+                   "(default there: a map of the element values by node pair)")
     p = sub.add_parser("run", help="run scene files (TOML): exactly what each asks for")
     p.add_argument("scene_files", nargs="+", metavar="SCENE.toml", help="one or more .toml scenes")
     p.add_argument("--preset", choices=list(PRESETS), help="override each scene's accuracy preset")
@@ -305,7 +307,12 @@ def _cmd_draw(args) -> int:
     except OSError as exc:
         raise InputError(f"cannot create {out}: {exc.strerror}") from None
     _check_writable(out / stem)
-    for path in draw(system, out, stem):
+    from .circuit.diagram import MAX_SCHEMATIC_NODES, schematic_fits
+    if not args.schematic and not schematic_fits(system):
+        print(f"analogy: note: {system.dof} nodes are past the {MAX_SCHEMATIC_NODES} a schematic keeps "
+              "readable, so the element values are drawn as a map by node pair (--schematic draws it anyway)",
+              file=sys.stderr)
+    for path in draw(system, out, stem, schematic=True if args.schematic else None):
         print(f"wrote {path}")
     return EXIT_OK
 

@@ -4,6 +4,7 @@ import re
 import xml.etree.ElementTree as ET
 from collections import Counter
 
+import matplotlib.image
 import pytest
 
 pytest.importorskip("schemdraw")
@@ -78,7 +79,7 @@ def systems():
 @pytest.mark.parametrize("name", SCENES)
 def test_both_diagrams_label_every_element_and_source_once(name, systems, tmp_path):
     system = systems[name]
-    paths = diagram.draw(system, tmp_path, name)
+    paths = diagram.draw(system, tmp_path, name, schematic=True)
     assert [p.name for p in paths] == [f"{name}_circuit.svg", f"{name}_circuit.png",
                                        f"{name}_mechanism.svg", f"{name}_mechanism.png"]
     for p in paths:
@@ -113,7 +114,7 @@ def test_negative_mp_capacitance_is_shown(systems, tmp_path):
     diagram.draw_mechanism(system, tmp_path / "m.svg")
     shown = f"= \u2212{abs(c12.value):.3g}"
     assert shown + " F" in svg_texts(tmp_path / "c.svg")
-    assert shown in svg_texts(tmp_path / "m.svg")
+    assert shown + " kg\u00b7m\u00b2" in svg_texts(tmp_path / "m.svg")     # revolute joints: an inertia
 
 
 @pytest.mark.parametrize("name", ["serial3", "parallel3", "random10"])
@@ -157,3 +158,21 @@ def test_suffix_selects_the_format(systems, tmp_path):
     with pytest.raises(InputError):
         diagram.draw_circuit(system, tmp_path / "x.pdf")
     assert diagram.draw_circuit(system).elements   # no path: nothing written
+
+
+def test_past_six_nodes_the_element_map_shows_every_element_once_with_its_sign(systems, tmp_path):
+    """The map's cells carry every element's mechanical value; a schematic is not drawn."""
+    system = systems["random10"]
+    assert system.dof > diagram.MAX_SCHEMATIC_NODES
+    paths = diagram.draw(system, tmp_path, "r10")
+    assert [p.name for p in paths] == ["r10_elements.svg", "r10_elements.png"]
+    assert_png(paths[1])
+    image = matplotlib.image.imread(paths[1])
+    assert max(image.shape[:2]) < 2000              # readable at full size, not a poster
+    cells = [t for t in svg_texts(paths[0]) if re.fullmatch(r"[\u2212-]?[0-9.]+(e[\u2212+-]?\d+)?", t)]
+    values = sorted(float(t.replace("\u2212", "-")) for t in cells)
+    expected = sorted(float(f"{e.coefficient:.3g}" if not e.floating else f"{e.coefficient:.2g}")
+                      for e in elements(system))
+    assert len(values) >= len(expected)
+    assert all(min(abs(v - x) for v in values) <= 1e-12 + 1e-9 * abs(x) for x in expected)
+    assert any(v < 0 for v in values)               # negative MP capacitances are there, with their sign

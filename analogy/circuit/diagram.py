@@ -37,10 +37,13 @@ from .elements import ZERO_TOL
 if TYPE_CHECKING:
     from .node_system import NodeSystem
 
-__all__ = ["draw_circuit", "draw_mechanism", "draw", "FORMATS"]
+__all__ = ["draw_circuit", "draw_mechanism", "draw", "mechanical_units", "schematic_fits", "FORMATS",
+           "MAX_SCHEMATIC_NODES"]
 
 #: File formats written when a path has no suffix.
 FORMATS = (".svg", ".png")
+#: Largest node count drawn as schematics by :func:`draw`; larger systems get an element map.
+MAX_SCHEMATIC_NODES = 6
 
 _XY = tuple[float, float]
 _GAP = (float("nan"), float("nan"))   # pen up inside a schemdraw segment path
@@ -73,6 +76,8 @@ class _Part:
     coefficient: float     # mass, damping or stiffness, or the source scale
     joint: int = 0         # sources: the joint whose force drives it, 1-based
     into_a: bool = True    # sources: current (force) flows into node a, else into node b
+    waveform: str = ""     # sources: the joint force as written, e.g. step(1)
+    unit: str = ""         # the mechanical value's unit, e.g. kg·m² (empty when the model has none)
 
 
 @dataclass
@@ -96,15 +101,35 @@ class _Layout:
 def _parts(system: NodeSystem, zero_tol: float) -> list[_Part]:
     """Elements then force sources, read from the circuit description."""
     c = circuit(system, zero_tol)
-    parts = [_Part(e.name, e.kind, e.a, e.b, e.value, e.coefficient) for e in c.elements]
+    units = mechanical_units(system.info.get("units"))
+    parts = [_Part(e.name, e.kind, e.a, e.b, e.value, e.coefficient, unit=units[e.kind]) for e in c.elements]
     for src in c.sources:
         if src.b == 0 or src.scale != 1.0:
             a, b, into_a = src.a, src.b, True
         else:
             a, b = min(src.a, src.b), max(src.a, src.b)
             into_a = src.a == a
-        parts.append(_Part(src.name, "I", a, b, src.scale, src.scale, src.joint, into_a=into_a))
+        wave = " + ".join(w.label() for w in system.forces[src.joint - 1]) or "0"
+        parts.append(_Part(src.name, "I", a, b, src.scale, src.scale, src.joint, into_a=into_a,
+                           waveform=wave, unit=units["I"]))
     return parts
+
+
+def mechanical_units(joint_units) -> dict[str, str]:
+    """Units of mass, damping, stiffness and force values on nodes whose coordinates have *joint_units*.
+
+    Parameters
+    ----------
+    joint_units : sequence of str or None
+        ``"rad"`` or ``"m"`` per joint (:func:`analogy.units.joint_units`); mixed or
+        unknown units leave the values in SI without a name.
+    """
+    kinds = set(joint_units or ())
+    if kinds == {"rad"}:
+        return {"C": "kg·m²", "R": "N·m·s/rad", "L": "N·m/rad", "I": "N·m"}
+    if kinds == {"m"}:
+        return {"C": "kg", "R": "N·s/m", "L": "N/m", "I": "N"}
+    return {"C": "(SI)", "R": "(SI)", "L": "(SI)", "I": "(SI)"}
 
 
 def _layout(parts: Sequence[_Part], n: int) -> _Layout:
@@ -263,18 +288,26 @@ class _LinkGround(elm.Element):
         self.anchors["start"] = (0, 0)
 
 
+def _wave(p: _Part) -> str:
+    return p.waveform if len(p.waveform) <= 24 else p.waveform[:21] + "..."
+
+
 def _circuit_label(p: _Part) -> str:
     if p.kind == "I":
-        return f"{p.name}\n= f{p.joint}" if p.value == 1.0 else f"{p.name}\n= {_number(p.value)}\u00b7f{p.joint}"
+        if p.value == 1.0:
+            return f"{p.name}\n= f{p.joint} = {_wave(p)} A"
+        return f"{p.name}\n= {_number(p.value)}\u00b7f{p.joint},\nf{p.joint} = {_wave(p)} A"
     return f"{p.name}\n= {_number(p.value)} {_UNITS[p.kind]}"
 
 
 def _mechanism_label(p: _Part) -> str:
     suffix = p.name[1:]
     if p.kind == "I":
-        return f"f{suffix}" if p.value == 1.0 else f"f{suffix}\n= {_number(p.value)}\u00b7f{p.joint}"
+        if p.value == 1.0:
+            return f"f{suffix}\n= {_wave(p)} {p.unit}"
+        return f"f{suffix}\n= {_number(p.value)}\u00b7f{p.joint},\nf{p.joint} = {_wave(p)} {p.unit}"
     prefix = {"C": "MP p\u2032" if p.b else "m\u2032", "R": "b\u2032", "L": "k\u2032"}[p.kind]
-    return f"{prefix}{suffix}\n= {_number(p.coefficient)}"
+    return f"{prefix}{suffix}\n= {_number(p.coefficient)} {p.unit}"
 
 
 _CIRCUIT = {"C": elm.Capacitor, "R": elm.Resistor, "L": elm.Inductor, "I": elm.SourceI}
@@ -395,9 +428,25 @@ def draw_mechanism(system: NodeSystem, path: str | Path | None = None, *, zero_t
     return d
 
 
+def schematic_fits(system: NodeSystem) -> bool:
+    """True when the schematics stay readable: at most :data:`MAX_SCHEMATIC_NODES` nodes.
+
+    Parameters
+    ----------
+    system : NodeSystem
+        The system.
+    """
+    return system.dof <= MAX_SCHEMATIC_NODES
+
+
 def draw(system: NodeSystem, directory: str | Path, stem: str = "system", *,
-         zero_tol: float = ZERO_TOL) -> list[Path]:
+         zero_tol: float = ZERO_TOL, schematic: bool | None = None) -> list[Path]:
     """Write ``<stem>_circuit`` and ``<stem>_mechanism`` as SVG and PNG into *directory*.
+
+    Past :data:`MAX_SCHEMATIC_NODES` nodes a schematic's bridges pile up past reading
+    (10 nodes: 45 nested bridges on a 5,863 × 3,589 px page), so ``<stem>_elements``
+    (:func:`analogy.circuit.element_map.draw_element_map`) is drawn instead, unless
+    *schematic* is True.
 
     Parameters
     ----------
@@ -409,14 +458,25 @@ def draw(system: NodeSystem, directory: str | Path, stem: str = "system", *,
         File name stem.
     zero_tol : float
         Relative tolerance under which an element is left out.
+    schematic : bool, optional
+        Draw the schematics (True), the element map (False), or whichever fits (None).
 
     Returns
     -------
     list of Path
-        The four files written.
+        The files written.
     """
     out = Path(directory)
     out.mkdir(parents=True, exist_ok=True)
+    if schematic is False or (schematic is None and not schematic_fits(system)):
+        from .element_map import draw_element_map
+        paths = [out / f"{stem}_elements{s}" for s in FORMATS]
+        import matplotlib
+        fig = draw_element_map(system, zero_tol=zero_tol)
+        with matplotlib.rc_context({"svg.fonttype": "none", "svg.hashsalt": "analogy"}):
+            for p in paths:      # SVG text stays text: searchable, and the same on every run
+                fig.savefig(p, dpi=110, metadata={"Date": None} if p.suffix == ".svg" else None)
+        return paths
     circuit = _write(draw_circuit(system, zero_tol=zero_tol), [out / f"{stem}_circuit{s}" for s in FORMATS])
     return circuit + _write(draw_mechanism(system, zero_tol=zero_tol),
                             [out / f"{stem}_mechanism{s}" for s in FORMATS])

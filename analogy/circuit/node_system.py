@@ -8,6 +8,7 @@ from typing import Iterator, Mapping, NamedTuple, Protocol, Sequence
 import numpy as np
 
 from ..errors import InputError
+from ..units import joint_units
 from ..model.dynamics import DynamicsKind
 from ..model.joint import (
     JointSpace,
@@ -388,7 +389,8 @@ def _evaluated(model, q, parameters, topology):
         top_spec = topology if topology is not None else model.topology
         values = dict(model.parameters, **(parameters or {}))
         base_info = {"robot": model.name, "parameters": values,
-                     "configuration": dict(zip((str(c) for c in model.coordinates), q or []))}
+                     "configuration": dict(zip((str(c) for c in model.coordinates), q or [])),
+                     "units": joint_units(model.name, model.coordinates)}
     elif isinstance(model, JointSpace):
         joint = model
         top_spec = topology if topology is not None else "parallel"

@@ -7,6 +7,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from ..errors import InputError
+from ..units import joint_units
 from ..model.dynamics import DynamicsKind, MechanicalFunctions
 from ..model.joint import check_square_symmetric, check_vector
 from .node_system import NodeCoordinates, force_breakpoints, waveforms
@@ -233,7 +234,8 @@ def nonlinear_system(model, q: Sequence[float], *, parameters: Mapping[str, floa
     top = make_topology(model.topology if topology is None else topology, n)
     values = dict(model.parameters, **(parameters or {}))
     base = {"robot": model.name, "parameters": values,
-            "configuration": dict(zip((str(c) for c in model.coordinates), list(q)))}
+            "configuration": dict(zip((str(c) for c in model.coordinates), list(q))),
+            "units": joint_units(model.name, model.coordinates)}
     base.update(info or {})
     return NonlinearNodeSystem(functions, q, top, waveforms(forces, n),
                                np.zeros(n) if initial_rates is None else initial_rates, t_stop, base,

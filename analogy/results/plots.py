@@ -6,10 +6,11 @@ import numpy as np
 from matplotlib.figure import Figure  # no pyplot: works headless, with no global state
 
 from ..errors import InputError
+from ..units import quantity_label, rate_label, rate_unit
 from .output import check_plot_path
 
-__all__ = ["solver_style", "plot_trajectory", "plot_comparison", "plot_quantities", "plot_linear_horizon",
-           "plot_bode"]
+__all__ = ["solver_style", "shown_joints", "error_envelope", "plot_trajectory", "plot_comparison",
+           "plot_quantities", "plot_linear_horizon", "plot_bode", "MANY_JOINTS"]
 
 
 _STYLES = {"exact": dict(ls="-", lw=2.0, alpha=0.5), "spice": dict(ls="--", lw=1.2),
@@ -34,7 +35,65 @@ def _save(fig: Figure, path) -> Figure:
     return fig
 
 
-def plot_trajectory(trajectory, path=None) -> Figure:
+#: From this many joints up, plots show a chosen few (the largest peaks) and the error over all.
+MANY_JOINTS = 7
+_FEW = 4
+
+
+def shown_joints(rates: np.ndarray) -> list[int]:
+    """Joints to draw: all of up to 6, else the 4 with the largest peak |rate| (in joint order).
+
+    Parameters
+    ----------
+    rates : ndarray, shape (N, n)
+        Joint rates of one solver.
+    """
+    n = rates.shape[1]
+    if n < MANY_JOINTS:
+        return list(range(n))
+    peaks = np.max(np.abs(rates), axis=0) if rates.size else np.zeros(n)
+    return sorted(np.argsort(-peaks, kind="stable")[:_FEW].tolist())
+
+
+def error_envelope(time: np.ndarray, error: np.ndarray, bins: int = 400) -> tuple[np.ndarray, np.ndarray]:
+    """A running maximum of *error* over *bins* equal windows of time, as a step curve.
+
+    Step-to-step ringing (trapezoidal, or SPICE's own steps) fills a plain plot of the
+    error with a solid band; its envelope shows how large the error gets, and when.
+
+    Parameters
+    ----------
+    time : ndarray
+        Time points (ascending).
+    error : ndarray
+        Error at each point.
+    bins : int
+        Windows over [t0, t_end].
+    """
+    if time.size <= 2 * bins:
+        return time, error
+    edges = np.linspace(time[0], time[-1], bins + 1)
+    which = np.clip(np.searchsorted(edges, time, side="right") - 1, 0, bins - 1)
+    top = np.full(bins, np.nan)
+    np.fmax.at(top, which, error)
+    keep = np.isfinite(top)
+    t = np.repeat(edges[:-1][keep], 2)
+    t[1::2] = edges[1:][keep]
+    return t, np.repeat(top[keep], 2)
+
+
+def _legends(ax, joints: list[int], units, solvers: list[str]) -> None:
+    """Two compact legends outside the axes: colour is the joint, line style the solver."""
+    from matplotlib.lines import Line2D
+    handles = [Line2D([], [], color=f"C{j % 10}", lw=2, label=f"r{j + 1}" + (f" [{rate_unit(units[j])}]"
+                                                                              if units else ""))
+               for j in joints]
+    handles += [Line2D([], [], color="k", label=name, **solver_style(name)) for name in solvers]
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False,
+              fontsize="small", title="joint / solver", title_fontsize="small")
+
+
+def plot_trajectory(trajectory, path=None, units=None) -> Figure:
     """Joint rates of one trajectory against time.
 
     Parameters
@@ -43,21 +102,28 @@ def plot_trajectory(trajectory, path=None) -> Figure:
         A successful solver result.
     path : str or Path, optional
         Image file to write.
+    units : sequence of str, optional
+        Joint units (:func:`analogy.units.joint_units`).
     """
-    fig = Figure(figsize=(8, 3.5), layout="constrained")
+    fig = Figure(figsize=(8.5, 3.5), layout="constrained")
     ax = fig.subplots()
-    for j in range(trajectory.rates.shape[1]):
-        ax.plot(trajectory.time, trajectory.rates[:, j], color=f"C{j % 10}", label=f"r{j + 1}",
-                **solver_style(trajectory.solver))
+    joints = shown_joints(trajectory.rates)
+    for j in joints:
+        ax.plot(trajectory.time, trajectory.rates[:, j], color=f"C{j % 10}", **solver_style(trajectory.solver))
     ax.set_xlabel("time [s]")
-    ax.set_ylabel("joint rate [rad/s or m/s]")
-    ax.set_title(f"{trajectory.solver}")
-    ax.legend(fontsize="small")
+    ax.set_ylabel(rate_label(units))
+    n = trajectory.rates.shape[1]
+    ax.set_title(f"{trajectory.solver}" + (f": {len(joints)} of {n} joints (largest peaks)" if len(joints) < n
+                                           else ""), fontsize="medium")
+    _legends(ax, joints, units, [trajectory.solver])
     return _save(fig, path)
 
 
 def plot_comparison(comparison, path=None) -> Figure:
-    """Joint rates (all solvers overlaid) and |error| against the reference.
+    """Joint rates of every solver overlaid, and each solver's error envelope against the reference.
+
+    Colour is the joint and line style the solver in both panels. From 7 joints up the
+    top panel shows the 4 with the largest peaks; the error is over all joints.
 
     Parameters
     ----------
@@ -66,32 +132,49 @@ def plot_comparison(comparison, path=None) -> Figure:
     path : str or Path, optional
         Image file to write.
     """
-    fig = Figure(figsize=(8, 6), layout="constrained")
+    fig = Figure(figsize=(9, 6), layout="constrained")
     ax, axe = fig.subplots(2, 1, sharex=True)
-    for name, tr in comparison.results.items():
-        for j in range(comparison.system.dof):
-            ax.plot(tr.time, tr.rates[:, j], color=f"C{j % 10}", label=f"r{j + 1} {name}",
-                    **solver_style(name))
-    ax.set_ylabel("joint rate [rad/s or m/s]")
-    ax.set_title(f"{comparison.system.info.get('robot', 'custom')}: "
-                 f"{', '.join(comparison.results)} (preset {comparison.preset})")
-    ax.legend(ncol=3, fontsize="small")
-    ref = comparison.results.get(comparison.reference) if comparison.reference else None
-    for name, tr in comparison.results.items():
-        if ref is None or name == comparison.reference:
-            continue
-        err = np.max(np.abs(tr.rates - ref.rates), axis=1)
-        axe.semilogy(tr.time, np.maximum(err, 1e-18), label=name, **solver_style(name))
+    units = comparison.system.info.get("units")
+    ok = {name: tr for name, tr in comparison.results.items() if tr.success and tr.rates.size}
+    ref = ok.get(comparison.reference) if comparison.reference else None
+    first = ref if ref is not None else next(iter(ok.values()), None)
+    joints = shown_joints(first.rates) if first is not None else []
+    for name, tr in ok.items():
+        for j in joints:
+            ax.plot(tr.time, tr.rates[:, j], color=f"C{j % 10}", **solver_style(name))
+    ax.set_ylabel(rate_label(units))
+    n = comparison.system.dof
+    shown = f"; {len(joints)} of {n} joints shown (largest peaks)" if len(joints) < n else ""
+    ax.set_title(f"{comparison.system.info.get('robot', 'custom')}: {', '.join(ok)} "
+                 f"(preset {comparison.preset}){shown}", fontsize="medium")
+    _legends(ax, joints, units, list(ok))
+    if ref is not None:
+        peak = comparison.peak or 1.0
+        for name, tr in ok.items():
+            if name == comparison.reference or tr.rates.shape != ref.rates.shape:
+                continue
+            err = np.max(np.abs(tr.rates - ref.rates), axis=1) / peak
+            t, env = error_envelope(tr.time, np.where(err > 0, err, np.nan))     # log axis: no zeros
+            axe.semilogy(t, env, color="k", label=name, **solver_style(name))
+        axe.set_title(f"error against {comparison.reference}: max over all {n} joints, relative to the "
+                      "peak rate (running maximum)", fontsize="small")
     axe.set_xlabel("time [s]")
-    axe.set_ylabel(f"max |error| over joints (vs {comparison.reference})")
+    axe.set_ylabel("|error| / peak rate [1]")
     if axe.lines:
-        axe.legend(fontsize="small")
+        axe.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False, fontsize="small",
+                   title="solver", title_fontsize="small")
+        axe.axhline(comparison.bound, color="tab:red", lw=0.8, ls=(0, (1, 3)))
+        axe.annotate(f"{comparison.preset} bound {comparison.bound:g}", (1.0, comparison.bound),
+                     xycoords=("axes fraction", "data"), ha="right", va="top", fontsize="x-small",
+                     color="tab:red")
     return _save(fig, path)
 
 
 def plot_quantities(time: np.ndarray, groups: list, errors: dict, title: str, path=None,
-                    reference: str | None = None) -> Figure:
+                    reference: str | None = None, units=None) -> Figure:
     """One panel per quantity (solvers overlaid) and, with a reference, each solver's error / peak.
+
+    Colour is the curve (joint, node or element) and line style the solver, in every panel.
 
     Parameters
     ----------
@@ -107,19 +190,31 @@ def plot_quantities(time: np.ndarray, groups: list, errors: dict, title: str, pa
         Image file to write.
     reference : str, optional
         The solver the errors are measured against.
+    units : sequence of str, optional
+        Joint units (:func:`analogy.units.joint_units`), for the axis labels.
     """
+    from matplotlib.lines import Line2D
     if not groups:
         raise InputError("no solver ran: nothing to plot")
     panels = len(groups) + (1 if errors else 0)
-    fig = Figure(figsize=(8, 2.6 * panels + 0.6), layout="constrained")
+    fig = Figure(figsize=(9, 2.6 * panels + 0.6), layout="constrained")
     axes = fig.subplots(panels, 1, sharex=True, squeeze=False)[:, 0]
     for ax, (quantity, by_solver) in zip(axes, groups):
+        names = list(dict.fromkeys(k for vals in by_solver.values() for k in vals))
+        if len(names) >= MANY_JOINTS:
+            first = next(iter(by_solver.values()))
+            stack = np.array([first[k] for k in names if k in first]).T
+            names = [names[k] for k in shown_joints(stack)]
         for s, vals in by_solver.items():
-            for k, (name, v) in enumerate(vals.items()):
-                ax.plot(time, v, color=f"C{k % 10}", label=f"{name} {s}", **solver_style(s))
-        ax.set_ylabel(quantity)
-        ax.legend(ncol=3, fontsize="x-small")
-    axes[0].set_title(title)
+            for k, name in enumerate(names):
+                if name in vals:
+                    ax.plot(time, vals[name], color=f"C{k % 10}", **solver_style(s))
+        ax.set_ylabel(quantity_label(quantity, units))
+        handles = [Line2D([], [], color=f"C{k % 10}", lw=2, label=name) for k, name in enumerate(names)]
+        handles += [Line2D([], [], color="k", label=s, **solver_style(s)) for s in by_solver]
+        ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False,
+                  fontsize="x-small")
+    axes[0].set_title(title, fontsize="medium")
     if errors and reference is not None:
         ax = axes[-1]
         solvers = dict.fromkeys(s for by in groups for s in by[1] if s != reference)
@@ -132,10 +227,14 @@ def plot_quantities(time: np.ndarray, groups: list, errors: dict, title: str, pa
                 top = max(float(np.max(np.abs(x))) for x in ref.values()) or 1.0
                 curves += [np.abs(vals[k] - ref[k]) / top for k in ref]
             if curves:
-                ax.semilogy(time, np.maximum(np.max(curves, axis=0), 1e-18), label=s, **solver_style(s))
-        ax.set_ylabel("max |error| / peak")
+                worst = np.max(curves, axis=0)
+                t, env = error_envelope(time, np.where(worst > 0, worst, np.nan))
+                ax.semilogy(t, env, color="k", label=s, **solver_style(s))
+        ax.set_ylabel("|error| / peak [1]")
+        ax.set_title(f"error against {reference}: max over every curve, relative to its quantity's peak "
+                     "(running maximum)", fontsize="small")
         if ax.lines:
-            ax.legend(fontsize="small")
+            ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False, fontsize="small")
     axes[-1].set_xlabel("time [s]")
     return _save(fig, path)
 

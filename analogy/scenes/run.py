@@ -282,4 +282,4 @@ class SceneResult(Tabular):
         from ..results.plots import plot_quantities
         return plot_quantities(self.time, self._groups(), self.errors(),
                                f"scene {self.scene.name}: preset {self.scene.preset}", path,
-                               self.reference)
+                               self.reference, units=self.system.info.get("units"))

@@ -1,0 +1,118 @@
+"""SI units of joint coordinates, rates and forces, and of their circuit twins, for labels and headers."""
+
+from __future__ import annotations
+
+import re
+from typing import Sequence
+
+__all__ = ["joint_units", "rate_unit", "force_unit", "rate_label", "force_label", "quantity_label"]
+
+_ANGLE = re.compile(r"^(q|theta)\d+$")
+_MODAL = re.compile(r"^delta\d+_\d+$")
+
+
+def joint_units(robot: str | None, coordinates: Sequence[str]) -> tuple[str, ...] | None:
+    """Per joint coordinate, ``"rad"`` or ``"m"``; None when the model does not say.
+
+    The built-in arms and linkages have revolute joints; the redundant actuators are
+    prismatic; a flexible link's modal amplitudes are deflections (m). A model given
+    by its matrices (``custom``) or a random one has no units beyond SI.
+
+    Parameters
+    ----------
+    robot : str or None
+        The model's name.
+    coordinates : sequence of str
+        Its coordinate names.
+    """
+    names = [str(c) for c in coordinates]
+    if robot is None or not names:
+        return None
+    if robot == "redundant":
+        return ("m",) * len(names)
+    family = robot.rstrip("0123456789")
+    if family in ("serial", "parallel", "flex"):
+        units = []
+        for c in names:
+            if _MODAL.match(c):
+                units.append("m")
+            elif _ANGLE.match(c):
+                units.append("rad")
+            else:
+                return None
+        return tuple(units)
+    return None
+
+
+def rate_unit(unit: str | None) -> str:
+    """The unit of a coordinate's rate: rad/s, m/s, or both when unknown.
+
+    Parameters
+    ----------
+    unit : str or None
+        The coordinate's unit.
+    """
+    return {"rad": "rad/s", "m": "m/s"}.get(unit or "", "rad/s or m/s")
+
+
+def force_unit(unit: str | None) -> str:
+    """The unit of the generalised force on a coordinate: N·m on an angle, N on a length.
+
+    Parameters
+    ----------
+    unit : str or None
+        The coordinate's unit.
+    """
+    return {"rad": "N·m", "m": "N"}.get(unit or "", "N·m or N")
+
+
+def _shared(units: Sequence[str] | None, convert) -> str:
+    if not units:
+        return convert(None)
+    found = list(dict.fromkeys(convert(u) for u in units))
+    return found[0] if len(found) == 1 else " or ".join(found)
+
+
+def rate_label(units: Sequence[str] | None) -> str:
+    """Axis label of joint rates, e.g. ``joint rate [rad/s]``.
+
+    Parameters
+    ----------
+    units : sequence of str or None
+        :func:`joint_units`.
+    """
+    return f"joint rate [{_shared(units, rate_unit)}]"
+
+
+def force_label(units: Sequence[str] | None) -> str:
+    """Axis label of joint forces, e.g. ``joint torque [N·m]``.
+
+    Parameters
+    ----------
+    units : sequence of str or None
+        :func:`joint_units`.
+    """
+    unit = _shared(units, force_unit)
+    return f"joint {'torque' if unit == 'N·m' else 'force'} [{unit}]"
+
+
+def quantity_label(quantity: str, units: Sequence[str] | None = None) -> str:
+    """Axis label of a scene's quantity, with the circuit's unit and its mechanical meaning.
+
+    Parameters
+    ----------
+    quantity : str
+        ``"joint rates"``, ``"node voltages"`` or ``"<kind> currents"``.
+    units : sequence of str or None
+        :func:`joint_units` of the system.
+    """
+    rate = _shared(units, rate_unit)
+    force = _shared(units, force_unit)
+    if quantity == "joint rates":
+        return rate_label(units)
+    if quantity == "node voltages":
+        return f"node voltage [V] = velocity [{rate}]"
+    if quantity.endswith("currents"):
+        kind = quantity[:-len("currents")].strip()
+        return f"{kind} current [A] = force [{force}]".strip()
+    return quantity
