@@ -344,6 +344,8 @@ def waveforms(spec, n: int) -> tuple:
                     value = float(w)
                 except (TypeError, ValueError):
                     raise InputError(f"cannot use {w!r} as a force") from None
+                except OverflowError:
+                    raise InputError("forces must be finite: a number is outside the floating-point range") from None
                 if not np.isfinite(value):
                     raise InputError("forces must be finite")
                 ws.append(_step(value))

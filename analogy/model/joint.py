@@ -188,7 +188,9 @@ def evaluate_entries(name: str, fn, args, shape, count: int | None = None) -> np
     """
     if fn is None:
         return None
-    entries = fn(*args)
+    # Overflow or a domain error gives inf or NaN, which the callers' finiteness checks name.
+    with np.errstate(all="ignore"):
+        entries = fn(*args)
     if count is None:
         value = np.asarray(entries)
     else:

@@ -61,6 +61,7 @@ from ..presets import preset as get_preset
 from ..results.output import check_plot_path
 from ..solvers.registry import SOLVER_NAMES
 from .build import keyed
+from .paths import check_relative_name
 from .scene import OUTPUTS, Scene
 from .spec import ModelSpec, freeze
 
@@ -141,9 +142,12 @@ def _number(value) -> float:
         raise InputError(f"expected a number, got {_kind(value)}")
     if isinstance(value, str):
         return parse_number(value)
-    x = float(value)
+    try:
+        x = float(value)
+    except OverflowError:                   # a TOML integer past 1.8e308
+        x = math.inf
     if not math.isfinite(x):
-        raise InputError(f"expected a finite number, got {value!r}")
+        raise InputError(f"expected a finite number, got {_kind(value)} outside the floating-point range")
     return x
 
 
@@ -435,11 +439,8 @@ def _outputs(ctx, data) -> dict:
 
 def _relative_file(ctx, key: str, value: str) -> str:
     # A scene file may come from anyone: its outputs stay inside the output folder.
-    p = Path(value)
-    if p.is_absolute() or ".." in p.parts:
-        raise ctx.error(f"[outputs] {key}", f"{value!r} must be a relative path inside the "
-                                            "output folder (no absolute path, no '..')")
-    return value
+    with ctx.key(f"[outputs] {key}"):
+        return check_relative_name(value)
 
 
 def _solvers(ctx, data) -> dict:
