@@ -123,7 +123,7 @@ def _vector(value, n: int) -> list:
 
 def _joint_key(message: str, keys: dict) -> str:
     for part in ("damping", "stiffness", "gravity"):
-        if message.startswith(part):
+        if message.startswith((part, f"node {part}")):
             return keys[part]
     return keys["mass"]
 
@@ -350,13 +350,14 @@ def scene_system(scene: SceneData, model=None) -> object:
                                **inputs)
         except InputError as exc:
             text = str(exc)
-            if text.startswith(("topology", "unknown topology")):
+            if text.startswith(("topology", "unknown topology", "current map")) or (
+                    text.startswith("node ") and isinstance(scene.topology, tuple)):
                 raise InputError(f"{keys['topology']}: {text}") from None
             if text.startswith("t_stop"):
                 raise InputError(f"{keys['t_stop']}: {text}") from None
             if "does not assemble" in text:
                 raise InputError(f"{keys['q']}: {text}") from None
-            if text.startswith(("mass", "damping", "stiffness", "gravity", "node mass", "model")):
+            if text.startswith(("mass", "damping", "stiffness", "gravity", "node ", "model")):
                 # a built-in robot's matrices come from its parameters
                 key = keys["parameters"] if scene.model.robot is not None else _joint_key(text, keys)
                 raise InputError(f"{key}: {text}") from None
