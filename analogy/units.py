@@ -5,7 +5,7 @@ from __future__ import annotations
 import re
 from typing import Sequence
 
-__all__ = ["joint_units", "rate_unit", "force_unit", "rate_label", "force_label", "quantity_label"]
+__all__ = ["joint_units", "mechanical_units", "rate_unit", "force_unit", "rate_label", "force_label", "quantity_label"]
 
 _ANGLE = re.compile(r"^(q|theta)\d+$")
 _MODAL = re.compile(r"^delta\d+_\d+$")
@@ -116,3 +116,20 @@ def quantity_label(quantity: str, units: Sequence[str] | None = None) -> str:
         kind = quantity[:-len("currents")].strip()
         return f"{kind} current [A] = force [{force}]".strip()
     return quantity
+
+
+def mechanical_units(joint_units) -> dict[str, str]:
+    """Units of mass, damping, stiffness and force values on nodes whose coordinates have *joint_units*.
+
+    Parameters
+    ----------
+    joint_units : sequence of str or None
+        ``"rad"`` or ``"m"`` per joint (:func:`analogy.units.joint_units`); mixed or
+        unknown units leave the values in SI without a name.
+    """
+    kinds = set(joint_units or ())
+    if kinds == {"rad"}:
+        return {"C": "kg·m²", "R": "N·m·s/rad", "L": "N·m/rad", "I": "N·m"}
+    if kinds == {"m"}:
+        return {"C": "kg", "R": "N·s/m", "L": "N/m", "I": "N"}
+    return {"C": "(SI)", "R": "(SI)", "L": "(SI)", "I": "(SI)"}

@@ -31,13 +31,14 @@ import schemdraw.elements as elm
 from schemdraw.segments import Segment, SegmentCircle, SegmentPoly
 
 from ..errors import InputError
+from ..units import mechanical_units
 from .description import circuit
 from .elements import ZERO_TOL
 
 if TYPE_CHECKING:
     from .node_system import NodeSystem
 
-__all__ = ["draw_circuit", "draw_mechanism", "draw", "mechanical_units", "schematic_fits", "FORMATS",
+__all__ = ["draw_circuit", "draw_mechanism", "draw", "schematic_fits", "FORMATS",
            "MAX_SCHEMATIC_NODES"]
 
 #: File formats written when a path has no suffix.
@@ -113,23 +114,6 @@ def _parts(system: NodeSystem, zero_tol: float) -> list[_Part]:
         parts.append(_Part(src.name, "I", a, b, src.scale, src.scale, src.joint, into_a=into_a,
                            waveform=wave, unit=units["I"]))
     return parts
-
-
-def mechanical_units(joint_units) -> dict[str, str]:
-    """Units of mass, damping, stiffness and force values on nodes whose coordinates have *joint_units*.
-
-    Parameters
-    ----------
-    joint_units : sequence of str or None
-        ``"rad"`` or ``"m"`` per joint (:func:`analogy.units.joint_units`); mixed or
-        unknown units leave the values in SI without a name.
-    """
-    kinds = set(joint_units or ())
-    if kinds == {"rad"}:
-        return {"C": "kg·m²", "R": "N·m·s/rad", "L": "N·m/rad", "I": "N·m"}
-    if kinds == {"m"}:
-        return {"C": "kg", "R": "N·s/m", "L": "N/m", "I": "N"}
-    return {"C": "(SI)", "R": "(SI)", "L": "(SI)", "I": "(SI)"}
 
 
 def _layout(parts: Sequence[_Part], n: int) -> _Layout:

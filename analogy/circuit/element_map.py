@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..units import mechanical_units
 from .description import circuit
 from .elements import ZERO_TOL
 
@@ -42,7 +43,6 @@ def draw_element_map(system: "NodeSystem", path: str | Path | None = None, *,
     from matplotlib.colors import SymLogNorm
     from matplotlib.figure import Figure
 
-    from .diagram import mechanical_units
     c = circuit(system, zero_tol)
     n = c.nodes
     units = mechanical_units(system.info.get("units"))

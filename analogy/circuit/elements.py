@@ -85,7 +85,8 @@ def laplacian_split(matrix: np.ndarray, zero_tol: float = ZERO_TOL,
     """
     x = np.asarray(matrix, dtype=float)
     n = x.shape[-1]
-    grounded = x.sum(axis=-1)
+    with np.errstate(over="ignore"):        # a row sum past 1.8e308 is refused by the circuit's checks
+        grounded = x.sum(axis=-1)
     floating = -x
     floating[..., range(n), range(n)] = 0.0
     floor = zero_tol * (np.abs(x).max(axis=(-2, -1), keepdims=True) if x.size else np.zeros(x.shape[:-2] + (1, 1)))
@@ -142,6 +143,12 @@ def element_table(mass, damping, stiffness=None, zero_tol: float = ZERO_TOL,
         else:
             grounded, floating = laplacian_split(mat, zero_tol)
         n = grounded.shape[-1]
+        for values, what in ((grounded, "a row sum of its node matrix"), (spice_value(kind, grounded), "1/value"),
+                             (spice_value(kind, floating), "1/value")):
+            if not np.all(np.isfinite(values)):
+                i = int(np.argwhere(~np.isfinite(values))[0][1]) + 1
+                raise InputError(f"an element {kind} at node {i} ({what}) leaves the floating-point range: "
+                                 "rescale the masses, dampers or springs")
         table += [(kind, i + 1, 0, grounded[:, i]) for i in range(n)]
         table += [(kind, i + 1, j + 1, floating[:, i, j]) for i in range(n) for j in range(i + 1, n)]
     return (table, dropped) if report else table
@@ -162,7 +169,8 @@ def spice_value(kind: str, coefficient) -> np.ndarray:
     c = np.asarray(coefficient, dtype=float)
     if kind == "C":
         return c
-    return np.divide(1.0, c, out=np.zeros_like(c), where=c != 0)
+    with np.errstate(over="ignore"):            # 1/5e-324 is inf, which element_table refuses
+        return np.divide(1.0, c, out=np.zeros_like(c), where=c != 0)
 
 
 def elements(system, zero_tol: float = ZERO_TOL) -> list[Element]:

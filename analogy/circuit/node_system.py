@@ -12,13 +12,14 @@ from ..units import joint_units
 from ..model.dynamics import DynamicsKind
 from ..model.joint import (
     JointSpace,
+    check_node_form,
     check_square_symmetric,
     check_vector,
     configuration_stack,
     stack_fault,
 )
 from ..waveforms import Step, Waveform, parse_waveform
-from .topology import Topology
+from .topology import Topology, symmetric_part
 from .topology import topology as make_topology
 
 
@@ -147,11 +148,14 @@ class NodeSystem(NodeCoordinates):
             raise InputError(f"forces must have {n} entries (one per joint), got {len(forces)}")
         r0 = check_vector("initial rates r0", initial_rates, n)
         mass = topology.node_matrix(joint.mass_matrix)
-        # T can be well conditioned yet scale M' out of floating-point range.
+        damping = topology.node_matrix(joint.damping)
+        stiffness = None if joint.stiffness is None else topology.node_matrix(joint.stiffness)
+        # T can be well conditioned yet scale M', B' or K' out of floating-point range.
+        for label, part in (("node mass matrix M'", mass), ("node damping matrix B'", damping),
+                            ("node stiffness matrix K'", stiffness), ("current map T^-T", topology.current_map)):
+            check_node_form(label, part)
         check_square_symmetric("node mass matrix M'", mass, definite=True)
-        self._store(joint, topology, tuple(forces), r0, float(t_stop), dict(info or {}), mass,
-                    topology.node_matrix(joint.damping),
-                    None if joint.stiffness is None else topology.node_matrix(joint.stiffness))
+        self._store(joint, topology, tuple(forces), r0, float(t_stop), dict(info or {}), mass, damping, stiffness)
         self.breakpoints()          # checks every waveform against t_stop before any solver runs
 
     def _store(self, joint, topology, forces, r0, t_stop, info, mass, damping, stiffness, family=None):
@@ -345,6 +349,8 @@ def waveforms(spec, n: int) -> tuple:
                     value = float(w)
                 except (TypeError, ValueError):
                     raise InputError(f"cannot use {w!r} as a force") from None
+                except OverflowError:
+                    raise InputError("forces must be finite: a number is outside the floating-point range") from None
                 if not np.isfinite(value):
                     raise InputError("forces must be finite")
                 ws.append(_step(value))
@@ -464,9 +470,12 @@ def node_systems(model, qs, *, parameters: Mapping[str, float] | None = None,
     try:
         stack = model.joint_stack(q, parameters)
         top = first.topology
-        m, b, kk = (None if x is None else 0.5 * (x + np.swapaxes(x, 1, 2)) for x in stack[:3])
+        m, b, kk = (None if x is None else symmetric_part(x) for x in stack[:3])
         node_mass = top.node_matrix(m)
-        fault = stack_fault(stack, node_mass)
+        node_damping = top.node_matrix(b)
+        node_stiffness = None if kk is None else top.node_matrix(kk)
+        fault = stack_fault(stack, node_mass) or not all(
+            np.all(np.isfinite(x)) for x in (node_damping, node_stiffness) if x is not None)
     except InputError:
         fault = True
     if fault:               # one at a time: a bad row raises its own error, with its number
@@ -477,8 +486,6 @@ def node_systems(model, qs, *, parameters: Mapping[str, float] | None = None,
             except InputError as exc:
                 raise InputError(f"configuration {k + 1}: {exc}") from None
         return out
-    node_damping = top.node_matrix(b)
-    node_stiffness = None if kk is None else top.node_matrix(kk)
     for x in (m, b, kk, node_mass, node_damping, node_stiffness):
         if x is not None:
             x.setflags(write=False)     # rows are views: no system may change another

@@ -9,6 +9,7 @@ from typing import Sequence
 import numpy as np
 
 from .node_system import joint_forces, stacked
+from .topology import symmetric_part
 
 __all__ = ["Scales", "system_scales", "stack_scales", "combined_scales"]
 
@@ -156,13 +157,19 @@ def stack_scales(systems: Sequence) -> list[Scales]:
 
 def _stack_scales(first, m, b, k, v0) -> list[Scales]:
     """Scales of a stack sharing *first*'s forces, topology and t_stop (arrays with a leading axis)."""
+    # Estimates only: a scale past 1e308 is inf, which the solvers' own checks then meet.
+    with np.errstate(over="ignore", invalid="ignore"):
+        return _estimated_scales(first, m, b, k, v0)
+
+
+def _estimated_scales(first, m, b, k, v0) -> list[Scales]:
     count, n = m.shape[0], m.shape[1]
     chol = np.linalg.cholesky(m)
     def whiten(a):
         half = np.linalg.solve(chol, a)
         return np.linalg.solve(chol, np.swapaxes(half, 1, 2))
     kt = np.zeros_like(m) if k is None else whiten(k)
-    mu, psi = np.linalg.eigh(0.5 * (kt + np.swapaxes(kt, 1, 2)))
+    mu, psi = np.linalg.eigh(symmetric_part(kt))
     phi = np.linalg.solve(np.swapaxes(chol, 1, 2), psi)          # M'-orthonormal mode shapes
     beta = np.einsum("sik,sij,sjk->sk", psi, whiten(b), psi)      # modal damping rates
     omega = np.sqrt(np.abs(mu))
@@ -179,8 +186,8 @@ def _stack_scales(first, m, b, k, v0) -> list[Scales]:
     growth = np.exp(np.minimum(np.where(mu < 0, omega, 0.0) * t_stop, 700.0))
     velocity = np.einsum("sik,sk->si", np.abs(phi), (drive * span + start) * growth)
     position = np.einsum("sik,sk->si", np.abs(phi), (drive * reach + start * span) * growth)
-    with np.errstate(invalid="ignore"):
-        damped = np.where(mu > 0, np.sqrt(np.maximum(mu - beta ** 2 / 4, 0.0)), 0.0)
+    with np.errstate(invalid="ignore", over="ignore"):      # (β/2)² past 1e308 only means overdamped
+        damped = np.where(mu > 0, np.sqrt(np.maximum(mu - (beta / 2) ** 2, 0.0)), 0.0)
     current = float(np.max(np.abs(first.current_map) @ peaks)) if peaks.size else 0.0
     top = np.max(velocity, axis=1) if n else np.zeros(count)
     still = ~(np.isfinite(top) & (top > 0))               # nothing moves: any unit scale serves
@@ -192,7 +199,7 @@ def _stack_scales(first, m, b, k, v0) -> list[Scales]:
     current = current if current > 0 else 1.0
     # overdamped or free modes decay at up to β_k; their share of the peak velocity
     share = np.max(np.abs(phi), axis=1) * (drive * span + start) * growth / np.max(velocity, axis=1, keepdims=True)
-    decays = np.where((beta > 0) & (beta ** 2 >= 4 * np.maximum(mu, 0.0)), beta, 0.0)
+    decays = np.where((beta > 0) & (beta >= 2 * np.sqrt(np.maximum(mu, 0.0))), beta, 0.0)
     return [Scales(float(fastest[j]), velocity[j], position[j], current, float(charge[j]), decays[j], share[j])
             for j in range(count)]
 

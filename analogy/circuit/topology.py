@@ -9,7 +9,7 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["Topology", "serial", "parallel", "custom", "topology", "TOPOLOGIES", "congruence"]
+__all__ = ["Topology", "serial", "parallel", "custom", "topology", "TOPOLOGIES", "congruence", "symmetric_part"]
 
 
 @dataclass(frozen=True)
@@ -68,8 +68,9 @@ class Topology:
             A joint-space matrix, or a stack of them.
         """
         if self.exact_inverse:      # products with an exact inverse: no solves, same numbers
-            z = self.inverse.T @ np.asarray(joint_matrix, dtype=float) @ self.inverse
-            return 0.5 * (z + np.swapaxes(z, -1, -2))
+            with np.errstate(over="ignore", invalid="ignore"):   # overflow is named by the callers
+                z = self.inverse.T @ np.asarray(joint_matrix, dtype=float) @ self.inverse
+            return symmetric_part(z)
         return congruence(joint_matrix, self.matrix)
 
     def joint_rates(self, node_voltages) -> np.ndarray:
@@ -110,9 +111,27 @@ def congruence(x, t) -> np.ndarray:
             ti = sp.Matrix(t).inv()
             return sp.simplify(ti.T * sp.Matrix(x) * ti)
     t = np.asarray(t, dtype=float)
-    y = np.linalg.solve(t.T, np.asarray(x, dtype=float))     # T⁻ᵀ X
-    z = np.swapaxes(np.linalg.solve(t.T, np.swapaxes(y, -1, -2)), -1, -2)   # T⁻ᵀ X T⁻¹
-    return 0.5 * (z + np.swapaxes(z, -1, -2))
+    with np.errstate(over="ignore", invalid="ignore"):       # overflow is named by the callers
+        y = np.linalg.solve(t.T, np.asarray(x, dtype=float))     # T⁻ᵀ X
+        z = np.swapaxes(np.linalg.solve(t.T, np.swapaxes(y, -1, -2)), -1, -2)   # T⁻ᵀ X T⁻¹
+    return symmetric_part(z)
+
+
+def symmetric_part(z) -> np.ndarray:
+    """½(Z + Zᵀ) for a matrix or a stack (..., n, n), computed so that it cannot overflow.
+
+    Entries that already equal their mirror are kept exactly (halving a subnormal
+    number would round it to zero); the others are halved before they are added.
+
+    Parameters
+    ----------
+    z : ndarray, shape (..., n, n)
+        A nearly symmetric matrix, or a stack of them.
+    """
+    z = np.asarray(z, dtype=float)
+    zt = np.swapaxes(z, -1, -2)
+    with np.errstate(invalid="ignore"):         # inf - inf in a matrix the callers refuse anyway
+        return np.where(z == zt, z, 0.5 * z + 0.5 * zt)
 
 
 @lru_cache(maxsize=64)

@@ -3,17 +3,31 @@
 from __future__ import annotations
 
 import ast
+import builtins
+import keyword
 import math
 import operator
+import re
 from typing import Iterable, Mapping
+
+import numpy
 
 from ..errors import InputError
 
 __all__ = ["parse_expression", "parse_matrix", "parse_vector", "parse_number",
-           "parse_call", "split_entries", "FUNCTION_NAMES", "MAX_LENGTH"]
+           "parse_call", "split_entries", "reserved_name", "FUNCTION_NAMES", "MAX_LENGTH", "MAX_DEPTH",
+           "MAX_EXPONENT"]
 
 #: Longest expression accepted; bounds parser work on hostile input.
 MAX_LENGTH = 20_000
+#: Deepest nesting of operations accepted (``-(-(-(…)))``, ``2^2^2^…``).
+MAX_DEPTH = 100
+#: Largest |exponent| of a power whose base has symbols: keeps derivatives and expansions small.
+MAX_EXPONENT = 100
+#: Integers up to this magnitude stay exact in symbolic results; larger ones become floats.
+_EXACT_INTEGER = 2 ** 53
+#: Numerators and denominators of exact fractions stay below this many bits (floats reach 2^1024).
+_FRACTION_BITS = 1024
 
 #: Functions an expression may call.
 FUNCTION_NAMES = ("sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh", "tanh",
@@ -30,7 +44,10 @@ class _Numeric:
 
     @staticmethod
     def number(value):
-        return float(value)
+        try:
+            return float(value)
+        except OverflowError:
+            raise InputError(f"the number {_short(value)} is outside the floating-point range") from None
 
     @staticmethod
     def symbol(name):
@@ -53,6 +70,47 @@ class _Symbolic:
         return self.sp.Symbol(name, real=True)
 
 
+def _short(value) -> str:
+    text = str(value) if not isinstance(value, int) or value.bit_length() < 4000 else "with over 1000 digits"
+    return text if len(text) <= 40 else f"{text[:12]}...{text[-6:]} ({len(text)} digits)"
+
+
+def _too_deep(tree: ast.AST) -> bool:
+    # Iterative, so that the check itself cannot overflow the stack. A chain such as
+    # a + b + c is flat once built, so its left operands add no depth.
+    stack = [(tree, 1)]
+    while stack:
+        node, depth = stack.pop()
+        if depth > MAX_DEPTH:
+            return True
+        for child in ast.iter_child_nodes(node):
+            if isinstance(child, ast.expr):
+                chained = (isinstance(node, ast.BinOp) and child is node.left and isinstance(child, ast.BinOp)
+                           and _CHAIN.get(type(child.op)) == _CHAIN.get(type(node.op), -1))
+                stack.append((child, depth if chained else depth + 1))
+    return False
+
+
+_CHAIN = {ast.Add: 0, ast.Sub: 0, ast.Mult: 1, ast.Div: 1}
+
+
+_CSE_NAME = re.compile(r"^x[0-9]+$")
+
+
+def reserved_name(name: str) -> bool:
+    """Whether *name* cannot be a parameter: a function, constant or any name the generated code uses.
+
+    Parameters
+    ----------
+    name : str
+        A proposed parameter name.
+    """
+    return (not name.isidentifier() or name.startswith("_") or keyword.iskeyword(name)
+            or name in FUNCTION_NAMES or name in ("pi", "e", "numpy", "math", "mpmath", "sympy")
+            or hasattr(builtins, name) or hasattr(numpy, name) or hasattr(math, name)
+            or _CSE_NAME.match(name) is not None)
+
+
 def _syntax_tree(text: str) -> ast.expr:
     if not isinstance(text, str):
         raise InputError(f"expected an expression string, got {type(text).__name__}")
@@ -64,42 +122,124 @@ def _syntax_tree(text: str) -> ast.expr:
         raise InputError("empty expression")
     try:
         # ast.parse only builds a syntax tree; nothing is evaluated.
-        return ast.parse(source, mode="eval").body
+        tree = ast.parse(source, mode="eval").body
     except (SyntaxError, ValueError, RecursionError, MemoryError):
-        raise InputError(f"cannot parse expression {text!r}") from None
+        raise InputError(f"cannot parse expression {_clip(text)!r}") from None
+    if _too_deep(tree):
+        raise InputError(f"expression {_clip(text)!r} nests more than {MAX_DEPTH} operations deep")
+    return tree
+
+
+def _clip(text: str) -> str:
+    return text if len(text) <= 80 else f"{text[:60]}...{text[-12:]}"
 
 
 class _Converter:
-    """Walks a syntax tree, accepting only arithmetic on numbers, names and whitelisted calls."""
+    """Walks a syntax tree, accepting only arithmetic on numbers, names and whitelisted calls.
+
+    Every step is bounded: numeric work is done in floats and checked for overflow, and a
+    symbolic result is built only where a name needs it, so no step can grow without limit.
+    """
 
     def __init__(self, text: str, backend, symbols: Mapping | None, allow_lists: bool):
         self.text = text
         self.backend = backend
         self.symbols = symbols
         self.allow_lists = allow_lists
+        self._pure: dict[int, bool] = {}
 
     def reject(self, what: str):
-        raise InputError(f"expression {self.text!r} is not allowed: {what}")
+        raise InputError(f"expression {_clip(self.text)!r} is not allowed: {what}")
 
     def convert(self, node: ast.AST):
         try:
-            return self._convert(node)
+            value = self._convert(node)
+            if self.backend is not _Numeric:
+                for entry in (value if isinstance(value, list) else [value]):
+                    if not isinstance(entry, list):
+                        self._bounded(entry)
+            return value
         except InputError:
             raise
         except RecursionError:
-            raise InputError(f"expression {self.text!r} is nested too deeply") from None
-        except (OverflowError, ZeroDivisionError, ValueError, TypeError) as exc:
-            # e.g. atan2(1) or sin(1, 2): wrong arguments; (-8)**0.5: not a real number
-            raise InputError(f"expression {self.text!r} cannot be evaluated: {exc}") from None
+            raise InputError(f"expression {_clip(self.text)!r} is nested too deeply") from None
+        except ZeroDivisionError:
+            raise InputError(f"expression {_clip(self.text)!r} divides by zero") from None
+        except OverflowError:
+            raise InputError(f"expression {_clip(self.text)!r} leaves the floating-point range") from None
+        except MemoryError:
+            raise InputError(f"expression {_clip(self.text)!r} is too large to evaluate") from None
+        except (ArithmeticError, ValueError, TypeError) as exc:
+            # e.g. atan2(1) or sin(1, 2): wrong arguments; acos(2): outside the function's domain
+            raise InputError(f"expression {_clip(self.text)!r} cannot be evaluated: {exc}") from None
+
+    def _is_pure(self, node: ast.AST) -> bool:
+        """Whether *node* names no symbol, so that it is a number computed in floats."""
+        if id(node) not in self._pure:
+            # Post-order without recursion: a long sum must not exhaust the stack here.
+            order, stack = [], [node]
+            while stack:
+                current = stack.pop()
+                order.append(current)
+                stack.extend(ast.iter_child_nodes(current))
+            for current in reversed(order):
+                if isinstance(current, ast.Name):
+                    named = self.symbols is not None and current.id in self.symbols
+                    pure = current.id in self.backend.constants and not named
+                else:
+                    children = current.args if isinstance(current, ast.Call) else ast.iter_child_nodes(current)
+                    pure = (not isinstance(current, (ast.List, ast.Tuple))
+                            and all(self._pure[id(c)] for c in children))
+                self._pure[id(current)] = pure
+        return self._pure[id(node)]
+
+    def _fold(self, node: ast.AST):
+        """A symbol-free subtree as a sympy number, computed (bounded) in floats."""
+        import sympy as sp
+        if isinstance(node, ast.Constant) and isinstance(node.value, int) and not isinstance(node.value, bool):
+            if abs(node.value) <= _EXACT_INTEGER:
+                return sp.Integer(node.value)
+        value = _Converter(self.text, _Numeric, {}, allow_lists=False)._convert(node)
+        integers = all(isinstance(c.value, int) for c in ast.walk(node) if isinstance(c, ast.Constant))
+        if integers and value.is_integer() and abs(value) <= _EXACT_INTEGER:
+            return sp.Integer(int(value))
+        return sp.Float(value, 17)
+
+    def _number(self, value):
+        """A numeric backend's result, checked: real and finite."""
+        if isinstance(value, complex):
+            raise InputError(f"expression {_clip(self.text)!r} cannot be evaluated: "
+                             "a fractional power of a negative number gives complex numbers")
+        if isinstance(value, float) and not math.isfinite(value):
+            raise OverflowError
+        return value
+
+    def _bounded(self, expr) -> None:
+        """Refuse a symbolic result whose numbers leave the float range or whose powers are too high."""
+        import sympy as sp
+        if not isinstance(expr, sp.Basic):
+            return
+        if expr.has(sp.zoo, sp.oo, -sp.oo, sp.nan):
+            self.reject("it divides by zero or is infinite")
+        for atom in expr.atoms(sp.Number):
+            if isinstance(atom, sp.Rational):
+                if max(abs(atom.p).bit_length(), atom.q.bit_length()) > _FRACTION_BITS:
+                    raise OverflowError
+            elif not math.isfinite(float(atom)):
+                raise OverflowError
+        for power in expr.atoms(sp.Pow):
+            if power.exp.is_Number and abs(power.exp) > MAX_EXPONENT:
+                self.reject(f"an exponent of a symbolic base exceeds {MAX_EXPONENT} in magnitude")
 
     def _convert(self, node: ast.AST):
         b = self.backend
+        numeric = b is _Numeric
         if isinstance(node, ast.Constant):
             if isinstance(node.value, bool) or not isinstance(node.value, (int, float)):
                 self.reject(f"constant {node.value!r} is not a real number")
             if isinstance(node.value, float) and not math.isfinite(node.value):
                 self.reject("numbers must be finite")
-            return b.number(node.value)
+            return b.number(node.value) if numeric else self._fold(node)
         if isinstance(node, ast.Name):
             name = node.id
             if name.startswith("_"):
@@ -111,23 +251,44 @@ class _Converter:
             if name in b.constants:
                 return b.constants[name]
             if self.symbols is None and b.symbol(name) is not None:
+                if reserved_name(name):
+                    self.reject(f"{name!r} is the name of a function or constant")
                 return b.symbol(name)
             known = ", ".join(sorted(self.symbols or {})) or "none"
             self.reject(f"unknown name {name!r} (known: {known})")
+        if not numeric and not isinstance(node, (ast.List, ast.Tuple)) and self._is_pure(node):
+            if isinstance(node, ast.Call):
+                self._check_call(node)
+            return self._fold(node)
         if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.UAdd, ast.USub)):
             value = self._convert(node.operand)
             return -value if isinstance(node.op, ast.USub) else value
         if isinstance(node, ast.BinOp) and type(node.op) in _OPS:
-            return _OPS[type(node.op)](self._convert(node.left), self._convert(node.right))
+            left, right = self._convert(node.left), self._convert(node.right)
+            if not numeric and isinstance(node.op, ast.Pow) and getattr(right, "is_Number", False) \
+                    and abs(right) > MAX_EXPONENT:
+                self.reject(f"an exponent of a symbolic base exceeds {MAX_EXPONENT} in magnitude")
+            result = _OPS[type(node.op)](left, right)
+            return self._number(result) if numeric else result
         if isinstance(node, ast.Call):
-            if not isinstance(node.func, ast.Name) or node.func.id not in b.functions:
-                self.reject(f"only the functions {', '.join(FUNCTION_NAMES)} may be called")
-            if node.keywords:
-                self.reject("keyword arguments")
-            return b.functions[node.func.id](*[self._convert(a) for a in node.args])
+            self._check_call(node)
+            args = [self._convert(a) for a in node.args]
+            if not numeric:
+                return b.functions[node.func.id](*args)
+            try:
+                return self._number(b.functions[node.func.id](*args))
+            except ValueError:
+                raise InputError(f"expression {_clip(self.text)!r} cannot be evaluated: {node.func.id}() "
+                                 "is given an argument outside its domain") from None
         if isinstance(node, (ast.List, ast.Tuple)) and self.allow_lists:
             return [self._convert(e) for e in node.elts]
         self.reject(f"syntax {type(node).__name__}")
+
+    def _check_call(self, node: ast.Call) -> None:
+        if not isinstance(node.func, ast.Name) or node.func.id not in self.backend.functions:
+            self.reject(f"only the functions {', '.join(FUNCTION_NAMES)} may be called")
+        if node.keywords:
+            self.reject("keyword arguments")
 
 
 def parse_expression(text: str, symbols: Mapping | None = None) -> object:

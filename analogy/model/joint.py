@@ -8,10 +8,14 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["JointSpace", "unstable_stiffness", "JointStack", "check_square_symmetric", "check_vector",
-           "evaluation_arguments", "stack_arguments", "configuration_stack", "evaluate_entries", "part_shapes",
+__all__ = ["JointSpace", "unstable_stiffness", "JointStack", "check_square_symmetric", "check_node_form",
+           "check_vector", "evaluation_arguments", "stack_arguments", "configuration_stack", "evaluate_entries",
+           "part_shapes",
            "stack_fault"]
 
+
+#: The smallest normal float: a mass eigenvalue below it has no finite inverse.
+_TINY = float(np.finfo(float).tiny)
 
 def check_square_symmetric(name: str, matrix, *, n: int | None = None,
                            definite: bool = False, semidefinite: bool = False,
@@ -48,30 +52,51 @@ def check_square_symmetric(name: str, matrix, *, n: int | None = None,
         raise InputError(f"{name} has a non-finite entry at row {bad[0]}, column {bad[1]}")
     scale = float(np.max(np.abs(a))) if a.size else 0.0
     if not np.array_equal(a, a.T):          # exact symmetry, the usual case, needs no more
-        asym = np.abs(a - a.T)
-        if asym.max() > rtol * max(scale, np.finfo(float).tiny):
+        asym = np.abs(0.5 * a - 0.5 * a.T)    # halves first: a - aᵀ may overflow near 1e308
+        if asym.max() > 0.5 * rtol * max(scale, np.finfo(float).tiny):
             i, j = (int(k) + 1 for k in np.unravel_index(np.argmax(asym), asym.shape))
             raise InputError(f"{name} is not symmetric: entry ({i},{j}) = {a[i-1, j-1]:.6g} "
                              f"but ({j},{i}) = {a[j-1, i-1]:.6g}")
-        a = 0.5 * (a + a.T)
+        a = np.where(a == a.T, a, 0.5 * a + 0.5 * a.T)
     if definite or semidefinite:
         floor = 0.0 if definite else -1e-12 * max(scale, 1.0)
         if definite:
             try:        # Cholesky is the cheap test; eigenvalues only to explain a failure
-                np.linalg.cholesky(a)
-                return a
+                factor = np.linalg.cholesky(a)
+                if np.min(np.diagonal(factor)) ** 2 >= _TINY:
+                    return a
             except np.linalg.LinAlgError:
                 pass
         elif not np.any(a - np.diag(np.diagonal(a))) and np.all(np.diagonal(a) >= floor):
             return a
         w = np.linalg.eigvalsh(a)
         bad = np.flatnonzero(w <= floor) if definite else np.flatnonzero(w < floor)
+        if definite and not bad.size and w[0] < _TINY:
+            raise InputError(f"{name} is too close to singular: eigenvalue 1 of {len(w)} is {w[0]:.3g}, "
+                             f"below {_TINY:.3g}, so its inverse leaves the floating-point range")
         if bad.size or definite:
             k = int(bad[0]) if bad.size else 0
             kind = "positive definite" if definite else "positive semidefinite"
             raise InputError(f"{name} is not {kind}: eigenvalue {k + 1} of {len(w)} "
                              f"(ascending) is {w[k]:.6g}")
     return a
+
+
+def check_node_form(name: str, matrix) -> None:
+    """Refuse a matrix whose node form T⁻ᵀ·X·T⁻¹ (or T⁻ᵀ itself) left the floating-point range.
+
+    Parameters
+    ----------
+    name : str
+        What the matrix is, for messages (``node damping matrix B'``).
+    matrix : ndarray or None
+        The node-coordinate matrix; None is skipped.
+    """
+    if matrix is None or np.all(np.isfinite(matrix)):
+        return
+    i, j = (int(k) + 1 for k in np.argwhere(~np.isfinite(matrix))[0])
+    raise InputError(f"{name} leaves the floating-point range at row {i}, column {j}: the joint-space "
+                     "values are too large for this topology")
 
 
 def check_vector(name: str, values, n: int) -> np.ndarray:
@@ -225,7 +250,9 @@ def evaluate_entries(name: str, fn, args, shape, count: int | None = None) -> np
     """
     if fn is None:
         return None
-    entries = fn(*args)
+    # Overflow or a domain error gives inf or NaN, which the callers' finiteness checks name.
+    with np.errstate(all="ignore"):
+        entries = fn(*args)
     if count is None:
         value = np.asarray(entries)
     else:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Callable, Mapping, Sequence
 
@@ -20,7 +21,7 @@ from .joint import (
     part_shapes,
 )
 
-__all__ = ["Model", "christoffel_symbols", "velocity_terms"]
+__all__ = ["MAX_EXPANDED_TERMS", "Model", "christoffel_symbols", "velocity_terms"]
 
 
 def christoffel_symbols(mass_matrix: sp.MatrixBase, coordinates: Sequence[sp.Symbol]) -> list:
@@ -68,9 +69,44 @@ def velocity_terms(mass_matrix: sp.MatrixBase, coordinates: Sequence[sp.Symbol],
     n = mass_matrix.rows
     if len(coordinates) != n or len(rates) != n:
         raise InputError(f"velocity terms need {n} coordinates and {n} rates, one per row of M")
+    terms = max((_expanded_terms(e) for e in mass_matrix), default=0)
+    if terms > MAX_EXPANDED_TERMS:
+        raise InputError(f"the mass matrix expands to about {terms:.3g} terms in an entry, more than the "
+                         f"{MAX_EXPANDED_TERMS} the nonlinear dynamics derive: give smaller powers of sums")
     gamma = christoffel_symbols(mass_matrix, coordinates)
     return sp.Matrix([sp.expand(sum(gamma[i][j][k] * rates[j] * rates[k]
                                     for j in range(n) for k in range(n))) for i in range(n)])
+
+
+#: Most terms one expanded mass-matrix entry may have before the velocity terms are derived.
+MAX_EXPANDED_TERMS = 2_000
+
+
+def _expanded_terms(expr) -> float:
+    """An upper estimate of the terms *expr* has once expanded (a float: it may be huge)."""
+    if expr.is_Add:
+        return sum(_expanded_terms(a) for a in expr.args)
+    if expr.is_Mul:
+        return math.prod(_expanded_terms(a) for a in expr.args)
+    if expr.is_Pow and expr.exp.is_Integer and expr.exp > 1:
+        k = _expanded_terms(expr.base)
+        if k >= 1e3 or expr.exp > 10_000:
+            return math.inf
+        try:
+            return float(math.comb(int(expr.exp) + int(k) - 1, int(k) - 1))
+        except OverflowError:
+            return math.inf
+    return 1.0
+
+
+def _lambdify(*args, **kwargs):
+    """``sympy.lambdify``, with expressions too large to compile refused in one sentence."""
+    try:
+        return sp.lambdify(*args, **kwargs)
+    except (RecursionError, MemoryError, SyntaxError, ValueError, OverflowError):
+        # Python's compiler and its integer-to-text limit bound what generated code can hold.
+        raise InputError("the model's expressions are too large to compile: "
+                         "give smaller powers or fewer terms") from None
 
 
 def _as_matrix(value, n, name):
@@ -228,7 +264,7 @@ class Model:
         # Common-subexpression elimination pays off for large matrices only; it costs
         # ~0.1 s even on a 2x2 one.
         # Each part returns its entries flat, so that arrays of configurations broadcast.
-        fns = [None if p is None else sp.lambdify(args, list(p), modules="numpy",
+        fns = [None if p is None else _lambdify(args, list(p), modules="numpy",
                                                   cse=sp.count_ops(p) > 400)
                for p in parts]
         self._compiled = (fns, [str(s) for s in self.coordinates], list(self.parameters))
@@ -343,10 +379,10 @@ class Model:
             raise InputError(f"model {self.name!r} uses symbols with no value: "
                              f"{', '.join(sorted(map(str, unknown)))}")
         cse = sp.count_ops(c) > 400
-        m_fn = sp.lambdify([q], mass, modules="numpy", cse=cse)
-        c_fn = sp.lambdify([q, rates], list(c), modules="numpy", cse=cse)
+        m_fn = _lambdify([q], mass, modules="numpy", cse=cse)
+        c_fn = _lambdify([q, rates], list(c), modules="numpy", cse=cse)
         g_fn = None if gravity is None or not any(gravity) else \
-            sp.lambdify([q], list(gravity), modules="numpy")
+            _lambdify([q], list(gravity), modules="numpy")
 
         def mass_at(x):
             return np.asarray(m_fn(x), dtype=float)
@@ -361,7 +397,7 @@ class Model:
         qm, rm = sp.Matrix(q), sp.Matrix(rates)
         g_vec = gravity if gravity is not None and any(gravity) else sp.zeros(n, 1)
         parts = [[mass.diff(qk) for qk in q], c.jacobian(qm), c.jacobian(rm), g_vec.jacobian(qm)]
-        d_fn = sp.lambdify([q, rates], parts, modules="numpy", cse=cse)
+        d_fn = _lambdify([q, rates], parts, modules="numpy", cse=cse)
 
         def derivatives_at(x, r):
             dm, dcq, dcr, dg = d_fn(x, r)

@@ -14,7 +14,7 @@ from ..errors import InputError
 from ..model.catalog import ROBOT_NAMES, check_robot_name
 from ..model.compiled import compile_model, load_compiled
 from ..model.equilibrium import static_equilibrium
-from ..model.expressions import parse_expression, parse_number
+from ..model.expressions import parse_expression, parse_number, reserved_name
 from ..model.serial_chain import SerialChain
 from ..model.joint import JointSpace
 from .spec import ModelSpec, SceneData
@@ -81,9 +81,13 @@ def entry_value(value, where: str = "") -> float | str:
             return parse_number(value)
         except InputError:
             return value            # names (or a bad expression): the symbolic parser decides
-    x = float(value)
+    try:
+        x = float(value)
+    except OverflowError:                   # an integer past 1.8e308
+        x = float("inf")
     if not np.isfinite(x):
-        raise InputError(f"{where + ': ' if where else ''}expected a finite number, got {value!r}")
+        shown = f"{value!r}" if len(repr(value)) < 40 else "a number outside the floating-point range"
+        raise InputError(f"{where + ': ' if where else ''}expected a finite number, got {shown}")
     return x
 
 
@@ -119,7 +123,7 @@ def _vector(value, n: int) -> list:
 
 def _joint_key(message: str, keys: dict) -> str:
     for part in ("damping", "stiffness", "gravity"):
-        if message.startswith(part):
+        if message.startswith((part, f"node {part}")):
             return keys[part]
     return keys["mass"]
 
@@ -157,7 +161,7 @@ def _symbolic(parts: dict, params: Mapping[str, float], keys: dict):
                 try:
                     return parse_expression(value, symbols)
                 except InputError as exc:
-                    hint = "" if params else f"; give its value with {keys['parameters']}"
+                    hint = "" if params or "unknown name" not in str(exc) else f"; give its value with {keys['parameters']}"
                     raise InputError(f"{where}: {exc}{hint}") from None
         return sp.Float(value, 17)
 
@@ -214,9 +218,10 @@ def scene_model(scene: SceneData) -> object:
         if spec.mass is None:
             raise InputError(f"{keys['model']}: give a built-in robot or a mass matrix")
         for key in params:
-            if not key.isidentifier() or key.startswith("_") or _QNAME.match(key) or key in ("pi", "e"):
+            if _QNAME.match(key) or reserved_name(key):
                 raise InputError(f"{keys['parameters']} {key}: not a usable name (q1 ... qn are the "
-                                 "joint coordinates; pi and e are constants)")
+                                 "joint coordinates; pi and e are constants; function names such as "
+                                 "sin, arcsin or exp are taken by the code the model compiles to)")
         parts, symbolic = _matrices(spec, keys)
         if not symbolic and scene.dynamics == "linear":
             if params:
@@ -345,13 +350,14 @@ def scene_system(scene: SceneData, model=None) -> object:
                                **inputs)
         except InputError as exc:
             text = str(exc)
-            if text.startswith(("topology", "unknown topology")):
+            if text.startswith(("topology", "unknown topology", "current map")) or (
+                    text.startswith("node ") and isinstance(scene.topology, tuple)):
                 raise InputError(f"{keys['topology']}: {text}") from None
             if text.startswith("t_stop"):
                 raise InputError(f"{keys['t_stop']}: {text}") from None
             if "does not assemble" in text:
                 raise InputError(f"{keys['q']}: {text}") from None
-            if text.startswith(("mass", "damping", "stiffness", "gravity", "node mass", "model")):
+            if text.startswith(("mass", "damping", "stiffness", "gravity", "node ", "model")):
                 # a built-in robot's matrices come from its parameters
                 key = keys["parameters"] if scene.model.robot is not None else _joint_key(text, keys)
                 raise InputError(f"{key}: {text}") from None

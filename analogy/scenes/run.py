@@ -15,6 +15,7 @@ from ..presets import preset as get_preset
 from ..results.comparison import compare
 from ..results.metrics import absolute_error, relative_error
 from ..results.output import Tabular, html_table
+from .build import keyed
 from .scene import Scene
 
 if TYPE_CHECKING:
@@ -54,6 +55,11 @@ def run_scene(scene: Scene, output_dir=None) -> "SceneResult":
     """
     if not isinstance(scene, Scene):
         raise InputError(f"run_scene takes a Scene, got {type(scene).__name__}: read a file with load_scene(path)")
+    # Every output path is checked before any work, so a refused one costs nothing.
+    for key, name in (("netlist", scene.netlist_file), ("csv", scene.csv_file), ("plot", scene.plot_file)):
+        if name:
+            with keyed(scene.source), keyed(f"[outputs] {key}"):
+                scene.path(name, output_dir)
     p = get_preset(scene.preset)
     system = scene.system()
     result = SceneResult(scene, system)

@@ -13,6 +13,7 @@ from ..errors import InputError
 from ..model.dynamics import DYNAMICS, DynamicsKind
 from ..presets import PRESETS, PresetName
 from .build import scene_model, scene_system, scene_systems, symbolic_model
+from .paths import inside_folder
 from .spec import ModelSpec, freeze
 
 if TYPE_CHECKING:
@@ -187,10 +188,9 @@ class Scene:
         output_dir : str or Path, optional
             The output folder; default the scene file's folder, else the working folder.
         """
-        p = Path(name)
-        if output_dir is not None:
-            return Path(output_dir) / p
-        return (Path(self.source).parent if self.source is not None else Path.cwd()) / p
+        folder = Path(output_dir) if output_dir is not None else \
+            (Path(self.source).parent if self.source is not None else Path.cwd())
+        return inside_folder(folder, name)
 
     def build_model(self) -> object:
         """The scene's symbolic model (sympy): a robot's derivation, or the parsed matrices."""

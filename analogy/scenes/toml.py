@@ -58,6 +58,7 @@ from ..model.expressions import parse_number
 from ..presets import preset as get_preset
 from ..results.output import check_plot_path
 from ..solvers.registry import SOLVER_NAMES
+from .paths import check_relative_name
 from .scene import OUTPUTS, Scene
 from .spec import ModelSpec, freeze
 from .validate import validated
@@ -139,9 +140,12 @@ def _number(value) -> float:
         raise InputError(f"expected a number, got {_kind(value)}")
     if isinstance(value, str):
         return parse_number(value)
-    x = float(value)
+    try:
+        x = float(value)
+    except OverflowError:                   # a TOML integer past 1.8e308
+        x = math.inf
     if not math.isfinite(x):
-        raise InputError(f"expected a finite number, got {value!r}")
+        raise InputError(f"expected a finite number, got {_kind(value)} outside the floating-point range")
     return x
 
 
@@ -459,11 +463,8 @@ def _outputs(ctx, data) -> dict:
 
 def _relative_file(ctx, key: str, value: str) -> str:
     # A scene file may come from anyone: its outputs stay inside the output folder.
-    p = Path(value)
-    if p.is_absolute() or ".." in p.parts:
-        raise ctx.error(f"[outputs] {key}", f"{value!r} must be a relative path inside the "
-                                            "output folder (no absolute path, no '..')")
-    return value
+    with ctx.key(f"[outputs] {key}"):
+        return check_relative_name(value)
 
 
 def _solvers(ctx, data) -> dict:

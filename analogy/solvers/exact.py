@@ -8,6 +8,7 @@ from typing import Sequence
 import numpy as np
 
 from ..circuit.node_system import stacked
+from ..circuit.topology import symmetric_part
 from ..errors import SimulationError
 from ..presets import Preset
 from ..results.trajectory import SolverStats, Trajectory
@@ -93,7 +94,7 @@ def _modes(systems, n: int, springs: bool):
         chol = np.linalg.cholesky(m)
         half = np.linalg.solve(chol, b)
         sym = np.linalg.solve(chol, np.swapaxes(half, 1, 2))
-        mu, psi = np.linalg.eigh(0.5 * (sym + np.swapaxes(sym, 1, 2)))
+        mu, psi = np.linalg.eigh(symmetric_part(sym))
         vec = np.linalg.solve(np.swapaxes(chol, 1, 2), psi)
         z = np.einsum("sji,sjk,sk->si", vec, m, v0)
         beta = np.einsum("sji,sjk->sik", vec, cmap)
@@ -170,7 +171,7 @@ def _refined(m, b, k, lam, vec, spread: float = 1e6):
 
 def _spring_state(m, k, mb):
     """The first-order matrix on y = [w, v], w = U_rᵀ·x over the range of K' = U_r·κ·U_rᵀ, and its modes."""
-    kappa, u = np.linalg.eigh(0.5 * (k + k.T))
+    kappa, u = np.linalg.eigh(symmetric_part(k))
     live = np.abs(kappa) > 1e-12 * np.max(np.abs(kappa))
     ur = u[:, live]
     r = ur.shape[1]
@@ -216,6 +217,12 @@ def _states(systems, t, n: int, springs: bool) -> np.ndarray:
 
 
 def _solve(systems, t) -> np.ndarray | list[np.ndarray]:
+    # Overflow shows as inf or NaN in the states, which _finite turns into one sentence.
+    with np.errstate(over="ignore", invalid="ignore"):
+        return _solve_parts(systems, t)
+
+
+def _solve_parts(systems, t) -> np.ndarray | list[np.ndarray]:
     parts: dict = {}
     breaks: dict = {}
     for k, s in enumerate(systems):
@@ -226,12 +233,20 @@ def _solve(systems, t) -> np.ndarray | list[np.ndarray]:
         parts.setdefault(key, []).append(k)
     if len(parts) == 1:                 # one stack: returned whole
         (n, springs, _), = parts
-        return _states(systems, t, n, springs)
+        return _finite(_states(systems, t, n, springs))
     out: list = [None] * len(systems)
     for (n, springs, _), idx in parts.items():
-        for k, y in zip(idx, _states([systems[k] for k in idx], t, n, springs)):
+        for k, y in zip(idx, _finite(_states([systems[k] for k in idx], t, n, springs))):
             out[k] = y
     return out
+
+
+def _finite(states: np.ndarray) -> np.ndarray:
+    """*states*, unless a value left the floating-point range: then a failure, never inf or NaN."""
+    if not np.all(np.isfinite(states)):
+        raise SimulationError("the exact solution leaves the floating-point range (the rates or positions "
+                              "pass 1.8e308): rescale the masses, forces or time")
+    return states
 
 
 def solve_exact_many(systems: Sequence, times) -> list[np.ndarray]:

@@ -185,11 +185,9 @@ def solve_ode(system, times=None, method: str = "DOP853", rtol: float = 1e-10,
         idx = idx[t[idx] > t0]
         k = 0
         if t1 > t0:
-            sol = cls(rhs, t0, y, t1, rtol=rtol, atol=atol, **extra)
+            sol = _guarded(method, t0, cls, rhs, t0, y, t1, rtol=rtol, atol=atol, **extra)
             while sol.status == "running":
-                with warnings.catch_warnings():
-                    warnings.simplefilter("ignore")     # scipy's notes become the sentence below
-                    message = sol.step()
+                message = _guarded(method, sol.t, sol.step)
                 if sol.status == "failed":
                     raise SimulationError(f"the ODE solver {method} could not continue at t = {sol.t:.6g} s "
                                           f"({_plain(message)}): try the other preset or the exact solver")
@@ -214,6 +212,18 @@ def solve_ode(system, times=None, method: str = "DOP853", rtol: float = 1e-10,
     elapsed = _time.perf_counter() - start
     stats = SolverStats(elapsed, steps, None, nfev, njev)
     return Trajectory("ode", t, out, system.joint_rates(out), pos, stats=stats, work=work, message=note)
+
+
+def _guarded(method: str, at: float, fn, *args, **kwargs):
+    """*fn* with scipy's warnings silenced and its numeric errors turned into one sentence."""
+    try:
+        with warnings.catch_warnings(), np.errstate(all="ignore"):
+            warnings.simplefilter("ignore")     # scipy's notes become the sentences here and above
+            return fn(*args, **kwargs)
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError):
+        # e.g. "array must not contain infs or NaNs" from an overflowing step
+        raise SimulationError(f"the ODE solver {method} met values outside the floating-point range "
+                              f"at t = {at:.6g} s: rescale the masses, dampers, springs or forces") from None
 
 
 def _plain(message) -> str:
