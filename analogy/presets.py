@@ -8,7 +8,10 @@ from typing import Literal
 
 from .errors import InputError
 
-__all__ = ["Preset", "PRESETS", "PresetName", "preset"]
+__all__ = ["DEFAULT_T_STOP", "Preset", "PRESETS", "PresetName", "preset"]
+
+#: End of the simulated interval [s] when none is given: the same for scenes, systems and the CLI.
+DEFAULT_T_STOP = 10.0
 
 #: Names of the built-in presets.
 PresetName = Literal["fast", "accurate"]

@@ -40,7 +40,7 @@ def test_compare_writes_table_csv_and_plot(tmp_path):
     assert "spice" in res.stdout and "ode" in res.stdout and "exact" in res.stdout
     with open(tmp_path / "c.csv") as fh:
         rows = list(csv.reader(fh))
-    assert rows[0] == ["time", "r1_spice", "r2_spice", "r1_ode", "r2_ode", "r1_exact", "r2_exact"]
+    assert rows[0] == ["time [s]"] + [f"r{j}_{s} [rad/s]" for s in ("spice", "ode", "exact") for j in (1, 2)]
     assert len(rows) > 10
     assert (tmp_path / "c.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
@@ -112,7 +112,7 @@ def test_results_start_at_t0_and_an_output_step_sets_the_rows(tmp_path):
     res = cli("compare", "--solvers", "ode,exact", "--step", "0.5", "--csv", str(out))
     assert res.returncode == 0, res.stderr
     rows = list(csv.reader(out.open()))
-    assert rows[0][0] == "time" and [float(r[0]) for r in rows[1:]] == [0.5 * k for k in range(21)]
+    assert rows[0][0] == "time [s]" and [float(r[0]) for r in rows[1:]] == [0.5 * k for k in range(21)]
 
 
 @pytest.mark.ngspice

@@ -11,7 +11,7 @@ ROOT = Path(__file__).resolve().parent.parent
 PACKAGE = ROOT / "analogy"
 MODULES = sorted(p for p in PACKAGE.rglob("*.py"))
 #: Third-party modules heavy enough to import only where needed.
-HEAVY = {"sympy", "scipy", "matplotlib", "PySpice", "mpmath", "schemdraw", "pandas", "tqdm", "distributed",
+HEAVY = {"sympy", "scipy", "matplotlib", "PySpice", "mpmath", "schemdraw", "pandas", "tqdm", "distributed", "pint",
          "pyarrow", "dask"}
 
 

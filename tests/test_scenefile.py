@@ -212,7 +212,7 @@ def test_ode_only_numeric_scene_imports_no_spice_and_no_sympy(tmp_path):
     assert not any(loaded.values()), loaded
     with open(tmp_path / "out" / "ode_only.csv") as fh:
         rows = list(csv.reader(fh))
-    assert rows[0] == ["time", "r1_ode", "r2_ode", "r3_ode", "r4_ode"]
+    assert rows[0] == ["time [s]"] + [f"r{j}_ode [rad/s or m/s]" for j in range(1, 5)]     # a custom model
     assert len(rows) == 1002
 
 
@@ -344,8 +344,8 @@ def test_scene_element_currents_from_spice(tmp_path):
         assert errs[quantity]["spice"][1] <= 1e-6, (quantity, errs[quantity])
     with open(tmp_path / "out" / "currents.csv") as fh:
         header = next(csv.reader(fh))
-    assert header[:4] == ["time", "r1_spice", "r2_spice", "v_n2_spice"]
-    assert "i_C1_2_spice" in header and "i_L1_2_exact" in header
+    assert header[:4] == ["time [s]", "r1_spice [rad/s or m/s]", "r2_spice [rad/s or m/s]", "v_n2_spice [V]"]
+    assert "i_C1_2_spice [A]" in header and "i_L1_2_exact [A]" in header
     assert result.netlist is None              # the netlist was not asked for
 
 

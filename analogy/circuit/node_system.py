@@ -8,6 +8,7 @@ from typing import Iterator, Mapping, NamedTuple, Protocol, Sequence
 import numpy as np
 
 from ..errors import InputError
+from ..presets import DEFAULT_T_STOP
 from ..units import joint_units
 from ..model.dynamics import DynamicsKind
 from ..model.joint import (
@@ -361,7 +362,7 @@ def waveforms(spec, n: int) -> tuple:
 def node_system(model: Evaluable | JointSpace, q: Sequence[float] | None = None, *,
                 parameters: Mapping[str, float] | None = None,
                 topology: str | Topology | np.ndarray | None = None,
-                forces=None, initial_rates=None, t_stop: float = 1.0,
+                forces=None, initial_rates=None, t_stop: float = DEFAULT_T_STOP,
                 info: Mapping | None = None) -> NodeSystem:
     """Evaluate *model* at *q* and map it to node coordinates.
 
@@ -419,7 +420,7 @@ def _mapped(joint, top_spec, base_info, forces, initial_rates, t_stop, info) -> 
 
 
 def node_systems(model, qs, *, parameters: Mapping[str, float] | None = None,
-                 topology=None, forces=None, initial_rates=None, t_stop: float = 1.0,
+                 topology=None, forces=None, initial_rates=None, t_stop: float = DEFAULT_T_STOP,
                  info: Mapping | None = None) -> list[NodeSystem]:
     """:func:`node_system` at every row of *qs*, evaluated and checked as one stack.
 

@@ -7,6 +7,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from ..errors import InputError
+from ..presets import DEFAULT_T_STOP
 from ..units import joint_units
 from ..model.dynamics import DynamicsKind, MechanicalFunctions
 from ..model.joint import check_square_symmetric, check_vector
@@ -199,7 +200,7 @@ class NonlinearNodeSystem(NodeCoordinates):
 
 
 def nonlinear_system(model, q: Sequence[float], *, parameters: Mapping[str, float] | None = None,
-                     topology=None, forces=None, initial_rates=None, t_stop: float = 1.0,
+                     topology=None, forces=None, initial_rates=None, t_stop: float = DEFAULT_T_STOP,
                      info: Mapping | None = None) -> NonlinearNodeSystem:
     """The full nonlinear dynamics of a symbolic *model*, starting at configuration *q*.
 

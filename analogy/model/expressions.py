@@ -13,6 +13,7 @@ from typing import Iterable, Mapping
 import numpy
 
 from ..errors import InputError
+from .quantities import split_unit, unit_factor
 
 __all__ = ["parse_expression", "parse_matrix", "parse_vector", "parse_number",
            "parse_call", "split_entries", "reserved_name", "FUNCTION_NAMES", "MAX_LENGTH", "MAX_DEPTH",
@@ -323,7 +324,14 @@ def parse_number(text: str) -> float:
     text : str
         A constant expression such as ``pi/4``.
     """
-    return _finite(_Converter(text, _Numeric, {}, allow_lists=False).convert(_syntax_tree(text)), text)
+    try:
+        return _finite(_Converter(text, _Numeric, {}, allow_lists=False).convert(_syntax_tree(text)), text)
+    except InputError:
+        split = split_unit(text) if isinstance(text, str) else None
+        if split is None:
+            raise
+    number, unit = split        # a number with a unit, e.g. "100 mm": converted to SI
+    return _finite(parse_number(number) * unit_factor(unit), text)
 
 
 def _depth(v) -> int:
@@ -378,8 +386,30 @@ def parse_vector(text: str, symbols: Mapping | None = None, numeric: bool = Fals
     stripped = text.strip()
     if not stripped.startswith("["):
         stripped = f"[{stripped}]"
-    items = _nested(stripped, symbols, 1, numeric)
+    try:
+        items = _nested(stripped, symbols, 1, numeric)
+    except InputError:
+        if not numeric or not any(split_unit(e) for e in _flat(stripped)):
+            raise
+        return [parse_number(e) for e in _flat(stripped)]        # entries with units
     return [_finite(x, text) for x in items] if numeric else items
+
+
+def _flat(text: str) -> list[str]:
+    """The entries of a one-level ``[a, b]`` split at its top-level commas (units are not Python syntax)."""
+    inner = text.strip()
+    if not (inner.startswith("[") and inner.endswith("]")):
+        return []
+    out, depth, start = [], 0, 1
+    for k, ch in enumerate(inner[1:-1], 1):
+        depth += ch in "([" and 1 or (-1 if ch in ")]" else 0)
+        if depth < 0 or ch in "[]" and depth:
+            return []
+        if ch == "," and depth == 0:
+            out.append(inner[start:k])
+            start = k + 1
+    out.append(inner[start:-1])
+    return [e.strip() for e in out]
 
 
 def split_entries(text: str) -> list:

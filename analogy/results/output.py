@@ -3,17 +3,19 @@
 from __future__ import annotations
 
 import csv
+import re
 from pathlib import Path
 from typing import TYPE_CHECKING, Mapping
 
 import numpy as np
 
 from ..errors import InputError
+from ..units import rate_unit
 
 if TYPE_CHECKING:
     import pandas
 
-__all__ = ["Tabular", "write_columns", "write_rows", "html_table", "check_plot_path", "PLOT_FORMATS"]
+__all__ = ["Tabular", "column_unit", "write_columns", "write_rows", "html_table", "check_plot_path", "PLOT_FORMATS"]
 
 #: File formats matplotlib writes here.
 PLOT_FORMATS = ("png", "svg", "pdf", "jpg", "jpeg", "eps", "ps", "tif", "tiff", "webp")
@@ -95,6 +97,32 @@ def check_plot_path(path) -> Path:
     return path
 
 
+_RATE = re.compile(r"^r(\d+)(_|$)")
+
+
+def column_unit(name: str, joint_units=None) -> str:
+    """The unit of a result column by its name: time [s], joint rates, voltages [V], currents [A].
+
+    Parameters
+    ----------
+    name : str
+        ``time``, ``r2_spice``, ``v_n1_exact``, ``i_C1_2_spice`` …
+    joint_units : sequence of str, optional
+        :func:`analogy.units.joint_units` of the system.
+    """
+    if name == "time":
+        return "s"
+    if (m := _RATE.match(name)) is not None:
+        j = int(m.group(1)) - 1
+        return rate_unit(joint_units[j] if joint_units and j < len(joint_units) else None)
+    return {"v_": "V", "i_": "A"}.get(name[:2], "")
+
+
+def _with_unit(name: str, joint_units) -> str:
+    unit = column_unit(name, joint_units)
+    return f"{name} [{unit}]" if unit else name
+
+
 class Tabular:
     """Results whose :meth:`columns` (first column the index) give their CSV and their DataFrame."""
 
@@ -105,14 +133,17 @@ class Tabular:
         raise NotImplementedError
 
     def to_csv(self, path) -> Path:
-        """Write the :meth:`columns`, one row per entry of the first.
+        """Write the :meth:`columns`, one row per entry of the first; the header names each unit.
 
         Parameters
         ----------
         path : str or Path
             The file to write (its folder must exist).
         """
-        return write_columns(path, self.columns())
+        system = getattr(self, "system", None)
+        units = getattr(system, "info", {}).get("units") if system is not None else None
+        cols = self.columns()
+        return write_columns(path, {_with_unit(name, units): v for name, v in cols.items()})
 
     def to_frame(self) -> "pandas.DataFrame":
         """The :meth:`columns` as a pandas DataFrame indexed by the first of them."""

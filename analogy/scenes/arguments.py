@@ -35,7 +35,8 @@ def scene_options(p: argparse.ArgumentParser, preset: str = "accurate") -> None:
     preset : str
         The default preset.
     """
-    g = p.add_argument_group("scene (defaults: the built-in default scene; SI units throughout)")
+    g = p.add_argument_group("scene (defaults: the built-in default scene; numbers are SI: m, kg, s, rad, "
+                             "N, N·m; a number may carry a unit instead, e.g. '100 mm', '30 deg')")
     g.add_argument("--scene", default="default", help="built-in scene to start from (see 'analogy scenes')")
     g.add_argument("--robot", help=f"built-in robot: {', '.join(ROBOT_NAMES)}, serial<N> (a planar "
                                    f"N-joint arm, e.g. serial4, N up to {MAX_SERIAL}) or random<N>")
@@ -46,21 +47,22 @@ def scene_options(p: argparse.ArgumentParser, preset: str = "accurate") -> None:
     g.add_argument("--gravity", metavar="VECTOR", help="gravity load G(q), one entry per joint, "
                    "e.g. '[9.81*m*cos(q1), 0]'; with --mass")
     g.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
-                   help="parameter value (repeatable), e.g. l1=0.5; qK=VALUE sets joint "
-                        "coordinate K, e.g. q2=pi/4")
+                   help="parameter value (repeatable), e.g. l1=0.5 or l1='500 mm'; qK=VALUE sets "
+                        "joint coordinate K, e.g. q2=pi/4 or q2='45 deg'")
     g.add_argument("--link-modes", choices=("clamped-free", "clamped-mass"),
                    help="flexible arms: each link's mode shapes, a cantilever's (default) or "
                         "loaded by the tip mass and inertia the link carries")
-    g.add_argument("--q", metavar="VALUES", help="configuration, e.g. '0, 0.3'")
+    g.add_argument("--q", metavar="VALUES", help="configuration [rad or m], e.g. '0, 0.3' or '0, 30 deg'")
     g.add_argument("--topology", metavar="serial|parallel|MATRIX",
                    help="joint-to-node map: serial, parallel or a matrix T with v = T r")
     g.add_argument("--force", action="append", metavar="SPEC",
-                   help="force on the next joint (repeat once per joint): a number, step(a), "
+                   help="force on the next joint [N·m or N] (repeat once per joint): a number, step(a), "
                         "step(a, delay, rise), pulse(v1, v2, delay=0, rise=1e-6, fall=1e-6, width=1, "
                         "period=one pulse), sine(offset, amplitude, freq, delay=0, damping=0, "
                         "phase_deg=0), pwl(t1, v1, t2, v2, ...)")
-    g.add_argument("--r0", metavar="VALUES", help="initial joint rates, e.g. '0, 0'")
-    g.add_argument("--t-stop", metavar="SECONDS", help="end time of the simulation")
+    g.add_argument("--r0", metavar="VALUES", help="initial joint rates [rad/s or m/s], e.g. '0, 0'")
+    g.add_argument("--t-stop", metavar="SECONDS", help="end time of the simulation [s] (default 10, "
+                   "or the scene's), e.g. 2 or '500 ms'")
     g.add_argument("--equilibrium", action="store_true", help="settle the elastic (modal) coordinates "
                    "at the static equilibrium under gravity first, the joints held at --q")
     p.add_argument("--preset", default=preset, choices=list(PRESETS), help=PRESET_HELP)

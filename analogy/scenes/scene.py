@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Mapping
 
 from ..errors import InputError
 from ..model.dynamics import DYNAMICS, DynamicsKind
-from ..presets import PRESETS, PresetName
+from ..presets import DEFAULT_T_STOP, PRESETS, PresetName
 from .build import scene_model, scene_system, scene_systems, symbolic_model
 from .paths import inside_folder
 from .spec import ModelSpec, freeze
@@ -91,7 +91,7 @@ class Scene:
     topology: object = None
     forces: tuple = ()
     initial_rates: tuple | None = None
-    t_stop: float = 10.0
+    t_stop: float = DEFAULT_T_STOP
     equilibrium: bool = False
     dynamics: DynamicsKind = "linear"
     joint_rates: bool = True

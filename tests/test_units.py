@@ -1,0 +1,91 @@
+"""Units: inputs may carry them (converted to SI by pint), and every output names its own."""
+
+import math
+import subprocess
+import sys
+
+import pytest
+
+from analogy.cli import main
+from analogy.errors import InputError
+from analogy.model.expressions import parse_number, parse_vector
+from analogy.model.quantities import split_unit, unit_factor
+from analogy.results.output import column_unit
+from analogy.scenes.builtin import scene
+from analogy.units import joint_units, mechanical_units, rate_label
+
+
+@pytest.mark.parametrize("text, si", [
+    ("100 mm", 0.1), ("30 deg", math.pi / 6), ("2 kg", 2.0), ("500 g", 0.5), ("pi/6 rad", math.pi / 6),
+    ("9.81 m/s^2", 9.81), ("5km", 5000.0), ("1.5 N·m", 1.5), ("250 ms", 0.25), ("2 kg*m^2", 2.0),
+    ("1e-3", 1e-3), ("2*pi", 2 * math.pi),
+])
+def test_a_number_with_a_unit_is_its_si_value(text, si):
+    assert parse_number(text) == pytest.approx(si, rel=1e-15)
+
+
+def test_a_degree_is_pi_over_180_radians_and_a_millimetre_a_thousandth_of_a_metre():
+    assert unit_factor("deg") == pytest.approx(math.pi / 180, rel=1e-15)
+    assert unit_factor("mm") == pytest.approx(1e-3, rel=1e-15)
+    assert unit_factor("N*m") == unit_factor("J") == 1.0
+
+
+@pytest.mark.parametrize("text, message", [
+    ("20 degC", "offset unit"), ("3 blorbs", "unknown unit"), ("2 e", "cannot parse"),
+    ("1 __import__('os')", "cannot parse"), ("1 m; rm", "cannot parse"),
+])
+def test_what_is_not_a_unit_is_refused_in_one_sentence(text, message):
+    with pytest.raises(InputError, match=message):
+        parse_number(text)
+
+
+def test_the_grammar_s_own_names_are_never_read_as_units():
+    assert split_unit("2 e") is None and split_unit("3 pi") is None
+    assert split_unit("1e5") is None
+
+
+def test_a_vector_may_mix_numbers_and_units():
+    assert parse_vector("0, 30 deg", numeric=True) == [0.0, pytest.approx(math.pi / 6, rel=1e-15)]
+
+
+def test_units_give_the_netlist_of_their_si_numbers(capsys):
+    assert main(["netlist", "--param", "l1=100 mm", "--q", "0, 30 deg"]) == 0
+    with_units = capsys.readouterr().out
+    assert main(["netlist", "--param", "l1=0.1", "--q", "0, 0.5235987755982988"]) == 0
+    assert capsys.readouterr().out == with_units
+
+
+def test_a_scene_file_may_give_units(tmp_path, capsys):
+    body = ('[model]\nrobot = "serial2"\n[parameters]\nl1 = {l1}\nd2 = {d2}\n[configuration]\n'
+            'q = [0, {q}]\n[inputs]\nforces = [1, 0]\nt_stop = {t}\n[outputs]\nnetlist = true\n')
+    (tmp_path / "u.toml").write_text(body.format(l1='"100 mm"', d2='"500 g"', q='"30 deg"', t='"2 s"'))
+    (tmp_path / "n.toml").write_text(body.format(l1=0.1, d2=0.5, q=0.5235987755982988, t=2))
+    outputs = []
+    for name in ("u", "n"):
+        assert main(["run", str(tmp_path / f"{name}.toml")]) == 0
+        outputs.append(capsys.readouterr().out.replace(f"scene {name}", "scene X"))
+    assert outputs[0] == outputs[1]
+
+
+def test_pint_is_imported_only_when_an_input_carries_a_unit():
+    code = ("import sys; from analogy.cli import main; main(['netlist', '--q', '0, 0.3']); "
+            "print('pint' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip().endswith("False")
+
+
+def test_joint_units_follow_the_joints():
+    assert scene("default").system().info["units"] == ("rad", "rad")
+    assert scene("redundant").system().info["units"] == ("m", "m")
+    assert joint_units("flex2", ["theta1", "theta2", "delta1_1", "delta2_1"]) == ("rad", "rad", "m", "m")
+    assert joint_units("random10", [f"q{k}" for k in range(1, 11)]) is None
+    assert rate_label(("rad", "rad")) == "joint rate [rad/s]"
+    assert rate_label(("rad", "m")) == "joint rate [rad/s or m/s]"
+    assert mechanical_units(("m", "m"))["C"] == "kg" and mechanical_units(("rad",))["C"] == "kg\u00b7m\u00b2"
+
+
+def test_csv_headers_name_their_units():
+    assert column_unit("time") == "s"
+    assert column_unit("r2_spice", ("rad", "m")) == "m/s"
+    assert column_unit("v_n1_exact") == "V" and column_unit("i_C1_2_spice") == "A"
+    assert column_unit("mode") == ""
