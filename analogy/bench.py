@@ -20,6 +20,7 @@ from .circuit.netlist import netlist
 from .errors import AnalogyError, InputError
 from .presets import PRESETS, Preset
 from .presets import preset as get_preset
+from .progress import Progress
 from .results.metrics import relative_error
 from .results.output import write_rows
 from .scenes.builtin import scene
@@ -117,60 +118,77 @@ class BenchResult:
         """
         from matplotlib.figure import Figure
         scenes = list(dict.fromkeys(r.scene for r in self.rows))
-        fig = Figure(figsize=(5.0 * len(scenes), 4.6), layout="constrained")
-        axes = np.atleast_1d(fig.subplots(1, len(scenes), sharey=True))
+        fig = Figure(figsize=(4.6 * len(scenes), 5.2), layout="constrained")
+        axes = np.atleast_1d(fig.subplots(1, len(scenes), sharex=True, sharey=True))
         markers = {"spice": "o", "ode": "s", "exact": "*", "reference": "P"}
+        # One colour per solver setting family in every panel, so a family reads across scenes.
+        families = list(dict.fromkeys((r.solver, r.setting.split(" ")[0]) for r in self.rows))
+        colour = {f: f"C{k % 10}" for k, f in enumerate(families)}
+        handles: dict = {}
         for ax, sc in zip(axes, scenes):
             rows = [r for r in self.rows if r.scene == sc]
-            families = dict.fromkeys((r.solver, r.setting.split(" ")[0]) for r in rows)
             for solver, family in families:
                 sel = [r for r in rows if r.solver == solver and r.setting.split(" ")[0] == family
                        and r.status == "ok" and np.isfinite(r.error)]
                 if not sel:
                     continue
                 sel.sort(key=lambda r: r.error)
-                ax.loglog([max(r.error, 1e-17) for r in sel], [r.median_s for r in sel],
-                          marker=markers[solver], ms=8 if solver == "exact" else 4,
-                          ls="-" if solver != "exact" else "none", label=f"{solver} {family}")
+                (line,) = ax.loglog([max(r.error, 1e-17) for r in sel], [r.median_s for r in sel],
+                                    marker=markers[solver], ms=8 if solver == "exact" else 4,
+                                    color=colour[(solver, family)], ls="-" if solver != "exact" else "none",
+                                    label=f"{solver} {family}")
+                handles.setdefault(line.get_label(), line)
             unref = [r for r in rows if r.solver == "exact" and r.status == "ok" and not np.isfinite(r.error)]
             for r in unref:     # no independent reference at this size: time only, drawn at 1e-16
-                ax.loglog([1e-16], [r.median_s], marker="*", ms=9, mfc="none", ls="none",
-                          label="exact modal (no reference)")
+                (line,) = ax.loglog([1e-16], [r.median_s], marker="*", ms=9, mfc="none", ls="none", color="k",
+                                    label="exact modal (no reference: time only)")
+                handles.setdefault(line.get_label(), line)
             failed = [r for r in rows if r.status != "ok"]
             if failed:
                 ax.text(0.02, 0.02, f"{len(failed)} settings failed", transform=ax.transAxes,
                         fontsize="small", color="tab:red")
-            ax.set_title(f"{sc} ({rows[0].dof} DOF)")
-            ax.set_xlabel("max error / peak (vs exact, or the reference if nonlinear)")
+            ax.set_title(f"{sc} ({rows[0].dof} DOF)", fontsize="medium")
+            ax.set_xlabel("max error / peak [1]")
             ax.grid(True, which="both", alpha=0.3)
-            ax.legend(fontsize="x-small", ncol=2)
+        fig.legend(list(handles.values()), list(handles), loc="outside lower center",
+                   ncols=min(6, len(handles)), fontsize="small", frameon=False)
+        fig.suptitle("run time against error (vs the exact solution, or the reference if nonlinear)",
+                     fontsize="medium")
         axes[0].set_ylabel(f"median run time [s] ({self.repeats} warm runs)")
         if path is not None:
             fig.savefig(path, dpi=110)
         return fig
 
 
-def bench_scenes() -> list[Scene]:
-    """The benchmark's scenes: 2, 10 and 50 DOF, and the 2-DOF arm's nonlinear dynamics."""
+def bench_scenes(quick: bool = False) -> list[Scene]:
+    """The benchmark's scenes: 2, 10 and 50 DOF, and the 2-DOF arm's nonlinear dynamics (*quick*: 2 and 10).
+
+    Parameters
+    ----------
+    quick : bool
+        Only the 2- and 10-DOF linear scenes.
+    """
     big = Scene.of("random50", ModelSpec(robot="random50", seed=2), topology="serial",
                    forces=tuple(["sine(0, 1, 0.7)"] + [f"step({1.0 / (k + 1)!r})" for k in range(1, 50)]),
                    t_stop=2.0, description="random SPD 50-DOF (seed 2), serial topology")
     nonlinear = scene("default").replace(name="default-nonlinear", dynamics="nonlinear",
                                          description="the default arm's full nonlinear dynamics")
-    return [scene("default"), scene("random10"), big, nonlinear]
+    return [scene("default"), scene("random10")] + ([] if quick else [big, nonlinear])
 
 
-def spice_grid(full: bool = False) -> list[tuple]:
+def spice_grid(full: bool = False, quick: bool = False) -> list[tuple]:
     """(label, options, max_steps) for ngspice: method, reltol, trtol and maximum step.
 
     Parameters
     ----------
     full : bool
         Also cross the step caps T/1000 and T/20000.
+    quick : bool
+        Only reltol 1e-3 and 1e-7 at trtol 7 (and the presets).
     """
     grid = []
-    reltols = (1e-3, 1e-5, 1e-7, 1e-9)
-    trtols = (7, 1)
+    reltols = (1e-3, 1e-7) if quick else (1e-3, 1e-5, 1e-7, 1e-9)
+    trtols = (7,) if quick else (7, 1)
     max_steps = (50, 1000, 20000) if full else (50,)
     for method in ("trap", "gear"):
         for rt in reltols:
@@ -197,9 +215,15 @@ def nonlinear_spice_grid() -> list[tuple]:
     return grid
 
 
-def ode_grid() -> list[tuple[str, float]]:
-    """(method, rtol) pairs: rtol from 1e-3 to 1e-10."""
-    return [(m, 10.0 ** -k) for m in ODE_BENCH_METHODS for k in range(3, 11)]
+def ode_grid(quick: bool = False) -> list[tuple[str, float]]:
+    """(method, rtol) pairs: rtol from 1e-3 to 1e-10 (*quick*: 1e-3, 1e-6, 1e-9).
+
+    Parameters
+    ----------
+    quick : bool
+        Three tolerances per method.
+    """
+    return [(m, 10.0 ** -k) for m in ODE_BENCH_METHODS for k in ((3, 6, 9) if quick else range(3, 11))]
 
 
 #: Timed seconds a setting may use; slow settings get fewer runs (recorded per row).
@@ -216,7 +240,8 @@ def _median_time(fn, repeats: int):
     return statistics.median(times), result, runs
 
 
-def bench(repeats: int = 5, full: bool = False, scenes=None, progress: bool = True) -> BenchResult:
+def bench(repeats: int = 5, full: bool = False, scenes=None, progress: bool = True,
+          quick: bool = False) -> BenchResult:
     """Time every solver setting on every scene and measure its error against the exact solution.
 
     Only the solver call is timed (netlist text and the exact reference are built
@@ -232,24 +257,23 @@ def bench(repeats: int = 5, full: bool = False, scenes=None, progress: bool = Tr
     scenes : sequence of Scene, optional
         Scenes to time (default :func:`bench_scenes`).
     progress : bool
-        Show a progress bar.
+        Show progress: a bar on a terminal, plain lines otherwise.
+    quick : bool
+        A small grid on the 2- and 10-DOF scenes, for a first look in seconds.
     """
     from .solvers.ode import solve_ode
 
     start = _time.perf_counter()
     result = BenchResult(repeats=repeats)
-    scenes = bench_scenes() if scenes is None else scenes
+    scenes = bench_scenes(quick) if scenes is None else scenes
     jobs = []
     for sc in scenes:
         system = sc.system()
         linear = getattr(system, "kind", "linear") == "linear"
-        jobs += [("spice", sc, system, g) for g in (spice_grid(full) if linear else nonlinear_spice_grid())]
-        jobs += [("ode", sc, system, g) for g in ode_grid()]
+        jobs += [("spice", sc, system, g) for g in (spice_grid(full, quick) if linear else nonlinear_spice_grid())]
+        jobs += [("ode", sc, system, g) for g in ode_grid(quick)]
         jobs.append(("exact" if linear else "reference", sc, system, None))
-    bar = None
-    if progress:
-        from tqdm import tqdm
-        bar = tqdm(total=len(jobs), unit="setting", leave=False)
+    bar = Progress(len(jobs), unit="setting", enabled=progress)
     sess = session()
     for kind, sc, system, g in jobs:
         n = system.dof
@@ -322,10 +346,8 @@ def bench(repeats: int = 5, full: bool = False, scenes=None, progress: bool = Tr
             tol = g[3] if kind == "spice" else (g[1] if kind == "ode" else 0.0)
             result.rows.append(BenchRow(sc.name, n, kind, label, tol, float("nan"), float("nan"), 0,
                                         f"failed: {str(exc).splitlines()[0][:120]}"))
-        if bar is not None:
-            bar.update()
-    if bar is not None:
-        bar.close()
+        bar.update(1)
+    bar.close()
     result.wall_s = _time.perf_counter() - start
     return result
 
@@ -381,7 +403,7 @@ def _solo_loop(payload):
 
 
 def throughput(n: int = 10_000, preset: str = "fast", group_size: int = 100, workers: int = 2,
-               baseline_n: int = 500, seed: int = 0, repeats: int = 3) -> str:
+               baseline_n: int = 500, seed: int = 0, repeats: int = 3, progress: bool = True) -> str:
     """Scenes per second: batched (grouped runs on *workers* processes) against per-scene paths.
 
     The scenes are the default 2-DOF serial arm at random q2 in [−π, π]. Each path builds
@@ -407,6 +429,8 @@ def throughput(n: int = 10_000, preset: str = "fast", group_size: int = 100, wor
         Seed of the random configurations.
     repeats : int
         Turns of every path; medians are reported.
+    progress : bool
+        Show progress by path run: a bar on a terminal, plain lines otherwise.
     """
     if min(n, baseline_n, repeats, workers, group_size) < 1:
         raise InputError("n, baseline_n, repeats, workers and group_size must be at least 1")
@@ -417,15 +441,18 @@ def throughput(n: int = 10_000, preset: str = "fast", group_size: int = 100, wor
     rates: dict = {k: [] for k in ("batched", "one", "solo", "pyspice")}
     worst: dict = {k: 0.0 for k in rates}
     failed, solves = 0, []
+    bar = Progress(4 * repeats, unit="path run", enabled=progress, every=0.0)
     for _ in range(repeats):
         with ProcessPoolExecutor(1, mp_context=ctx) as ex:
             sec, err, med = ex.submit(_solo_loop, (items[:baseline_n], preset)).result()
         rates["solo"].append(baseline_n / sec)
         worst["solo"], solves = max(worst["solo"], err), solves + [med]
+        bar.update(1)
         with ProcessPoolExecutor(1, mp_context=ctx) as ex:
             sec, err = ex.submit(_pyspice_loop, (items[:baseline_n], preset)).result()
         rates["pyspice"].append(baseline_n / sec)
         worst["pyspice"] = max(worst["pyspice"], err)
+        bar.update(1)
         for key, w in (("batched", workers), ("one", 1)):
             res = run_batch(items, preset, group_size=group_size, workers=w)
             rates[key].append(res.throughput)
@@ -433,6 +460,8 @@ def throughput(n: int = 10_000, preset: str = "fast", group_size: int = 100, wor
             ok = res.errors[np.isfinite(res.errors)]
             worst[key] = max(worst[key], float(ok.max())) if ok.size else float("nan")
             failed += len(res.failures)
+            bar.update(1)
+    bar.close()
     med = {k: statistics.median(v) for k, v in rates.items()}
     ratio = statistics.median(b / p for b, p in zip(rates["batched"], rates["pyspice"]))
     per_core = statistics.median(b / p for b, p in zip(rates["one"], rates["pyspice"]))

@@ -122,10 +122,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-progress", action="store_true", help="no progress bar (plain lines stay)")
     p = sub.add_parser("bench", help="run time against error: ngspice settings, ODE methods, exact solver")
     p.add_argument("--repeats", type=int, default=5, help="timed runs per setting (median; default 5)")
+    p.add_argument("--quick", action="store_true", help="a small grid on the 2- and 10-DOF scenes "
+                   "(seconds), for a first look")
     p.add_argument("--full", action="store_true", help="the full ngspice grid (method x reltol x trtol x max step)")
     p.add_argument("--csv", default="bench.csv", help="CSV output (default: bench.csv)")
     p.add_argument("--plot", default="bench.png", help="work-precision plot (default: bench.png)")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--no-progress", action="store_true", help="no progress (a bar on a terminal, "
+                   "plain lines otherwise)")
     p = sub.add_parser("stress", help="stress-test numerical stability: families of hard cases, each run by "
                                       "every solver that applies (CSV, a plot per family, a summary)")
     p.add_argument("--quick", action="store_true", help="only the ends of each sweep (under a minute)")
@@ -134,7 +137,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", default="stress", help="folder for stress.csv, stress.md and "
                    "stress_<family>.png (made if missing; default: stress)")
     p.add_argument("--timeout", type=float, default=10.0, help="wall-time limit of each ODE run [s] (default 10)")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--no-progress", action="store_true", help="no progress (a bar on a terminal, "
+                   "plain lines otherwise)")
     p = sub.add_parser("throughput", help="scenes per second: batched ngspice runs against per-scene loops")
     p.add_argument("-n", type=int, default=10_000, help="number of 2-DOF scenes (default 10000)")
     p.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
@@ -142,6 +146,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--baseline", type=int, default=500, help="scenes for the per-scene loops (default 500)")
     p.add_argument("--repeats", type=int, default=3, help="turns of every path; medians are reported (default 3)")
     p.add_argument("--preset", default="fast", choices=list(PRESETS), help=PRESET_HELP)
+    p.add_argument("--no-progress", action="store_true", help="no progress lines")
     p.add_argument("--sweep", metavar="SWEEP.toml", help="instead: this sweep into the store -o DIR, "
                    "beside the in-memory batched path on its first --baseline scenes, with peak memory")
     p.add_argument("-o", "--output", metavar="DIR", help="the store of --sweep")
@@ -281,7 +286,8 @@ def _cmd_verify(args) -> int:
         sp_err = errs.get("spice", (np.nan, np.nan))[1]
         od_err = errs.get("ode", (np.nan, np.nan))[1]
         sp_ms = c.results["spice"].run_time * 1e3 if "spice" in c.results else np.nan
-        print(f"{name:<10}{system.dof:>4}{sp_err:>13.2e}{od_err:>11.2e}{mp_err:>17.2e}{sp_ms:>12.1f}")
+        print(f"{name:<10}{system.dof:>4}{sp_err:>13.2e}{od_err:>11.2e}{mp_err:>17.2e}{sp_ms:>12.1f}",
+              flush=True)       # each scene's row as it is done, in a log too
         for solver, reason in c.failures.items():
             print(f"  {solver} failed: {reason}")
         if c.failures:
@@ -374,7 +380,7 @@ def _cmd_bench(args) -> int:
     _check_writable(args.csv)
     _check_writable(args.plot)
     result = bench(repeats=_positive(args.repeats, "--repeats"), full=args.full,
-                   progress=not args.no_progress)
+                   progress=not args.no_progress, quick=args.quick)
     print(result.table())
     result.to_csv(args.csv)
     result.plot(args.plot)
@@ -391,7 +397,7 @@ def _cmd_stress(args) -> int:
         raise InputError(f"--timeout must be positive, got {args.timeout:g}")
     families = args.families.strip().lower()
     report = stress(families, quick=args.quick, timeout=args.timeout,
-                    progress=not args.no_progress and sys.stderr.isatty())
+                    progress=not args.no_progress)
     try:
         out.mkdir(parents=True, exist_ok=True)
         written = write_report(report, out)
@@ -416,7 +422,7 @@ def _cmd_throughput(args) -> int:
                      group_size=_positive(args.group_size, "--group-size"),
                      workers=_positive(args.workers, "--workers"),
                      baseline_n=_positive(args.baseline, "--baseline"),
-                     repeats=_positive(args.repeats, "--repeats")))
+                     repeats=_positive(args.repeats, "--repeats"), progress=not args.no_progress))
     return EXIT_OK
 
 

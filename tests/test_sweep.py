@@ -287,7 +287,7 @@ def test_run_takes_several_scene_files_and_overrides_their_preset(tmp_path, caps
 def test_progress_is_plain_lines_when_stderr_is_not_a_terminal():
     import io
 
-    from analogy.batch.progress import Progress
+    from analogy.progress import Progress
     log = io.StringIO()
     bar = Progress(1000, initial=100, stream=log, every=0.0)
     bar.update(450)

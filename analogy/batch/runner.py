@@ -19,7 +19,7 @@ from ..errors import InputError
 from ..presets import PRESETS
 from ..presets import preset as get_preset
 from ..solvers.registry import SOLVER_NAMES
-from .progress import Progress
+from ..progress import Progress
 from .run import _group, _tasks, _worker_context
 from .store import ResultStore
 from .sweep import Sweep

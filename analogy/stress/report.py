@@ -12,6 +12,7 @@ from typing import Iterable
 import numpy as np
 
 from ..errors import AnalogyError, InputError
+from ..progress import Progress
 from ..results.comparison import compare
 from ..results.metrics import relative_error
 from ..results.output import Tabular, write_rows
@@ -238,9 +239,7 @@ def stress(families: str = "abcdefg", quick: bool = False, timeout: float = 10.0
         raise InputError(f"unknown stress families {''.join(bad) or '(none)'}: use letters of "
                          f"{''.join(FAMILY_TITLES)}")
     todo: Iterable = list(cases(families, quick, timeout))
-    if progress:
-        from tqdm import tqdm
-        todo = tqdm(todo, unit="case", leave=False, mininterval=1.0)
+    bar = Progress(len(todo), unit="case", enabled=progress)
     report = StressReport()
     for case in todo:
         try:
@@ -249,6 +248,8 @@ def stress(families: str = "abcdefg", quick: bool = False, timeout: float = 10.0
             report.rows.append(StressRow(case.family, case.label, case.axis, case.value, "all", "failed",
                                          math.nan, math.nan, math.nan, math.nan,
                                          f"internal error: {type(exc).__name__}: {exc}"))
+        bar.update(1)
+    bar.close()
     return report
 
 

@@ -25,17 +25,20 @@ class Progress:
         What an item is.
     every : float
         Seconds between plain lines.
+    enabled : bool
+        False: nothing at all.
     """
 
     def __init__(self, total: int, initial: int = 0, bar: bool | None = None, stream=None,
-                 unit: str = "scene", every: float = 10.0):
+                 unit: str = "scene", every: float = 10.0, enabled: bool = True):
+        self.enabled = enabled
         self.stream = stream or sys.stderr
         self.total, self.done, self.unit, self.every = total, initial, unit, every
         self._start = self._last = _time.monotonic()
         self._first = initial
         tty = getattr(self.stream, "isatty", lambda: False)()
         self._bar = None
-        if (tty if bar is None else bar) and total > 0:
+        if enabled and (tty if bar is None else bar) and total > 0:
             from tqdm import tqdm
             self._bar = tqdm(total=total, initial=initial, unit=unit, file=self.stream, smoothing=0.05,
                              mininterval=0.5, dynamic_ncols=True)
@@ -49,6 +52,8 @@ class Progress:
             Items just finished.
         """
         self.done += count
+        if not self.enabled:
+            return
         if self._bar is not None:
             self._bar.update(count)
             return
@@ -70,5 +75,5 @@ class Progress:
         """End the bar (a plain log gets a last line)."""
         if self._bar is not None:
             self._bar.close()
-        elif self.done > self._first:
+        elif self.enabled and self.done > self._first:
             print(self.line(), file=self.stream, flush=True)
