@@ -4,6 +4,7 @@ import ctypes.util
 import os
 import shutil
 import tempfile
+from pathlib import Path
 
 import pytest
 
@@ -22,3 +23,14 @@ def pytest_collection_modifyitems(config, items):
     for item in items:
         if "ngspice" in item.keywords:
             item.add_marker(skip)
+
+
+@pytest.fixture(scope="session", autouse=True)
+def contact_sheet_of_the_run(tmp_path_factory):
+    """After the run: test-output/contact_sheet.png tiles every picture the tests wrote."""
+    yield
+    from contact_sheet import contact_sheet
+    pngs = sorted(tmp_path_factory.getbasetemp().rglob("*.png"))
+    if pngs:
+        target = Path(__file__).resolve().parent.parent / "test-output" / "contact_sheet.png"
+        print(f"\ncontact sheet of {len(pngs)} pictures: {contact_sheet(pngs, target)}")

@@ -52,7 +52,8 @@ def exact_mobility(system, frequencies) -> "FrequencyResponse":
     k = np.zeros_like(system.mass) if system.stiffness is None else system.stiffness
     impedance = system.mass * s + system.damping + k / s
     mobility = np.linalg.solve(impedance, np.broadcast_to(system.current_map, impedance.shape).astype(complex))
-    return FrequencyResponse(f, mobility, "exact", np.linalg.inv(system.topology.matrix))
+    return FrequencyResponse(f, mobility, "exact", np.linalg.inv(system.topology.matrix),
+                             system.info.get("units"))
 
 
 @dataclass(eq=False)
@@ -70,12 +71,15 @@ class FrequencyResponse(Tabular):
         Who computed it (``spice``, ``exact``).
     joint_map : ndarray, shape (joints, nodes)
         T⁻¹, from node velocities to joint rates (identity for the parallel topology).
+    units : tuple of str or None
+        Joint units (:func:`analogy.units.joint_units`), for labels.
     """
 
     frequency: np.ndarray
     mobility: np.ndarray
     solver: str
     joint_map: np.ndarray
+    units: tuple | None = None
 
     def driving_point(self) -> np.ndarray:
         """R_j/F_j [f, joint]: each joint's rate per unit force on itself, whatever the topology."""

@@ -65,7 +65,8 @@ class LinearHorizon(Tabular):
         ref = self.nonlinear.results[self.nonlinear.reference]
         robot = self.nonlinear.system.info.get("robot", "custom")
         return plot_linear_horizon(self.nonlinear.time, ref.rates, self.linear, self.deviation, self.held,
-                                   f"{robot}: nonlinear motion against the circuit at q0", path)
+                                   f"{robot}: nonlinear motion against the circuit at q0", path,
+                                   units=self.nonlinear.system.info.get("units"))
 
 
 def linear_horizon(scene, preset="accurate", solvers: Sequence[str] = ("spice", "ode"),

@@ -240,7 +240,7 @@ def plot_quantities(time: np.ndarray, groups: list, errors: dict, title: str, pa
 
 
 def plot_linear_horizon(time: np.ndarray, nonlinear: np.ndarray, linear: np.ndarray, deviation: np.ndarray,
-                        thresholds: dict, title: str, path=None) -> Figure:
+                        thresholds: dict, title: str, path=None, units=None) -> Figure:
     """The full motion against the circuit linearised at q0, and how far apart they are.
 
     Parameters
@@ -257,15 +257,17 @@ def plot_linear_horizon(time: np.ndarray, nonlinear: np.ndarray, linear: np.ndar
         Heading.
     path : str or Path, optional
         Image file to write.
+    units : sequence of str, optional
+        Joint units (:func:`analogy.units.joint_units`).
     """
     fig = Figure(figsize=(8, 6), layout="constrained")
     ax, axe = fig.subplots(2, 1, sharex=True)
     for j in range(nonlinear.shape[1]):
         ax.plot(time, nonlinear[:, j], color=f"C{j % 10}", lw=2.0, alpha=0.6, label=f"r{j + 1} nonlinear")
         ax.plot(time, linear[:, j], color=f"C{j % 10}", ls="--", lw=1.2, label=f"r{j + 1} linear at q0")
-    ax.set_ylabel("joint rate [rad/s or m/s]")
+    ax.set_ylabel(rate_label(units))
     ax.set_title(title)
-    ax.legend(ncol=2, fontsize="small")
+    ax.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
     axe.semilogy(time, np.maximum(deviation, 1e-18), color="k", lw=1.2, label="deviation")
     colours = ("tab:green", "tab:purple", "tab:red", "tab:brown")   # apart from the joints' C0, C1
     for k, (tol, t) in enumerate(sorted(thresholds.items())):
@@ -275,9 +277,9 @@ def plot_linear_horizon(time: np.ndarray, nonlinear: np.ndarray, linear: np.ndar
         if np.isfinite(t):
             axe.axvline(t, color=colour, ls=":", lw=1)
     axe.set_ylim(max(1e-8, min(thresholds) / 1e4) if thresholds else 1e-8, 2.0)
-    axe.legend(fontsize="small", loc="lower right")
+    axe.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
     axe.set_xlabel("time [s]")
-    axe.set_ylabel("|linear - nonlinear| / peak")
+    axe.set_ylabel("|linear − nonlinear| / peak [1]")
     return _save(fig, path)
 
 
@@ -306,7 +308,11 @@ def plot_bode(response, reference=None, path=None) -> Figure:
             phase.semilogx(r.frequency, np.degrees(np.angle(y)), color=f"C{j % 10}", **style)
     for f in response.resonances():
         mag.axvline(f, color="0.8", lw=0.6, zorder=0)
-    mag.set_ylabel("|R_j / F_j| [(rad/s)/(N·m) or (m/s)/N]")
+    units = response.units
+    kinds = set(units or ())
+    unit = {frozenset({"rad"}): "(rad/s)/(N·m)", frozenset({"m"}): "(m/s)/N"}.get(frozenset(kinds),
+                                                                                  "(rad/s)/(N·m) or (m/s)/N")
+    mag.set_ylabel(f"|R_j / F_j| [{unit}]")
     phase.set_ylabel("phase [deg]")
     phase.set_yticks([-90, -45, 0, 45, 90])
     phase.set_xlabel("frequency [Hz]")

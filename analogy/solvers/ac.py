@@ -48,7 +48,7 @@ def spice_mobility(system, f_start: float, f_stop: float, per_decade: int = 500)
             raise SimulationError("ngspice swept other frequencies than asked for")
         for k in range(n):
             out[:, k, j] = data[f"v(n{k + 1})"]
-    return FrequencyResponse(grid, out, "spice", np.linalg.inv(system.topology.matrix))
+    return FrequencyResponse(grid, out, "spice", np.linalg.inv(system.topology.matrix), system.info.get("units"))
 
 
 class MobilityCheck(NamedTuple):

@@ -146,11 +146,12 @@ class StressReport(Tabular):
             bounds = sorted({r.bound for r in rows if np.isfinite(r.bound)})
             for b in bounds:
                 top.axhline(b, color="grey", ls=":", lw=1)
-            top.set(yscale="log", ylabel="max |error| / peak")
+            top.set(yscale="log", ylabel="max |error| / peak [1]")
             fig.suptitle(textwrap.fill(f"family {fam}: {FAMILY_TITLES[fam]}", 80)
                          + "\n(dotted: bounds; red rings: outside bound)", fontsize=10)
             bottom.set(yscale="log", ylabel="run time [s]",
-                       xlabel=axes[0] if len(axes) == 1 else "swept value (line style: " + ", ".join(axes) + ")")
+                       xlabel=_AXIS_UNITS.get(axes[0], f"{axes[0]} [1]") if len(axes) == 1
+                       else "swept value [1] (line style: " + ", ".join(axes) + ")")
             top.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize=8)
             path = folder / f"stress_{fam}.png"
             fig.savefig(path, dpi=110)
@@ -175,6 +176,11 @@ def _exact_check(system) -> tuple[float, float, str]:
     if system.dof > 20:
         return math.nan, seconds, "no 40-digit reference at this size"
     return relative_error(exact, solve_reference(system, probe)), seconds, ""
+
+
+# Swept quantities that carry a unit; the others are ratios or counts.
+_AXIS_UNITS = {"MP capacitance": "MP capacitance m12 [F] = [kg]", "force": "force scale [1] (× the base torque)",
+               "n": "joints n [1]", "periods": "undamped periods [1]"}
 
 
 def _case_rows(case: StressCase) -> list[StressRow]:
