@@ -7,6 +7,7 @@ physics is in the labs themselves.
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
@@ -23,14 +24,33 @@ ODE_TOL = 1e-9
 
 #: Label for mass-like quantities: a capacitance in the circuit is a mass (or
 #: a rotational inertia, for revolute joints) in the mechanism.
-MASS_AXIS = "capacitance [F] = mass [kg m^2]"
+MASS_AXIS = "capacitance [F] = inertia [kg·m²]"
+
+
+#: Environment variable naming the output folder; it wins over the command line, so a
+#: lab run as a notebook (whose kernel has its own command-line arguments) can be told too.
+OUTPUT_ENV = "ANALOGY_LAB_OUTPUT"
 
 
 def output_folder(default: str = "lab-output") -> Path:
-    """The folder named by the first command-line argument (default *default*), created."""
-    out = Path(sys.argv[1] if len(sys.argv) > 1 else default)
+    """The folder to write into, created: $ANALOGY_LAB_OUTPUT, else the script's first argument, else *default*.
+
+    Inside a Jupyter kernel sys.argv holds the kernel's own arguments (``-f connection.json``),
+    so there the command line is ignored.
+    """
+    if os.environ.get(OUTPUT_ENV):
+        folder = os.environ[OUTPUT_ENV]
+    elif len(sys.argv) > 1 and not _in_kernel():
+        folder = sys.argv[1]
+    else:
+        folder = default
+    out = Path(folder)
     out.mkdir(parents=True, exist_ok=True)
     return out
+
+
+def _in_kernel() -> bool:
+    return "ipykernel" in sys.modules
 
 
 def section(title: str) -> None:
@@ -169,21 +189,38 @@ def plot_sweep(ax, x, curves: dict, *, xlabel: str, ylabel: str = MASS_AXIS, tit
     """Curves over a swept joint angle, with zero line, the scene's pose and skipped poses marked.
 
     *curves* maps a legend label to (values, style dict). Values are multiplied by *scale*
-    (say so in *ylabel*).
+    (say so in *ylabel*). Poses that do not assemble are shaded, not drawn as points: they
+    have no values. The legend goes outside the axes, right of them.
     """
     for label, (y, style) in curves.items():
         ax.plot(x, np.asarray(y) * scale, label=label, **style)
     ax.axhline(0.0, color="k", lw=0.6)
     if here is not None:
         ax.axvline(here, color="gray", ls="--", lw=0.8, label="scene pose")
-    if len(skipped):
-        ax.plot(skipped, np.zeros(len(skipped)), "x", color="gray", label="does not assemble")
+    for k, (lo, hi) in enumerate(_runs(sorted(skipped), np.diff(x).min() if len(x) > 1 else 0.0)):
+        ax.axvspan(lo, hi, color="0.85", lw=0, label=None if k else "does not assemble (no values)")
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     if title:
         ax.set_title(title)
     ax.grid(alpha=0.3)
-    ax.legend(fontsize="small")
+    legend_outside(ax)
+
+
+def _runs(values, step: float):
+    """Contiguous runs [lo, hi] of sorted *values*, each widened by half a step on both sides."""
+    runs = []
+    for v in values:
+        if runs and v - runs[-1][1] <= 1.5 * step:
+            runs[-1][1] = v
+        else:
+            runs.append([v, v])
+    return [(lo - step / 2, hi + step / 2) for lo, hi in runs]
+
+
+def legend_outside(ax, **kwargs) -> None:
+    """The legend right of the axes, where it cannot cover data (constrained layout makes room)."""
+    ax.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, **kwargs)
 
 
 def save(fig, path: Path) -> Path:
