@@ -223,6 +223,21 @@ def legend_outside(ax, **kwargs) -> None:
     ax.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, **kwargs)
 
 
+def envelope(time, values, windows: int = 100):
+    """The largest of *values* in each of *windows* equal time windows: (window centres, maxima).
+
+    An error that alternates from step to step draws as a solid band; its envelope shows
+    how large it gets and how that changes over time.
+    """
+    time, values = np.asarray(time, dtype=float), np.asarray(values, dtype=float)
+    edges = np.linspace(time[0], time[-1], windows + 1)
+    index = np.clip(np.searchsorted(edges, time, side="right") - 1, 0, windows - 1)
+    top = np.full(windows, np.nan)
+    np.fmax.at(top, index, values)
+    keep = ~np.isnan(top)
+    return ((edges[:-1] + edges[1:]) / 2)[keep], top[keep]
+
+
 def save(fig, path: Path) -> Path:
     fig.savefig(path, dpi=110)
     print(f"wrote {path}")
