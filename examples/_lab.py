@@ -239,8 +239,12 @@ def envelope(time, values, windows: int = 100):
 
 
 def save(fig, path: Path) -> Path:
+    """Write *fig* to *path*; in a notebook, show it as well."""
     fig.savefig(path, dpi=110)
     print(f"wrote {path}")
+    if _in_kernel():
+        from IPython.display import display
+        display(fig)
     return path
 
 

@@ -1,4 +1,5 @@
-"""Every lab in examples/ runs headless, passes its own assertions and writes its plots and tables."""
+"""Every lab in examples/ is a notebook: it runs headless in a Jupyter kernel, passes its own
+assertions and writes its plots and tables. It still runs as a plain script, too."""
 
 import os
 import subprocess
@@ -7,8 +8,13 @@ from pathlib import Path
 
 import pytest
 
+jupytext = pytest.importorskip("jupytext")
+nbclient = pytest.importorskip("nbclient")
+
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+#: Seconds one cell may take; the longest cell of any lab takes well under a minute.
+CELL_TIMEOUT = 300
 
 
 def _diagrams(stem):
@@ -37,18 +43,7 @@ OUTPUTS = {
 LABS = sorted(p.name for p in EXAMPLES.glob("lab_*.py"))
 
 
-def test_every_lab_is_listed():
-    assert set(LABS) == set(OUTPUTS), "add the new lab and its outputs to OUTPUTS"
-
-
-@pytest.mark.ngspice
-@pytest.mark.parametrize("lab", LABS)
-def test_lab_runs_headless(lab, tmp_path):
-    out = tmp_path / "out"
-    env = dict(os.environ, MPLBACKEND="Agg")
-    res = subprocess.run([sys.executable, str(EXAMPLES / lab), str(out)], capture_output=True, text=True,
-                         timeout=300, cwd=tmp_path, env=env)
-    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+def _check_outputs(lab, out):
     for name in OUTPUTS[lab]:
         path = out / name
         assert path.exists(), f"{lab} did not write {name}"
@@ -57,4 +52,74 @@ def test_lab_runs_headless(lab, tmp_path):
             assert data[:8] == PNG_SIGNATURE, f"{name} is not a PNG"
         else:
             assert data.count(b"\n") > 10, f"{name} has too few rows"
+
+
+@pytest.fixture
+def lab_module(monkeypatch):
+    """examples/_lab.py, imported as the labs import it."""
+    monkeypatch.syspath_prepend(str(EXAMPLES))
+    monkeypatch.delenv("ANALOGY_LAB_OUTPUT", raising=False)
+    import _lab
+    return _lab
+
+
+def test_every_lab_is_listed():
+    assert set(LABS) == set(OUTPUTS), "add the new lab and its outputs to OUTPUTS"
+
+
+@pytest.mark.parametrize("lab", LABS)
+def test_every_lab_is_a_percent_notebook_that_opens_with_its_explanation(lab):
+    text = (EXAMPLES / lab).read_text()
+    assert jupytext.formats.guess_format(text, ".py")[0] == "percent"
+    notebook = jupytext.reads(text, fmt="py:percent")
+    kinds = [cell.cell_type for cell in notebook.cells]
+    assert kinds[0] == "markdown" and notebook.cells[0].source.startswith("# Lab: "), "a titled explanation first"
+    assert kinds.count("markdown") >= 3 and kinds.count("code") >= 3, "prose between the steps"
+
+
+def test_the_output_folder_is_the_first_argument_of_a_script(lab_module, tmp_path, monkeypatch):
+    monkeypatch.setattr(sys, "argv", ["lab_x.py", str(tmp_path / "mine")])
+    assert lab_module.output_folder() == tmp_path / "mine"
+    assert (tmp_path / "mine").is_dir()
+
+
+def test_the_environment_variable_names_the_output_folder_first(lab_module, tmp_path, monkeypatch):
+    monkeypatch.setattr(sys, "argv", ["lab_x.py", str(tmp_path / "argument")])
+    monkeypatch.setenv("ANALOGY_LAB_OUTPUT", str(tmp_path / "env"))
+    assert lab_module.output_folder() == tmp_path / "env"
+    assert not (tmp_path / "argument").exists()
+
+
+def test_a_kernels_own_arguments_are_not_an_output_folder(lab_module, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(sys, "argv", ["ipykernel_launcher.py", "-f", str(tmp_path / "kernel.json")])
+    monkeypatch.setitem(sys.modules, "ipykernel", sys.modules.get("ipykernel", object()))
+    assert lab_module.output_folder() == Path("lab-output")
+    assert (tmp_path / "lab-output").is_dir() and not (tmp_path / "-f").exists()
+
+
+@pytest.mark.ngspice
+@pytest.mark.slow
+@pytest.mark.parametrize("lab", LABS)
+def test_lab_runs_as_a_notebook(lab, tmp_path, monkeypatch):
+    out = tmp_path / "out"
+    # The kernel inherits this environment; it runs in examples/ so that `import _lab` works.
+    monkeypatch.setenv("ANALOGY_LAB_OUTPUT", str(out))
+    monkeypatch.setenv("MPLBACKEND", "Agg")
+    notebook = jupytext.read(EXAMPLES / lab)
+    client = nbclient.NotebookClient(notebook, timeout=CELL_TIMEOUT, kernel_name="python3",
+                                     resources={"metadata": {"path": str(EXAMPLES)}})
+    client.execute()
+    _check_outputs(lab, out)
+
+
+@pytest.mark.ngspice
+def test_a_lab_still_runs_as_a_script_into_the_folder_it_is_given(tmp_path):
+    lab = "lab_default_scene.py"        # the quickest lab: the notebook test covers the physics
+    out = tmp_path / "out"
+    env = {k: v for k, v in os.environ.items() if k != "ANALOGY_LAB_OUTPUT"} | {"MPLBACKEND": "Agg"}
+    res = subprocess.run([sys.executable, str(EXAMPLES / lab), str(out)], capture_output=True, text=True,
+                         timeout=300, cwd=tmp_path, env=env)
+    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    _check_outputs(lab, out)
     assert not (tmp_path / "lab-output").exists(), "the output folder argument was ignored"
