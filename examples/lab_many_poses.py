@@ -79,25 +79,25 @@ assert np.all(result.errors <= 1e-3), "the fast preset stays within 1e-3 of the 
 np.savetxt(out / "many_poses.csv", np.column_stack([q2, c12, tau, result.errors]), delimiter=",",
            header="q2_rad,c12_F,tau_slow_s,tau_fast_s,spice_error_over_peak", comments="")
 
-from matplotlib.figure import Figure  # noqa: E402  (plotting only when the lab runs)
-
-fig = Figure(figsize=(7, 7), layout="constrained")
-ax_c, ax_t, ax_e = fig.subplots(3, 1, sharex=True)
-ax_c.plot(q2, c12)
+fig, axes = _lab.figure(3, 1, size=(8.5, 7))
+ax_c, ax_t, ax_e = axes[:, 0]
+for ax in (ax_c, ax_t):
+    ax.sharex(ax_e)
+ax_c.plot(q2, c12, color="C3")
 ax_c.axhline(0, color="k", lw=0.5)
-ax_c.set_ylabel("c12 = -M'12 [F]")
+ax_c.set_ylabel("c12 = −M'12 [F] = [kg·m²]")
 ax_c.set_title("MP capacitance: negative where the links fold less than 90 degrees")
 ax_t.plot(q2, tau[:, 0], label="slow mode")
 ax_t.plot(q2, tau[:, 1], label="fast mode")
 ax_t.set_ylabel("time constant [s]")
-ax_t.legend()
-ax_e.semilogy(q2, result.errors, ".", ms=2)
+_lab.legend_outside(ax_t)
+ax_e.semilogy(q2, result.errors, ".", ms=2, color="C0", label="one pose")
 ax_e.axhline(1e-3, color="r", ls="--", lw=0.8, label="fast preset bound")
-ax_e.set_ylabel("SPICE max error / peak")
+ax_e.set_ylabel("SPICE max error / peak [-]")
 ax_e.set_xlabel("q2 [rad]")
-ax_e.legend()
+_lab.legend_outside(ax_e)
 for ax in (ax_c, ax_t, ax_e):
     for x in (-np.pi / 2, np.pi / 2):
         ax.axvline(x, ls=":", color="gray")
-fig.savefig(out / "many_poses.png", dpi=110)
-print(f"wrote {out / 'many_poses.png'} and {out / 'many_poses.csv'}")
+    ax.grid(alpha=0.3)
+_lab.save(fig, out / "many_poses.png")

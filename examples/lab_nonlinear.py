@@ -64,18 +64,21 @@ print(f"   q2 sweeps {q[:, 1].min():.2f} .. {q[:, 1].max():.2f} rad; p'12 change
       f"{len(crossings)} times, first at t = {crossings[0]:.3f} s" if len(crossings) else
       "   p'12 keeps its sign")
 assert len(crossings) >= 2, "the swing takes the elbow through +-pi/2"
-fig, axes = _lab.figure(2, 1, size=(7, 5.5))
+fig, axes = _lab.figure(2, 1, size=(8, 5.5))
 axes[0, 0].plot(ref.time, q[:, 1], label="q2 (elbow)")
 for k in (-1, 1):
-    axes[0, 0].axhline(k * np.pi / 2, color="gray", ls=":", lw=0.8)
+    axes[0, 0].axhline(k * np.pi / 2, color="gray", ls=":", lw=0.8, label="q2 = ±π/2" if k > 0 else None)
 axes[0, 0].set_ylabel("elbow angle q2 [rad]")
-axes[0, 0].legend(fontsize="small")
-axes[1, 0].plot(ref.time, mp, color="C3", label="p'12 = -l1 l2 d2 cos q2")
+axes[0, 0].set_title("the elbow swings past π/2 and back: the MP capacitance changes sign twice")
+_lab.legend_outside(axes[0, 0])
+axes[1, 0].plot(ref.time, mp, color="C3", label="p'12 = −l1·l2·d2·cos q2")
 axes[1, 0].axhline(0.0, color="k", lw=0.6)
 axes[1, 0].plot(crossings, np.zeros(len(crossings)), "o", color="C3", ms=4, label="sign changes")
-axes[1, 0].set_ylabel("MP capacitance [F] = [kg m^2]")
+axes[1, 0].set_ylabel("MP capacitance [F] = [kg·m²]")
 axes[1, 0].set_xlabel("time [s]")
-axes[1, 0].legend(fontsize="small")
+_lab.legend_outside(axes[1, 0])
+for a in axes[:, 0]:
+    a.grid(alpha=0.3)
 _lab.save(fig, out / "nonlinear_mp.png")
 
 # %% [markdown]
@@ -96,15 +99,17 @@ def integral(power):
     return np.concatenate([[0.0], np.cumsum(0.5 * (power[1:] + power[:-1]) * np.diff(t))])
 
 
-fig, axes = _lab.figure(size=(7, 4))
+fig, axes = _lab.figure(size=(8, 4))
 ax = axes[0, 0]
+ax.set_title("energy balance of the nonlinear arm (reference solution)")
+ax.grid(alpha=0.3)
 ax.plot(t, kinetic, label="kinetic energy T")
 ax.plot(t, integral(drive), label="work of the torques")
 ax.plot(t, integral(loss), label="heat in the dampers")
-ax.plot(t, integral(drive) - integral(loss), "k:", label="torques - dampers (= T)")
+ax.plot(t, integral(drive) - integral(loss), "k:", label="torques − dampers (= T)")
 ax.set_xlabel("time [s]")
 ax.set_ylabel("energy [J]")
-ax.legend(fontsize="small")
+_lab.legend_outside(ax)
 _lab.save(fig, out / "nonlinear_energy.png")
 
 # %% [markdown]

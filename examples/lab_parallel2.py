@@ -103,6 +103,6 @@ _lab.plot_sweep(ax, x, {
     "m'1 (grounded C1: mass at motor 1)": (m_ground[:, 0], dict(color="C0")),
     "m'2 (grounded C2: mass at motor 2)": (m_ground[:, 1], dict(color="C1")),
     "p'12 (floating C1_2: MP model)": (p12, dict(color="C3", lw=2)),
-}, xlabel="q1 [rad]", ylabel="capacitance [mF] = mass [10^-3 kg m^2]", scale=1e3,
+}, xlabel="q1 [rad]", ylabel="capacitance [mF] = inertia [g·m²]", scale=1e3,
     title=f"Five-bar: element values over q1 (q2 = {scene.q[1]} rad)", here=scene.q[0], skipped=skipped)
 _lab.save(fig, out / "parallel2_sweep.png")

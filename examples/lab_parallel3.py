@@ -99,21 +99,21 @@ assert all(n > 0 for n in changes.values()), "every coupling vanishes somewhere 
 print(f"the grounded m'1 is negative for q1 in about "
       f"[{x[m_ground[:, 0] < 0].min():.2f}, {x[m_ground[:, 0] < 0].max():.2f}] rad; M stays positive definite")
 
-fig, axes = _lab.figure(1, 2, size=(11, 4.2))
-common = dict(xlabel="q1 [rad]", ylabel="capacitance [mF] = mass [10^-3 kg m^2]", scale=1e3,
+fig, axes = _lab.figure(2, 1, size=(9, 7.5))
+common = dict(xlabel="q1 [rad]", ylabel="capacitance [mF] = inertia [g·m²]", scale=1e3,
               here=scene.q[0], skipped=skipped)
 _lab.plot_sweep(axes[0, 0], x, {f"m'{i + 1} (grounded C{i + 1})": (m_ground[:, i], dict(color=f"C{i}"))
                                 for i in range(3)}, title="masses (grounded capacitors)", **common)
-_lab.plot_sweep(axes[0, 1], x, {f"p'{i + 1}_{j + 1} (C{i + 1}_{j + 1}, MP model)": (v, dict(color=f"C{k + 3}"))
+_lab.plot_sweep(axes[1, 0], x, {f"p'{i + 1}_{j + 1} (C{i + 1}_{j + 1}, MP model)": (v, dict(color=f"C{k + 3}"))
                                 for k, ((i, j), v) in enumerate(p_float.items())},
                 title="MP models (floating capacitors)", **common)
 # Close to the singularity the values grow without bound; the axes show the rest.
 regular = x <= 2.7
-for ax, data in ((axes[0, 0], m_ground), (axes[0, 1], np.array(list(p_float.values())).T)):
+for ax, data in ((axes[0, 0], m_ground), (axes[1, 0], np.array(list(p_float.values())).T)):
     lo, hi = 1e3 * data[regular].min(), 1e3 * data[regular].max()
     ax.set_ylim(lo - 0.25 * (hi - lo), hi + 0.25 * (hi - lo))
     ax.axvline((x.max() + min(skipped)) / 2, color="k", ls="-.", lw=0.8,
                label="singular pose: values grow without bound")
-    ax.legend(fontsize="small")
+    _lab.legend_outside(ax)
 fig.suptitle(f"3-RRR: element values over q1 (q2 = {scene.q[1]}, q3 = {scene.q[2]} rad)")
 _lab.save(fig, out / "parallel3_sweep.png")

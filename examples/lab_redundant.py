@@ -105,8 +105,8 @@ for result, name, style in ((serial_result, "serial circuit (2 masses)", dict(lw
     for j in range(2):
         ax.plot(spice.time, spice.rates[:, j], color=f"C{j}", label=f"r{j + 1}, {name}", **style)
 ax.set_xlabel("time [s]")
-ax.set_ylabel("joint rate [m/s]")
+ax.set_ylabel("joint rate [m/s] (prismatic joints)")
 ax.set_title("Redundant actuators: two circuits, one motion (SPICE)")
 ax.grid(alpha=0.3)
-ax.legend(fontsize="small")
+_lab.legend_outside(ax)
 _lab.save(fig, out / "redundant_topologies.png")

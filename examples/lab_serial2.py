@@ -121,13 +121,13 @@ print(f"p'12 < 0 for |q2| < pi/2 and > 0 beyond; m'2 < 0 for |q2| > "
 fig, axes = _lab.figure(size=(7, 4.2))
 ax = axes[0, 0]
 for k, edge in enumerate((-np.pi / 2, np.pi / 2)):
-    ax.axvline(edge, color="C3", ls=":", lw=0.8, label=None if k else "q2 = -+pi/2 (p'12 = 0)")
+    ax.axvline(edge, color="C3", ls=":", lw=0.8, label=None if k else "q2 = ±π/2 (p'12 = 0)")
 _lab.plot_sweep(ax, x, {
     "m'1 (grounded C1: mass)": (m_ground[:, 0], dict(color="C0")),
     "m'2 (grounded C2: mass)": (m_ground[:, 1], dict(color="C1")),
     "p'12 (floating C1_2: MP model)": (p12, dict(color="C3", lw=2)),
-    "M'11 = m'1 + p'12 = l1^2 (d1 + d2)": (mats[:, 0, 0], dict(color="k", ls=":")),
+    "M'11 = m'1 + p'12 = l1²·(d1 + d2)": (mats[:, 0, 0], dict(color="k", ls=":")),
 }, xlabel="q2 [rad]", title="2-DOF serial arm: element values over the elbow angle",
     here=scene.q[1])
-ax.set_xticks(np.linspace(-np.pi, np.pi, 5), ["-pi", "-pi/2", "0", "pi/2", "pi"])
+ax.set_xticks(np.linspace(-np.pi, np.pi, 5), ["−π", "−π/2", "0", "π/2", "π"])
 _lab.save(fig, out / "serial2_sweep.png")

@@ -103,8 +103,8 @@ numbers = {model.symbols[k]: v for k, v in model.parameters.items()}
 formulas = {name: sp.lambdify((q2, q3), expr.subs(numbers)) for name, expr in expected.items()}
 pairs = {"p'1_2": (0, 1), "p'2_3": (1, 2), "p'1_3": (0, 2)}
 angles = np.linspace(-np.pi, np.pi, 73)
-fig, axes = _lab.figure(1, 2, size=(11, 4.2))
-for joint, ax in zip((1, 2), axes[0]):
+fig, axes = _lab.figure(2, 1, size=(9, 7.5))
+for joint, ax in zip((1, 2), axes[:, 0]):
     x, mats, skipped = _lab.sweep(scene, model, joint, angles)
     assert not skipped, "an open chain assembles at every pose"
     _, p = _lab.split(mats)
@@ -125,7 +125,7 @@ for joint, ax in zip((1, 2), axes[0]):
         assert abs(scene.replace(q=tuple(q)).system(model).mass[0, 2]) <= 1e-12, "p'1_3 = 0 there"
     assert np.all(np.linalg.eigvalsh(mats)[:, 0] > 0), "M' is positive definite"
     for k, c in enumerate(crossings):
-        ax.axvline(c, color="C2", ls=":", lw=0.8, label=None if k else "q2 + q3 = -+pi/2")
+        ax.axvline(c, color="C2", ls=":", lw=0.8, label=None if k else "q2 + q3 = ±π/2")
     _lab.plot_sweep(ax, x, {
         "p'1_2 (C1_2, links 1-2)": (p[0, 1], dict(color="C0")),
         "p'2_3 (C2_3, links 2-3)": (p[1, 2], dict(color="C1")),
