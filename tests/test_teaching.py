@@ -24,7 +24,7 @@ def test_exercise_1_a_damper_driven_mass_is_a_first_order_lag_with_time_constant
     tau = mass / damping
     v = analogy.solve_exact(system, [tau, 10.0]).voltages[:, 0]
     assert v[0] == pytest.approx((force / damping) * (1 - np.exp(-1)), rel=1e-12), "1 - 1/e of the final speed"
-    assert v[1] == pytest.approx(force / damping, rel=1e-5), "after 6.7 tau the speed is F/b"
+    assert v[1] == pytest.approx(force / damping, rel=1e-5), "after 13 tau the speed is F/b"
     (element,) = [e for e in analogy.elements(system) if e.kind == "R"]
     assert element.value * mass == pytest.approx(tau), "RC = (1/b) M = tau"
 
