@@ -54,6 +54,34 @@ def _check_outputs(lab, out):
             assert data.count(b"\n") > 10, f"{name} has too few rows"
 
 
+@pytest.fixture(scope="module")
+def contact_sheet(tmp_path_factory):
+    """Collects the pictures the labs write; afterwards tiles them into one PNG to look through.
+
+    The sheet is <pytest's base temporary folder>/labs_contact_sheet.png.
+    """
+    pictures = []
+    yield pictures
+    if pictures:
+        _tile(pictures, tmp_path_factory.getbasetemp() / "labs_contact_sheet.png")
+
+
+def _tile(paths, target, cell=(480, 330), columns=6):
+    columns = min(columns, len(paths))
+    from PIL import Image, ImageDraw
+    rows = -(-len(paths) // columns)
+    sheet = Image.new("RGB", (columns * cell[0], rows * cell[1]), "white")
+    draw = ImageDraw.Draw(sheet)
+    for k, path in enumerate(paths):
+        x, y = (k % columns) * cell[0], (k // columns) * cell[1]
+        with Image.open(path) as image:
+            image.thumbnail((cell[0] - 10, cell[1] - 24))
+            sheet.paste(image.convert("RGB"), (x + 5, y + 20))
+        draw.text((x + 5, y + 4), path.name, fill="black")
+    sheet.save(target)
+    return target
+
+
 @pytest.fixture
 def lab_module(monkeypatch):
     """examples/_lab.py, imported as the labs import it."""
@@ -101,7 +129,7 @@ def test_a_kernels_own_arguments_are_not_an_output_folder(lab_module, tmp_path, 
 @pytest.mark.ngspice
 @pytest.mark.slow
 @pytest.mark.parametrize("lab", LABS)
-def test_lab_runs_as_a_notebook(lab, tmp_path, monkeypatch):
+def test_lab_runs_as_a_notebook(lab, tmp_path, monkeypatch, contact_sheet):
     out = tmp_path / "out"
     # The kernel inherits this environment; it runs in examples/ so that `import _lab` works.
     monkeypatch.setenv("ANALOGY_LAB_OUTPUT", str(out))
@@ -111,6 +139,7 @@ def test_lab_runs_as_a_notebook(lab, tmp_path, monkeypatch):
                                      resources={"metadata": {"path": str(EXAMPLES)}})
     client.execute()
     _check_outputs(lab, out)
+    contact_sheet.extend(sorted(out.glob("*.png")))
 
 
 @pytest.mark.ngspice
