@@ -6,10 +6,10 @@
 #
 # 1. Build the arm's node systems at 1,000 values of q2 at once with
 #    analogy.node_systems: one vectorised evaluation of M(q) and one stacked
-#    congruence M' = T^-T M T^-1 for all of them.
+#    congruence M' = T⁻ᵀ M T⁻¹ for all of them.
 # 2. Check two facts across the sweep: the MP capacitance is
 #    c12 = -l1 l2 d2 cos(q2), and the circuit has the arm's own time constants
-#    (the eigenvalues of M^-1 B do not change under the congruence).
+#    (the eigenvalues of M⁻¹ B do not change under the congruence).
 # 3. Simulate every pose in ngspice, 100 independent circuits per run on both
 #    cores, and compare each pose with its exact solution.
 # 4. Plot c12, the time constants and each pose's SPICE error against q2.

@@ -15,7 +15,7 @@
 # M(q) is derived from the kinematics of the closed chain: with all link
 # coordinates theta = (q, psi), the kinetic energy gives M_theta; the loop must
 # stay closed, so the passive rates are psi_dot = G q_dot with G = dpsi/dq from
-# the closure equations, and M = S^T M_theta S with S = [I; G]. M therefore
+# the closure equations, and M = Sᵀ M_theta S with S = [I; G]. M therefore
 # depends on q directly and through psi(q) and G(q).
 #
 # **Steps**

@@ -15,7 +15,7 @@
 # M13 and M23 in m'1, p'23 and p'13; the split used here follows from the
 # nodal equations, C_ii = c_i + sum_j c_ij and C_ij = -c_ij.)
 #
-# M(q) = S^T M_theta S as for the five-bar: the passive coordinates
+# M(q) = Sᵀ M_theta S as for the five-bar: the passive coordinates
 # p = (psi_1, psi_2, psi_3, x, y, phi) follow from the loop-closure equations,
 # and their rates G = dp/dq enter M.
 #

@@ -12,7 +12,7 @@
 #     M = [[d1 + d2, d2], [d2, d2]]          (independent of the configuration)
 #
 # In the serial topology the circuit's nodes are the absolute stage velocities,
-# v1 = r1 and v2 = r1 + r2, and M' = T^-T M T^-1 = diag(d1, d2): each stage is a
+# v1 = r1 and v2 = r1 + r2, and M' = T⁻ᵀ M T⁻¹ = diag(d1, d2): each stage is a
 # plain grounded mass, no MP model is needed (the paper's text says so; its
 # printed eq. 15, M'11 = m1 + m2, drops the -2 M12 term: m1 - m2 = d1 is right).
 #

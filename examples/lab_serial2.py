@@ -5,12 +5,12 @@
 # notebook (see examples/README.md).
 #
 # **Physics.** A planar arm with two revolute joints carries a point mass d1 at the
-# elbow and d2 at the tip (links l1, l2). Its kinetic energy T = 1/2 r^T M(q) r
+# elbow and d2 at the tip (links l1, l2). Its kinetic energy T = ½·rᵀ M(q) r
 # defines the mass matrix M(q); the joints have dampers b1, b2. In the serial
 # topology the circuit's node voltages are the absolute angular velocities of the
 # links, v1 = r1 and v2 = r1 + r2 (v = T r), and actuator 2 acts between the two
 # links, so it is a current source between n1 and n2. The node mass matrix is
-# M' = T^-T M T^-1. Each node gets a grounded capacitor m'_i (row sum of M': a
+# M' = T⁻ᵀ M T⁻¹. Each node gets a grounded capacitor m'_i (row sum of M': a
 # mass) and the pair gets a floating capacitor p'12 = -M'12: an MP model, the
 # mass/pulley device of Fig. 5 whose mass is driven by the difference v2 - v1.
 #
@@ -24,7 +24,7 @@
 #    solutions (step torque on joint 1, sine torque on joint 2, r2(0) = 0.2 rad/s).
 # 4. Draw the circuit and the mechanism.
 # 5. Sweep q2 over a full turn: p'12 = -l1 l2 d2 cos(q2) is negative for
-#    |q2| < pi/2, zero at +-pi/2 (the paper's M' diagonal case) and positive beyond.
+#    |q2| < π/2, zero at ±π/2 (the paper's M' diagonal case) and positive beyond.
 
 # %%
 import _lab
@@ -36,7 +36,7 @@ import analogy
 out = _lab.output_folder()
 
 # %% [markdown]
-# ## 1. Symbolic model: M(q) comes from the kinematics, M = sum d_k J_k^T J_k
+# ## 1. Symbolic model: M(q) comes from the kinematics, M = sum d_k J_kᵀ J_k
 
 # %%
 scene = analogy.scene("serial2")

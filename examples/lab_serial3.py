@@ -7,8 +7,8 @@
 # **Physics.** Three revolute joints in a chain, point masses d_k at the end of link k
 # (lengths l_k), joint dampers b_k. In the serial topology node k carries the
 # absolute angular velocity of link k, v_k = r_1 + ... + r_k, and actuator k acts
-# between links k-1 and k. The node mass matrix M' = T^-T M T^-1 turns out much
-# simpler than M: M'_kk = l_k^2 (mass carried beyond joint k) and each
+# between links k-1 and k. The node mass matrix M' = T⁻ᵀ M T⁻¹ turns out much
+# simpler than M: M'_kk = l_k² (mass carried beyond joint k) and each
 # off-diagonal entry couples two links only through the angle between them. So
 # every pair of links gets its own MP model:
 #
@@ -25,7 +25,7 @@
 # 3. Simulate in ngspice; check against the ODE and exact solutions.
 # 4. Draw the circuit and the mechanism.
 # 5. Sweep q2 (q3 fixed) and q3 (q2 fixed): each MP capacitance changes sign where
-#    the angle between its two links passes +-pi/2, and is constant when that
+#    the angle between its two links passes ±π/2, and is constant when that
 #    angle does not change.
 
 # %%
