@@ -123,6 +123,7 @@ def check_solvers(system, out: Path, stem: str):
     assert not result.failures, result.failures
     result.to_csv(out / f"{stem}.csv")
     result.plot(out / f"{stem}.png")
+    show(out / f"{stem}.png")
     spice, ode = result.max_relative_error("spice"), result.max_relative_error("ode")
     print(f"SPICE error / peak = {spice:.2e} (limit {SPICE_TOL:g}), ODE error / peak = {ode:.2e} "
           f"(limit {ODE_TOL:g})")
@@ -136,6 +137,9 @@ def draw_diagrams(system, out: Path, stem: str) -> list[Path]:
     from analogy.circuit.diagram import draw
     paths = draw(system, out, stem)
     print("diagrams:", ", ".join(p.name for p in paths))
+    for path in paths:
+        if path.suffix == ".png":
+            show(path)
     return paths
 
 
@@ -242,10 +246,16 @@ def save(fig, path: Path) -> Path:
     """Write *fig* to *path*; in a notebook, show it as well."""
     fig.savefig(path, dpi=110)
     print(f"wrote {path}")
-    if _in_kernel():
-        from IPython.display import display
-        display(fig)
+    show(path)
     return path
+
+
+def show(path: Path) -> None:
+    """Show the picture at *path* below the cell when the lab runs as a notebook (a script only
+    writes files). The file, not the figure: that needs no matplotlib backend in the kernel."""
+    if _in_kernel():
+        from IPython.display import Image, display
+        display(Image(filename=str(path)))
 
 
 def check_loop_closure_rates(model, q, step: float = 1e-6, tol: float = 1e-7) -> float:

@@ -61,6 +61,7 @@ result = analogy.compare(system, "accurate")
 print(result.table())
 result.to_csv(out / "default.csv")
 result.plot(out / "default.png")
+_lab.show(out / "default.png")
 assert result.max_relative_error("spice") <= 1e-6
 
 # %% [markdown]

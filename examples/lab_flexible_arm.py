@@ -31,7 +31,6 @@ import numpy as np
 from matplotlib.figure import Figure
 
 import analogy
-from analogy.circuit.diagram import draw
 from analogy.model.beams import beam_modes
 from analogy.model.flexible import FLEXIBLE_DEFAULTS, flexible_arm
 from analogy.results.modes import natural_modes
@@ -89,7 +88,7 @@ _lab.save(fig, out / "flexible_mass_matrix.png")
 scene = Scene.of("flex2", ModelSpec(robot="flex2"), q=pose, forces=[1, 1, 0, 0, 0, 0], t_stop=1.0)
 system = scene.system()
 print(f"{len(analogy.elements(system))} elements; unstable pose: {system.joint.unstable}")
-draw(system, out, "flex2")
+_lab.draw_diagrams(system, out, "flex2")
 
 # %% [markdown]
 # ## 4. Step response of the one-link arm: the hub turns and the link rings

@@ -139,7 +139,11 @@ def test_lab_runs_as_a_notebook(lab, tmp_path, monkeypatch, contact_sheet):
                                      resources={"metadata": {"path": str(EXAMPLES)}})
     client.execute()
     _check_outputs(lab, out)
-    contact_sheet.extend(sorted(out.glob("*.png")))
+    pictures = sorted(out.glob("*.png"))
+    shown = [o for cell in notebook.cells if cell.cell_type == "code"
+             for o in cell.outputs if "image/png" in o.get("data", {})]
+    assert len(shown) == len(pictures), "the notebook shows every picture it writes, once"
+    contact_sheet.extend(pictures)
 
 
 @pytest.mark.ngspice
