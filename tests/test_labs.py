@@ -1,5 +1,6 @@
 """Every lab in examples/ is a notebook: it runs headless in a Jupyter kernel, passes its own
-assertions and writes its plots and tables. It still runs as a plain script, too."""
+assertions, writes its plots and tables and shows each plot. It still runs as a plain script, and
+the helpers its plots share keep legends off the data."""
 
 import os
 import subprocess
@@ -124,6 +125,37 @@ def test_a_kernels_own_arguments_are_not_an_output_folder(lab_module, tmp_path, 
     monkeypatch.setitem(sys.modules, "ipykernel", sys.modules.get("ipykernel", object()))
     assert lab_module.output_folder() == Path("lab-output")
     assert (tmp_path / "lab-output").is_dir() and not (tmp_path / "-f").exists()
+
+
+def test_a_sweeps_legend_sits_outside_its_axes_and_unassembled_poses_are_shaded_not_plotted(lab_module):
+    np = pytest.importorskip("numpy")
+    x = np.linspace(0.0, 2.0, 21)
+    skipped = [2.1, 2.2, 2.3]
+    fig, axes = lab_module.figure()
+    ax = axes[0, 0]
+    lab_module.plot_sweep(ax, x, {"m'1": (np.cos(x), {}), "p'12": (np.sin(x), {})}, xlabel="q [rad]",
+                          here=1.0, skipped=skipped)
+    fig.draw_without_rendering()
+    legend, frame = ax.get_legend().get_window_extent(), ax.get_window_extent()
+    assert legend.x0 >= frame.x1, "the legend is right of the axes, over no data"
+    assert not [line for line in ax.get_lines() if line.get_marker() not in ("None", None, "")], \
+        "no markers: a pose without values is no data point"
+    (span,) = [patch for patch in ax.patches]
+    left, right = span.get_x(), span.get_x() + span.get_width()
+    assert left < min(skipped) and right > max(skipped), "the shading covers the skipped poses"
+
+
+def test_the_envelope_of_an_alternating_error_is_its_largest_value_in_each_window(lab_module):
+    np = pytest.importorskip("numpy")
+    # Uneven steps, as a simulator takes them; none falls on a window's edge k/10.
+    time = np.concatenate([[0.0], np.sort(np.random.default_rng(1).uniform(0.001, 0.999, 999)), [1.0]])
+    error = 1e-7 * (1.0 + time) * (1 + (-1) ** np.arange(time.size)) / 2     # 0 at every other step
+    centre, top = lab_module.envelope(time, error, windows=10)
+    assert np.allclose(centre, np.arange(10) / 10 + 0.05)
+    for k in range(10):
+        inside = (time >= k / 10) & (time <= (k + 1) / 10)
+        assert top[k] == error[inside].max()
+    assert np.all(np.diff(top) > 0), "the envelope follows the growth the band hides"
 
 
 @pytest.mark.ngspice
