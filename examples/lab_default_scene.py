@@ -27,8 +27,9 @@ out = _lab.output_folder()
 # %% [markdown]
 # ## 1-3. The arm, its node system and its elements
 #
-# M(q) is symbolic; M' = T⁻ᵀ·M·T⁻¹ is evaluated at the scene's pose. Each element's
-# value is in SPICE units (F, Ω), its mechanical coefficient in SI (kg·m², N·m·s).
+# M(q) is symbolic; M' = T⁻ᵀ·M·T⁻¹ is evaluated at the scene's pose. The element values
+# are in circuit units: read a farad as kg·m² (a joint's inertia) and a resistance R
+# as a damper b = 1/R in N·m·s/rad.
 
 # %%
 scene = analogy.scene("default")
