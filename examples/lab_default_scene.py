@@ -4,10 +4,12 @@
 # Run as a script with `python examples/lab_default_scene.py [output-folder]`, or open it
 # as a notebook (see examples/README.md).
 #
-# A planar arm with two revolute joints is the MP-model paper's running example
+# **Physics.** A planar arm with two revolute joints is the MP-model paper's running example
 # (eqs. 17-20). Its kinetic energy ½·rᵀM(q)r defines the mass matrix M(q). In the
 # circuit a node voltage is a velocity and a current is a force (a torque, for a
 # revolute joint), so a capacitance is a mass (a rotational inertia, in kg·m²).
+#
+# **Steps**
 #
 # 1. Build the arm at q2 = 0.3 rad.
 # 2. Map it to node coordinates v = T·r (serial topology: v1 = r1, v2 = r1 + r2).

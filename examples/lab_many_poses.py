@@ -4,11 +4,19 @@
 # Run as a script with `python examples/lab_many_poses.py [output-folder]`, or open it as a
 # notebook (see examples/README.md).
 #
+# **Physics.** The circuit of an arm holds at one pose: its element values follow
+# M(q). To see how they change, and whether the circuit keeps the arm's dynamics at
+# every pose, build and simulate many poses. The congruence M' = T⁻ᵀ·M·T⁻¹ changes
+# the elements but not the dynamics: M'⁻¹B' = T·(M⁻¹B)·T⁻¹ has the eigenvalues of
+# M⁻¹B, so the circuit decays with the arm's own time constants.
+#
+# **Steps**
+#
 # 1. Build the arm's node systems at 1,000 values of q2 at once with
 #    analogy.node_systems: one vectorised evaluation of M(q) and one stacked
 #    congruence M' = T⁻ᵀ M T⁻¹ for all of them.
 # 2. Check two facts across the sweep: the MP capacitance is
-#    c12 = -l1 l2 d2 cos(q2), and the circuit has the arm's own time constants
+#    c12 = −l1·l2·d2·cos q2, and the circuit has the arm's own time constants
 #    (the eigenvalues of M⁻¹ B do not change under the congruence).
 # 3. Simulate every pose in ngspice, 100 independent circuits per run on both
 #    cores, and compare each pose with its exact solution.
@@ -37,7 +45,7 @@ node_mass = np.stack([s.mass for s in systems])
 print(f"built {len(systems)} node systems; M' at q2 = {q2[0]:+.3f}:\n{node_mass[0]}")
 
 # %% [markdown]
-# ## 2a. The floating capacitor between n1 and n2 is the MP model: c12 = -M'12
+# ## 2a. The floating capacitor between n1 and n2 is the MP model: c12 = −M'12
 
 # %%
 c12 = -node_mass[:, 0, 1]
