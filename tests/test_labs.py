@@ -9,9 +9,6 @@ from pathlib import Path
 
 import pytest
 
-jupytext = pytest.importorskip("jupytext")
-nbclient = pytest.importorskip("nbclient")
-
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 #: Seconds one cell may take; the longest cell of any lab takes well under a minute.
@@ -98,6 +95,7 @@ def test_every_lab_is_listed():
 
 @pytest.mark.parametrize("lab", LABS)
 def test_every_lab_is_a_percent_notebook_that_opens_with_its_explanation(lab):
+    jupytext = pytest.importorskip("jupytext")
     text = (EXAMPLES / lab).read_text()
     assert jupytext.formats.guess_format(text, ".py")[0] == "percent"
     notebook = jupytext.reads(text, fmt="py:percent")
@@ -162,6 +160,8 @@ def test_the_envelope_of_an_alternating_error_is_its_largest_value_in_each_windo
 @pytest.mark.slow
 @pytest.mark.parametrize("lab", LABS)
 def test_lab_runs_as_a_notebook(lab, tmp_path, monkeypatch, contact_sheet):
+    jupytext = pytest.importorskip("jupytext")
+    nbclient = pytest.importorskip("nbclient")
     out = tmp_path / "out"
     # The kernel inherits this environment; it runs in examples/ so that `import _lab` works.
     monkeypatch.setenv("ANALOGY_LAB_OUTPUT", str(out))
