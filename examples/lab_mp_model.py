@@ -234,7 +234,7 @@ a1, f1, a2, f2 = 1.0, 0.5, 0.7, 1.3           # v1 = a1 sin(2 pi f1 t), v2 = a2 
 t_both = 2.0
 # ngspice gets a capacitor's current from the trapezoidal rule, which has no damping:
 # between two ideal sources the current alternates around the true value from one
-# step to the next (the dense band in the error plot), here by about 1e-7 of the peak.
+# step to the next by about 1e-7 of the peak (the error plot below shows its envelope).
 both = simulate("mp_driven", "MP model (floating C) between two velocity sources",
                 [f"V1 n1 0 SIN(0 {a1!r} {f1!r})", f"V2 n2 0 SIN(0 {a2!r} {f2!r})", f"C12 n1 n2 {p_mass!r}"],
                 t_both, {"n1": 0.0, "n2": 0.0}, ["v(n1)", "v(n2)", "i(v1)", "i(v2)"])
