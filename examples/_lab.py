@@ -7,6 +7,7 @@ physics is in the labs themselves.
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
@@ -23,14 +24,33 @@ ODE_TOL = 1e-9
 
 #: Label for mass-like quantities: a capacitance in the circuit is a mass (or
 #: a rotational inertia, for revolute joints) in the mechanism.
-MASS_AXIS = "capacitance [F] = mass [kg m^2]"
+MASS_AXIS = "capacitance [F] = inertia [kg·m²]"
+
+
+#: Environment variable naming the output folder; it wins over the command line, so a
+#: lab run as a notebook (whose kernel has its own command-line arguments) can be told too.
+OUTPUT_ENV = "ANALOGY_LAB_OUTPUT"
 
 
 def output_folder(default: str = "lab-output") -> Path:
-    """The folder named by the first command-line argument (default *default*), created."""
-    out = Path(sys.argv[1] if len(sys.argv) > 1 else default)
+    """The folder to write into, created: $ANALOGY_LAB_OUTPUT, else the script's first argument, else *default*.
+
+    Inside a Jupyter kernel sys.argv holds the kernel's own arguments (``-f connection.json``),
+    so there the command line is ignored.
+    """
+    if os.environ.get(OUTPUT_ENV):
+        folder = os.environ[OUTPUT_ENV]
+    elif len(sys.argv) > 1 and not _in_kernel():
+        folder = sys.argv[1]
+    else:
+        folder = default
+    out = Path(folder)
     out.mkdir(parents=True, exist_ok=True)
     return out
+
+
+def _in_kernel() -> bool:
+    return "ipykernel" in sys.modules
 
 
 def section(title: str) -> None:
@@ -103,6 +123,7 @@ def check_solvers(system, out: Path, stem: str):
     assert not result.failures, result.failures
     result.to_csv(out / f"{stem}.csv")
     result.plot(out / f"{stem}.png")
+    show(out / f"{stem}.png")
     spice, ode = result.max_relative_error("spice"), result.max_relative_error("ode")
     print(f"SPICE error / peak = {spice:.2e} (limit {SPICE_TOL:g}), ODE error / peak = {ode:.2e} "
           f"(limit {ODE_TOL:g})")
@@ -116,6 +137,9 @@ def draw_diagrams(system, out: Path, stem: str) -> list[Path]:
     from analogy.circuit.diagram import draw
     paths = draw(system, out, stem)
     print("diagrams:", ", ".join(p.name for p in paths))
+    for path in paths:
+        if path.suffix == ".png":
+            show(path)
     return paths
 
 
@@ -169,27 +193,69 @@ def plot_sweep(ax, x, curves: dict, *, xlabel: str, ylabel: str = MASS_AXIS, tit
     """Curves over a swept joint angle, with zero line, the scene's pose and skipped poses marked.
 
     *curves* maps a legend label to (values, style dict). Values are multiplied by *scale*
-    (say so in *ylabel*).
+    (say so in *ylabel*). Poses that do not assemble are shaded, not drawn as points: they
+    have no values. The legend goes outside the axes, right of them.
     """
     for label, (y, style) in curves.items():
         ax.plot(x, np.asarray(y) * scale, label=label, **style)
     ax.axhline(0.0, color="k", lw=0.6)
     if here is not None:
         ax.axvline(here, color="gray", ls="--", lw=0.8, label="scene pose")
-    if len(skipped):
-        ax.plot(skipped, np.zeros(len(skipped)), "x", color="gray", label="does not assemble")
+    for k, (lo, hi) in enumerate(_runs(sorted(skipped), np.diff(x).min() if len(x) > 1 else 0.0)):
+        ax.axvspan(lo, hi, color="0.85", lw=0, label=None if k else "does not assemble (no values)")
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     if title:
         ax.set_title(title)
     ax.grid(alpha=0.3)
-    ax.legend(fontsize="small")
+    legend_outside(ax)
+
+
+def _runs(values, step: float):
+    """Contiguous runs [lo, hi] of sorted *values*, each widened by half a step on both sides."""
+    runs = []
+    for v in values:
+        if runs and v - runs[-1][1] <= 1.5 * step:
+            runs[-1][1] = v
+        else:
+            runs.append([v, v])
+    return [(lo - step / 2, hi + step / 2) for lo, hi in runs]
+
+
+def legend_outside(ax, **kwargs) -> None:
+    """The legend right of the axes, where it cannot cover data (constrained layout makes room)."""
+    ax.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, **kwargs)
+
+
+def envelope(time, values, windows: int = 100):
+    """The largest of *values* in each of *windows* equal time windows: (window centres, maxima).
+
+    An error that alternates from step to step draws as a solid band; its envelope shows
+    how large it gets and how that changes over time.
+    """
+    time, values = np.asarray(time, dtype=float), np.asarray(values, dtype=float)
+    edges = np.linspace(time[0], time[-1], windows + 1)
+    index = np.clip(np.searchsorted(edges, time, side="right") - 1, 0, windows - 1)
+    top = np.full(windows, np.nan)
+    np.fmax.at(top, index, values)
+    keep = ~np.isnan(top)
+    return ((edges[:-1] + edges[1:]) / 2)[keep], top[keep]
 
 
 def save(fig, path: Path) -> Path:
+    """Write *fig* to *path*; in a notebook, show it as well."""
     fig.savefig(path, dpi=110)
     print(f"wrote {path}")
+    show(path)
     return path
+
+
+def show(path: Path) -> None:
+    """Show the picture at *path* below the cell when the lab runs as a notebook (a script only
+    writes files). The file, not the figure: that needs no matplotlib backend in the kernel."""
+    if _in_kernel():
+        from IPython.display import Image, display
+        display(Image(filename=str(path)))
 
 
 def check_loop_closure_rates(model, q, step: float = 1e-6, tol: float = 1e-7) -> float:

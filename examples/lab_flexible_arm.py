@@ -1,34 +1,36 @@
-"""Lab: a flexible arm as a circuit — assumed modes, the structure of M, resonances and a step response.
+# %% [markdown]
+# # Lab: a flexible arm as a circuit — assumed modes, the structure of M, resonances and a step response
+#
+# Run as a script with `python examples/lab_flexible_arm.py [output-folder]`, or open it as a
+# notebook (see examples/README.md).
+#
+# **Physics.** A link that bends is an Euler–Bernoulli beam. Its deflection is a sum of
+# assumed modes, u(x, t) = Σ ψ_k(x)·δ_k(t), whose shapes are the exact eigenfunctions
+# of the link clamped at its joint (the flexible-robot paper's choice). The modal
+# coordinates δ_k join the joint angles θ as generalised coordinates, so the arm is a
+# robot with more "joints" than motors: M(q) = Σ∫ρA·JᵀJ dx couples every mode to the
+# rigid motion, K = ∫EI·ψ''ψ'' dx is a spring per mode, and gravity adds a stiffness
+# ∂G/∂q that is negative above the horizontal. In the circuit each modal coordinate
+# is one more node, its spring an inductor and its couplings floating capacitors (MP
+# models); the modes are not actuated, so no source drives their nodes.
+#
+# **Steps**
+#
+# 1. The first modes of link 1: clamped-free, and loaded by the elbow motor.
+# 2. The block structure of M at a pose: what couples to what.
+# 3. The circuit at that pose, drawn.
+# 4. A step torque on the shoulder of the one-link arm: the link vibrates; SPICE and the
+#    ODE against the exact solution.
+# 5. The Bode plot of the two-link arm: SPICE's AC sweep against (M's + B' + K'/s)⁻¹,
+#    with the resonances at the natural frequencies.
+# 6. How the first frequencies settle as modes are added.
 
-Run:  python examples/lab_flexible_arm.py [output-folder]
-
-Physics. A link that bends is an Euler–Bernoulli beam. Its deflection is a sum of
-assumed modes, u(x, t) = Σ ψ_k(x)·δ_k(t), whose shapes are the exact eigenfunctions
-of the link clamped at its joint (the flexible-robot paper's choice). The modal
-coordinates δ_k join the joint angles θ as generalised coordinates, so the arm is a
-robot with more "joints" than motors: M(q) = Σ∫ρA·JᵀJ dx couples every mode to the
-rigid motion, K = ∫EI·ψ''ψ'' dx is a spring per mode, and gravity adds a stiffness
-∂G/∂q that is negative above the horizontal. In the circuit each modal coordinate
-is one more node, its spring an inductor and its couplings floating capacitors (MP
-models); the modes are not actuated, so no source drives their nodes.
-
-Steps
-1. The first modes of link 1: clamped-free, and loaded by the elbow motor.
-2. The block structure of M at a pose: what couples to what.
-3. The circuit at that pose, drawn.
-4. A step torque on the shoulder of the one-link arm: the link vibrates; SPICE and the
-   ODE against the exact solution.
-5. The Bode plot of the two-link arm: SPICE's AC sweep against (M's + B' + K'/s)⁻¹,
-   with the resonances at the natural frequencies.
-6. How the first frequencies settle as modes are added.
-"""
-
+# %%
 import _lab
 import numpy as np
 from matplotlib.figure import Figure
 
 import analogy
-from analogy.circuit.diagram import draw
 from analogy.model.beams import beam_modes
 from analogy.model.flexible import FLEXIBLE_DEFAULTS, flexible_arm
 from analogy.results.modes import natural_modes
@@ -40,7 +42,10 @@ out = _lab.output_folder()
 p = FLEXIBLE_DEFAULTS
 pose = [-0.6, 0.3, 0.0, 0.0, 0.0, 0.0]          # both links below the horizontal: a stable pose
 
-# 1. Mode shapes of link 1, bare and carrying the elbow motor at its tip.
+# %% [markdown]
+# ## 1. Mode shapes of link 1, bare and carrying the elbow motor at its tip
+
+# %%
 _lab.section("mode shapes of link 1")
 x = np.linspace(0, p["l1"], 200)
 fig = Figure(figsize=(8, 3.5), layout="constrained")
@@ -53,10 +58,15 @@ for tip, style in (((0.0, 0.0), "-"), ((p["mh2"], p["Jh2"]), "--")):
                 label=f"mode {k + 1}, {'clamped-free' if tip[0] == 0 else 'with motor'}")
 ax.set_xlabel("position along link 1 x [m]")
 ax.set_ylabel("ψ_k(x) [-], link-mass normalised")
-ax.legend(fontsize="small", loc="center left", bbox_to_anchor=(1.0, 0.5))
+ax.set_title("link 1's first three mode shapes: the motor at the tip holds the tip back")
+ax.grid(alpha=0.3)
+_lab.legend_outside(ax)
 _lab.save(fig, out / "flexible_modes.png")
 
-# 2. The structure of M: joints θ1 θ2, then link 1's modes, then link 2's.
+# %% [markdown]
+# ## 2. The structure of M: joints θ1 θ2, then link 1's modes, then link 2's
+
+# %%
 _lab.section("mass matrix of flex2 at the pose")
 model = flexible_arm(2)
 js = model.joint_space(pose)
@@ -67,17 +77,23 @@ ax = fig.subplots()
 image = ax.imshow(np.log10(np.abs(js.mass_matrix) + 1e-12), cmap="viridis", vmin=-4)
 ax.set_xticks(range(6), names)
 ax.set_yticks(range(6), names)
-fig.colorbar(image, ax=ax, label="log10 |M_ij| [kg m^2, kg m, kg]")
+fig.colorbar(image, ax=ax, label="log10 |M_ij|; M_ij in kg·m², kg·m or kg")
 ax.set_title("flex2: every mode couples to the joints")
 _lab.save(fig, out / "flexible_mass_matrix.png")
 
-# 3. The circuit at the pose: six nodes, one per coordinate.
+# %% [markdown]
+# ## 3. The circuit at the pose: six nodes, one per coordinate
+
+# %%
 scene = Scene.of("flex2", ModelSpec(robot="flex2"), q=pose, forces=[1, 1, 0, 0, 0, 0], t_stop=1.0)
 system = scene.system()
 print(f"{len(analogy.elements(system))} elements; unstable pose: {system.joint.unstable}")
-draw(system, out, "flex2")
+_lab.draw_diagrams(system, out, "flex2")
 
-# 4. Step response of the one-link arm: the hub turns and the link rings.
+# %% [markdown]
+# ## 4. Step response of the one-link arm: the hub turns and the link rings
+
+# %%
 _lab.section("step torque on the one-link arm")
 step = Scene.of("flex1", ModelSpec(robot="flex1"), q=[-0.5, 0, 0], forces=[1, 0, 0], t_stop=1.0,
                 parameters={"zeta1": 0.01, "b1": 0.05})
@@ -91,14 +107,20 @@ print(f"SPICE error {errors['spice'][1]:.2e} of the peak; flagged: {bool(result.
 result.to_csv(out / "flexible_step.csv")
 _lab.save(result.plot(), out / "flexible_step.png")
 
-# 5. Bode plot of flex2: the sweep finds a resonance at every natural frequency.
+# %% [markdown]
+# ## 5. Bode plot of flex2: the sweep finds a resonance at every natural frequency
+
+# %%
 _lab.section("frequency response of flex2")
 check = mobility_check(system, per_decade=300)
 print(check.report)
 assert check.error <= 1e-6 and check.worst_resonance <= 1e-3
 _lab.save(check.spice.plot(reference=check.exact), out / "flexible_bode.png")
 
-# 6. Convergence: the first flexible frequencies of flex2 as modes are added per link.
+# %% [markdown]
+# ## 6. Convergence: the first flexible frequencies of flex2 as modes are added per link
+
+# %%
 _lab.section("frequencies as modes are added")
 fig = Figure(figsize=(7, 3.5), layout="constrained")
 ax = fig.subplots()
@@ -116,5 +138,6 @@ ax.set_xlabel("assumed modes per link")
 ax.set_ylabel("natural frequency [Hz]")
 ax.set_xticks(counts)
 ax.set_title("flex2 (gravity off): frequencies fall toward the beam's as modes are added")
-ax.legend(fontsize="small")
+ax.grid(alpha=0.3)
+_lab.legend_outside(ax)
 _lab.save(fig, out / "flexible_convergence.png")

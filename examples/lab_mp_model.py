@@ -1,58 +1,25 @@
-"""Lab: the MP (mass/pulley) model is a floating capacitor (paper Figs. 3-7, eqs. 4-8).
+# %% [markdown]
+# # Lab: the MP (mass/pulley) model is a floating capacitor (paper Figs. 3-7, eqs. 4-8)
+#
+# Run as a script with `python examples/lab_mp_model.py [output-folder]`, or open it as
+# a notebook (see examples/README.md).
+#
+# **Physics.** In the analogy force = current and velocity = voltage, a mass is a
+# capacitor with one terminal on ground: Newton's law F = M·dv/dt measures the
+# acceleration against the ground (an inertial frame). A capacitor, however, can
+# also float between two nodes, i = C·d(v2 − v1)/dt. No plain mass does that, so
+# the paper combines a mass with pulleys: the MP model.
+#
+# - **a.** Derive the MP model's terminal forces from its pulley kinematics (sympy).
+# - **b.** In ngspice: a grounded mass loads a node driven through a damper; an MP
+#   model whose other terminal is free does not (Fig. 3 vs Fig. 7).
+# - **c.** Both terminals driven: the MP model carries P·d(v2 − v1)/dt.
+# - **d.** Plots of b and c.
+#
+# Every netlist is written to the output folder (`<name>.cir`, runs in `ngspice -b`)
+# together with its results (`<name>.csv`).
 
-Run:  python examples/lab_mp_model.py [output-folder]
-
-Physics. In the analogy force = current and velocity = voltage, a mass is a
-capacitor with one terminal on ground: Newton's law F = M dv/dt measures the
-acceleration against the ground (an inertial frame). A capacitor, however, can
-also float between two nodes, i = C d(v2 - v1)/dt. No plain mass does that, so
-the paper combines a mass with pulleys: the MP model.
-
-a. Derivation (sympy). All motion is along one axis, x to the right.
-   Fig. 4, a differential pulley: one cable runs from terminal n1 around a
-   pulley (centre x_o) to terminal n2, both runs leaving the pulley to the left.
-   A constant cable length gives x_o = (x1 + x2)/2 + const (eqs. 4-5): the sum,
-   halved. With n1 held (v1 = 0) the pulley moves at half of v2 (eq. 6), so
-   the same arrangement with a grounded end doubles a motion instead.
-   The MP model (Fig. 5) makes two changes:
-     - the run to n1 first goes around a grounded idler (at x_r) and comes
-       back, so n1 pulls the other way: x_o = (x2 - x1)/2 + const;
-     - a secondary cable runs from a ground anchor (x_g) around a pulley on the
-       primary pulley's axle to the mass, which therefore moves twice as far:
-       x_m = 2 x_o + const = (x2 - x1) + const.
-   The pulleys and cables are massless, so the kinetic energy is
-   T = 1/2 P (dx_m/dt)^2 and Lagrange's equations give the terminal forces
-       F = P [[1, -1], [-1, 1]] d^2x/dt^2,
-   exactly the nodal matrix of a floating capacitor C = P (eqs. 7-8). The
-   plain differential of Fig. 4 with the same secondary stage gives
-   P [[1, 1], [1, 1]] instead: moving both terminals together would accelerate
-   the mass, so it is still tied to ground.
-
-b. Fig. 3 vs Fig. 7 in ngspice. A velocity source (an ideal voltage source,
-   e.g. a hand moving one end of a damper at a prescribed speed) drives node
-   n0; a damper b (resistor R = 1/b) joins n0 to n1. We load n1 with
-   (i) a grounded capacitor C (a mass M = C on the link n1),
-   (ii) a floating capacitor C from n1 to a node n2 that is connected to
-        nothing else (an MP model with its other terminal free), or
-   (iii) nothing.
-   The velocity source is chosen (rather than a force source) because it
-   makes the comparison direct: an unloaded n1 simply follows the source. With
-   the mass, n1 lags: M dv1/dt = b (v0 - v1), a first-order response with
-   time constant M/b. The open MP model carries no current (its free end
-   transmits no force), so it cannot load n1: the cable runs freely through
-   the pulley and the mass stays at rest, v2 - v1 = 0. An ordinary mass
-   cannot be "left unconnected": that is the limitation of section 2.1.
-
-c. Both terminals driven. Two velocity sources move the terminals with
-   different sines; the force each needs is P d(v2 - v1)/dt (with opposite
-   signs), read as the current through the sources.
-
-d. Plots of b and c.
-
-Every netlist is written to the output folder (<name>.cir, runs in ngspice -b)
-together with its results (<name>.csv).
-"""
-
+# %%
 import csv
 
 import _lab
@@ -65,9 +32,32 @@ from analogy.solvers.spice import run_netlist
 
 out = _lab.output_folder()
 
-# --------------------------------------------------------------------------
-# a. The MP model's terminal behaviour, from its pulley kinematics.
-# --------------------------------------------------------------------------
+# %% [markdown]
+# ## a. The MP model's terminal forces, from its pulley kinematics
+#
+# All motion is along one axis, x to the right.
+#
+# *Fig. 4, a differential pulley:* one cable runs from terminal n1 around a pulley
+# (centre x_o) to terminal n2, both runs leaving the pulley to the left. A constant
+# cable length gives x_o = (x1 + x2)/2 + const (eqs. 4-5): the sum, halved. With n1
+# held (v1 = 0) the pulley moves at half of v2 (eq. 6).
+#
+# *The MP model (Fig. 5)* makes two changes:
+#
+# - the run to n1 first goes around a grounded idler (at x_r) and comes back, so n1
+#   pulls the other way: x_o = (x2 − x1)/2 + const;
+# - a secondary cable runs from a ground anchor (x_g) around a pulley on the primary
+#   pulley's axle to the mass, which therefore moves twice as far:
+#   x_m = 2·x_o + const = (x2 − x1) + const.
+#
+# The pulleys and cables are massless, so the kinetic energy is T = ½·P·(dx_m/dt)² and
+# Lagrange's equations give the terminal forces F = P·[[1, −1], [−1, 1]]·d²x/dt²,
+# exactly the nodal matrix of a floating capacitor C = P (eqs. 7-8). The plain
+# differential of Fig. 4 with the same secondary stage gives P·[[1, 1], [1, 1]]
+# instead: moving both terminals together would accelerate the mass, so it is still
+# tied to ground.
+
+# %%
 _lab.section("a. MP model: pulley kinematics -> Lagrange -> terminal forces")
 t = sp.Symbol("t", real=True)
 P = sp.Symbol("P", positive=True)                       # the MP model's mass
@@ -130,9 +120,13 @@ grounded = terminal_matrix(xm_mp.subs(x1, 0))
 assert grounded == sp.Matrix([[0, 0], [0, 1]]) and P * grounded[1:, 1:] == nodal_analysis([("C", 1, 0, P)]).C
 print("=> the MP model is a floating capacitor C = P; with one terminal grounded, a mass.")
 
-# --------------------------------------------------------------------------
-# Netlists: elements + the package's analysis lines (.ic, .options, .tran uic, .save) + .end.
-# --------------------------------------------------------------------------
+# %% [markdown]
+# ## Netlists by hand
+#
+# The next parts write small netlists directly: the elements, then the package's
+# analysis lines (`.ic`, `.options`, `.tran ... uic`, `.save`) and `.end`.
+
+# %%
 
 
 def simulate(name, title, elements, t_stop, ic, save):
@@ -149,9 +143,26 @@ def simulate(name, title, elements, t_stop, ic, save):
     return data
 
 
-# --------------------------------------------------------------------------
-# b. Fig. 3 vs Fig. 7: does a capacitor (mass / MP model) load the node n1?
-# --------------------------------------------------------------------------
+# %% [markdown]
+# ## b. Fig. 3 vs Fig. 7: does a capacitor (mass or MP model) load the node n1?
+#
+# A velocity source (an ideal voltage source, e.g. a hand moving one end of a damper
+# at a prescribed speed) drives node n0; a damper b (resistor R = 1/b) joins n0 to n1.
+# We load n1 with
+#
+# - (i) a grounded capacitor C (a mass M = C on the link n1),
+# - (ii) a floating capacitor C from n1 to a node n2 that is connected to nothing else
+#   (an MP model with its other terminal free), or
+# - (iii) nothing.
+#
+# A velocity source makes the comparison direct: an unloaded n1 simply follows it.
+# With the mass, n1 lags: M·dv1/dt = b·(v0 − v1), a first-order response with time
+# constant M/b. The open MP model carries no current (its free end transmits no
+# force), so it cannot load n1: the cable runs freely through the pulley and the mass
+# stays at rest, v2 − v1 = 0. An ordinary mass cannot be "left unconnected": that is
+# the limitation of the paper's section 2.1.
+
+# %%
 _lab.section("b. loading of n1: grounded mass vs open MP model vs nothing")
 b = 2.0          # damper [N s/m]   -> R = 1/b = 0.5 Ohm
 mass = 1.0       # mass or MP mass [kg] -> C = 1 F
@@ -210,16 +221,20 @@ assert open_vs_free <= 1e-6, "the open MP model does not load n1"
 assert mp_mass_velocity <= 1e-6 and open_force <= 1e-6, "its mass stays at rest, the source does no work"
 assert mass_vs_free >= 0.1, "a grounded mass clearly loads n1"
 
-# --------------------------------------------------------------------------
-# c. Both terminals driven: the MP model carries P d(v2 - v1)/dt.
-# --------------------------------------------------------------------------
+# %% [markdown]
+# ## c. Both terminals driven: the MP model carries P·d(v2 − v1)/dt
+#
+# Two velocity sources move the terminals with different sines; the force each needs
+# is P·d(v2 − v1)/dt (with opposite signs), read as the current through the sources.
+
+# %%
 _lab.section("c. MP model between two driven nodes")
 p_mass = 1.0                                  # P [kg] = C [F]
 a1, f1, a2, f2 = 1.0, 0.5, 0.7, 1.3           # v1 = a1 sin(2 pi f1 t), v2 = a2 sin(2 pi f2 t)
 t_both = 2.0
 # ngspice gets a capacitor's current from the trapezoidal rule, which has no damping:
 # between two ideal sources the current alternates around the true value from one
-# step to the next (the dense band in the error plot), here by about 1e-7 of the peak.
+# step to the next by about 1e-7 of the peak (the error plot below shows its envelope).
 both = simulate("mp_driven", "MP model (floating C) between two velocity sources",
                 [f"V1 n1 0 SIN(0 {a1!r} {f1!r})", f"V2 n2 0 SIN(0 {a2!r} {f2!r})", f"C12 n1 n2 {p_mass!r}"],
                 t_both, {"n1": 0.0, "n2": 0.0}, ["v(n1)", "v(n2)", "i(v1)", "i(v2)"])
@@ -235,10 +250,14 @@ print(f"source current into n2 vs P d(v2 - v1)/dt: max error / peak = {err_n2:.1
 print(f"source current into n1 vs -P d(v2 - v1)/dt: max error / peak = {err_n1:.1e}")
 assert err_n2 <= 1e-6 and err_n1 <= 1e-6
 
-# --------------------------------------------------------------------------
-# d. Plots.
-# --------------------------------------------------------------------------
-fig, axes = _lab.figure(2, 1, size=(8, 7))
+# %% [markdown]
+# ## d. Plots
+#
+# `mp_loading.png`: the three loads of part b and their errors against the analytic
+# responses. `mp_current.png`: part c, the sources' currents against P·d(v2 − v1)/dt.
+
+# %%
+fig, axes = _lab.figure(2, 1, size=(10, 7))
 ax, ax_err = axes[:, 0]
 ax.plot(free_run["time"], free_run["n0"], color="k", ls=":", lw=1.2, label="v0: velocity source")
 ax.plot(free_run["time"], free_run["n1"], color="C0", lw=4, alpha=0.35, label="v1, (iii) unloaded")
@@ -247,10 +266,10 @@ ax.plot(mass_run["time"], mass_run["n1"], color="C3", lw=1.4, label="v1, (i) gro
 ax.plot(mass_run["time"], mass_response(mass_run["time"]), color="k", ls="--", lw=0.8,
         label=f"analytic lag, M/b = {tau} s")
 ax.plot(open_run["time"], open_run["n2"] - open_run["n1"], color="C2", lw=1.2,
-        label="v2 - v1: MP mass velocity in (ii)")
+        label="v2 − v1: MP mass velocity in (ii)")
 ax.set_ylabel("velocity [m/s] = voltage [V]")
 ax.set_title("A damper drives node n1: a grounded mass loads it, an open MP model does not")
-ax.legend(fontsize="small", loc="center right")
+_lab.legend_outside(ax)
 ax.grid(alpha=0.3)
 for run, label, style in ((mass_run, "(i) grounded mass vs analytic", dict(color="C3")),
                           (open_run, "(ii) open MP vs v0", dict(color="C0", ls="--")),
@@ -258,34 +277,43 @@ for run, label, style in ((mass_run, "(i) grounded mass vs analytic", dict(color
     exact = mass_response(run["time"]) if run is mass_run else ramp_hold(run["time"])
     ax_err.semilogy(run["time"], np.maximum(np.abs(run["n1"] - exact) / peak, 1e-16), label=label, **style)
 ax_err.axhline(1e-6, color="k", lw=0.8, ls=":", label="limit 1e-6")
-ax_err.text(0.01, 2e-16, "errors of exactly 0 are drawn at 1e-16", fontsize="small", va="bottom",
-            transform=ax_err.get_yaxis_transform())
+ax_err.set_title("errors of exactly 0 are drawn at 1e-16", fontsize="small", loc="left")
 ax_err.set_xlabel("time [s]")
-ax_err.set_ylabel("|v1 - analytic| / peak")
-ax_err.legend(fontsize="small")
+ax_err.set_ylabel("|v1 − analytic| / peak [-]")
+_lab.legend_outside(ax_err)
 ax_err.grid(alpha=0.3)
 _lab.save(fig, out / "mp_loading.png")
 
-fig, axes = _lab.figure(3, 1, size=(8, 8.5))
+# %% [markdown]
+# The trapezoidal rule gets a capacitor's current from the change of its voltage over
+# one step, and it does not damp: between two ideal sources the current alternates
+# around the true value from step to step. Drawn point by point that ringing fills the
+# error panel as a solid band, so the panel shows its envelope instead: the largest
+# error within each of 100 windows.
+
+# %%
+fig, axes = _lab.figure(3, 1, size=(10, 8.5))
 ax_v, ax_i, ax_err = axes[:, 0]
-ax_v.plot(tb, both["n1"], color="C0", label=f"v1 = {a1} sin(2 pi {f1} t)")
-ax_v.plot(tb, both["n2"], color="C1", label=f"v2 = {a2} sin(2 pi {f2} t)")
-ax_v.plot(tb, both["n2"] - both["n1"], color="C2", ls="--", label="v2 - v1: MP mass velocity")
+ax_v.plot(tb, both["n1"], color="C0", label=f"v1 = {a1} sin(2π·{f1} t)")
+ax_v.plot(tb, both["n2"], color="C1", label=f"v2 = {a2} sin(2π·{f2} t)")
+ax_v.plot(tb, both["n2"] - both["n1"], color="C2", ls="--", label="v2 − v1: MP mass velocity")
 ax_v.set_ylabel("velocity [m/s] = voltage [V]")
 ax_v.set_title(f"MP model (P = {p_mass} kg) between two velocity sources")
-ax_v.legend(fontsize="small")
-ax_i.plot(tb, force, color="k", lw=4, alpha=0.3, label="P d(v2 - v1)/dt, analytic")
+ax_i.plot(tb, force, color="k", lw=4, alpha=0.3, label="P·d(v2 − v1)/dt, analytic")
 ax_i.plot(tb, force_at_n2, color="C1", ls="--", label="current V2 drives into n2 (SPICE)")
 ax_i.plot(tb, force_at_n1, color="C0", ls="--", label="current V1 drives into n1 (SPICE)")
 ax_i.set_ylabel("force [N] = current [A]")
-ax_i.legend(fontsize="small")
-ax_err.semilogy(tb, np.maximum(np.abs(force_at_n2 - force) / current_peak, 1e-18), color="C1", label="at n2")
-ax_err.semilogy(tb, np.maximum(np.abs(force_at_n1 + force) / current_peak, 1e-18), color="C0", ls="--",
-                label="at n1")
+windows = 100
+for error, label, style in ((np.abs(force_at_n2 - force), "at n2", dict(color="C1")),
+                            (np.abs(force_at_n1 + force), "at n1", dict(color="C0", ls="--"))):
+    centre, top = _lab.envelope(tb, error / current_peak, windows)
+    ax_err.semilogy(centre, top, label=label, **style)
 ax_err.axhline(1e-6, color="k", lw=0.8, ls=":", label="limit 1e-6")
+ax_err.set_title(f"error envelope: the largest |SPICE − analytic| / peak in each of {windows} windows "
+                 f"of {t_both / windows * 1e3:g} ms (trapezoidal ringing lies below it)", fontsize="small")
 ax_err.set_xlabel("time [s]")
-ax_err.set_ylabel("|SPICE - analytic| / peak")
-ax_err.legend(fontsize="small")
+ax_err.set_ylabel("error / peak current [-]")
 for a in axes[:, 0]:
     a.grid(alpha=0.3)
+    _lab.legend_outside(a)
 _lab.save(fig, out / "mp_current.png")

@@ -1,31 +1,34 @@
-"""Lab: the 2-DOF arm's full nonlinear dynamics, simulated inside SPICE.
+# %% [markdown]
+# # Lab: the 2-DOF arm's full nonlinear dynamics, simulated inside SPICE
+#
+# Run as a script with `python examples/lab_nonlinear.py [output-folder]`, or open it as a
+# notebook (see examples/README.md).
+#
+# **Physics.** The linear circuit freezes the arm at one pose. The real arm has
+# M(q)·q̈ + c(q, q̇) + G(q) + B·q̇ = τ, where the Coriolis and centrifugal forces c
+# come from the Christoffel symbols of M(q). In node coordinates (v = T·r, x = ∫v)
+# the Lagrange equations are
+#
+#     d/dt(M'(x)·v) − ½·vᵀ(∂M'/∂x)v + ∂U/∂x + B'·v = i.
+#
+# The circuit keeps the MP split of M' = T⁻ᵀ·M(q)·T⁻¹, but each capacitor now holds a
+# charge Q = c(x)·(v_a − v_b) (ngspice's Q= form, whose current is d(cΔv)/dt), the
+# −½·vᵀ∂M'v + gravity terms are behavioural currents, and an integrator node per
+# joint carries x. The MP capacitance p'12 = −l1·l2·d2·cos(q2) now changes with the
+# motion, and changes sign whenever the elbow passes ±π/2.
+#
+# **Steps**
+#
+# 1. Swing the arm through large angles with step torques (the default scene, 20 s):
+#    SPICE and the ODE against the tight reference (DOP853, rtol 1e-13).
+# 2. Follow p'12(t) = −l1 l2 d2 cos q2(t) through its sign changes.
+# 3. The energy flows: kinetic energy, the work of the torques and of the dampers,
+#    and the balance's residual for every solver.
+# 4. Where the linear circuit (frozen at q0) stops holding.
+# 5. A double pendulum under gravity, released from the horizontal without damping:
+#    chaotic, so the figure is the predictability horizon, not an error.
 
-Run:  python examples/lab_nonlinear.py [output-folder]
-
-Physics. The linear circuit freezes the arm at one pose. The real arm has
-M(q)·q̈ + c(q, q̇) + G(q) + B·q̇ = τ, where the Coriolis and centrifugal forces c
-come from the Christoffel symbols of M(q). In node coordinates (v = T·r, x = ∫v)
-the Lagrange equations are
-
-    d/dt(M'(x)·v) − ½·vᵀ(∂M'/∂x)v + ∂U/∂x + B'·v = i.
-
-The circuit keeps the MP split of M' = T⁻ᵀ·M(q)·T⁻¹, but each capacitor now holds a
-charge Q = c(x)·(v_a − v_b) (ngspice's Q= form, whose current is d(cΔv)/dt), the
-−½·vᵀ∂M'v + gravity terms are behavioural currents, and an integrator node per
-joint carries x. The MP capacitance p'12 = −l1·l2·d2·cos(q2) now changes with the
-motion, and changes sign whenever the elbow passes ±π/2.
-
-Steps
-1. Swing the arm through large angles with step torques (the default scene, 20 s):
-   SPICE and the ODE against the tight reference (DOP853, rtol 1e-13).
-2. Follow p'12(t) = −l1 l2 d2 cos q2(t) through its sign changes.
-3. The energy flows: kinetic energy, the work of the torques and of the dampers,
-   and the balance's residual for every solver.
-4. Where the linear circuit (frozen at q0) stops holding.
-5. A double pendulum under gravity, released from the horizontal without damping:
-   chaotic, so the figure is the predictability horizon, not an error.
-"""
-
+# %%
 import _lab
 import numpy as np
 
@@ -34,7 +37,10 @@ from analogy.results.horizon import linear_horizon
 
 out = _lab.output_folder()
 
-# 1. Large swings: the default arm with its step torques, for 20 s.
+# %% [markdown]
+# ## 1. Large swings: the default arm with its step torques, for 20 s
+
+# %%
 scene = analogy.scene("default").replace(t_stop=20.0)
 system = scene.replace(dynamics="nonlinear").system()
 result = analogy.compare(system, "accurate", ["spice", "ode"])
@@ -44,7 +50,10 @@ assert result.errors()["spice"][1] <= 1e-6 and result.errors()["ode"][1] <= 1e-9
 result.to_csv(out / "nonlinear.csv")
 _lab.save(result.plot(), out / "nonlinear.png")
 
-# 2. The MP capacitance during the motion.
+# %% [markdown]
+# ## 2. The MP capacitance during the motion
+
+# %%
 ref = result.results["reference"]
 q = system.q0 + system.topology.joint_rates(ref.positions)
 p = system.parameters
@@ -55,21 +64,27 @@ print(f"   q2 sweeps {q[:, 1].min():.2f} .. {q[:, 1].max():.2f} rad; p'12 change
       f"{len(crossings)} times, first at t = {crossings[0]:.3f} s" if len(crossings) else
       "   p'12 keeps its sign")
 assert len(crossings) >= 2, "the swing takes the elbow through +-pi/2"
-fig, axes = _lab.figure(2, 1, size=(7, 5.5))
+fig, axes = _lab.figure(2, 1, size=(8, 5.5))
 axes[0, 0].plot(ref.time, q[:, 1], label="q2 (elbow)")
 for k in (-1, 1):
-    axes[0, 0].axhline(k * np.pi / 2, color="gray", ls=":", lw=0.8)
+    axes[0, 0].axhline(k * np.pi / 2, color="gray", ls=":", lw=0.8, label="q2 = ±π/2" if k > 0 else None)
 axes[0, 0].set_ylabel("elbow angle q2 [rad]")
-axes[0, 0].legend(fontsize="small")
-axes[1, 0].plot(ref.time, mp, color="C3", label="p'12 = -l1 l2 d2 cos q2")
+axes[0, 0].set_title("the elbow swings past π/2 and back: the MP capacitance changes sign twice")
+_lab.legend_outside(axes[0, 0])
+axes[1, 0].plot(ref.time, mp, color="C3", label="p'12 = −l1·l2·d2·cos q2")
 axes[1, 0].axhline(0.0, color="k", lw=0.6)
 axes[1, 0].plot(crossings, np.zeros(len(crossings)), "o", color="C3", ms=4, label="sign changes")
-axes[1, 0].set_ylabel("MP capacitance [F] = [kg m^2]")
+axes[1, 0].set_ylabel("MP capacitance [F] = [kg·m²]")
 axes[1, 0].set_xlabel("time [s]")
-axes[1, 0].legend(fontsize="small")
+_lab.legend_outside(axes[1, 0])
+for a in axes[:, 0]:
+    a.grid(alpha=0.3)
 _lab.save(fig, out / "nonlinear_mp.png")
 
-# 3. Energy: T(t) - T(0) = W(t), the work of the torques and the dampers.
+# %% [markdown]
+# ## 3. Energy: T(t) - T(0) = W(t), the work of the torques and the dampers
+
+# %%
 _lab.section("energy balance T + U - T(0) - W, relative to the energy scale")
 for name, value in result.energy.items():
     print(f"   {name:<10}{value:.2e}")
@@ -84,25 +99,33 @@ def integral(power):
     return np.concatenate([[0.0], np.cumsum(0.5 * (power[1:] + power[:-1]) * np.diff(t))])
 
 
-fig, axes = _lab.figure(size=(7, 4))
+fig, axes = _lab.figure(size=(8, 4))
 ax = axes[0, 0]
+ax.set_title("energy balance of the nonlinear arm (reference solution)")
+ax.grid(alpha=0.3)
 ax.plot(t, kinetic, label="kinetic energy T")
 ax.plot(t, integral(drive), label="work of the torques")
 ax.plot(t, integral(loss), label="heat in the dampers")
-ax.plot(t, integral(drive) - integral(loss), "k:", label="torques - dampers (= T)")
+ax.plot(t, integral(drive) - integral(loss), "k:", label="torques − dampers (= T)")
 ax.set_xlabel("time [s]")
 ax.set_ylabel("energy [J]")
-ax.legend(fontsize="small")
+_lab.legend_outside(ax)
 _lab.save(fig, out / "nonlinear_energy.png")
 
-# 4. The linear circuit at q0 against the full motion.
+# %% [markdown]
+# ## 4. The linear circuit at q0 against the full motion
+
+# %%
 horizon = linear_horizon(scene, "accurate", ["ode"])
 _lab.section("how long the circuit linearised at q0 holds")
 print("\n".join(f"   {line}" for line in horizon.lines()))
 assert horizon.held[1e-2] < horizon.held[1e-1] < scene.t_stop
 _lab.save(horizon.plot(), out / "nonlinear_linear.png")
 
-# 5. Chaos: a double pendulum under gravity (g = 9.81), no damping, from the horizontal.
+# %% [markdown]
+# ## 5. Chaos: a double pendulum under gravity (g = 9.81), no damping, from the horizontal
+
+# %%
 pendulum = analogy.scene("default").replace(
     parameters={"g": 9.81, "b1": 0.0, "b2": 0.0}, q=(0.0, 0.0), forces=(0.0, 0.0), t_stop=5.0,
     dynamics="nonlinear").system()

@@ -1,37 +1,40 @@
-"""Lab: the 3-DOF planar 3-RRR parallel mechanism (paper eq. 35): three MP models and three springs.
+# %% [markdown]
+# # Lab: the 3-DOF planar 3-RRR parallel mechanism (paper eq. 35): three MP models and three springs
+#
+# Run as a script with `python examples/lab_parallel3.py [output-folder]`, or open it as a
+# notebook (see examples/README.md).
+#
+# **Physics.** Three motors sit on the base at 120 degree spacing; each turns a
+# proximal link (angle q_k), and a passive distal link carries a triangular
+# platform (position x, y, orientation phi). The motors are grounded, so the
+# parallel topology v = r applies: M' = M, B' = B, K' = K. Each motor has a
+# damper b_k (a grounded resistor R = 1/b_k) and a return spring k_k (a grounded
+# inductor L = 1/k_k). The platform couples all three motors: every off-diagonal
+# M_ij becomes an MP model p'_ij = -M_ij between nodes i and j, and every node
+# gets the grounded capacitor m'_i = sum_j M_ij. (The paper's eq. 35 mixes up
+# M13 and M23 in m'1, p'23 and p'13; the split used here follows from the
+# nodal equations, C_ii = c_i + sum_j c_ij and C_ij = -c_ij.)
+#
+# M(q) = Sᵀ M_theta S as for the five-bar: the passive coordinates
+# p = (psi_1, psi_2, psi_3, x, y, phi) follow from the loop-closure equations,
+# and their rates G = dp/dq enter M.
+#
+# **Steps**
+#
+# 1. Print M(q) symbolically (in q, p and the rates dp/dq; long).
+# 2. Assemble at q = (2.6, -1.7, 0.35) rad: platform pose, G, checked against
+#    central differences.
+# 3. Print M' = M and the circuit elements; simulate, check against the ODE and
+#    exact solutions; draw circuit and mechanism.
+# 4. Sweep q1 (q2, q3 fixed) from 0.8 to 3 rad. Near q1 = 2.785 rad the closed
+#    loop becomes singular (the closure equations no longer fix the passive
+#    coordinates: dp/dq, and with it every mass the motors feel, grows without
+#    bound), and past it the working mode does not continue: those poses raise
+#    InputError and are skipped. Over the rest all six element values change
+#    with q1, every MP capacitance changes sign somewhere, the grounded m'1 is
+#    even negative for a while, and M stays positive definite.
 
-Run:  python examples/lab_parallel3.py [output-folder]
-
-Physics. Three motors sit on the base at 120 degree spacing; each turns a
-proximal link (angle q_k), and a passive distal link carries a triangular
-platform (position x, y, orientation phi). The motors are grounded, so the
-parallel topology v = r applies: M' = M, B' = B, K' = K. Each motor has a
-damper b_k (a grounded resistor R = 1/b_k) and a return spring k_k (a grounded
-inductor L = 1/k_k). The platform couples all three motors: every off-diagonal
-M_ij becomes an MP model p'_ij = -M_ij between nodes i and j, and every node
-gets the grounded capacitor m'_i = sum_j M_ij. (The paper's eq. 35 mixes up
-M13 and M23 in m'1, p'23 and p'13; the split used here follows from the
-nodal equations, C_ii = c_i + sum_j c_ij and C_ij = -c_ij.)
-
-M(q) = S^T M_theta S as for the five-bar: the passive coordinates
-p = (psi_1, psi_2, psi_3, x, y, phi) follow from the loop-closure equations,
-and their rates G = dp/dq enter M.
-
-Steps
-1. Print M(q) symbolically (in q, p and the rates dp/dq; long).
-2. Assemble at q = (2.6, -1.7, 0.35) rad: platform pose, G, checked against
-   central differences.
-3. Print M' = M and the circuit elements; simulate, check against the ODE and
-   exact solutions; draw circuit and mechanism.
-4. Sweep q1 (q2, q3 fixed) from 0.8 to 3 rad. Near q1 = 2.785 rad the closed
-   loop becomes singular (the closure equations no longer fix the passive
-   coordinates: dp/dq, and with it every mass the motors feel, grows without
-   bound), and past it the working mode does not continue: those poses raise
-   InputError and are skipped. Over the rest all six element values change
-   with q1, every MP capacitance changes sign somewhere, the grounded m'1 is
-   even negative for a while, and M stays positive definite.
-"""
-
+# %%
 import _lab
 import numpy as np
 
@@ -39,14 +42,20 @@ import analogy
 
 out = _lab.output_folder()
 
-# 1. Symbolic mass matrix of the closed chain.
+# %% [markdown]
+# ## 1. Symbolic mass matrix of the closed chain
+
+# %%
 scene = analogy.scene("parallel3")
 model = scene.build_model()
 _lab.section("mass matrix M(q) = S^T M_theta S of the closed chain")
 print("passive coordinates:", ", ".join(map(str, model.passive)))
 _lab.print_symbolic("M", model.mass_matrix)
 
-# 2. Assembly at the scene's pose.
+# %% [markdown]
+# ## 2. Assembly at the scene's pose
+
+# %%
 _lab.section(f"assembly at q = {scene.q} rad")
 p, rates = model.assemble(scene.q)
 x_p, y_p, phi = p[3:]
@@ -55,7 +64,10 @@ print(f"platform at ({1e3 * x_p:.2f}, {1e3 * y_p:.2f}) mm, orientation {phi:.4f}
 _lab.print_matrix("G = dp/dq", rates)
 _lab.check_loop_closure_rates(model, scene.q)
 
-# 3. Circuit at the scene's pose.
+# %% [markdown]
+# ## 3. Circuit at the scene's pose
+
+# %%
 system = scene.system(model)
 _lab.section("node system (parallel topology: v = r, M' = M, K' = K)")
 _lab.print_matrix("M' = M", system.mass)
@@ -71,7 +83,10 @@ assert kinds.count("C_float") == 3 and kinds.count("L") == 3, "three MP models, 
 _lab.check_solvers(system, out, "parallel3")
 _lab.draw_diagrams(system, out, "parallel3")
 
-# 4. Sweep q1 past the edge of the working mode.
+# %% [markdown]
+# ## 4. Sweep q1 past the edge of the working mode
+
+# %%
 _lab.section("sweep q1")
 x, mats, skipped = _lab.sweep(scene, model, 0, np.linspace(0.8, 3.0, 89))
 assert skipped and min(skipped) > scene.q[0], "poses beyond the working mode are skipped, not plotted"
@@ -84,21 +99,21 @@ assert all(n > 0 for n in changes.values()), "every coupling vanishes somewhere 
 print(f"the grounded m'1 is negative for q1 in about "
       f"[{x[m_ground[:, 0] < 0].min():.2f}, {x[m_ground[:, 0] < 0].max():.2f}] rad; M stays positive definite")
 
-fig, axes = _lab.figure(1, 2, size=(11, 4.2))
-common = dict(xlabel="q1 [rad]", ylabel="capacitance [mF] = mass [10^-3 kg m^2]", scale=1e3,
+fig, axes = _lab.figure(2, 1, size=(9, 7.5))
+common = dict(xlabel="q1 [rad]", ylabel="capacitance [mF] = inertia [g·m²]", scale=1e3,
               here=scene.q[0], skipped=skipped)
 _lab.plot_sweep(axes[0, 0], x, {f"m'{i + 1} (grounded C{i + 1})": (m_ground[:, i], dict(color=f"C{i}"))
                                 for i in range(3)}, title="masses (grounded capacitors)", **common)
-_lab.plot_sweep(axes[0, 1], x, {f"p'{i + 1}_{j + 1} (C{i + 1}_{j + 1}, MP model)": (v, dict(color=f"C{k + 3}"))
+_lab.plot_sweep(axes[1, 0], x, {f"p'{i + 1}_{j + 1} (C{i + 1}_{j + 1}, MP model)": (v, dict(color=f"C{k + 3}"))
                                 for k, ((i, j), v) in enumerate(p_float.items())},
                 title="MP models (floating capacitors)", **common)
 # Close to the singularity the values grow without bound; the axes show the rest.
 regular = x <= 2.7
-for ax, data in ((axes[0, 0], m_ground), (axes[0, 1], np.array(list(p_float.values())).T)):
+for ax, data in ((axes[0, 0], m_ground), (axes[1, 0], np.array(list(p_float.values())).T)):
     lo, hi = 1e3 * data[regular].min(), 1e3 * data[regular].max()
     ax.set_ylim(lo - 0.25 * (hi - lo), hi + 0.25 * (hi - lo))
     ax.axvline((x.max() + min(skipped)) / 2, color="k", ls="-.", lw=0.8,
                label="singular pose: values grow without bound")
-    ax.legend(fontsize="small")
+    _lab.legend_outside(ax)
 fig.suptitle(f"3-RRR: element values over q1 (q2 = {scene.q[1]}, q3 = {scene.q[2]} rad)")
 _lab.save(fig, out / "parallel3_sweep.png")

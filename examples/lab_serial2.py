@@ -1,29 +1,32 @@
-"""Lab: the 2-DOF serial arm (paper eqs. 17-23, Figs. 10-12) and its configuration-dependent MP model.
+# %% [markdown]
+# # Lab: the 2-DOF serial arm (paper eqs. 17-23, Figs. 10-12) and its configuration-dependent MP model
+#
+# Run as a script with `python examples/lab_serial2.py [output-folder]`, or open it as a
+# notebook (see examples/README.md).
+#
+# **Physics.** A planar arm with two revolute joints carries a point mass d1 at the
+# elbow and d2 at the tip (links l1, l2). Its kinetic energy T = ½·rᵀ M(q) r
+# defines the mass matrix M(q); the joints have dampers b1, b2. In the serial
+# topology the circuit's node voltages are the absolute angular velocities of the
+# links, v1 = r1 and v2 = r1 + r2 (v = T r), and actuator 2 acts between the two
+# links, so it is a current source between n1 and n2. The node mass matrix is
+# M' = T⁻ᵀ M T⁻¹. Each node gets a grounded capacitor m'_i (row sum of M': a
+# mass) and the pair gets a floating capacitor p'12 = -M'12: an MP model, the
+# mass/pulley device of Fig. 5 whose mass is driven by the difference v2 - v1.
+#
+# **Steps**
+#
+# 1. Print M(q) symbolically, derive M'(q) and the element values symbolically.
+#    (The paper prints M'11 = m1 + m2 and m'1 = m1 + m3 in eqs. 22-23; the
+#    derivation below gives M'11 = m1 + m2 - 2 m3 and m'1 = m1 - m3.)
+# 2. Evaluate at the scene's pose q2 = 0.3 rad, print M' and the circuit elements.
+# 3. Simulate the circuit in ngspice and check it against the ODE and exact
+#    solutions (step torque on joint 1, sine torque on joint 2, r2(0) = 0.2 rad/s).
+# 4. Draw the circuit and the mechanism.
+# 5. Sweep q2 over a full turn: p'12 = -l1 l2 d2 cos(q2) is negative for
+#    |q2| < π/2, zero at ±π/2 (the paper's M' diagonal case) and positive beyond.
 
-Run:  python examples/lab_serial2.py [output-folder]
-
-Physics. A planar arm with two revolute joints carries a point mass d1 at the
-elbow and d2 at the tip (links l1, l2). Its kinetic energy T = 1/2 r^T M(q) r
-defines the mass matrix M(q); the joints have dampers b1, b2. In the serial
-topology the circuit's node voltages are the absolute angular velocities of the
-links, v1 = r1 and v2 = r1 + r2 (v = T r), and actuator 2 acts between the two
-links, so it is a current source between n1 and n2. The node mass matrix is
-M' = T^-T M T^-1. Each node gets a grounded capacitor m'_i (row sum of M': a
-mass) and the pair gets a floating capacitor p'12 = -M'12: an MP model, the
-mass/pulley device of Fig. 5 whose mass is driven by the difference v2 - v1.
-
-Steps
-1. Print M(q) symbolically, derive M'(q) and the element values symbolically.
-   (The paper prints M'11 = m1 + m2 and m'1 = m1 + m3 in eqs. 22-23; the
-   derivation below gives M'11 = m1 + m2 - 2 m3 and m'1 = m1 - m3.)
-2. Evaluate at the scene's pose q2 = 0.3 rad, print M' and the circuit elements.
-3. Simulate the circuit in ngspice and check it against the ODE and exact
-   solutions (step torque on joint 1, sine torque on joint 2, r2(0) = 0.2 rad/s).
-4. Draw the circuit and the mechanism.
-5. Sweep q2 over a full turn: p'12 = -l1 l2 d2 cos(q2) is negative for
-   |q2| < pi/2, zero at +-pi/2 (the paper's M' diagonal case) and positive beyond.
-"""
-
+# %%
 import _lab
 import numpy as np
 import sympy as sp
@@ -32,7 +35,10 @@ import analogy
 
 out = _lab.output_folder()
 
-# 1. Symbolic model: M(q) comes from the kinematics, M = sum d_k J_k^T J_k.
+# %% [markdown]
+# ## 1. Symbolic model: M(q) comes from the kinematics, M = sum d_k J_kᵀ J_k
+
+# %%
 scene = analogy.scene("serial2")
 model = scene.build_model()
 system = scene.system(model)
@@ -60,20 +66,32 @@ assert [g_ground["m'1"], g_ground["m'2"], g_float["p'1_2"]] == [m1 - m3, m3, m2 
 assert sp.simplify(g_ground["m'1"] - (m1 + m3)) != 0, "eq. 23's m'1 = m1 + m3 is a misprint"
 print("general M: m'1 =", g_ground["m'1"], " m'2 =", g_ground["m'2"], " p'12 =", g_float["p'1_2"])
 
-# 2. Numbers at the scene's pose.
+# %% [markdown]
+# ## 2. Numbers at the scene's pose
+
+# %%
 _lab.section(f"node system at q = {scene.q} rad (serial topology, v = T r)")
 _lab.print_matrix("M(q)", system.joint.mass_matrix)
 _lab.print_matrix("M' = T^-T M T^-1", system.mass)
 _lab.print_elements(system)
 
-# 3. Three solvers, one answer.
+# %% [markdown]
+# ## 3. Three solvers, one answer
+
+# %%
 _lab.section("SPICE vs ODE vs exact (accurate preset)")
 _lab.check_solvers(system, out, "serial2")
 
-# 4. Circuit and mechanism side by side: same topology, element for element.
+# %% [markdown]
+# ## 4. Circuit and mechanism side by side: same topology, element for element
+
+# %%
 _lab.draw_diagrams(system, out, "serial2")
 
-# 5. Sweep q2 through the package (numbers), and compare with the symbolic formulas.
+# %% [markdown]
+# ## 5. Sweep q2 through the package (numbers), and compare with the symbolic formulas
+
+# %%
 _lab.section("sweep q2")
 q2_values = np.linspace(-np.pi, np.pi, 121)
 x, mats, skipped = _lab.sweep(scene, model, 1, q2_values)
@@ -103,13 +121,13 @@ print(f"p'12 < 0 for |q2| < pi/2 and > 0 beyond; m'2 < 0 for |q2| > "
 fig, axes = _lab.figure(size=(7, 4.2))
 ax = axes[0, 0]
 for k, edge in enumerate((-np.pi / 2, np.pi / 2)):
-    ax.axvline(edge, color="C3", ls=":", lw=0.8, label=None if k else "q2 = -+pi/2 (p'12 = 0)")
+    ax.axvline(edge, color="C3", ls=":", lw=0.8, label=None if k else "q2 = ±π/2 (p'12 = 0)")
 _lab.plot_sweep(ax, x, {
     "m'1 (grounded C1: mass)": (m_ground[:, 0], dict(color="C0")),
     "m'2 (grounded C2: mass)": (m_ground[:, 1], dict(color="C1")),
     "p'12 (floating C1_2: MP model)": (p12, dict(color="C3", lw=2)),
-    "M'11 = m'1 + p'12 = l1^2 (d1 + d2)": (mats[:, 0, 0], dict(color="k", ls=":")),
+    "M'11 = m'1 + p'12 = l1²·(d1 + d2)": (mats[:, 0, 0], dict(color="k", ls=":")),
 }, xlabel="q2 [rad]", title="2-DOF serial arm: element values over the elbow angle",
     here=scene.q[1])
-ax.set_xticks(np.linspace(-np.pi, np.pi, 5), ["-pi", "-pi/2", "0", "pi/2", "pi"])
+ax.set_xticks(np.linspace(-np.pi, np.pi, 5), ["−π", "−π/2", "0", "π/2", "π"])
 _lab.save(fig, out / "serial2_sweep.png")
