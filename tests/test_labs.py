@@ -52,34 +52,6 @@ def _check_outputs(lab, out):
             assert data.count(b"\n") > 10, f"{name} has too few rows"
 
 
-@pytest.fixture(scope="module")
-def contact_sheet(tmp_path_factory):
-    """Collects the pictures the labs write; afterwards tiles them into one PNG to look through.
-
-    The sheet is <pytest's base temporary folder>/labs_contact_sheet.png.
-    """
-    pictures = []
-    yield pictures
-    if pictures:
-        _tile(pictures, tmp_path_factory.getbasetemp() / "labs_contact_sheet.png")
-
-
-def _tile(paths, target, cell=(480, 330), columns=6):
-    columns = min(columns, len(paths))
-    from PIL import Image, ImageDraw
-    rows = -(-len(paths) // columns)
-    sheet = Image.new("RGB", (columns * cell[0], rows * cell[1]), "white")
-    draw = ImageDraw.Draw(sheet)
-    for k, path in enumerate(paths):
-        x, y = (k % columns) * cell[0], (k // columns) * cell[1]
-        with Image.open(path) as image:
-            image.thumbnail((cell[0] - 10, cell[1] - 24))
-            sheet.paste(image.convert("RGB"), (x + 5, y + 20))
-        draw.text((x + 5, y + 4), path.name, fill="black")
-    sheet.save(target)
-    return target
-
-
 @pytest.fixture
 def lab_module(monkeypatch):
     """examples/_lab.py, imported as the labs import it."""
@@ -159,7 +131,7 @@ def test_the_envelope_of_an_alternating_error_is_its_largest_value_in_each_windo
 @pytest.mark.ngspice
 @pytest.mark.slow
 @pytest.mark.parametrize("lab", LABS)
-def test_lab_runs_as_a_notebook(lab, tmp_path, monkeypatch, contact_sheet):
+def test_lab_runs_as_a_notebook(lab, tmp_path, monkeypatch):
     jupytext = pytest.importorskip("jupytext")
     nbclient = pytest.importorskip("nbclient")
     out = tmp_path / "out"
@@ -175,7 +147,6 @@ def test_lab_runs_as_a_notebook(lab, tmp_path, monkeypatch, contact_sheet):
     shown = [o for cell in notebook.cells if cell.cell_type == "code"
              for o in cell.outputs if "image/png" in o.get("data", {})]
     assert len(shown) == len(pictures), "the notebook shows every picture it writes, once"
-    contact_sheet.extend(pictures)
 
 
 @pytest.mark.ngspice
