@@ -313,11 +313,13 @@ def _cmd_draw(args) -> int:
     except OSError as exc:
         raise InputError(f"cannot create {out}: {exc.strerror}") from None
     _check_writable(out / stem)
-    from .circuit.diagram import MAX_SCHEMATIC_NODES, schematic_fits
+    from .circuit.description import circuit
+    from .circuit.diagram import MAX_SCHEMATIC_FLOATING, MAX_SCHEMATIC_NODES, schematic_fits
     if not args.schematic and not schematic_fits(system):
-        print(f"analogy: note: {system.dof} nodes are past the {MAX_SCHEMATIC_NODES} a schematic keeps "
-              "readable, so the element values are drawn as a map by node pair (--schematic draws it anyway)",
-              file=sys.stderr)
+        floating = sum(1 for e in circuit(system).elements if e.b)
+        print(f"analogy: note: {system.dof} nodes and {floating} floating elements are past what a schematic "
+              f"keeps readable ({MAX_SCHEMATIC_NODES} nodes, {MAX_SCHEMATIC_FLOATING} floating elements), so "
+              "the element values are drawn as a map by node pair (--schematic draws it anyway)", file=sys.stderr)
     for path in draw(system, out, stem, schematic=True if args.schematic else None):
         print(f"wrote {path}")
     return EXIT_OK

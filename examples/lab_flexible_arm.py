@@ -83,6 +83,11 @@ _lab.save(fig, out / "flexible_mass_matrix.png")
 
 # %% [markdown]
 # ## 3. The circuit at the pose: six nodes, one per coordinate
+#
+# Every mode couples to every other through a floating capacitor, so the six
+# nodes carry 22 floating elements: too many bridges for a readable schematic.
+# The diagram is therefore a map of the element values by node pair, with the
+# grounded elements beside it (`analogy draw --schematic` draws the schematic anyway).
 
 # %%
 scene = Scene.of("flex2", ModelSpec(robot="flex2"), q=pose, forces=[1, 1, 0, 0, 0, 0], t_stop=1.0)

@@ -39,12 +39,14 @@ if TYPE_CHECKING:
     from .node_system import NodeSystem
 
 __all__ = ["draw_circuit", "draw_mechanism", "draw", "schematic_fits", "FORMATS",
-           "MAX_SCHEMATIC_NODES"]
+           "MAX_SCHEMATIC_NODES", "MAX_SCHEMATIC_FLOATING"]
 
 #: File formats written when a path has no suffix.
 FORMATS = (".svg", ".png")
 #: Largest node count drawn as schematics by :func:`draw`; larger systems get an element map.
 MAX_SCHEMATIC_NODES = 6
+#: Most floating elements drawn as schematics (the 6-node flexible arm has 22, on a 4,559 px page).
+MAX_SCHEMATIC_FLOATING = 12
 
 _XY = tuple[float, float]
 _GAP = (float("nan"), float("nan"))   # pen up inside a schemdraw segment path
@@ -412,23 +414,30 @@ def draw_mechanism(system: NodeSystem, path: str | Path | None = None, *, zero_t
     return d
 
 
-def schematic_fits(system: NodeSystem) -> bool:
-    """True when the schematics stay readable: at most :data:`MAX_SCHEMATIC_NODES` nodes.
+def schematic_fits(system: NodeSystem, zero_tol: float = ZERO_TOL) -> bool:
+    """True when the schematics stay readable: at most :data:`MAX_SCHEMATIC_NODES` nodes and
+    :data:`MAX_SCHEMATIC_FLOATING` floating elements (each floating element past the first
+    between adjacent nodes is a bridge).
 
     Parameters
     ----------
     system : NodeSystem
         The system.
+    zero_tol : float
+        Relative tolerance under which an element is left out.
     """
-    return system.dof <= MAX_SCHEMATIC_NODES
+    if system.dof > MAX_SCHEMATIC_NODES:
+        return False
+    return sum(1 for e in circuit(system, zero_tol).elements if e.b) <= MAX_SCHEMATIC_FLOATING
 
 
 def draw(system: NodeSystem, directory: str | Path, stem: str = "system", *,
          zero_tol: float = ZERO_TOL, schematic: bool | None = None) -> list[Path]:
     """Write ``<stem>_circuit`` and ``<stem>_mechanism`` as SVG and PNG into *directory*.
 
-    Past :data:`MAX_SCHEMATIC_NODES` nodes a schematic's bridges pile up past reading
-    (10 nodes: 45 nested bridges on a 5,863 × 3,589 px page), so ``<stem>_elements``
+    Past :data:`MAX_SCHEMATIC_NODES` nodes or :data:`MAX_SCHEMATIC_FLOATING` floating
+    elements a schematic's bridges pile up past reading (10 nodes: 45 nested bridges on
+    a 5,863 × 3,589 px page), so ``<stem>_elements``
     (:func:`analogy.circuit.element_map.draw_element_map`) is drawn instead, unless
     *schematic* is True.
 
@@ -452,7 +461,7 @@ def draw(system: NodeSystem, directory: str | Path, stem: str = "system", *,
     """
     out = Path(directory)
     out.mkdir(parents=True, exist_ok=True)
-    if schematic is False or (schematic is None and not schematic_fits(system)):
+    if schematic is False or (schematic is None and not schematic_fits(system, zero_tol)):
         from .element_map import draw_element_map
         paths = [out / f"{stem}_elements{s}" for s in FORMATS]
         import matplotlib

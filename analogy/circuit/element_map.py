@@ -86,7 +86,7 @@ def draw_element_map(system: "NodeSystem", path: str | Path | None = None, *,
                              color="white" if abs(norm(v) - 0.5) > 0.35 else "black")
         bar = fig.colorbar(image, ax=[ax, axg], location="bottom", shrink=0.9,
                            label=f"{label} [{units[kind]}]".replace(" [(SI)]", " (SI)"))
-        ticks = [s * top * f for s in (-1, 1) for f in (1.0, 0.1, 0.01)] + [0.0]
+        ticks = [s * top * f for s in (-1, 1) for f in (1.0, 0.01)] + [0.0]
         bar.set_ticks(sorted(ticks), labels=[f"{t:.2g}" for t in sorted(ticks)])
     count = len(c.elements)
     fig.suptitle(f"{system.info.get('robot', 'custom')} ({system.topology.name} topology): {count} elements "
