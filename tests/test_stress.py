@@ -5,6 +5,7 @@ import math
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from analogy.stress import FAMILY_TITLES, cases
@@ -58,3 +59,16 @@ def test_the_error_does_not_depend_on_the_units(quick_report):
             if r["solver"] == solver:
                 assert r["status"] == "ok" and float(r["error"]) <= 10 * max(unit, 1e-14), r
                 assert math.isfinite(float(r["error"]))
+
+
+def test_the_3rrr_mass_matrix_grows_as_one_over_the_distance_to_its_singular_pose():
+    """Near a parallel singularity M' ~ 1/δ: cond(M') grows a hundredfold per hundredfold closer."""
+    from analogy.errors import InputError
+    from analogy.scenes.builtin import scene
+    from analogy.stress.families import singular_q1
+    q1 = singular_q1()
+    base = scene("parallel3")
+    with pytest.raises(InputError):
+        base.replace(q=(q1 + 1e-9, -1.7, 0.35)).system()       # past it the loop does not close
+    conds = [np.linalg.cond(base.replace(q=(q1 - d, -1.7, 0.35)).system().mass) for d in (1e-2, 1e-4, 1e-6)]
+    assert 50 < conds[1] / conds[0] < 200 and 50 < conds[2] / conds[1] < 200

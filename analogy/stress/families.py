@@ -13,7 +13,7 @@ from ..circuit.node_system import node_system
 from ..model.joint import JointSpace
 from ..presets import PRESETS, Preset
 
-__all__ = ["StressCase", "FAMILIES", "FAMILY_TITLES", "cases", "spd_with_spectrum"]
+__all__ = ["StressCase", "FAMILIES", "FAMILY_TITLES", "cases", "singular_q1", "spd_with_spectrum"]
 
 #: The families, by letter, with what each sweeps.
 FAMILY_TITLES = {
@@ -22,7 +22,8 @@ FAMILY_TITLES = {
     "c": "long undamped runs: 10 to 10,000 periods",
     "d": "size: n = 2 to 200, dense, serial topology",
     "e": "units and scale: mass, time and velocity scales",
-    "f": "near-singular: MP capacitances through zero, elements at the zero tolerance",
+    "f": "near-singular: MP capacitances through zero, elements at the zero tolerance, the 3-RRR near its "
+         "singular pose",
     "g": "nonlinear: fast motions and a chaotic double pendulum",
 }
 
@@ -161,6 +162,46 @@ def _singular(quick: bool, p: Preset) -> Iterator[StressCase]:
             return node_system(JointSpace([[2.0, c], [c, 1.0]], np.diag([1.0, 0.5])), topology="parallel",
                                forces=[1.0, 0.5], t_stop=10.0)
         yield StressCase("f", "m12 / zero tolerance", factor, f"m12 = {factor:g}·zero_tol", build, _runs(p))
+    yield from _singular_pose(quick, p)
+
+
+def singular_q1(q2: float = -1.7, q3: float = 0.35, low: float = 2.7, high: float = 2.9) -> float:
+    """The 3-RRR's last assembling q1 before its singular pose, by bisection to rounding.
+
+    Parameters
+    ----------
+    q2, q3 : float
+        The other actuated angles [rad].
+    low, high : float
+        A q1 that assembles and one that does not [rad].
+    """
+    from ..errors import InputError
+    from ..scenes.builtin import scene
+    base = scene("parallel3")
+
+    def assembles(q1: float) -> bool:
+        try:
+            base.replace(q=(q1, q2, q3)).system()
+            return True
+        except InputError:
+            return False
+    if not assembles(low) or assembles(high):
+        raise InputError(f"3-RRR: q1 = {low} must assemble and q1 = {high} must not")
+    while high - low > 4 * np.spacing(high):
+        mid = 0.5 * (low + high)
+        low, high = (mid, high) if assembles(mid) else (low, mid)
+    return low
+
+
+def _singular_pose(quick: bool, p: Preset) -> Iterator[StressCase]:
+    """The 3-RRR approaching its singular pose: M' grows as 1/δ (cond 8 at δ = 1e-2, 8e4 at 1e-6)."""
+    from ..scenes.builtin import scene
+    q1 = singular_q1()
+    for delta in (1e-1, 1e-4) if quick else (1e-1, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6):
+        def build(delta=delta):
+            return scene("parallel3").replace(q=(q1 - delta, -1.7, 0.35)).system()
+        yield StressCase("f", "distance to the singular pose", delta, f"3-RRR, q1* − {delta:g} rad", build,
+                         _runs(p))
 
 
 def _nonlinear(quick: bool, p: Preset) -> Iterator[StressCase]:
