@@ -221,11 +221,26 @@ def test_behavioural_parts_are_written_and_cannot_smuggle_control_lines():
 
 
 def test_an_element_under_the_zero_tolerance_that_leaves_the_circuit_singular_is_refused():
-    s = analogy.node_system(JointSpace(np.diag([1e-30, 1.0])), forces=[1.0, 1.0])
-    with pytest.raises(InputError, match=r"C1 = 1e-30 F is below the zero tolerance \(1e-12"):
+    """C2 = 1e-13 F is a rounding residue of its row [−1, 1 + 1e-13]; without it no capacitor grounds."""
+    m = np.array([[1.0, -1.0], [-1.0, 1.0 + 1e-13]])
+    s = analogy.node_system(JointSpace(m), forces=[1.0, 1.0], t_stop=1.0)
+    with pytest.raises(InputError, match=r"C2 = (1e-13|9.99e-14) F is below the zero tolerance \(1e-12"):
         circuit(s)
     c = compare(s, "fast", ["ode", "exact"])          # the other solvers need no circuit
     assert c.errors()["ode"][1] <= 1e-3
+
+
+@pytest.mark.ngspice
+def test_a_node_far_below_the_largest_keeps_its_elements():
+    """The zero tolerance is relative to each element's own row: a 1 N/m spring beside a 1e12 N/m one
+    stays in the netlist (dropped, the soft node's decay vanished and SPICE drifted to 5e-3 of the peak)."""
+    w = np.array([1.0, 1e6])
+    s = analogy.node_system(JointSpace([[1.0, 0.2], [0.2, 1.0]], np.diag(2e3 * w), np.diag(w ** 2)),
+                            forces=[1.0, 1.0], t_stop=10.0)
+    assert {e.name for e in analogy.elements(s) if e.kind == "L"} == {"L1", "L2"}
+    assert compare(s, "fast", ["spice", "exact"]).errors()["spice"][1] <= 1e-3
+    tiny = analogy.node_system(JointSpace(np.diag([1e-30, 1.0])), forces=[1.0, 1.0])
+    assert [e.value for e in analogy.elements(tiny) if e.name == "C1"] == [1e-30]
 
 
 # ---------------------------------------------------------------- scenes as data

@@ -53,8 +53,8 @@ def _check_dropped(mass: np.ndarray, kept: list[Element], zero_tol: float):
                 for j in range(i + 1, n) if floating[i, j] != 0 and (i + 1, j + 1) not in present]
     _, name, value = max(dropped) if dropped else (0, "a capacitor", 0.0)
     raise InputError(f"element {name} = {value:.3g} F is below the zero tolerance "
-                     f"({zero_tol:g} of the largest node mass, {scale:.3g}) and the circuit "
-                     "without it is singular: rescale the masses or lower zero_tol")
+                     f"({zero_tol:g} of the node masses it is summed from; the largest is {scale:.3g}) "
+                     "and the circuit without it is singular: rescale the masses or lower zero_tol")
 
 
 def circuit(system, zero_tol: float = ZERO_TOL, realizable: bool = False, describe: bool = True) -> Circuit:

@@ -64,8 +64,9 @@ def laplacian_split(matrix: np.ndarray, zero_tol: float = ZERO_TOL,
                     report: bool = False) -> tuple[np.ndarray, ...]:
     """Split a symmetric node matrix X into grounded x_i = Σ_j X_ij and floating x_ij = −X_ij.
 
-    X is recovered as X_ii = x_i + Σ_{j≠i} x_ij and X_ij = −x_ij; entries with
-    |x| ≤ zero_tol·max|X| are returned as exact zeros. A stack of matrices
+    X is recovered as X_ii = x_i + Σ_{j≠i} x_ij and X_ij = −x_ij. A grounded value with
+    |x_i| ≤ zero_tol·Σ_j|X_ij| (the scale of the row it is summed from), and a floating
+    one with |x_ij| ≤ zero_tol·√(Σ_k|X_ik|·Σ_k|X_jk|), is rounding: an exact zero. A stack of matrices
     (..., n, n) is split matrix by matrix.
 
     Parameters
@@ -89,9 +90,14 @@ def laplacian_split(matrix: np.ndarray, zero_tol: float = ZERO_TOL,
         grounded = x.sum(axis=-1)
     floating = -x
     floating[..., range(n), range(n)] = 0.0
-    floor = zero_tol * (np.abs(x).max(axis=(-2, -1), keepdims=True) if x.size else np.zeros(x.shape[:-2] + (1, 1)))
-    small_g = np.abs(grounded) <= floor[..., 0]
-    small_f = np.abs(floating) <= floor
+    # Row-relative: a value is rounding only against the entries it was summed from, so a node
+    # whose own scale is far below the largest (a soft spring beside a stiff one) keeps its elements.
+    with np.errstate(over="ignore"):
+        rows = np.abs(x).sum(axis=-1)
+    floor_g = zero_tol * rows
+    floor_f = zero_tol * np.sqrt(rows[..., :, None] * rows[..., None, :])
+    small_g = np.abs(grounded) <= floor_g
+    small_f = np.abs(floating) <= floor_f
     if report:
         dropped = np.any(small_g & (grounded != 0), axis=-1) | np.any(small_f & (floating != 0), axis=(-2, -1))
     grounded[small_g] = 0.0

@@ -163,8 +163,10 @@ def analysis_lines(preset: str | Preset, t_stop: float, ic: Iterable[tuple[str, 
                 factor = loosen if key in ("abstol", "vntol") else 1.0
                 opts[key] = f"{factor * max(float(opts[key]) * size, floor):.3g}"
         tmax = min(tmax, max(scales.step_limit(p.phase_step, p.bound), t_stop / p.step_budget))
-        # a whole divisor of the preset's print step, so the preset's grid stays in it
-        tstep /= math.ceil(tstep / min(tstep, 100 * scales.step_limit(p.first_phase_step)))
+        # a whole divisor of the preset's print step, so the preset's grid stays in it. The
+        # first (backward Euler) step errs by up to 0.2 of a mode's share, so every decay
+        # with a share above the bound counts, not only those above ten times it.
+        tstep /= math.ceil(tstep / min(tstep, 100 * scales.step_limit(p.first_phase_step, p.bound / 10)))
     save = list(save)
     lines = [
         ".ic " + " ".join(f"v({n})={_num(v)}" for n, v in ic),
