@@ -153,3 +153,19 @@ def test_a_collapsed_step_is_retried_with_looser_absolute_tolerances_and_says_so
     c = compare(s, "accurate", ["spice", "exact"])
     assert "retried with abstol and vntol × 1000" in c.results["spice"].message
     assert c.errors()["spice"][1] <= 1e-6
+
+
+def test_library_copies_of_killed_processes_are_removed_and_live_ones_kept(tmp_path, monkeypatch):
+    import os
+    import tempfile
+
+    from analogy.solvers import ngspice
+    monkeypatch.setattr(tempfile, "gettempdir", lambda: str(tmp_path))
+    dead = max(int(p.name) for p in __import__("pathlib").Path("/proc").iterdir() if p.name.isdigit()) + 10**6
+    orphan = tmp_path / f"analogy-ngspice-{dead}-abc"
+    live = tmp_path / f"analogy-ngspice-{os.getpid()}-def"
+    for d in (orphan, live):
+        d.mkdir()
+        (d / "libngspice-1.so").write_bytes(b"x")
+    ngspice._remove_orphan_copies()
+    assert not orphan.exists() and live.exists()

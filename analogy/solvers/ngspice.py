@@ -9,6 +9,7 @@ import logging
 import os
 import re
 import shutil
+import sys
 import tempfile
 import threading
 from pathlib import Path
@@ -131,6 +132,15 @@ def _describe_failure(lines: list[str], stage: str) -> str:
     return f"ngspice {stage}: {detail}"
 
 
+def _remove_orphan_copies() -> None:
+    """Remove library copies left by processes that were killed (SIGKILL skips every clean-up)."""
+    for folder in Path(tempfile.gettempdir()).glob("analogy-ngspice-*-*"):
+        pid = folder.name.split("-")[2]
+        if not pid.isdigit() or Path(f"/proc/{pid}").exists() or not sys.platform.startswith("linux"):
+            continue
+        shutil.rmtree(folder, ignore_errors=True)
+
+
 class NgspiceSession:
     """One loaded ngspice library: load a netlist, run it, read vectors, free the circuit.
 
@@ -159,7 +169,8 @@ class NgspiceSession:
     def _reload(self):
         # A fresh copy has its own global state; dlopen of the same path would share it.
         if self._tmp is None:
-            self._tmp = tempfile.TemporaryDirectory(prefix="analogy-ngspice-")
+            _remove_orphan_copies()
+            self._tmp = tempfile.TemporaryDirectory(prefix=f"analogy-ngspice-{os.getpid()}-")
         src = Path(self._resolve(self._source))
         self._generation += 1
         dst = Path(self._tmp.name) / f"libngspice-{self._generation}.so"
