@@ -63,8 +63,26 @@ class BenchResult:
     repeats: int = 5
     wall_s: float = 0.0
 
+    @classmethod
+    def read_csv(cls, path, repeats: int = 5) -> "BenchResult":
+        """The rows of a CSV that :meth:`to_csv` wrote (to plot or tabulate them again).
+
+        Parameters
+        ----------
+        path : str or Path
+            The file.
+        repeats : int
+            The timed runs per setting it was made with.
+        """
+        import csv
+        with open(path, newline="") as fh:
+            rows = [BenchRow(r["scene"], int(r["dof"]), r["solver"], r["setting"], float(r["tolerance"]),
+                             float(r["median_s"]), float(r["error_over_peak"]), int(r["points"]), r["status"],
+                             int(r["runs"])) for r in csv.DictReader(fh)]
+        return cls(rows, repeats)
+
     def to_csv(self, path) -> Path:
-        """to_csv.
+        """One row per setting and scene: time, runs, error over the peak, points, status.
 
         Parameters
         ----------
@@ -123,7 +141,8 @@ class BenchResult:
         markers = {"spice": "o", "ode": "s", "exact": "*", "reference": "P"}
         # One colour per solver setting family in every panel, so a family reads across scenes.
         families = list(dict.fromkeys((r.solver, r.setting.split(" ")[0]) for r in self.rows))
-        colour = {f: f"C{k % 10}" for k, f in enumerate(families)}
+        colour = {f: f"C{k % 10}" for k, f in enumerate(f for f in families if f[0] != "reference")}
+        colour.update({f: "k" for f in families if f[0] == "reference"})
         handles: dict = {}
         for ax, sc in zip(axes, scenes):
             rows = [r for r in self.rows if r.scene == sc]
@@ -145,7 +164,8 @@ class BenchResult:
                 handles.setdefault(line.get_label(), line)
             failed = [r for r in rows if r.status != "ok"]
             if failed:
-                ax.text(0.02, 0.02, f"{len(failed)} settings failed", transform=ax.transAxes,
+                ax.text(0.02, 0.02, f"{len(failed)} setting{'s' if len(failed) > 1 else ''} failed",
+                        transform=ax.transAxes,
                         fontsize="small", color="tab:red")
             ax.set_title(f"{sc} ({rows[0].dof} DOF)", fontsize="medium")
             ax.set_xlabel("max error / peak [1]")
