@@ -32,8 +32,8 @@ from .solvers.spice import library_path, session, solve_spice
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-__all__ = ["BenchRow", "BenchResult", "bench", "bench_scenes", "throughput", "spice_grid", "ode_grid",
-           "nonlinear_spice_grid"]
+__all__ = ["BenchRow", "BenchResult", "MemoryResult", "bench", "bench_scenes", "memory_per_run", "throughput",
+           "spice_grid", "ode_grid", "nonlinear_spice_grid"]
 
 ODE_BENCH_METHODS = ("LSODA", "Radau", "BDF", "RK45", "DOP853")
 
@@ -453,3 +453,67 @@ def throughput(n: int = 10_000, preset: str = "fast", group_size: int = 100, wor
         f"  speed-up over the PySpice loop (median of per-turn ratios): batched {ratio:.1f}x, "
         f"batched on 1 process {per_core:.1f}x; {failed} scenes failed",
     ])
+
+
+@dataclass(frozen=True)
+class MemoryResult:
+    """Resident memory growth over many in-process SPICE runs of one system."""
+
+    runs: int
+    preset: str
+    scene: str
+    grown_kb: float
+    seconds: float
+    buffered_lines: int
+
+    @property
+    def kb_per_run(self) -> float:
+        return self.grown_kb / self.runs
+
+    def __str__(self) -> str:
+        return (f"memory: {self.runs} in-process SPICE runs of scene {self.scene} at preset {self.preset}: "
+                f"resident memory grew {self.grown_kb:.0f} kB, {self.kb_per_run:.3f} kB per run "
+                f"({self.seconds:.1f} s; ngspice lines buffered after the runs: {self.buffered_lines})")
+
+
+def _resident_kb() -> float:
+    try:
+        with open("/proc/self/statm") as f:         # current, not peak, resident size
+            return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 1024
+    except OSError:
+        import resource
+        return float(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
+
+
+def memory_per_run(runs: int = 10_000, preset: str = "accurate", scene_name: str = "default",
+                   warmup: int = 200) -> MemoryResult:
+    """Resident memory grown per in-process SPICE run (netlist, ngspice run, vectors read, freed).
+
+    The first *warmup* runs are not counted: they fill caches and the allocator's pools.
+
+    Parameters
+    ----------
+    runs : int
+        Counted runs.
+    preset : str
+        Accuracy preset.
+    scene_name : str
+        A built-in scene.
+    warmup : int
+        Runs before the count starts.
+    """
+    import gc
+    if runs < 1 or warmup < 0:
+        raise InputError("runs must be at least 1 and warmup at least 0")
+    system = scene(scene_name).system()
+    for _ in range(warmup):
+        solve_spice(system, preset)
+    gc.collect()
+    before, start = _resident_kb(), _time.perf_counter()
+    for _ in range(runs):
+        solve_spice(system, preset)
+    gc.collect()
+    ng = session()._ng
+    lines = len(getattr(ng, "_stdout", [])) + len(getattr(ng, "_stderr", []))
+    return MemoryResult(runs, get_preset(preset).name, scene_name, _resident_kb() - before,
+                        _time.perf_counter() - start, lines)

@@ -115,6 +115,10 @@ def build_parser() -> argparse.ArgumentParser:
                    "stress_<family>.png (made if missing; default: stress)")
     p.add_argument("--timeout", type=float, default=10.0, help="wall-time limit of each ODE run [s] (default 10)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p = sub.add_parser("memory", help="resident memory grown per in-process SPICE run (kB/run)")
+    p.add_argument("--runs", type=int, default=10_000, help="counted runs (default 10000)")
+    p.add_argument("--preset", default="accurate", choices=list(PRESETS), help=PRESET_HELP)
+    p.add_argument("--scene", default="default", help="built-in scene (default: default)")
     p = sub.add_parser("throughput", help="scenes per second: batched ngspice runs against per-scene loops")
     p.add_argument("-n", type=int, default=10_000, help="number of 2-DOF scenes (default 10000)")
     p.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
@@ -361,6 +365,13 @@ def _cmd_throughput(args) -> int:
     return EXIT_OK
 
 
+def _cmd_memory(args) -> int:
+    from .bench import memory_per_run
+    scene(args.scene)                   # an unknown name is refused before any run
+    print(memory_per_run(_positive(args.runs, "--runs"), args.preset, args.scene))
+    return EXIT_OK
+
+
 def _cmd_ac(args) -> int:
     from .solvers.ac import mobility_check
     sc = scene_from_args(args)
@@ -385,7 +396,7 @@ def _cmd_scenes(args) -> int:
 
 _COMMANDS = {"netlist": _cmd_netlist, "compare": _cmd_compare, "verify": _cmd_verify, "modes": _cmd_modes, "ac": _cmd_ac,
              "scenes": _cmd_scenes, "draw": _cmd_draw, "run": _cmd_run, "bench": _cmd_bench,
-             "throughput": _cmd_throughput, "stress": _cmd_stress}
+             "throughput": _cmd_throughput, "stress": _cmd_stress, "memory": _cmd_memory}
 
 
 def main(argv=None) -> int:
