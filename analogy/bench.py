@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import gc
 import logging
 import multiprocessing
 import os
+import resource
 import statistics
 import time as _time
 from concurrent.futures import ProcessPoolExecutor
@@ -481,7 +483,6 @@ def _resident_kb() -> float:
         with open("/proc/self/statm") as f:         # current, not peak, resident size
             return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 1024
     except OSError:
-        import resource
         return float(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
 
 
@@ -502,7 +503,6 @@ def memory_per_run(runs: int = 10_000, preset: str = "accurate", scene_name: str
     warmup : int
         Runs before the count starts.
     """
-    import gc
     if runs < 1 or warmup < 0:
         raise InputError("runs must be at least 1 and warmup at least 0")
     system = scene(scene_name).system()
