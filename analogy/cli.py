@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import warnings
 from dataclasses import replace
 from pathlib import Path
 
@@ -408,11 +409,22 @@ def main(argv=None) -> int:
         Arguments (default ``sys.argv[1:]``).
     """
     parser = build_parser()
+    caught: dict[str, int] = {}
     try:
-        args = parser.parse_args(argv)
-        if args.command is None:
-            args = parser.parse_args(["compare"])
-        return _COMMANDS[args.command](args)
+        with warnings.catch_warnings():
+            # numpy's and scipy's warnings are counted here, and said in one sentence below
+            warnings.simplefilter("default")
+            warnings.showwarning = lambda message, category, *rest, **kw: caught.__setitem__(
+                f"{category.__name__}: {message}", caught.get(f"{category.__name__}: {message}", 0) + 1)
+            args = parser.parse_args(argv)
+            if args.command is None:
+                args = parser.parse_args(["compare"])
+            code = _COMMANDS[args.command](args)
+        if caught:
+            first = " ".join(next(iter(caught)).split())
+            print(f"analogy: warning: the numerics gave {sum(caught.values())} warning(s) during the run, "
+                  f"first {first!r}: check the result", file=sys.stderr)
+        return code
     except InputError as exc:
         print(f"analogy: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
