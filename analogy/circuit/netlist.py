@@ -63,6 +63,9 @@ def _prefixed(expression: str, prefix: str) -> str:
 
 
 def _num(x: float) -> str:
+    if not math.isfinite(x):            # inf or nan in a netlist would be read as a name or zero
+        raise InputError(f"a netlist value ({float(x)!r}) leaves the floating-point range: rescale the "
+                         "masses, dampers, springs or forces")
     return repr(float(x))
 
 
@@ -162,9 +165,13 @@ def analysis_lines(preset: str | Preset, t_stop: float, ic: Iterable[tuple[str, 
                 floor = scales.rounding_current if key == "abstol" else 0.0
                 factor = loosen if key in ("abstol", "vntol") else 1.0
                 opts[key] = f"{factor * max(float(opts[key]) * size, floor):.3g}"
+        first = scales.step_limit(p.first_phase_step)
+        if not first > 0:                   # zero or NaN: a rate past the float range
+            raise InputError(f"the circuit's fastest rate ({scales.omega_max:.3g} rad/s) leaves the range "
+                             "ngspice can step: rescale the masses, dampers or springs")
         tmax = min(tmax, max(scales.step_limit(p.phase_step, p.bound), t_stop / p.step_budget))
         # a whole divisor of the preset's print step, so the preset's grid stays in it
-        tstep /= math.ceil(tstep / min(tstep, 100 * scales.step_limit(p.first_phase_step)))
+        tstep /= math.ceil(tstep / min(tstep, 100 * first))
     save = list(save)
     lines = [
         ".ic " + " ".join(f"v({n})={_num(v)}" for n, v in ic),

@@ -218,8 +218,12 @@ def _states(systems, t, n: int, springs: bool) -> np.ndarray:
 
 def _solve(systems, t) -> np.ndarray | list[np.ndarray]:
     # Overflow shows as inf or NaN in the states, which _finite turns into one sentence.
-    with np.errstate(over="ignore", invalid="ignore"):
-        return _solve_parts(systems, t)
+    try:
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            return _solve_parts(systems, t)
+    except np.linalg.LinAlgError:           # an overflowed modal matrix: eig and cholesky refuse it
+        raise SimulationError("the modal decomposition failed: the system's rates leave the "
+                              "floating-point range") from None
 
 
 def _solve_parts(systems, t) -> np.ndarray | list[np.ndarray]:
