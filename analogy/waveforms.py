@@ -16,6 +16,7 @@ __all__ = ["Waveform", "Step", "PWL", "Pulse", "Sine", "Piece", "parse_waveform"
 
 def _num(x: float) -> str:
     """Full double precision, in a form every SPICE reads; a value past the float range is refused."""
+    x = float(x)
     if not math.isfinite(x):
         raise InputError("a force's value at a node (the force times T^-T) leaves the floating-point range: "
                          "rescale the forces")

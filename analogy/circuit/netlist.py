@@ -63,6 +63,7 @@ def _prefixed(expression: str, prefix: str) -> str:
 
 
 def _num(x: float) -> str:
+    x = float(x)
     if not math.isfinite(x):            # inf or nan in a netlist would be read as a name or zero
         raise InputError(f"a netlist value ({float(x)!r}) leaves the floating-point range: rescale the "
                          "masses, dampers, springs or forces")

@@ -63,9 +63,6 @@ class _Symbolic:
         self.constants = {"pi": sp.pi, "e": sp.E}
         self.functions = {name: getattr(sp, {"abs": "Abs"}.get(name, name)) for name in FUNCTION_NAMES}
 
-    def number(self, value):
-        return self.sp.Float(value, 17) if isinstance(value, float) else self.sp.Integer(value)
-
     def symbol(self, name):
         return self.sp.Symbol(name, real=True)
 

@@ -296,8 +296,10 @@ def solve_exact(system, times=None, positions: bool = False) -> Trajectory:
         raise SimulationError("the exact solver keeps only the spring extensions of a system with "
                               "free (rigid) modes, not its positions: use the ode solver for them")
     pos = y[:, :n] if positions and system.stiffness is not None else None
+    with np.errstate(over="ignore", invalid="ignore"):
+        rates = _finite(system.joint_rates(voltages))        # R = T⁻¹·v may overflow where v did not
     elapsed = _time.perf_counter() - start
-    return Trajectory("exact", t, voltages, system.joint_rates(voltages), pos, stats=SolverStats(elapsed))
+    return Trajectory("exact", t, voltages, rates, pos, stats=SolverStats(elapsed))
 
 
 class ExactSolver(Solver):
