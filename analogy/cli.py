@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import warnings
 from dataclasses import replace
 from pathlib import Path
 
@@ -71,6 +72,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "(default: SPICE's own points); errors are measured on each solver's own points")
     p.add_argument("--timeout", metavar="SECONDS", help="wall-time limit of each ODE integration "
                    "(default: the preset's, 300 s); past it the solver fails with one sentence")
+    p.add_argument("--budget", metavar="POINTS", help="most time points (and force segments) a run may "
+                   "need, estimated before it starts (default: the preset's, 1e8 at accurate, 1e7 at fast)")
     p.add_argument("--csv", metavar="FILE", help="write joint rates of every solver to CSV")
     p.add_argument("--plot", metavar="FILE.png", help="write a plot of rates and errors")
     p.add_argument("--no-plot", action="store_true", help="never import the plotting library")
@@ -139,6 +142,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--timeout", type=float, default=10.0, help="wall-time limit of each ODE run [s] (default 10)")
     p.add_argument("--no-progress", action="store_true", help="no progress (a bar on a terminal, "
                    "plain lines otherwise)")
+    p = sub.add_parser("memory", help="resident memory grown per in-process SPICE run (kB/run)")
+    p.add_argument("--runs", type=int, default=10_000, help="counted runs (default 10000)")
+    p.add_argument("--preset", default="accurate", choices=list(PRESETS), help=PRESET_HELP)
+    p.add_argument("--scene", default="default", help="built-in scene (default: default)")
     p = sub.add_parser("throughput", help="scenes per second: batched ngspice runs against per-scene loops")
     p.add_argument("-n", type=int, default=10_000, help="number of 2-DOF scenes (default 10000)")
     p.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
@@ -212,6 +219,10 @@ def _cmd_compare(args) -> int:
         if not (limit := parse_number(args.timeout)) > 0:
             raise InputError(f"--timeout must be positive, got {args.timeout}")
         preset = replace(preset, timeout=limit)
+    if args.budget is not None:
+        if not (budget := parse_number(args.budget)) >= 1:
+            raise InputError(f"--budget must be at least 1, got {args.budget}")
+        preset = replace(preset, work_budget=budget, segment_budget=int(min(budget, 2 ** 62)))
     if args.dynamics == "both":
         return _compare_both(sc, args, solvers, step)
     result = compare(sc.system(), preset, solvers, step=step)
@@ -419,12 +430,19 @@ def _cmd_throughput(args) -> int:
         print(store_throughput(load_sweep(args.sweep), args.output, sample=_positive(args.baseline, "--baseline"),
                                workers=_positive(args.workers, "--workers")))
         return EXIT_OK
-    from .bench import throughput
+    from .throughput import throughput
     print(throughput(n=_positive(args.n, "-n"), preset=args.preset,
                      group_size=_positive(args.group_size, "--group-size"),
                      workers=_positive(args.workers, "--workers"),
                      baseline_n=_positive(args.baseline, "--baseline"),
                      repeats=_positive(args.repeats, "--repeats"), progress=not args.no_progress))
+    return EXIT_OK
+
+
+def _cmd_memory(args) -> int:
+    from .memory import memory_per_run
+    scene(args.scene)                   # an unknown name is refused before any run
+    print(memory_per_run(_positive(args.runs, "--runs"), args.preset, args.scene))
     return EXIT_OK
 
 
@@ -452,7 +470,7 @@ def _cmd_scenes(args) -> int:
 
 _COMMANDS = {"netlist": _cmd_netlist, "compare": _cmd_compare, "verify": _cmd_verify, "modes": _cmd_modes, "ac": _cmd_ac,
              "scenes": _cmd_scenes, "draw": _cmd_draw, "run": _cmd_run, "bench": _cmd_bench,
-             "throughput": _cmd_throughput, "stress": _cmd_stress, "batch": _cmd_batch}
+             "throughput": _cmd_throughput, "stress": _cmd_stress, "batch": _cmd_batch, "memory": _cmd_memory}
 
 
 def main(argv=None) -> int:
@@ -464,11 +482,22 @@ def main(argv=None) -> int:
         Arguments (default ``sys.argv[1:]``).
     """
     parser = build_parser()
+    caught: dict[str, int] = {}
     try:
-        args = parser.parse_args(argv)
-        if args.command is None:
-            args = parser.parse_args(["compare"])
-        return _COMMANDS[args.command](args)
+        with warnings.catch_warnings():
+            # numpy's and scipy's warnings are counted here, and said in one sentence below
+            warnings.simplefilter("default")
+            warnings.showwarning = lambda message, category, *rest, **kw: caught.__setitem__(
+                f"{category.__name__}: {message}", caught.get(f"{category.__name__}: {message}", 0) + 1)
+            args = parser.parse_args(argv)
+            if args.command is None:
+                args = parser.parse_args(["compare"])
+            code = _COMMANDS[args.command](args)
+        if caught:
+            first = " ".join(next(iter(caught)).split())
+            print(f"analogy: warning: the numerics gave {sum(caught.values())} warning(s) during the run, "
+                  f"first {first!r}: check the result", file=sys.stderr)
+        return code
     except InputError as exc:
         print(f"analogy: error: {exc}", file=sys.stderr)
         return EXIT_USAGE

@@ -42,6 +42,11 @@ class Preset:
     timeout : float
         Wall-time limit [s] of the ODE integration (SPICE's work is bounded by
         *step_budget*, the exact solver's by its time points).
+    work_budget : float
+        The most time points a run may need (:func:`analogy.solvers.work.check_work`
+        estimates them from the fastest rate and t_stop before any solver starts).
+    segment_budget : int
+        The most force segments (between pwl points, pulse edges) a run may walk.
     step_budget : int
         The most steps the time-scale cap may ask for: over a t_stop that would need
         more, the cap is t_stop/step_budget and the bound may fail (then it is flagged
@@ -75,6 +80,8 @@ class Preset:
     first_phase_step: float = math.inf
     step_budget: int = 10_000_000
     timeout: float = 300.0
+    work_budget: float = 1e8
+    segment_budget: int = 100_000
 
 
 PRESETS = {
@@ -87,7 +94,7 @@ PRESETS = {
         spice_options={"method": "trap", "reltol": 1e-5, "abstol": 1e-12, "vntol": 1e-9,
                        "chgtol": 1e-16, "trtol": 1},
         steps=100, max_steps=50, ode_method="LSODA", ode_rtol=1e-6, phase_step=0.5, first_phase_step=0.02,
-        step_budget=1_000_000,
+        step_budget=1_000_000, work_budget=1e7,
         description="better than 1e-3 of the peak, lowest run time", bound=1e-3,
         behavioural_options={"method": "trap"}, behavioural_max_steps=500),
     "accurate": Preset(

@@ -15,7 +15,11 @@ __all__ = ["Waveform", "Step", "PWL", "Pulse", "Sine", "Piece", "parse_waveform"
 
 
 def _num(x: float) -> str:
-    """Full double precision, in a form every SPICE reads."""
+    """Full double precision, in a form every SPICE reads; a value past the float range is refused."""
+    x = float(x)
+    if not math.isfinite(x):
+        raise InputError("a force's value at a node (the force times T^-T) leaves the floating-point range: "
+                         "rescale the forces")
     return repr(float(x))
 
 
@@ -105,11 +109,11 @@ class PWL(Waveform):
 
     def spice(self, scale, t_stop) -> str:
         if len(self.times) == 1 or np.all(self.values == self.values[0]):
-            return f"DC {_num(scale * self.values[0])}"
+            return f"DC {_num(float(scale) * float(self.values[0]))}"
         times, values = self.times, self.values
         if times[0] > 0:  # SPICE holds the first value before the first point; make it explicit
             times, values = np.r_[0.0, times], np.r_[values[0], values]
-        body = " ".join(f"{_num(t)} {_num(scale * v)}" for t, v in zip(times, values))
+        body = " ".join(f"{_num(t)} {_num(float(scale) * float(v))}" for t, v in zip(times, values))
         return f"PWL({body})"
 
     def breakpoints(self, t_stop) -> list[float]:
@@ -215,7 +219,7 @@ class Pulse(Waveform):
         self._check(t_stop)
         if self.width == 0:     # SPICE reads a zero width as t_stop: write the corners instead
             pwl = self.as_pwl(t_stop)
-            return PWL(list(zip(pwl.times, scale * pwl.values))).spice(1.0, t_stop)
+            return PWL(list(zip(pwl.times, pwl.values))).spice(scale, t_stop)
         vals = (scale * self.v1, scale * self.v2, self.delay, self.rise, self.fall,
                 self.width, self._period(t_stop))
         return "PULSE(" + " ".join(_num(v) for v in vals) + ")"

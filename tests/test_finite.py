@@ -53,3 +53,10 @@ def test_the_exact_solution_fails_rather_than_return_inf():
         solve_exact(s)
     c = analogy.compare(s, "fast", ["exact"], reference="exact")
     assert "floating-point range" in c.failures["exact"]
+
+
+def test_rates_past_the_float_range_are_refused_not_left_to_eigh():
+    s = analogy.node_system(JointSpace(np.eye(4) * 1e-300, np.eye(4), np.diag([1, 1, 1, 2.4e8])),
+                            forces=[0, 1, 11, 23], t_stop=1.0)
+    with pytest.raises(InputError, match="rates .* leave the floating-point range"):
+        netlist(s, "fast")

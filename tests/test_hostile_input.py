@@ -1,6 +1,8 @@
 """Hostile and huge input: a one-sentence refusal with exit 2 within milliseconds, never a traceback."""
 
 import os
+import subprocess
+import sys
 import time
 
 import pytest
@@ -142,3 +144,25 @@ def test_the_output_folder_itself_may_be_reached_through_a_link(tmp_path):
     (tmp_path / "real").mkdir()
     os.symlink(tmp_path / "real", tmp_path / "alias")
     assert inside_folder(tmp_path / "alias", "out.csv") == tmp_path / "real" / "out.csv"
+
+
+def test_numeric_warnings_never_add_lines_to_a_refusal():
+    res = subprocess.run([sys.executable, "-m", "analogy", "compare", "--mass", "[[2 + acos(2 + q1), 0], [0, 1]]"],
+                         capture_output=True, text=True, timeout=120)
+    assert res.returncode == 2 and len(res.stderr.strip().splitlines()) == 1, res.stderr
+    assert "non-finite entry" in res.stderr
+
+
+def test_numeric_warnings_on_success_become_one_sentence(capsys, monkeypatch):
+    import numpy as np
+
+    from analogy import cli
+
+    def noisy(args):
+        np.ones(3) / np.zeros(3)
+        np.exp(np.full(2, 1e4))
+        return cli.EXIT_OK
+    monkeypatch.setitem(cli._COMMANDS, "scenes", noisy)
+    assert main(["scenes"]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("analogy: warning: the numerics gave 2 warning(s)"), err

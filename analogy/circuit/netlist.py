@@ -6,7 +6,7 @@ import math
 import re
 from typing import Iterable, Sequence
 
-from ..errors import InputError
+from ..errors import InputError, SimulationError
 from ..presets import Preset
 from ..presets import preset as get_preset
 from .description import (
@@ -63,6 +63,10 @@ def _prefixed(expression: str, prefix: str) -> str:
 
 
 def _num(x: float) -> str:
+    x = float(x)
+    if not math.isfinite(x):            # inf or nan in a netlist would be read as a name or zero
+        raise InputError(f"a netlist value ({float(x)!r}) leaves the floating-point range: rescale the "
+                         "masses, dampers, springs or forces")
     return repr(float(x))
 
 
@@ -118,6 +122,9 @@ def circuit_lines(c: Circuit, prefix: str = "", memo: dict | None = None) -> lis
     return lines
 
 
+_SCALE_NAMES = {"abstol": "current scale [A]", "vntol": "velocity scale [V]", "chgtol": "charge C·v [C]"}
+
+
 def analysis_lines(preset: str | Preset, t_stop: float, ic: Iterable[tuple[str, float]],
                    save: Iterable[str], options: dict | None = None, printing: bool = False,
                    behavioural: bool = False, scales: Scales | None = None, loosen: float = 1.0) -> list[str]:
@@ -161,12 +168,20 @@ def analysis_lines(preset: str | Preset, t_stop: float, ic: Iterable[tuple[str, 
             if key in opts and key not in (options or {}):
                 floor = scales.rounding_current if key == "abstol" else 0.0
                 factor = loosen if key in ("abstol", "vntol") else 1.0
-                opts[key] = f"{factor * max(float(opts[key]) * size, floor):.3g}"
+                value = factor * max(float(opts[key]) * size, floor)       # Python floats overflow to inf
+                if not math.isfinite(value):
+                    raise SimulationError(f"SPICE cannot run this circuit: its {key} scale is past the floating-point "
+                                     f"range ({_SCALE_NAMES[key]} = {size:.3g}); the ODE and exact solvers can")
+                opts[key] = f"{value:.3g}"
+        first = scales.step_limit(p.first_phase_step, p.bound / 10)
+        if not first > 0:                   # zero or NaN: a rate past the float range
+            raise InputError(f"the circuit's fastest rate ({scales.omega_max:.3g} rad/s) leaves the range "
+                             "ngspice can step: rescale the masses, dampers or springs")
         tmax = min(tmax, max(scales.step_limit(p.phase_step, p.bound), t_stop / p.step_budget))
         # a whole divisor of the preset's print step, so the preset's grid stays in it. The
         # first (backward Euler) step errs by up to 0.2 of a mode's share, so every decay
-        # with a share above the bound counts, not only those above ten times it.
-        tstep /= math.ceil(tstep / min(tstep, 100 * scales.step_limit(p.first_phase_step, p.bound / 10)))
+        # with a share above the bound counts (see `first`), not only those above ten times it.
+        tstep /= math.ceil(tstep / min(tstep, 100 * first))
     save = list(save)
     lines = [
         ".ic " + " ".join(f"v({n})={_num(v)}" for n, v in ic),

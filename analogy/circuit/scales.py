@@ -8,6 +8,7 @@ from typing import Sequence
 
 import numpy as np
 
+from ..errors import InputError
 from .node_system import joint_forces, stacked
 from .topology import symmetric_part
 
@@ -158,8 +159,12 @@ def stack_scales(systems: Sequence) -> list[Scales]:
 def _stack_scales(first, m, b, k, v0) -> list[Scales]:
     """Scales of a stack sharing *first*'s forces, topology and t_stop (arrays with a leading axis)."""
     # Estimates only: a scale past 1e308 is inf, which the solvers' own checks then meet.
-    with np.errstate(over="ignore", invalid="ignore"):
-        return _estimated_scales(first, m, b, k, v0)
+    try:
+        with np.errstate(over="ignore", invalid="ignore"):
+            return _estimated_scales(first, m, b, k, v0)
+    except np.linalg.LinAlgError:       # K' or B' against M' past 1e308: eigh cannot converge
+        raise InputError("the system's rates (K' and B' against M') leave the floating-point range: "
+                         "rescale the masses, dampers or springs") from None
 
 
 def _estimated_scales(first, m, b, k, v0) -> list[Scales]:

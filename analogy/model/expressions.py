@@ -8,6 +8,7 @@ import keyword
 import math
 import operator
 import re
+import warnings
 from typing import Iterable, Mapping
 
 import numpy
@@ -64,9 +65,6 @@ class _Symbolic:
         self.constants = {"pi": sp.pi, "e": sp.E}
         self.functions = {name: getattr(sp, {"abs": "Abs"}.get(name, name)) for name in FUNCTION_NAMES}
 
-    def number(self, value):
-        return self.sp.Float(value, 17) if isinstance(value, float) else self.sp.Integer(value)
-
     def symbol(self, name):
         return self.sp.Symbol(name, real=True)
 
@@ -122,8 +120,11 @@ def _syntax_tree(text: str) -> ast.expr:
     if not source:
         raise InputError("empty expression")
     try:
-        # ast.parse only builds a syntax tree; nothing is evaluated.
-        tree = ast.parse(source, mode="eval").body
+        # ast.parse only builds a syntax tree; nothing is evaluated. Its SyntaxWarnings
+        # (such as "invalid decimal literal") would be a second line after our sentence.
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            tree = ast.parse(source, mode="eval").body
     except (SyntaxError, ValueError, RecursionError, MemoryError):
         raise InputError(f"cannot parse expression {_clip(text)!r}") from None
     if _too_deep(tree):

@@ -13,6 +13,7 @@ from ..errors import InputError
 from ..presets import Preset
 from ..presets import preset as get_preset
 from ..solvers.registry import SOLVER_NAMES, run_many, solver
+from ..solvers.work import check_work
 from .metrics import errors, peak
 from .output import Tabular, html_table
 from .trajectory import Trajectory
@@ -418,5 +419,6 @@ def compare(system, preset: str | Preset = "accurate", solvers: Sequence[str] = 
     positions : bool
         Also keep node positions where the system has springs.
     """
+    check_work(system, get_preset(preset))         # a run past the budget is refused before it starts
     return compare_many([system], preset, solvers, times, reference=reference, step=step,
                         save=save, positions=positions)[0]

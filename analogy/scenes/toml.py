@@ -225,8 +225,8 @@ def toml_table(text: str, source="scene.toml") -> dict:
     """
     try:
         return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        message = str(exc)
+    except ValueError as exc:              # a TOMLDecodeError, or an integer past Python's 4300 digits
+        message = str(exc) if isinstance(exc, tomllib.TOMLDecodeError) else "a number has too many digits"
         if "(at end of document)" in message:
             last = max(len(text.splitlines()), 1)
             message = message.replace("(at end of document)", f"(at line {last}, the end of the document)")

@@ -218,8 +218,12 @@ def _states(systems, t, n: int, springs: bool) -> np.ndarray:
 
 def _solve(systems, t) -> np.ndarray | list[np.ndarray]:
     # Overflow shows as inf or NaN in the states, which _finite turns into one sentence.
-    with np.errstate(over="ignore", invalid="ignore"):
-        return _solve_parts(systems, t)
+    try:
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            return _solve_parts(systems, t)
+    except np.linalg.LinAlgError:           # an overflowed modal matrix: eig and cholesky refuse it
+        raise SimulationError("the modal decomposition failed: the system's rates leave the "
+                              "floating-point range") from None
 
 
 def _solve_parts(systems, t) -> np.ndarray | list[np.ndarray]:
@@ -292,8 +296,10 @@ def solve_exact(system, times=None, positions: bool = False) -> Trajectory:
         raise SimulationError("the exact solver keeps only the spring extensions of a system with "
                               "free (rigid) modes, not its positions: use the ode solver for them")
     pos = y[:, :n] if positions and system.stiffness is not None else None
+    with np.errstate(over="ignore", invalid="ignore"):
+        rates = _finite(system.joint_rates(voltages))        # R = T⁻¹·v may overflow where v did not
     elapsed = _time.perf_counter() - start
-    return Trajectory("exact", t, voltages, system.joint_rates(voltages), pos, stats=SolverStats(elapsed))
+    return Trajectory("exact", t, voltages, rates, pos, stats=SolverStats(elapsed))
 
 
 class ExactSolver(Solver):

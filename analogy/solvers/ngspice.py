@@ -144,10 +144,11 @@ def _remove_orphan_copies() -> None:
 class NgspiceSession:
     """One loaded ngspice library: load a netlist, run it, read vectors, free the circuit.
 
-    Each :meth:`run` ends with ``destroy all`` and ``remcirc`` so that memory stays
-    flat over thousands of runs. If ngspice asks to exit or fails its canary after an
-    error, the library is loaded afresh from a private copy, since ngspice keeps
-    global state that a fatal error can leave broken.
+    Each :meth:`run` ends with ``destroy all``, ``remcirc`` and a cleared command
+    memory, and PySpice's line buffers are emptied, so that memory stays flat over
+    thousands of runs (:func:`analogy.memory.memory_per_run` measures it). If ngspice
+    asks to exit or fails its canary after an error, the library is loaded afresh from
+    a private copy, since ngspice keeps global state that a fatal error can leave broken.
     """
 
     def __init__(self, path: str | None = None):
@@ -234,6 +235,8 @@ class NgspiceSession:
     def _free(self):
         self._command("destroy all")
         self._command("remcirc")
+        # ngspice keeps every command it has parsed (about 0.2 kB each) until it is sent NULL.
+        self._lib.ngSpice_Command(self._ffi.NULL)
         # PySpice keeps every line ngspice prints; what a run said is read by then.
         for kept in (getattr(self._ng, "_stdout", None), getattr(self._ng, "_stderr", None)):
             if isinstance(kept, list):

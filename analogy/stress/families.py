@@ -10,6 +10,7 @@ import numpy as np
 
 from ..circuit.elements import ZERO_TOL
 from ..circuit.node_system import node_system
+from ..errors import InputError
 from ..model.joint import JointSpace
 from ..presets import PRESETS, Preset
 
@@ -175,7 +176,6 @@ def singular_q1(q2: float = -1.7, q3: float = 0.35, low: float = 2.7, high: floa
     low, high : float
         A q1 that assembles and one that does not [rad].
     """
-    from ..errors import InputError
     from ..scenes.builtin import scene
     base = scene("parallel3")
 

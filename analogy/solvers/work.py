@@ -1,0 +1,69 @@
+"""Work estimates before a run: time points and force segments, refused past the preset's budget."""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+from ..circuit.scales import system_scales
+from ..errors import InputError
+from ..presets import Preset
+
+__all__ = ["WorkEstimate", "check_work", "estimate_work"]
+
+#: Time points per force segment: each breakpoint restarts an integrator's step control.
+_POINTS_PER_SEGMENT = 4
+
+
+class WorkEstimate(NamedTuple):
+    """What a run of a linear system will cost: time points to step and force segments to walk."""
+
+    points: float
+    segments: int
+    fastest: float      # the rate [rad/s] that sets the points: a mode, a decay or a sine
+
+
+def estimate_work(system, preset: Preset) -> WorkEstimate:
+    """The time points and force segments a solver run of *system* needs at *preset*.
+
+    The points follow the fastest rate the preset resolves (one step per
+    ``preset.phase_step`` radians of it, the SPICE step cap and the ODE's step size
+    alike), plus a few per force breakpoint.
+
+    Parameters
+    ----------
+    system : NodeSystem
+        A linear node system.
+    preset : Preset
+        The accuracy preset.
+    """
+    segments = len(system.breakpoints())
+    scales = system_scales(system)
+    rate = scales.fastest(preset.bound)
+    phase = preset.phase_step if math.isfinite(preset.phase_step) else 1.0
+    points = system.t_stop * rate / phase + _POINTS_PER_SEGMENT * segments
+    return WorkEstimate(points if math.isfinite(points) else math.inf, segments, rate)
+
+
+def check_work(system, preset: Preset) -> WorkEstimate:
+    """:func:`estimate_work`, refused in one sentence past ``preset.work_budget`` or ``preset.segment_budget``.
+
+    Parameters
+    ----------
+    system : NodeSystem
+        A linear node system (others pass unchecked).
+    preset : Preset
+        The accuracy preset; ``dataclasses.replace(preset, work_budget=…)`` raises the budget.
+    """
+    if getattr(system, "kind", "linear") != "linear":
+        return WorkEstimate(0.0, 0, 0.0)
+    work = estimate_work(system, preset)
+    if work.segments > preset.segment_budget:
+        raise InputError(f"the forces have {work.segments:,} segments between breakpoints (pwl points, pulse "
+                         f"edges), more than the budget of {preset.segment_budget:,}: use fewer, or raise "
+                         "the budget with --budget")
+    if work.points > preset.work_budget:
+        raise InputError(f"the run would need about {work.points:.3g} time points (the fastest rate, "
+                         f"{work.fastest:.3g} rad/s, over t_stop = {system.t_stop:g} s), more than the budget "
+                         f"of {preset.work_budget:.3g}: shorten t_stop, or raise the budget with --budget")
+    return work

@@ -1,0 +1,359 @@
+"""Fuzzing hostile input: every outcome is a value or one sentence, no code runs and no netlist line is injected.
+
+Profiles: the default runs about 2,000 cases in all; ``ANALOGY_FUZZ=deep`` runs 10,000 per
+target and prints the counts (``pytest -s tests/test_fuzz.py``).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import math
+import os
+import re
+import tempfile
+import time
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+import pytest
+import sympy as sp
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from analogy import InputError, SimulationError, node_system
+from analogy.circuit.netlist import netlist
+from analogy.circuit.topology import serial
+from analogy.cli import main
+from analogy.model.expressions import FUNCTION_NAMES, parse_expression, parse_number
+from analogy.model.joint import JointSpace
+from analogy.scenes.toml import parse_scene
+from analogy.solvers.exact import solve_exact
+from analogy.waveforms import parse_waveform
+
+DEEP = os.environ.get("ANALOGY_FUZZ") == "deep"
+#: Cases per target: about 2,000 in all by default, 10,000 each in the deep profile.
+CASES = {"expressions": 500, "matrices": 300, "waveforms": 400, "scenes": 250, "cli": 250, "netlist_text": 300}
+if DEEP:
+    CASES = dict.fromkeys(CASES, 10_000)
+COUNTS: Counter = Counter()
+REFUSED: Counter = Counter()
+SLOWEST: dict = {}
+#: No input may create this file: every payload below tries to.
+CANARY = Path(tempfile.gettempdir()) / f"analogy-fuzz-canary-{os.getpid()}"
+SYMBOLS = {name: sp.Symbol(name, real=True) for name in ("a", "b", "q1", "q2")}
+
+
+def profile(target: str):
+    # A case slower than 5 s is a hang; the default profile is the same every run.
+    return settings(max_examples=CASES[target], deadline=5_000, derandomize=not DEEP, database=None,
+                    suppress_health_check=list(HealthCheck))
+
+
+PAYLOADS = [f"__import__('os').system('touch {CANARY}')", f"open('{CANARY}', 'w').write('x')",
+            f"exec(\"open('{CANARY}', 'w')\")", "eval('1')", f"$(touch {CANARY})", f"`touch {CANARY}`",
+            f"\nshell touch {CANARY}\n", f"\n.control\nshell touch {CANARY}\n.endc\n",
+            f".include {CANARY}", "lambda: 0", "[x for x in ()]", "().__class__", "a.b", "a[0]", "f'{1}'"]
+BREAKS = ["\n", "\r", "\r\n", "\x0b", "\x0c", "\x1c", "\x1d", "\x1e", "\x85", "\u2028", "\x00"]
+HOSTILE = PAYLOADS + BREAKS + [".control", ".endc", ".include x", "shell rm -rf x", "{", "}", "'", '"',
+                               ";", "*", "$", "\\", "é", "\u202e"]
+
+hostile_text = st.one_of(st.sampled_from(HOSTILE),
+                         st.lists(st.one_of(st.sampled_from(HOSTILE), st.text(max_size=8)), max_size=5).map("".join))
+floats = st.one_of(st.floats(allow_nan=True, allow_infinity=True),
+                   st.sampled_from([0.0, 1.0, -1.0, 1e308, -1e308, 1.7976931348623157e308, 5e-324, 1e-300,
+                                    1e300, 2.2e-308, 1e-12, 1e12]))
+plain = st.floats(0.01, 100.0)
+plain_text = st.one_of(plain.map(lambda x: f"{x:.4g}"), st.sampled_from(["1", "2", "0.5", "pi/4", "2^3", "1e-3"]))
+number_text = st.one_of(plain_text, plain_text, floats.map(repr), st.integers(-10 ** 20, 10 ** 20).map(str),
+                        st.sampled_from(["9" * 400, "1" + "0" * 5000, "1e999", "-0", "0x10", "1_0", "1j"]))
+name_text = st.sampled_from(["a", "b", "q1", "q2", "q9", "pi", "e", "sin", "arcsin", "x0", "numpy", "nan",
+                             "inf", "__import__", "_x", "os", "Dummy", "lambda"])
+function_name = st.sampled_from(FUNCTION_NAMES + ("arcsin", "eval", "open", "getattr", "__import__"))
+
+
+def _expressions():
+    atoms = st.one_of(number_text, name_text, st.sampled_from(PAYLOADS))
+
+    def grow(children):
+        return st.one_of(
+            st.tuples(children, st.sampled_from(["+", "-", "*", "/", "**", "^", "%", "//", "@", "<"]), children)
+            .map(lambda t: f"({t[0]} {t[1]} {t[2]})"),
+            st.tuples(function_name, st.lists(children, max_size=3)).map(lambda t: f"{t[0]}({', '.join(t[1])})"),
+            children.map(lambda x: f"-{x}"),
+            st.tuples(children, st.integers(1, 4)).map(lambda t: "^".join([t[0]] * (t[1] + 1))))
+    deep = st.integers(1, 140).map(lambda k: "(" * k + "q1" + ")" * k)
+    chains = st.tuples(st.sampled_from(["-", "exp(", "sin("]), st.integers(50, 200)).map(
+        lambda t: t[0] * t[1] + "q1" + (")" * t[1] if "(" in t[0] else ""))
+    return st.one_of(st.recursive(atoms, grow, max_leaves=25), st.text(max_size=40), hostile_text, deep, chains)
+
+
+expressions = _expressions()
+
+#: Every line the netlist writer means to emit: comments, elements, and its own directives.
+_LINE = re.compile(r"^(\*[ -~]*|[CRLIVEFGB][A-Za-z0-9_]* [ -~]*|\.(ic|options|tran|save|print|end)( [ -~]*)?)$")
+_CONTROL = re.compile(r"\b(shell|include|lib|control|endc|exec|system)\b|^\s*\.", re.I)
+
+
+def check_netlist(text: str) -> None:
+    """Every line (split as the loader splits it) is one the writer meant; values are finite."""
+    assert text.isascii()
+    for line in text.splitlines():      # splitlines also breaks at \r, \x0b, \x0c, \x1c-\x1e
+        assert _LINE.match(line), f"unexpected netlist line {line!r}"
+        if not line.startswith(("*", ".")):
+            assert not _CONTROL.search(line) and not re.search(r"\b(inf|nan)\b", line, re.I), line
+
+
+def refused(target: str, exc: Exception) -> None:
+    """A refusal is one sentence on one line."""
+    assert str(exc) and not any(b in str(exc) for b in ("\n", "\r", "Traceback")), str(exc)
+    REFUSED[target] += 1
+
+
+def check_canary() -> None:
+    assert not CANARY.exists(), "an input ran code: the canary file exists"
+
+
+@contextlib.contextmanager
+def case(target: str):
+    start = time.perf_counter()
+    yield
+    check_canary()
+    COUNTS[target] += 1
+    SLOWEST[target] = max(SLOWEST.get(target, 0.0), time.perf_counter() - start)
+
+
+@pytest.fixture(scope="module", autouse=True)
+def report():
+    CANARY.unlink(missing_ok=True)
+    yield
+    check_canary()
+    print("\nfuzz cases per target: " + ", ".join(f"{k} {v} ({REFUSED[k]} refused, slowest "
+                                                 f"{SLOWEST.get(k, 0):.2f} s)" for k, v in COUNTS.items()))
+
+
+@given(expressions)
+@profile("expressions")
+def test_expressions_give_a_bounded_value_or_one_sentence(text):
+    with case("expressions"):
+        start = time.perf_counter()
+        try:
+            value = parse_expression(text, SYMBOLS)
+        except InputError as exc:
+            refused("expressions", exc)
+        else:
+            assert all(math.isfinite(float(x)) for x in value.atoms(sp.Number))
+        try:
+            assert math.isfinite(parse_number(text))
+        except InputError:
+            pass
+        assert time.perf_counter() - start < 1.0
+
+
+def _symmetric(n: int):
+    return st.lists(floats, min_size=n * (n + 1) // 2, max_size=n * (n + 1) // 2).map(
+        lambda v: _fill(n, v))
+
+
+def _fill(n: int, values) -> list:
+    m = [[0.0] * n for _ in range(n)]
+    it = iter(values)
+    for i in range(n):
+        for j in range(i, n):
+            m[i][j] = m[j][i] = next(it)
+    return m
+
+
+@st.composite
+def systems(draw):
+    n = draw(st.integers(1, 4))
+    def definite(values):
+        b = np.reshape(values, (n, n))
+        return b @ b.T + np.eye(n) * draw(st.sampled_from([1e-300, 1e-9, 1.0, 1e9, 1e300]))
+    spd = st.lists(st.floats(-1e3, 1e3), min_size=n * n, max_size=n * n).map(definite)
+    diagonal = st.lists(st.one_of(plain, floats), min_size=n, max_size=n).map(np.diag)
+    mass = draw(st.one_of(spd, spd, _symmetric(n), diagonal))
+    damping = draw(st.one_of(diagonal, spd, _symmetric(n)))
+    stiffness = draw(st.one_of(st.none(), diagonal, spd))
+    top = draw(st.one_of(st.sampled_from(["serial", "parallel"]),
+                         st.lists(floats, min_size=n * n, max_size=n * n).map(lambda v: np.reshape(v, (n, n)))))
+    return mass, damping, stiffness, top, draw(st.lists(st.one_of(plain, floats), min_size=n, max_size=n))
+
+
+@given(systems())
+@profile("matrices")
+def test_matrices_give_a_clean_netlist_and_a_finite_solution_or_one_sentence(parts):
+    mass, damping, stiffness, top, forces = parts
+    with case("matrices"):
+        try:
+            s = node_system(JointSpace(mass, damping, stiffness), forces=forces, topology=top, t_stop=1.0)
+            text = netlist(s, "fast")
+        except InputError as exc:
+            refused("matrices", exc)
+            return
+        check_netlist(text)
+        try:
+            y = solve_exact(s, np.linspace(0, 1, 5)).voltages
+        except SimulationError:
+            return
+        assert np.all(np.isfinite(y))
+
+
+_WAVES = ("step", "pulse", "sine", "pwl", "exec", "__import__", "open")
+valid_waveform = st.one_of(
+    st.tuples(plain_text, plain_text, plain_text).map(lambda t: f"step({t[0]}, {t[1]}/100, {t[2]}/1000)"),
+    st.tuples(plain_text, plain_text, plain_text).map(lambda t: f"sine({t[0]}, {t[1]}, {t[2]})"),
+    st.tuples(plain_text, plain_text).map(lambda t: f"pulse(0, {t[0]}, 0.1, 1e-3, 1e-3, {t[1]}/1000, 0.5)"),
+    st.lists(plain, min_size=2, max_size=12).map(
+        lambda v: "pwl(" + ", ".join(f"{k / len(v):.4g}, {x:.4g}" for k, x in enumerate(v)) + ")"),
+    plain_text)
+waveform_text = st.one_of(valid_waveform, valid_waveform,
+    st.tuples(st.sampled_from(_WAVES), st.lists(st.one_of(number_text, expressions), max_size=8),
+              st.lists(st.tuples(st.sampled_from(["delay", "rise", "width", "period", "x", "__class__"]),
+                                 number_text), max_size=2))
+    .map(lambda t: f"{t[0]}({', '.join(t[1] + [f'{k}={v}' for k, v in t[2]])})"),
+    hostile_text, st.text(max_size=30))
+
+
+@given(waveform_text, st.sampled_from([1e-9, 1e-3, 1.0, 1.0, 10.0, 1e3, 1e9]))
+@profile("waveforms")
+def test_force_specs_give_a_waveform_and_a_clean_netlist_or_one_sentence(spec, t_stop):
+    with case("waveforms"):
+        try:
+            w = parse_waveform(spec)
+            s = node_system(JointSpace([[1.0]], [[1.0]]), forces=[w], t_stop=t_stop)
+            text = netlist(s, "fast")
+        except InputError as exc:
+            refused("waveforms", exc)
+            return
+        check_netlist(text)
+        assert np.all(np.isfinite(s.breakpoints()))
+
+
+def toml_string(text: str) -> str:
+    """A TOML basic string holding *text* exactly (control characters as escapes)."""
+    out = []
+    for ch in text:
+        if ch in '"\\':
+            out.append("\\" + ch)
+        elif ord(ch) < 0x20 or ord(ch) == 0x7f:
+            out.append(f"\\u{ord(ch):04x}")
+        else:
+            out.append(ch)
+    return '"' + "".join(out) + '"'
+
+
+toml_value = st.one_of(plain.map(lambda x: f"{x:.4g}"), plain.map(lambda x: f"{x:.4g}"), number_text.filter(lambda x: re.fullmatch(r"-?[0-9]+(\.[0-9]+)?(e-?[0-9]+)?", x) is not None),
+                       expressions.map(toml_string), st.booleans().map(str).map(str.lower))
+output_names = st.one_of(st.sampled_from(["ok.csv", "sub/ok.csv"]), st.sampled_from(["ok.csv", "sub/ok.csv", "link/escaped.csv", "victim.csv", "../x.csv",
+                                          "/etc/passwd", "a\x00b.csv", ".", "sub/../../x.csv", "x.png"]),
+                         hostile_text)
+
+
+@st.composite
+def scene_files(draw):
+    n = draw(st.integers(1, 3))
+    rows = [[draw(toml_value) for _ in range(n)] for _ in range(n)]
+    if draw(st.booleans()):             # half the scenes have a usable mass matrix
+        rows = [[f"{draw(plain) + 200:.4g}" if i == j else f"{draw(plain):.4g}" for j in range(n)] for i in range(n)]
+        rows = [[rows[min(i, j)][max(i, j)] for j in range(n)] for i in range(n)]
+    params = draw(st.one_of(st.just({}), st.dictionaries(name_text, toml_value, max_size=3)))
+    lines = [f"name = {toml_string(draw(st.one_of(st.just('s'), st.just('s'), hostile_text)))}",
+             f"description = {toml_string(draw(hostile_text))}", "[model]",
+             f"mass = [{', '.join('[' + ', '.join(r) + ']' for r in rows)}]",
+             f"damping = [{', '.join(draw(toml_value) for _ in range(n))}]", "[parameters]"]
+    lines += [f"{k} = {v}" for k, v in params.items()]
+    forces = [toml_string(draw(waveform_text)) if draw(st.booleans()) else draw(toml_value) for _ in range(n)]
+    t_stop = draw(st.one_of(st.sampled_from(["1.0", "10"]), toml_value))
+    lines += ["[inputs]", f"forces = [{', '.join(forces)}]", f"t_stop = {t_stop}",
+              "[outputs]", "joint_rates = true", f"csv = {toml_string(draw(output_names))}"]
+    text = "\n".join(lines) + "\n"
+    return draw(st.one_of(st.just(text), st.just(text), st.text(max_size=60).map(lambda junk: text + junk)))
+
+
+@pytest.fixture(scope="module")
+def scene_folder(tmp_path_factory):
+    root = tmp_path_factory.mktemp("fuzz-scene")
+    elsewhere = tmp_path_factory.mktemp("fuzz-elsewhere")
+    (elsewhere / "victim.csv").write_text("precious")
+    os.symlink(elsewhere, root / "link")
+    os.symlink(elsewhere / "victim.csv", root / "victim.csv")
+    yield root
+    assert sorted(p.name for p in elsewhere.iterdir()) == ["victim.csv"]
+    assert (elsewhere / "victim.csv").read_text() == "precious"
+
+
+@given(scene_files())
+@profile("scenes")
+def test_scene_files_give_a_scene_inside_its_folder_or_one_sentence(scene_folder, text):
+    with case("scenes"):
+        try:
+            sc = parse_scene(text, source=scene_folder / "s.toml")
+            title = f"analogy scene {sc.name}: {sc.description}"
+            check_netlist(netlist(sc.system(), "fast", title=title))
+            path = sc.path(sc.csv_file, scene_folder)
+        except InputError as exc:
+            refused("scenes", exc)
+            return
+        real = Path(os.path.realpath(path))
+        assert Path(os.path.realpath(scene_folder)) in real.parents and not path.is_symlink()
+
+
+def _matrix(n: int):
+    return st.lists(st.lists(st.one_of(number_text, expressions), min_size=n, max_size=n), min_size=n,
+                    max_size=n).map(lambda rows: "[" + ", ".join("[" + ", ".join(r) + "]" for r in rows) + "]")
+
+
+@st.composite
+def cli_arguments(draw):
+    args = ["netlist"]
+    n = draw(st.integers(1, 3))
+    options = {
+        "--mass": _matrix(n), "--damping": st.one_of(_matrix(n), st.lists(expressions, max_size=3).map(", ".join)),
+        "--stiffness": _matrix(n), "--q": st.lists(number_text, max_size=3).map(", ".join),
+        "--topology": st.one_of(st.sampled_from(["serial", "parallel", "ring"]), _matrix(n)),
+        "--force": waveform_text, "--t-stop": st.one_of(number_text, expressions),
+        "--save": st.one_of(st.sampled_from(["n1", "n1, C1_2", "R1"]), hostile_text),
+        "--param": st.tuples(name_text, st.one_of(number_text, expressions)).map(lambda t: f"{t[0]}={t[1]}"),
+        "--preset": st.sampled_from(["fast", "accurate", "bogus"]),
+        "--robot": st.sampled_from(["serial2", "parallel3", "serial40000", "random3", "flex"]),
+        "--dynamics": st.sampled_from(["linear", "nonlinear"]),
+    }
+    for flag in draw(st.lists(st.sampled_from(sorted(options)), max_size=4)):
+        args += [flag, draw(options[flag])]
+    if draw(st.booleans()):
+        args.append("--realizable")
+    return args
+
+
+@given(cli_arguments())
+@profile("cli")
+def test_cli_arguments_give_a_netlist_or_one_sentence_with_exit_2(args):
+    with case("cli"):
+        out, err = io.StringIO(), io.StringIO()
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            code = main(args)
+        lines = err.getvalue().splitlines()
+        if code == 2:
+            REFUSED["cli"] += 1
+            assert len(lines) == 1 and lines[0].startswith("analogy: error: "), lines
+            assert out.getvalue() == ""
+        else:
+            assert code == 0 and all(line.startswith("analogy: warning: ") for line in lines) and len(lines) <= 1
+            check_netlist(out.getvalue())
+
+
+@given(hostile_text, st.lists(st.one_of(st.sampled_from(["n1", "n2", "C1_2", "R1"]), hostile_text), max_size=3),
+       st.booleans())
+@profile("netlist_text")
+def test_titles_and_saved_names_never_add_netlist_lines(title, save, realizable):
+    system = node_system(JointSpace([[2, -0.3], [-0.3, 1]], np.eye(2), np.eye(2)), forces=["step(1)", "sine(0, 1, 2)"],
+                         topology=serial(2), info={"robot": title, "parameters": {title: 1.0}})
+    with case("netlist_text"):
+        try:
+            text = netlist(system, "fast", save=save or None, title=title, realizable=realizable)
+        except InputError as exc:
+            refused("netlist_text", exc)
+            return
+        check_netlist(text)

@@ -1,0 +1,21 @@
+"""Memory: thousands of in-process SPICE runs leave resident memory and ngspice's buffers flat."""
+
+import pytest
+
+from analogy.memory import memory_per_run
+from analogy.solvers.spice import session
+
+pytestmark = [pytest.mark.ngspice, pytest.mark.slow]
+
+
+def test_two_thousand_runs_grow_resident_memory_by_at_most_half_a_kilobyte_each():
+    # ngspice's leak was per command, not per time point, so the fast preset shows it as well
+    # as the accurate one, in a few seconds.
+    result = memory_per_run(runs=2_000, preset="fast", warmup=200)
+    assert result.kb_per_run <= 0.5, str(result)
+
+
+def test_pyspice_keeps_no_lines_between_runs():
+    memory_per_run(runs=50, preset="fast", warmup=0)
+    ng = session()._ng
+    assert ng._stdout == [] and ng._stderr == [] and ng.lines == []
