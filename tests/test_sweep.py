@@ -168,10 +168,10 @@ def _wait_for_groups(store: Path, proc, groups: int, timeout=120.0):
 @pytest.mark.slow
 @pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGTERM])
 def test_a_killed_then_resumed_sweep_holds_each_scene_once_with_uninterrupted_values(tmp_path, sig):
-    path = sweep_file(tmp_path, count=6000, group=50)
+    path = sweep_file(tmp_path, count=3000, group=50)
     store = tmp_path / "killed"
     proc = _start_batch(path, store)
-    _wait_for_groups(store, proc, 20)
+    _wait_for_groups(store, proc, 25)          # 25 of 60 groups stored: killed close to half way
     workers = _children(proc.pid)
     assert workers
     proc.send_signal(sig)
@@ -185,7 +185,7 @@ def test_a_killed_then_resumed_sweep_holds_each_scene_once_with_uninterrupted_va
     assert main(["batch", str(path), "-o", str(store), "--no-progress"]) == 0
     assert main(["batch", str(path), "-o", str(tmp_path / "whole"), "--no-progress"]) == 0
     resumed, whole = read(store), read(tmp_path / "whole")
-    assert len(resumed) == 6000 and resumed["index"].is_unique and resumed["key"].is_unique
+    assert len(resumed) == 3000 and resumed["index"].is_unique and resumed["key"].is_unique
     pd.testing.assert_frame_equal(resumed.drop(columns=[c for c in resumed if c.startswith("seconds_")]),
                                   whole.drop(columns=[c for c in whole if c.startswith("seconds_")]))
 

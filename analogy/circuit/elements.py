@@ -94,10 +94,11 @@ def laplacian_split(matrix: np.ndarray, zero_tol: float = ZERO_TOL,
     floating[..., range(n), range(n)] = 0.0
     # Row-relative: a value is rounding only against the entries it was summed from, so a node
     # whose own scale is far below the largest (a soft spring beside a stiff one) keeps its elements.
-    with np.errstate(over="ignore"):
+    with np.errstate(over="ignore", invalid="ignore"):      # past the float range is refused later
         rows = np.abs(x).sum(axis=-1)
-    floor_g = zero_tol * rows
-    floor_f = zero_tol * np.sqrt(rows[..., :, None] * rows[..., None, :])
+        root = np.sqrt(rows)                                  # √a·√b: no overflow where a·b would
+        floor_g = zero_tol * rows
+        floor_f = zero_tol * root[..., :, None] * root[..., None, :]
     small_g = np.abs(grounded) <= floor_g
     small_f = np.abs(floating) <= floor_f
     if report:

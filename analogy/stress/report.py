@@ -164,12 +164,13 @@ def _bound(solver: str, preset) -> float:
     return EXACT_BOUND if solver == "exact" else preset.bound
 
 
-def _exact_check(system) -> tuple[float, float, str]:
-    """The exact solution against the 40-digit one on 9 points: error / peak, its own seconds, a note."""
+def _exact_check(system, points: int = 9) -> tuple[float, float, str]:
+    """The exact solution against the 40-digit one on *points* points: error / peak, its own seconds, a note."""
     from ..solvers.exact import solve_exact
     from ..solvers.reference import solve_reference
     # golden-ratio points: a uniform grid can fall on the zeros of a periodic motion
-    probe = system.t_stop * np.sort(np.concatenate([[0.0, 1.0], np.modf(np.arange(1, 8) * 0.6180339887498949)[0]]))
+    golden = np.modf(np.arange(1, max(points - 1, 1)) * 0.6180339887498949)[0]
+    probe = system.t_stop * np.sort(np.concatenate([[0.0, 1.0], golden]))
     start = _time.perf_counter()
     exact = solve_exact(system, probe).voltages
     seconds = _time.perf_counter() - start
@@ -196,7 +197,7 @@ def _case_rows(case: StressCase) -> list[StressRow]:
         solver = label.split("/")[0]
         if solver == "exact":
             try:
-                err, seconds, note = _exact_check(system)
+                err, seconds, note = _exact_check(system, case.reference_points)
             except AnalogyError as exc:
                 err, seconds, note = math.nan, math.nan, str(exc)
             status = "failed" if note and not math.isfinite(err) and "size" not in note else \
