@@ -136,9 +136,9 @@ class BatchReport:
                 ax.scatter(x if x.dtype.kind in "fi" else x.astype(str), e[ok], s=4, alpha=0.4,
                            marker=marker, label=s, rasterized=True)
             ax.set_yscale("log")
-            ax.set_xlabel(_label(axis))
+            ax.set_xlabel(_label(axis, self.info.get("joint_units")))
             ax.grid(alpha=0.3)
-        panels[0].set_ylabel("max error / peak rate (1)")
+        panels[0].set_ylabel("max error / peak rate [1]")
         if self.solvers:
             fig.legend(*panels[0].get_legend_handles_labels(), loc="outside upper right", ncols=len(self.solvers),
                        markerscale=3)
@@ -201,9 +201,9 @@ class BatchReport:
         if failed.any():
             ax.scatter(f[x][failed], f[y][failed], s=6, c="red", marker="x", label="no result")
             ax.legend(loc="outside lower center")
-        fig.colorbar(sc, ax=ax, label=f"{solver} max error / peak rate (1)")
-        ax.set_xlabel(_label(x))
-        ax.set_ylabel(_label(y))
+        fig.colorbar(sc, ax=ax, label=f"{solver} max error / peak rate [1]")
+        ax.set_xlabel(_label(x, self.info.get("joint_units")))
+        ax.set_ylabel(_label(y, self.info.get("joint_units")))
         ax.set_title(f"{self.info.get('scene', '')}: {solver} error over ({x}, {y})", fontsize="medium")
         if path is not None:
             fig.savefig(path, dpi=110)
@@ -230,12 +230,14 @@ class BatchReport:
         return written
 
 
-def _label(axis: str) -> str:
-    """An axis name with its unit where the name says it (joint angles in rad, rates in rad/s)."""
+def _label(axis: str, joint_units=None) -> str:
+    """An axis name with its unit: a joint's from the model (rad, m), t_stop in s, others as named."""
+    from ..units import force_unit, rate_unit
     from .sweep import axis_kind
-    kind, _ = axis_kind(axis)
-    unit = {"q": " [rad or m]", "rate": " [rad/s or m/s]", "t_stop": " [s]", "force": " [N·m or N]"}.get(kind, "")
-    return axis + unit
+    kind, joint = axis_kind(axis)
+    unit = joint_units[joint] if joint_units and 0 <= joint < len(joint_units) else None
+    text = {"q": unit or "rad or m", "rate": rate_unit(unit), "force": force_unit(unit), "t_stop": "s"}.get(kind)
+    return f"{axis} [{text}]" if text else axis
 
 
 def batch_report(directory) -> BatchReport:
