@@ -10,6 +10,7 @@ import argparse
 import os
 import sys
 import warnings
+from concurrent.futures import BrokenExecutor
 from dataclasses import replace
 from pathlib import Path
 
@@ -22,6 +23,7 @@ from .model.expressions import (
 from .presets import PRESETS
 from .presets import preset as get_preset
 from .results.output import check_plot_path
+from .batch.cli import batch_options
 from .scenes.arguments import PRESET_HELP, scene_from_args, scene_options
 from .scenes.builtin import SCENES, scene
 from .scenes.scene import Scene
@@ -107,22 +109,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--output-dir", help="folder for the scene's output files (default: next to it)")
     p.add_argument("--no-plot", action="store_true", help="skip plots even if the scene asks for one")
     p.add_argument("--dynamics", choices=["linear", "nonlinear"], help="override the scene's dynamics")
-    p = sub.add_parser("batch", help="run a sweep file's scenes into a resumable Parquet store; "
-                                     "'analogy batch report DIR' summarises one")
-    p.add_argument("sweep_file", metavar="SWEEP.toml", help="a scene file with a [sweep] table, or 'report'")
-    p.add_argument("report_dir", nargs="?", metavar="DIR", help="with 'report': the store to summarise")
-    p.add_argument("-o", "--output", metavar="DIR", help="the results store (required for a run; for a "
-                   "report, the folder for report.md and its plots, default DIR/_report)")
-    p.add_argument("--workers", type=int, default=2, help="local worker processes (default 2)")
-    p.add_argument("--dask", action="store_true", help="run on a Dask LocalCluster of --workers processes")
-    p.add_argument("--scheduler", metavar="ADDRESS", help="run on the Dask cluster at ADDRESS")
-    p.add_argument("--isolated", action="store_true",
-                   help="one ngspice run per scene: each error exactly as alone, but slower")
-    p.add_argument("--trajectories", type=int, default=0, metavar="N",
-                   help="also store N evenly spaced points of every solver's joint rates")
-    p.add_argument("--preset", choices=list(PRESETS), help="override the sweep's accuracy preset")
-    p.add_argument("--solvers", help="override the sweep's solvers, e.g. spice,exact")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar (plain lines stay)")
+    batch_options(sub)
     p = sub.add_parser("bench", help="run time against error: ngspice settings, ODE methods, exact solver")
     p.add_argument("--repeats", type=int, default=5, help="timed runs per setting (median; default 5)")
     p.add_argument("--quick", action="store_true", help="a small grid on the 2- and 10-DOF scenes "
@@ -513,6 +500,9 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print("analogy: interrupted", file=sys.stderr)
         return 130
+    except BrokenExecutor as exc:       # a worker process died (killed, or out of memory)
+        print(f"analogy: simulation failed: a worker process died ({exc or type(exc).__name__})", file=sys.stderr)
+        return EXIT_FAILED
 
 
 if __name__ == "__main__":  # pragma: no cover

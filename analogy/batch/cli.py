@@ -9,10 +9,37 @@ from pathlib import Path
 from typing import Iterator
 
 from ..errors import InputError, SimulationError
+from ..presets import PRESETS
 
-__all__ = ["batch_command", "dask_executor"]
+__all__ = ["batch_command", "batch_options", "dask_executor"]
 
 EXIT_OK, EXIT_FAILED, EXIT_ACCURACY, EXIT_INTERRUPTED = 0, 1, 3, 130
+
+
+def batch_options(sub) -> None:
+    """Add the ``batch`` subcommand and its options to the subparsers *sub*.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The ``analogy`` command's subparsers.
+    """
+    p = sub.add_parser("batch", help="run a sweep file's scenes into a resumable Parquet store; "
+                                     "'analogy batch report DIR' summarises one")
+    p.add_argument("sweep_file", metavar="SWEEP.toml", help="a scene file with a [sweep] table, or 'report'")
+    p.add_argument("report_dir", nargs="?", metavar="DIR", help="with 'report': the store to summarise")
+    p.add_argument("-o", "--output", metavar="DIR", help="the results store (required for a run; for a "
+                   "report, the folder for report.md and its plots, default DIR/_report)")
+    p.add_argument("--workers", type=int, default=2, help="local worker processes (default 2)")
+    p.add_argument("--dask", action="store_true", help="run on a Dask LocalCluster of --workers processes")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="run on the Dask cluster at ADDRESS")
+    p.add_argument("--isolated", action="store_true",
+                   help="one ngspice run per scene: each error exactly as alone, but slower")
+    p.add_argument("--trajectories", type=int, default=0, metavar="N",
+                   help="also store N evenly spaced points of every solver's joint rates")
+    p.add_argument("--preset", choices=list(PRESETS), help="override the sweep's accuracy preset")
+    p.add_argument("--solvers", help="override the sweep's solvers, e.g. spice,exact")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar (plain lines stay)")
 
 
 @contextmanager

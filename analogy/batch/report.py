@@ -9,7 +9,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..errors import InputError
+from ..units import force_unit, rate_unit
 from .store import manifest, read
+from .sweep import axis_kind
 
 if TYPE_CHECKING:
     import pandas
@@ -232,8 +234,6 @@ class BatchReport:
 
 def _label(axis: str, joint_units=None) -> str:
     """An axis name with its unit: a joint's from the model (rad, m), t_stop in s, others as named."""
-    from ..units import force_unit, rate_unit
-    from .sweep import axis_kind
     kind, joint = axis_kind(axis)
     unit = joint_units[joint] if joint_units and 0 <= joint < len(joint_units) else None
     text = {"q": unit or "rad or m", "rate": rate_unit(unit), "force": force_unit(unit), "t_stop": "s"}.get(kind)

@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+import ctypes
 import multiprocessing
+import os
+import signal
+import sys
 import threading
 import time as _time
 from concurrent.futures import Executor, ProcessPoolExecutor
@@ -222,6 +226,18 @@ def _tasks(systems, group_size: int) -> list[tuple[list[int], tuple]]:
     return tasks
 
 
+def _die_with_parent(parent: int | None) -> None:
+    """Worker initialiser: end when the parent does (Linux parent-death signal), and leave Ctrl-C to it."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if sys.platform.startswith("linux"):
+        try:
+            ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGKILL))     # PR_SET_PDEATHSIG
+        except (OSError, AttributeError):
+            pass
+    if parent is not None and os.getppid() != parent:      # the parent died before prctl
+        os._exit(1)
+
+
 def _worker_context():
     """How worker processes start.
 
@@ -286,7 +302,10 @@ def run_batch(systems: Sequence, preset="fast", *, solvers: Sequence[str] = ("sp
     if executor is None and workers > 1 and len(tasks) > 1:
         for name in names + ["exact"]:
             solver(name)            # imported once here, so that forked workers start with it
-        executor = own = ProcessPoolExecutor(workers, mp_context=_worker_context())
+        ctx = _worker_context()
+        parent = os.getpid() if ctx.get_start_method() == "fork" else None
+        executor = own = ProcessPoolExecutor(workers, mp_context=ctx, initializer=_die_with_parent,
+                                             initargs=(parent,))
     try:
         outputs = executor.map(_group, payloads) if executor is not None else map(_group, payloads)
         if progress:

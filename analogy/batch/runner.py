@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import ctypes
 import os
 import signal
 import sys
@@ -20,7 +19,7 @@ from ..presets import PRESETS
 from ..presets import preset as get_preset
 from ..solvers.registry import SOLVER_NAMES
 from ..progress import Progress
-from .run import _group, _tasks, _worker_context
+from .run import _die_with_parent, _group, _tasks, _worker_context
 from .store import ResultStore
 from .sweep import Sweep
 
@@ -233,18 +232,6 @@ def _remote(payload):
         import pyarrow as pa
         return merged, pa.concat_tables(trajs)
     return merged, None
-
-
-def _die_with_parent(parent: int | None) -> None:
-    """Worker initialiser: end when the parent does (Linux parent-death signal), and leave Ctrl-C to it."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    if sys.platform.startswith("linux"):
-        try:
-            ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGKILL))     # PR_SET_PDEATHSIG
-        except (OSError, AttributeError):
-            pass
-    if parent is not None and os.getppid() != parent:      # the parent died before prctl
-        os._exit(1)
 
 
 def _local_pool(workers: int) -> ProcessPoolExecutor:
