@@ -53,7 +53,7 @@ def exact_mobility(system, frequencies) -> "FrequencyResponse":
     impedance = system.mass * s + system.damping + k / s
     mobility = np.linalg.solve(impedance, np.broadcast_to(system.current_map, impedance.shape).astype(complex))
     return FrequencyResponse(f, mobility, "exact", np.linalg.inv(system.topology.matrix),
-                             system.info.get("units"))
+                             system.info.get("units"), tuple(system.info.get("configuration") or ()) or None)
 
 
 @dataclass(eq=False)
@@ -73,6 +73,8 @@ class FrequencyResponse(Tabular):
         T⁻¹, from node velocities to joint rates (identity for the parallel topology).
     units : tuple of str or None
         Joint units (:func:`analogy.units.joint_units`), for labels.
+    coordinates : tuple of str or None
+        The joints' coordinate names (``theta1``, ``delta1_1`` …), for labels.
     """
 
     frequency: np.ndarray
@@ -80,6 +82,7 @@ class FrequencyResponse(Tabular):
     solver: str
     joint_map: np.ndarray
     units: tuple | None = None
+    coordinates: tuple | None = None
 
     def driving_point(self) -> np.ndarray:
         """R_j/F_j [f, joint]: each joint's rate per unit force on itself, whatever the topology."""

@@ -303,7 +303,9 @@ def plot_bode(response, reference=None, path=None) -> Figure:
         points = r.driving_point()
         for j in range(joints):
             y = points[:, j]
-            label = f"joint {j + 1}" if r is response else None
+            names = response.coordinates
+            name = names[j] if names and len(names) == joints else f"joint {j + 1}"
+            label = name if r is response else None
             mag.loglog(r.frequency, np.abs(y), color=f"C{j % 10}", label=label, **style)
             phase.semilogx(r.frequency, np.degrees(np.angle(y)), color=f"C{j % 10}", **style)
     for f in response.resonances():
