@@ -16,6 +16,7 @@ from pathlib import Path
 
 from . import __version__
 from .circuit.netlist import netlist
+from .errors import EXIT_ACCURACY, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE
 from .errors import AccuracyError, AnalogyError, InputError, SimulationError
 from .model.expressions import (
     parse_number,
@@ -37,9 +38,6 @@ __all__ = [
     "main",
     "scene_from_args",
 ]
-
-EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_ACCURACY = 0, 1, 2, 3
-
 
 class _Parser(argparse.ArgumentParser):
     """argparse with one-line errors (exit 2) instead of a usage dump."""
@@ -499,7 +497,7 @@ def main(argv=None) -> int:
         return EXIT_FAILED
     except KeyboardInterrupt:
         print("analogy: interrupted", file=sys.stderr)
-        return 130
+        return EXIT_INTERRUPTED
     except BrokenExecutor as exc:       # a worker process died (killed, or out of memory)
         print(f"analogy: simulation failed: a worker process died ({exc or type(exc).__name__})", file=sys.stderr)
         return EXIT_FAILED

@@ -1,6 +1,11 @@
-"""Exception types that carry one clear, user-facing sentence."""
+"""Exception types that carry one clear, user-facing sentence, and the exit codes they map to."""
 
-__all__ = ["AnalogyError", "InputError", "SimulationError", "SpiceError", "AccuracyError"]
+__all__ = ["AnalogyError", "InputError", "SimulationError", "SpiceError", "AccuracyError", "EXIT_OK", "EXIT_FAILED",
+           "EXIT_USAGE", "EXIT_ACCURACY", "EXIT_INTERRUPTED"]
+
+#: Exit codes of the command line: success, a simulation failed, bad input, a result outside its
+#: accuracy bound, and stopped by SIGINT or SIGTERM.
+EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_ACCURACY, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 
 
 class AnalogyError(Exception):

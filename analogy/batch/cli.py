@@ -8,13 +8,10 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator
 
-from ..errors import InputError, SimulationError
+from ..errors import EXIT_ACCURACY, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, InputError, SimulationError
 from ..presets import PRESETS
 
 __all__ = ["batch_command", "batch_options", "dask_executor"]
-
-EXIT_OK, EXIT_FAILED, EXIT_ACCURACY, EXIT_INTERRUPTED = 0, 1, 3, 130
-
 
 def batch_options(sub) -> None:
     """Add the ``batch`` subcommand and its options to the subparsers *sub*.

@@ -358,15 +358,9 @@ def load_sweep(path) -> Sweep:
     path : str or Path
         The TOML file.
     """
-    from ..scenes.toml import scene_from_table, toml_table, validated
+    from ..scenes.toml import read_text, scene_from_table, toml_table, validated
     path = Path(path)
-    try:
-        text = path.read_bytes().decode("utf-8")
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read the sweep file: {exc.strerror or exc}") from None
-    except UnicodeDecodeError:
-        raise InputError(f"{path}: the sweep file is not UTF-8 text") from None
-    data = toml_table(text, path)
+    data = toml_table(read_text(path, "sweep file"), path)
     table = data.pop("sweep", None)
     if not isinstance(table, dict):
         raise InputError(f"{path}: [sweep]: missing: a sweep file needs a [sweep] table with axes")

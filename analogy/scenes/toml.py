@@ -63,7 +63,7 @@ from .scene import OUTPUTS, Scene
 from .spec import ModelSpec, freeze
 from .validate import validated
 
-__all__ = ["load_scene", "parse_scene", "parse_toml", "scene_from_table", "toml_table", "validated"]
+__all__ = ["load_scene", "parse_scene", "parse_toml", "read_text", "scene_from_table", "toml_table", "validated"]
 
 _TABLES = {
     "model": ("robot", "mass", "damping", "stiffness", "gravity", "link_modes"),
@@ -177,13 +177,25 @@ def load_scene(path) -> Scene:
         One line naming the file, the key and the problem.
     """
     path = Path(path)
+    return parse_scene(read_text(path), source=path)
+
+
+def read_text(path: Path, what: str = "scene file") -> str:
+    """The UTF-8 text of *path*, or one sentence naming the file and what went wrong.
+
+    Parameters
+    ----------
+    path : Path
+        The file.
+    what : str
+        What the file is, for messages.
+    """
     try:
-        text = path.read_bytes().decode("utf-8")
+        return path.read_bytes().decode("utf-8")
     except OSError as exc:
-        raise InputError(f"{path}: cannot read the scene file: {exc.strerror or exc}") from None
+        raise InputError(f"{path}: cannot read the {what}: {exc.strerror or exc}") from None
     except UnicodeDecodeError:
-        raise InputError(f"{path}: the scene file is not UTF-8 text") from None
-    return parse_scene(text, source=path)
+        raise InputError(f"{path}: the {what} is not UTF-8 text") from None
 
 
 def parse_scene(text: str, source="scene.toml") -> Scene:
