@@ -7,8 +7,8 @@ __version__ = "0.1.0"
 # Public names and the module that defines each. Modules load on first use, so a
 # netlist-only job never imports SPICE, the ODE integrators or matplotlib.
 _EXPORTS = {
-    "Comparison": "results.comparison", "compare": "results.comparison",
-    "compare_many": "results.comparison",
+    "Comparison": "study.comparison", "compare": "study.comparison",
+    "compare_many": "study.comparison",
     "Trajectory": "results.trajectory", "SolverStats": "results.trajectory",
     "relative_error": "results.metrics",
     "Element": "circuit.elements", "elements": "circuit.elements", "mp_capacitance": "circuit.elements",
@@ -19,7 +19,7 @@ _EXPORTS = {
     "solve_reference": "solvers.reference", "solver": "solvers.registry", "SOLVER_NAMES": "solvers.registry",
     "JointSpace": "model.joint", "Model": "model.symbolic", "NodeDynamics": "model.dynamics",
     "christoffel_symbols": "model.symbolic", "velocity_terms": "model.symbolic",
-    "netlist": "circuit.netlist",
+    "netlist": "solvers.transient",
     "PRESETS": "presets", "Preset": "presets",
     "ROBOTS": "model.robots", "planar_serial": "model.robots", "point_mass_matrix": "model.robots",
     "robot": "model.robots",

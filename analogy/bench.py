@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .circuit.netlist import netlist
+from .solvers.transient import netlist
 from .errors import AnalogyError
 from .presets import PRESETS, Preset
 from .progress import Progress

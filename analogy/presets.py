@@ -43,7 +43,7 @@ class Preset:
         Wall-time limit [s] of the ODE integration (SPICE's work is bounded by
         *step_budget*, the exact solver's by its time points).
     work_budget : float
-        The most time points a run may need (:func:`analogy.solvers.work.check_work`
+        The most time points a run may need (:func:`analogy.study.work.check_work`
         estimates them from the fastest rate and t_stop before any solver starts).
     segment_budget : int
         The most force segments (between pwl points, pulse edges) a run may walk.

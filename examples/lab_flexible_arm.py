@@ -36,7 +36,7 @@ from analogy.model.flexible import FLEXIBLE_DEFAULTS, flexible_arm
 from analogy.results.modes import natural_modes
 from analogy.scenes.scene import Scene
 from analogy.scenes.spec import ModelSpec
-from analogy.solvers.ac import mobility_check
+from analogy.study.mobility import mobility_check
 
 out = _lab.output_folder()
 p = FLEXIBLE_DEFAULTS

@@ -33,7 +33,7 @@ import _lab
 import numpy as np
 
 import analogy
-from analogy.results.horizon import linear_horizon
+from analogy.study.horizon import linear_horizon
 
 out = _lab.output_folder()
 

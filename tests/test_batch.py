@@ -5,7 +5,7 @@ import pytest
 
 import analogy
 from analogy.batch import run_batch
-from analogy.circuit.netlist import batch_netlist
+from analogy.solvers.transient import batch_netlist
 from analogy.presets import preset
 from analogy.scenes.builtin import SCENES, scene
 from analogy.solvers.exact import solve_exact, solve_exact_many

@@ -95,16 +95,15 @@ def test_a_written_netlist_gives_its_results_in_plain_ngspice_batch_mode(tmp_pat
     res = subprocess.run([shutil.which("ngspice"), "-b", "d.cir"], capture_output=True, text=True,
                          timeout=300, cwd=tmp_path)
     assert res.returncode == 0, res.stderr
-    rows = []
-    for line in res.stdout.splitlines():
-        fields = line.split()
-        if len(fields) == 4 and fields[0].isdigit():
-            rows.append([float(x) for x in fields[1:]])
-    data = np.array(rows)
-    assert data.shape[0] > 1000 and data[0, 0] <= 1e-4
+    from analogy.solvers.rawfile import read_printed
+    data = read_printed(res.stdout)
+    t = data["time"]
+    assert t.size == 1000 and np.allclose(t, np.arange(1, 1001) * 0.01, rtol=1e-12)     # the print step
     system = analogy.scene("default").system()
-    exact = analogy.solve_exact(system, data[:, 0]).voltages
-    assert analogy.relative_error(data[:, 1:], exact) <= 1e-6     # 6 printed digits, accurate preset
+    exact = analogy.solve_exact(system, t).voltages
+    # printed on the print step by linear interpolation between ngspice's own points, with
+    # 15 digits: within the accurate bound here (the default scene's fastest mode is slow)
+    assert analogy.relative_error(np.column_stack([data["n1"], data["n2"]]), exact) <= 1e-6
 
 
 def test_results_start_at_t0_and_an_output_step_sets_the_rows(tmp_path):

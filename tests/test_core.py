@@ -17,7 +17,7 @@ from analogy.circuit.description import (
     Circuit,
     circuit,
 )
-from analogy.circuit.netlist import netlist
+from analogy.solvers.transient import netlist
 from analogy.circuit.nonlinear import nonlinear_system
 from analogy.errors import InputError, SimulationError
 from analogy.model.dynamics import NodeDynamics
@@ -25,7 +25,7 @@ from analogy.model.joint import JointSpace
 from analogy.model.robots import planar_serial, robot
 from analogy.model.symbolic import christoffel_symbols, velocity_terms
 from analogy.presets import preset
-from analogy.results.comparison import compare
+from analogy.study.comparison import compare
 from analogy.results.metrics import relative_error
 from analogy.scenes.builtin import scene
 from analogy.scenes.toml import parse_toml

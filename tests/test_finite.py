@@ -5,7 +5,7 @@ import pytest
 
 import analogy
 from analogy import InputError
-from analogy.circuit.netlist import netlist
+from analogy.solvers.transient import netlist
 from analogy.circuit.topology import serial, symmetric_part
 from analogy.cli import main
 from analogy.model.joint import JointSpace

@@ -127,18 +127,32 @@ def test_the_linearised_arm_integrated_by_the_ode_solver_matches_the_exact_solut
 
 
 @pytest.mark.ngspice
+@pytest.mark.xfail(strict=True, reason="judged per output, the modal coordinates miss the accurate bound: "
+                   "2.4e-5 of their own peak (1.2e-6 of the largest), flagged with exit 3")
 @pytest.mark.parametrize("g", [9.81, 0.0])
 def test_the_arm_as_a_circuit_keeps_the_accurate_bound_in_spice(g):
-    """ngspice within 1e-6 of the peak over 2 s of a 252 Hz mode (measured 6.2e-7, and 2.3e-7
-    with g = 0): the step cap, first step and abstol follow the system's own scales."""
-    from analogy.results.comparison import compare
+    """ngspice within 1e-6 of each output's own peak over 2 s of a 252 Hz mode: the step
+    cap, first step and abstol follow the system's own scales."""
+    from analogy.study.comparison import compare
     result = compare(hanging_arm(g, 2.0), "accurate", ["spice", "exact"])
-    assert not result.failures and result.errors()["spice"][1] <= 1e-6
+    assert not result.failures
+    assert result.errors()["spice"][1] <= 1e-6
+
+
+@pytest.mark.ngspice
+def test_the_arm_that_misses_its_bound_is_flagged_with_the_output_that_misses_it():
+    """The promise is kept or flagged: the worst output is named, and outside_bound (exit 3) has it."""
+    from analogy.study.comparison import compare
+    result = compare(hanging_arm(9.81, 2.0), "accurate", ["spice", "exact"])
+    name, worst = result.worst_output("spice")
+    assert worst == max(result.errors()["spice"].per_output.values())
+    assert (worst > 1e-6) == ("spice" in result.outside_bound())
+    assert name in result.table()
 
 
 def test_a_comparison_above_the_horizontal_says_the_equilibrium_is_unstable():
     """θ1 = 0.3 rad up: gravity's stiffness is negative; the exact solution grows and the report says so."""
-    from analogy.results.comparison import compare
+    from analogy.study.comparison import compare
     from analogy.scenes.scene import Scene
     from analogy.scenes.spec import ModelSpec
     sc = Scene.of("up", ModelSpec(robot="flex1"), q=[0.3, 0, 0], forces=[0, 0, 0], t_stop=0.5)

@@ -43,7 +43,7 @@ def test_frequency_grid_is_ngspice_dec_sweep_and_bad_sweeps_are_refused():
 def test_spice_mobility_of_the_flexible_arm_matches_the_exact_one(topology):
     """SPICE's AC sweep agrees with (M's + B' + K'/s)⁻¹ (measured: 6e-9 parallel, 1.5e-8 serial) and
     locates every resonance within 1e-3 of the generalised eigenvalues (measured: worst 2.3e-4)."""
-    from analogy.solvers.ac import mobility_check
+    from analogy.study.mobility import mobility_check
     sc = Scene.of("arm", ModelSpec(robot="flex2"), q=[-0.6, 0.3, 0, 0, 0, 0], forces=[1, 1, 0, 0, 0, 0],
                   topology=topology)
     check = mobility_check(sc.system(), per_decade=500)

@@ -22,8 +22,9 @@ import sympy as sp
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from hang_guard import finishes
 from analogy import InputError, SimulationError, node_system
-from analogy.circuit.netlist import netlist
+from analogy.solvers.transient import netlist
 from analogy.circuit.topology import serial
 from analogy.cli import main
 from analogy.model.expressions import FUNCTION_NAMES, parse_expression, parse_number
@@ -99,6 +100,8 @@ _CONTROL = re.compile(r"\b(shell|include|lib|control|endc|exec|system)\b|^\s*\."
 def check_netlist(text: str) -> None:
     """Every line (split as the loader splits it) is one the writer meant; values are finite."""
     assert text.isascii()
+    # the one control block allowed is the printing one, word for word, before .end
+    text = text.replace("\n.control\nset numdgt=15\noption interp\n.endc\n.end\n", "\n.end\n")
     for line in text.splitlines():      # splitlines also breaks at \r, \x0b, \x0c, \x1c-\x1e
         assert _LINE.match(line), f"unexpected netlist line {line!r}"
         if not line.startswith(("*", ".")):
@@ -137,18 +140,16 @@ def report():
 @profile("expressions")
 def test_expressions_give_a_bounded_value_or_one_sentence(text):
     with case("expressions"):
-        start = time.perf_counter()
         try:
-            value = parse_expression(text, SYMBOLS)
+            value = finishes(lambda: parse_expression(text, SYMBOLS))
         except InputError as exc:
             refused("expressions", exc)
         else:
             assert all(math.isfinite(float(x)) for x in value.atoms(sp.Number))
         try:
-            assert math.isfinite(parse_number(text))
+            assert math.isfinite(finishes(lambda: parse_number(text)))
         except InputError:
             pass
-        assert time.perf_counter() - start < 1.0
 
 
 def _symmetric(n: int):

@@ -3,8 +3,6 @@
 import os
 import subprocess
 import sys
-import time
-
 import pytest
 import sympy as sp
 
@@ -12,6 +10,7 @@ from analogy import InputError
 from analogy.cli import main
 from analogy.model.expressions import MAX_EXPONENT, parse_expression, parse_number
 from analogy.scenes.paths import inside_folder
+from hang_guard import finishes
 
 SYMBOLS = {name: sp.Symbol(name, real=True) for name in ("a", "q1", "q2")}
 
@@ -41,18 +40,14 @@ def refused(capsys, *args) -> str:
     ("acos(2) + q1", "acos() is given an argument outside its domain"),
     ("(-8)**(1/3) + q1", "complex numbers"),
 ])
-def test_exploding_expressions_are_refused_within_milliseconds(text, fragment):
-    start = time.perf_counter()
+def test_exploding_expressions_are_refused_without_evaluating_them(text, fragment):
     with pytest.raises(InputError, match=fragment.replace("(", r"\(").replace(")", r"\)")):
-        parse_expression(text, SYMBOLS)
-    assert time.perf_counter() - start < 0.05
+        finishes(lambda: parse_expression(text, SYMBOLS))
 
 
 def test_underflow_is_an_answer_not_a_memory_explosion():
-    start = time.perf_counter()
-    assert parse_number("2^-(10^30)") == 0.0
-    assert parse_expression("2^-(10^30) + a", SYMBOLS) == SYMBOLS["a"]
-    assert time.perf_counter() - start < 0.05
+    assert finishes(lambda: parse_number("2^-(10^30)")) == 0.0
+    assert finishes(lambda: parse_expression("2^-(10^30) + a", SYMBOLS)) == SYMBOLS["a"]
 
 
 def test_constant_parts_of_formulas_keep_their_value():
@@ -76,9 +71,7 @@ def test_constant_parts_of_formulas_keep_their_value():
     (["--mass", "[[3 + (q1+q2+1)**100, 0], [0, 1]]", "--dynamics", "nonlinear"], "expands to about 5.15e+03 terms"),
 ])
 def test_symbolic_path_failures_are_one_sentence(capsys, args, fragment):
-    start = time.perf_counter()
-    assert fragment in refused(capsys, "netlist", *args)
-    assert time.perf_counter() - start < 5
+    assert fragment in finishes(lambda: refused(capsys, "netlist", *args))
 
 
 def scene_file(folder, outputs="", inputs="forces = [1, 1]", parameters=""):

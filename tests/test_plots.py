@@ -6,7 +6,7 @@ import pytest
 from analogy.bench import bench
 from analogy.cli import main
 from analogy.presets import PRESETS
-from analogy.results.comparison import compare
+from analogy.study.comparison import compare
 from analogy.results.plots import error_envelope, shown_joints, solver_style
 from analogy.scenes.builtin import scene
 

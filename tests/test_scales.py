@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from analogy.circuit.netlist import netlist
+from analogy.solvers.transient import netlist
 from analogy.circuit.node_system import node_system
 from analogy.circuit.scales import combined_scales, system_scales
 from analogy.model.joint import JointSpace
@@ -46,15 +46,19 @@ def test_the_fastest_oscillation_is_the_largest_damped_natural_frequency():
     assert system_scales(shaken).omega_max == pytest.approx(2 * np.pi * 50, rel=1e-12)
 
 
-def test_a_fast_mode_caps_the_step_and_shortens_the_print_step_to_a_divisor():
+def test_a_fast_mode_caps_the_step_and_shortens_the_first_step_not_the_print_step():
     """ω = 2000 rad/s over 1 s: tmax = 0.016/ω at accurate (not t_stop/20000); the print step
-    divides t_stop/1000 and is short enough for a first step of 3e-4/ω."""
+    stays t_stop/1000, and a zero source's corner at t_b makes ngspice's first step
+    t_b/100 = 3e-4/ω, which its own (a hundredth of the print step) is not."""
     s = node_system(JointSpace([[1.0, 0], [0, 1.0]], stiffness=[[4e6, 0], [0, 1.0]]), forces=[1, 0],
                     t_stop=1.0)
-    tstep, t_stop, tmax = tran_line(netlist(s, "accurate"))
+    text = netlist(s, "accurate")
+    tstep, t_stop, tmax = tran_line(text)
     assert tmax == pytest.approx(0.016 / 2e3, rel=1e-12)
-    k = round(t_stop / 1000 / tstep)
-    assert tstep == pytest.approx(t_stop / 1000 / k, rel=1e-12) and tstep / 100 <= 3e-4 / 2e3
+    assert tstep == pytest.approx(t_stop / 1000, rel=1e-12) and tstep / 100 > 3e-4 / 2e3
+    corner = next(ln for ln in text.splitlines() if ln.startswith("Ifirst_step"))
+    assert corner.startswith("Ifirst_step 0 n1 PWL(0 0 ") and corner.endswith(" 0)")
+    assert float(corner.split()[5]) / 100 == pytest.approx(3e-4 / 2e3, rel=1e-12)
 
 
 def test_absolute_tolerances_follow_the_units_of_the_system():
@@ -66,10 +70,13 @@ def test_absolute_tolerances_follow_the_units_of_the_system():
 
 
 def test_abstol_stays_above_the_rounding_of_a_capacitor_current():
-    """A stiff, heavy circuit: abstol ≥ 1e4·ε·q·ω_max, or rounding reads as truncation error."""
+    """A stiff, heavy circuit: abstol ≥ cond(M')·ε·q/h at the first step h = 3e-4/ω_max, or
+    rounding reads as truncation error (written to 3 digits, hence 0.999)."""
     s = node_system(JointSpace([[50.0, 0], [0, 1.0]], stiffness=[[5e7, 0], [0, 1.0]]), forces=[1, 0])
     sc = system_scales(s)
-    assert float(options(netlist(s, "accurate"))["abstol"]) >= 0.999 * sc.rounding_current > 1e-15 * sc.current
+    first = 3e-4 / sc.omega_max
+    assert sc.conditioning == pytest.approx(50.0, rel=1e-12)
+    assert float(options(netlist(s, "accurate"))["abstol"]) >= 0.999 * sc.rounding_current(first) > 1e-15 * sc.current
 
 
 def test_a_step_budget_bounds_the_work_of_a_long_run():

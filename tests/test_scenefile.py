@@ -164,7 +164,8 @@ def test_netlist_saves_only_requested_vectors(tmp_path):
 
 def test_netlist_save_names_are_checked():
     from analogy.circuit.description import circuit
-    from analogy.circuit.netlist import netlist, save_vectors
+    from analogy.circuit.netlist import save_vectors
+    from analogy.solvers.transient import netlist
     job = parse_scene(VALID)
     s = job.system()
     assert save_vectors(circuit(s), ["n1", "C1_2", "r1_2"]) == ["v(n1)", "@c1_2[i]", "@r1_2[i]"]
@@ -311,7 +312,7 @@ def _system(name):
 def test_spice_element_currents_match_exact(name):
     """Per element kind, SPICE's device currents within 1e-6 of the peak of the exact ones."""
     from analogy.circuit.elements import elements
-    from analogy.circuit.netlist import netlist
+    from analogy.solvers.transient import netlist
     from analogy.solvers.exact import solve_exact
     from analogy.solvers.spice import run_netlist
     s = _system(name)
@@ -351,7 +352,7 @@ def test_scene_element_currents_from_spice(tmp_path):
 
 @pytest.mark.ngspice
 def test_realizable_element_current_is_the_couplings(tmp_path):
-    from analogy.circuit.netlist import netlist
+    from analogy.solvers.transient import netlist
     from analogy.solvers.exact import solve_exact
     from analogy.solvers.spice import run_netlist
     s = load_scene(SCENES_DIR / "default.toml").system()

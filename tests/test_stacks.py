@@ -8,7 +8,8 @@ import analogy
 from analogy.batch import run_batch
 from analogy.circuit.description import circuit
 from analogy.circuit.elements import element_table, elements
-from analogy.circuit.netlist import batch_netlist, circuit_lines
+from analogy.circuit.netlist import circuit_lines
+from analogy.solvers.transient import batch_netlist
 from analogy.circuit.node_system import node_system, node_systems
 from analogy.model.robots import robot
 from analogy.model.symbolic import Model

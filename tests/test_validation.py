@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from analogy import InputError, node_system
-from analogy.circuit.netlist import netlist
+from analogy.solvers.transient import netlist
 from analogy.model.expressions import parse_expression, parse_matrix, parse_number
 from analogy.model.joint import JointSpace
 
@@ -102,7 +102,9 @@ def test_names_cannot_smuggle_spice_control_lines():
     s = node_system(js, forces=[1.0, 0.0], info={"robot": "evil\n.control\nshell rm -rf /\n.endc"})
     text = netlist(s, title="x\r\n.include /etc/passwd")
     directives = [ln.split()[0] for ln in text.splitlines() if ln.startswith(".")]
-    assert directives == [".ic", ".options", ".tran", ".save", ".print", ".end"]
+    # the one control block is the printing one: numdgt and interp, which a run in process leaves out
+    assert directives == [".ic", ".options", ".tran", ".save", ".print", ".control", ".endc", ".end"]
+    assert text.split(".control\n")[1].split(".endc")[0] == "set numdgt=15\noption interp\n"
     with pytest.raises(InputError, match="unknown node"):
         netlist(s, save=["n1\n.control"])
 

@@ -10,7 +10,7 @@ from analogy.cli import main
 from analogy.model.joint import JointSpace
 from analogy.presets import PRESETS
 from analogy.scenes.builtin import SCENES
-from analogy.solvers.work import check_work, estimate_work
+from analogy.study.work import check_work, estimate_work
 
 
 @pytest.mark.parametrize("args, fragment", [

@@ -18,7 +18,7 @@ import numpy as np
 
 from ..errors import AnalogyError, InputError
 from ..presets import preset as get_preset
-from ..results.comparison import compare_many
+from ..study.comparison import compare_many
 from ..results.output import html_table, write_rows
 from ..scenes.scene import Scene
 from ..solvers.registry import solver

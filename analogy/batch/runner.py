@@ -218,6 +218,10 @@ def _remote(payload):
         one[j] = True
         try:
             cols, traj = solve_group(sweep, start, points, one, True, trajectories)
+        except InputError as exc:       # the scene itself: past the work budget, say
+            cols, traj = _died(sweep, start, points, one, _solvers(sweep)), None
+            cols["status"] = ["invalid"]
+            cols["message"] = [str(exc)]
         except Exception as exc:        # noqa: BLE001
             cols, traj = _died(sweep, start, points, one, _solvers(sweep)), None
             cols["status"] = ["failed"]

@@ -20,7 +20,6 @@ from .parts import (
     current_sources,
     describe_forces,
 )
-from .scales import system_scales
 
 __all__ = ["CurrentSource", "Coupling", "ChargeCapacitor", "BehaviouralCurrent", "Integrator", "Circuit",
            "circuit", "circuits", "current_sources", "describe_forces", "comments"]
@@ -98,15 +97,13 @@ def circuit(system, zero_tol: float = ZERO_TOL, realizable: bool = False, descri
             across = (v0[e.b - 1] if e.b else 0.0) - v0[e.a - 1]
             initial += [(node, float(across)) for node in c.auxiliary_nodes]
     return Circuit(system.dof, tuple(parts), current_sources(system, zero_tol), tuple(initial),
-                   system.t_stop, couplings, (), comments(system) if describe else (), system_scales(system))
+                   system.t_stop, couplings, (), comments(system) if describe else ())
 
 
 def circuits(systems: Sequence, zero_tol: float = ZERO_TOL) -> list[Circuit]:
     """The circuits of many linear systems, their elements split as one stack per size.
 
-    Systems that share forces and topology share their sources, derived once. Their
-    :attr:`Circuit.scales` are left out: :func:`~analogy.circuit.scales.stack_scales`
-    gives them for a whole stack at once.
+    Systems that share forces and topology share their sources, derived once.
 
     Parameters
     ----------

@@ -1,4 +1,4 @@
-"""SPICE text of circuit descriptions: one netlist, or many circuits in one run; the only SPICE writer."""
+"""SPICE text of circuit descriptions and the spice solver's settings: the only SPICE writer, which only formats."""
 
 from __future__ import annotations
 
@@ -6,22 +6,18 @@ import math
 import re
 from typing import Iterable, Sequence
 
-from ..errors import InputError, SimulationError
-from ..presets import Preset
-from ..presets import preset as get_preset
+from ..errors import InputError
 from .description import (
     BehaviouralCurrent,
     ChargeCapacitor,
     Circuit,
     Integrator,
-    circuits,
 )
 from .description import circuit as describe
 from .elements import ZERO_TOL
-from .scales import Scales, combined_scales, stack_scales
 
-__all__ = ["netlist", "ac_netlist", "batch_netlist", "circuit_lines", "analysis_lines", "save_vectors",
-           "comment_text", "spice_expression"]
+__all__ = ["write_netlist", "write_batch", "ac_netlist", "circuit_lines", "analysis_lines", "first_step_lines",
+           "save_vectors", "comment_text", "spice_expression"]
 
 _SAFE_COMMENT = re.compile(r"[^A-Za-z0-9 _.,:;=+\-*/()\[\]{}<>'#%@!?|~^&$]")
 _SAFE_EXPRESSION = re.compile(r"^[A-Za-z0-9_.+\-*/()^ ,<>=!&|?:]+$")
@@ -122,76 +118,53 @@ def circuit_lines(c: Circuit, prefix: str = "", memo: dict | None = None) -> lis
     return lines
 
 
-_SCALE_NAMES = {"abstol": "current scale [A]", "vntol": "velocity scale [V]", "chgtol": "charge C·v [C]"}
-
-
-def analysis_lines(preset: str | Preset, t_stop: float, ic: Iterable[tuple[str, float]],
-                   save: Iterable[str], options: dict | None = None, printing: bool = False,
-                   behavioural: bool = False, scales: Scales | None = None, loosen: float = 1.0) -> list[str]:
-    """``.ic``, ``.options``, ``.tran`` (uic), ``.save`` and, with *printing*, ``.print``.
+def analysis_lines(settings, ic: Iterable[tuple[str, float]], save: Iterable[str],
+                   printing: bool = False) -> list[str]:
+    """``.ic``, ``.options``, ``.tran`` (uic), ``.save`` and, with *printing*, ``.print``: *settings* formatted.
 
     Parameters
     ----------
-    preset : str or Preset
-        Its SPICE options, print step and step cap.
-    t_stop : float
-        End of the transient.
+    settings : TransientSettings
+        The spice solver's settings (:class:`~analogy.solvers.transient.TransientSettings`):
+        ``options``, ``print_step``, ``stop``, ``max_step`` and ``breakpoint``.
     ic : iterable of (str, float)
         Node voltages at t = 0.
     save : iterable of str
         Vectors to save (``v(n1)``, ``@c1_2[i]``).
-    options : dict, optional
-        Overrides of the preset's options.
     printing : bool
-        Add ``.print tran`` of the saved vectors, so that ``ngspice -b`` prints them.
-    behavioural : bool
-        The circuit has behavioural parts: the preset's behavioural options and step cap.
-    scales : Scales, optional
-        The circuit's scales: the absolute tolerances are taken relative to them (abstol
-        no lower than :attr:`Scales.rounding_current`), the
-        step cap to ``preset.phase_step`` of the fastest rate (within
-        ``preset.step_budget``), and the print step (which
-        sets ngspice's unchecked first step, a hundredth of it) to a whole
-        divisor of t_stop/steps that meets ``preset.first_phase_step``.
-    loosen : float
-        Factor on the absolute tolerances ``abstol`` and ``vntol``: the retry of a run
-        whose step collapsed on rounding (see :func:`~analogy.solvers.spice.solve_spice`).
+        Add ``.print tran`` of the saved vectors on the print step (``option interp``)
+        with 15 significant digits, so that ``ngspice -b`` prints them; ``interp`` changes
+        what is printed, not the steps taken.
     """
-    p = get_preset(preset)
-    base = p.behavioural_options if behavioural else p.spice_options
-    opts = dict(base, **(options or {}))
-    tmax = t_stop / (p.behavioural_max_steps if behavioural else p.max_steps)
-    tstep = t_stop / p.steps
-    if scales is not None:
-        for key, size in (("abstol", scales.current), ("vntol", scales.peak_velocity),
-                          ("chgtol", scales.charge)):
-            if key in opts and key not in (options or {}):
-                floor = scales.rounding_current if key == "abstol" else 0.0
-                factor = loosen if key in ("abstol", "vntol") else 1.0
-                value = factor * max(float(opts[key]) * size, floor)       # Python floats overflow to inf
-                if not math.isfinite(value):
-                    raise SimulationError(f"SPICE cannot run this circuit: its {key} scale is past the floating-point "
-                                     f"range ({_SCALE_NAMES[key]} = {size:.3g}); the ODE and exact solvers can")
-                opts[key] = f"{value:.3g}"
-        first = scales.step_limit(p.first_phase_step, p.bound / 10)
-        if not first > 0:                   # zero or NaN: a rate past the float range
-            raise InputError(f"the circuit's fastest rate ({scales.omega_max:.3g} rad/s) leaves the range "
-                             "ngspice can step: rescale the masses, dampers or springs")
-        tmax = min(tmax, max(scales.step_limit(p.phase_step, p.bound), t_stop / p.step_budget))
-        # a whole divisor of the preset's print step, so the preset's grid stays in it. The
-        # first (backward Euler) step errs by up to 0.2 of a mode's share, so every decay
-        # with a share above the bound counts (see `first`), not only those above ten times it.
-        tstep /= math.ceil(tstep / min(tstep, 100 * first))
     save = list(save)
+    options = " ".join(f"{k}={v}" for k, v in settings.options)
     lines = [
         ".ic " + " ".join(f"v({n})={_num(v)}" for n, v in ic),
-        ".options " + " ".join(f"{k}={v}" for k, v in opts.items()),
-        f".tran {_num(tstep)} {_num(t_stop)} 0 {_num(tmax)} uic",
+        ".options " + options,
+        f".tran {_num(settings.print_step)} {_num(settings.stop)} 0 {_num(settings.max_step)} uic",
         ".save " + " ".join(save),
     ]
     if printing:
-        lines.append(".print tran " + " ".join(save))
+        # in a .control block, which a run in process leaves out (see analogy.solvers.ngspice)
+        lines += [".print tran " + " ".join(save), ".control", "set numdgt=15", "option interp", ".endc"]
     return lines
+
+
+def first_step_lines(settings, node: str) -> list[str]:
+    """A zero current source with a corner at ``settings.breakpoint``, which makes ngspice's first
+    (unchecked, backward Euler) step a hundredth of it; nothing when its own is short enough.
+
+    Parameters
+    ----------
+    settings : TransientSettings
+        The spice solver's settings.
+    node : str
+        A node of the circuit to hang the source on (it carries no current).
+    """
+    if settings.breakpoint is None:
+        return []
+    return ["* zero current; its corner sets ngspice's first step to a hundredth of its time",
+            f"Ifirst_step 0 {node} PWL(0 0 {_num(settings.breakpoint)} 0)"]
 
 
 def save_vectors(c: Circuit, save: Iterable[str] | None = None) -> list[str]:
@@ -242,73 +215,49 @@ def _header(c: Circuit, title: str | None, realizable: bool) -> list[str]:
     return lines
 
 
-def netlist(system, preset: str | Preset = "accurate", save: Iterable[str] | None = None,
-            zero_tol: float = ZERO_TOL, title: str | None = None, realizable: bool = False,
-            printing: bool = True, loosen: float = 1.0) -> str:
-    """Write *system* as a SPICE netlist that ``ngspice -b`` runs and prints unchanged.
+def write_netlist(c: Circuit, settings, save: Iterable[str] | None = None, title: str | None = None,
+                  printing: bool = True) -> str:
+    """Circuit *c* with the spice solver's *settings* as a SPICE netlist that ``ngspice -b`` runs unchanged.
 
     Parameters
     ----------
-    system : NodeSystem or Circuit
-        The system (its circuit is described here) or a circuit description.
-    preset : str or Preset
-        Accuracy preset for ``.options`` and ``.tran``.
+    c : Circuit
+        The circuit description.
+    settings : TransientSettings
+        The spice solver's transient settings (:func:`~analogy.solvers.transient.transient_settings`).
     save : iterable of str, optional
         Node names (``n1`` …) whose voltages to save and element names (``C1_2``,
         ``R1`` …) whose currents to save (see :func:`save_vectors`); default all nodes.
-    zero_tol : float
-        Relative tolerance under which an element is left out.
     title : str, optional
         First line of the netlist.
-    realizable : bool
-        Build negative elements from positive ones behind inverting couplings.
     printing : bool
-        End with ``.print tran`` of the saved vectors (``ngspice -b`` prints them; the
-        in-process run ignores the line).
-    loosen : float
-        Factor on the absolute tolerances (see :func:`analysis_lines`).
+        End with ``.print tran`` of the saved vectors (see :func:`analysis_lines`).
     """
-    c = system if isinstance(system, Circuit) else describe(system, zero_tol, realizable)
     vectors = save_vectors(c, save)
-    body = circuit_lines(c)
-    # A capacitor driven by an ideal source makes the trapezoidal rule ring from step to
-    # step, and tight step control then collapses; gear damps it.
-    options = {"method": "gear"} if c.couplings else None
-    tail = analysis_lines(preset, c.t_stop, c.initial, vectors, options, printing,
-                          behavioural=bool(c.behavioural), scales=c.scales, loosen=loosen) + [".end"]
+    body = circuit_lines(c) + first_step_lines(settings, c.node_names[0])
+    tail = analysis_lines(settings, c.initial, vectors, printing) + [".end"]
     return "\n".join(_header(c, title, bool(c.couplings)) + body + tail) + "\n"
 
 
-def batch_netlist(systems: Sequence, preset: str | Preset = "fast", scales: Scales | None = None) -> str:
-    """One netlist holding every system as an independent sub-circuit (prefix ``x<k>_``).
-
-    All systems must share t_stop, so that one ``.tran`` serves them all; their
-    circuits come from :func:`~analogy.circuit.description.circuits`, one stack per size.
+def write_batch(described: Sequence[Circuit], settings) -> str:
+    """Circuits as independent sub-circuits (prefix ``x<k>_``) of one netlist under one ``.tran``.
 
     Parameters
     ----------
-    systems : sequence of NodeSystem
-        The systems, sharing t_stop.
-    preset : str or Preset
-        Accuracy preset for ``.options`` and ``.tran``.
-    scales : Scales, optional
-        Their combined scales, if already known (else computed here).
+    described : sequence of Circuit
+        The circuits, sharing t_stop (:func:`~analogy.circuit.description.circuits`).
+    settings : TransientSettings
+        Their shared transient settings.
     """
-    if not systems:
-        raise InputError("a batch needs at least one system")
-    t_stop = systems[0].t_stop
-    if any(s.t_stop != t_stop for s in systems):
-        raise InputError("systems in one ngspice run must share t_stop")
-    lines, ic, save = [f"* analogy batch of {len(systems)} independent circuits"], [], []
+    lines, ic, save = [f"* analogy batch of {len(described)} independent circuits"], [], []
     memo: dict = {}         # circuits of one family share their sources, and t_stop
-    described = circuits(systems)
     for k, c in enumerate(described):
         prefix = f"x{k}_"
         lines += circuit_lines(c, prefix, memo)
         ic += [(prefix + n, v) for n, v in c.initial]
         save += [f"v({prefix}{n})" for n in c.node_names]
-    scales = scales or combined_scales(stack_scales(systems))
-    return "\n".join(lines + analysis_lines(preset, t_stop, ic, save, scales=scales) + [".end"]) + "\n"
+    lines += first_step_lines(settings, "x0_n1")
+    return "\n".join(lines + analysis_lines(settings, ic, save) + [".end"]) + "\n"
 
 
 def ac_netlist(system, joint: int, f_start: float, f_stop: float, per_decade: int,

@@ -35,7 +35,6 @@ from .parts import (
     comments,
     current_sources,
 )
-from .scales import system_scales
 
 __all__ = ["NodeLagrangian", "node_lagrangian", "nonlinear_circuit", "spice_text"]
 
@@ -186,4 +185,4 @@ def nonlinear_circuit(system, zero_tol: float = ZERO_TOL, describe: bool = True)
                     + [(node, p.initial) for p in parts if isinstance(p, ChargeCapacitor) and p.initial != 0.0
                        for node in p.follower_nodes])
     return Circuit(n, elements, current_sources(system, zero_tol), initial, system.t_stop, (),
-                   tuple(parts), comments(system) if describe else (), system_scales(system))
+                   tuple(parts), comments(system) if describe else ())

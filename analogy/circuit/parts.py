@@ -115,9 +115,9 @@ class Circuit(NamedTuple):
         End of the transient.
     comments : tuple of str
         What was built: robot, parameters, configuration, topology, forces.
-    scales : Scales or None
-        The system's time, velocity and current scales, which the ``.tran`` step cap
-        and tolerances follow (None: t_stop alone sets them).
+
+    A circuit is what is built, not how it is simulated: the spice solver derives its
+    settings from the system (:mod:`analogy.solvers.transient`).
     """
 
     nodes: int
@@ -128,7 +128,6 @@ class Circuit(NamedTuple):
     couplings: tuple = ()
     behavioural: tuple = ()
     comments: tuple = ()
-    scales: object = None
 
     def __repr__(self) -> str:
         kinds = ", ".join(f"{sum(e.kind == k for e in self.parts)} {k}" for k in "CRL"

@@ -47,6 +47,9 @@ class Scales:
     decays, shares : ndarray
         Per overdamped or free mode: its decay rate β_k [1/s], and its velocity over the
         peak velocity (see :meth:`fastest`).
+    conditioning : float
+        cond(M'), the largest over the smallest eigenvalue: how much the rounding of a
+        step's solve grows in the node voltages (the abstol floor follows it).
     """
 
     omega_max: float
@@ -56,23 +59,35 @@ class Scales:
     charge: float
     decays: np.ndarray = field(default_factory=lambda: np.zeros(0))
     shares: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    conditioning: float = 1.0
+    nodes: int | None = None
 
     def __repr__(self) -> str:
         return (f"Scales(omega_max={self.omega_max:.4g} rad/s, velocity={float(np.max(self.velocity)):.3g}, "
                 f"current={self.current:.3g}, charge={self.charge:.3g})")
 
     @property
+    def size(self) -> int:
+        """The number of nodes (the largest, for combined scales)."""
+        return int(np.size(self.velocity)) if self.nodes is None else self.nodes
+
+    @property
     def peak_velocity(self) -> float:
         """The largest node velocity scale."""
         return float(np.max(self.velocity))
 
-    @property
-    def rounding_current(self) -> float:
-        """1e4·ε·charge·ω_max [A]: the rounding in a capacitor current (2/h)·Δq at steps down
-        to ω_max·h = 2e-4. An abstol under it lets rounding read as truncation error, and
-        ngspice then cuts the step until it stops with "timestep too small" (measured on
-        flex2: abstol 5e-8 A stops, 1e-7 A runs, where this gives 4.4e-7 A)."""
-        return 1e4 * float(np.finfo(float).eps) * self.charge * self.omega_max
+    def rounding_current(self, step: float) -> float:
+        """cond(M')·ε·charge/h [A]: the rounding in a capacitor current Δq/h at steps *step*,
+        grown by the conditioning of the solve. An abstol under a few of these lets rounding
+        read as truncation error, and ngspice then cuts the step until it stops with
+        "timestep too small" (see :data:`analogy.solvers.transient.ROUNDING_STEPS`).
+
+        Parameters
+        ----------
+        step : float
+            The shortest step the run takes [s].
+        """
+        return self.conditioning * float(np.finfo(float).eps) * self.charge / step
 
     def fastest(self, bound: float) -> float:
         """ω_max, or the fastest decay of a mode larger than 10·*bound* of the peak if that is faster.
@@ -205,8 +220,10 @@ def _estimated_scales(first, m, b, k, v0) -> list[Scales]:
     # overdamped or free modes decay at up to β_k; their share of the peak velocity
     share = np.max(np.abs(phi), axis=1) * (drive * span + start) * growth / np.max(velocity, axis=1, keepdims=True)
     decays = np.where((beta > 0) & (beta >= 2 * np.sqrt(np.maximum(mu, 0.0))), beta, 0.0)
-    return [Scales(float(fastest[j]), velocity[j], position[j], current, float(charge[j]), decays[j], share[j])
-            for j in range(count)]
+    eig = np.linalg.eigvalsh(m)
+    cond = eig[:, -1] / eig[:, 0] if n else np.ones(count)
+    return [Scales(float(fastest[j]), velocity[j], position[j], current, float(charge[j]), decays[j], share[j],
+                   float(cond[j])) for j in range(count)]
 
 
 def combined_scales(scales: Sequence[Scales]) -> Scales:
@@ -221,4 +238,5 @@ def combined_scales(scales: Sequence[Scales]) -> Scales:
     return Scales(max(s.omega_max for s in scales), np.array([top]),
                   np.array([max(float(np.max(s.position)) for s in scales)]),
                   max(s.current for s in scales), max(s.charge for s in scales),
-                  np.concatenate([s.decays for s in scales]), np.concatenate([s.shares for s in scales]))
+                  np.concatenate([s.decays for s in scales]), np.concatenate([s.shares for s in scales]),
+                  max(s.conditioning for s in scales), max(s.size for s in scales))

@@ -78,6 +78,10 @@ class Trajectory(Tabular):
     work : ndarray, shape (N,), or None
         ∫(F − G)·q̇ − q̇ᵀBq̇ dt, where the solver integrates it (nonlinear systems):
         the work of every force not in the kinetic and spring energies.
+    settings : object or None
+        What the solver ran with, retries included (SPICE: its
+        :class:`~analogy.solvers.transient.TransientSettings`, which
+        :func:`~analogy.circuit.netlist.write_netlist` turns into the netlist that ran).
     """
 
     solver: str
@@ -90,6 +94,7 @@ class Trajectory(Tabular):
     message: str = ""
     stats: SolverStats = field(default_factory=SolverStats)
     work: np.ndarray | None = None
+    settings: object = None
 
     @classmethod
     def failed(cls, solver: str, message: str, wall_time: float = math.nan) -> "Trajectory":
@@ -138,7 +143,7 @@ class Trajectory(Tabular):
         currents = {k: np.interp(t, self.time, x) for k, x in self.currents.items()}
         return Trajectory(self.solver, t, volts, joint_rates(volts), interp(self.positions), currents,
                           self.success, f"interpolated from its {self.time.size} own time points",
-                          self.stats)
+                          self.stats, settings=self.settings)
 
     def columns(self) -> dict[str, np.ndarray]:
         """``time``, joint rates ``r1`` …, node voltages ``v_n1`` … and currents ``i_C1_2`` …"""

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Sequence
 
-from ..circuit.netlist import netlist
+from ..solvers.transient import netlist
 from ..errors import InputError
 from .scene import Scene
 from .spec import ModelSpec

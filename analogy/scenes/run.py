@@ -9,10 +9,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..circuit.netlist import netlist as make_netlist
+from ..solvers.transient import netlist as make_netlist
 from ..errors import InputError
 from ..presets import preset as get_preset
-from ..results.comparison import compare
+from ..study.comparison import compare
 from ..results.metrics import absolute_error, relative_error
 from ..results.output import Tabular, html_table
 from .build import keyed
@@ -189,7 +189,7 @@ class SceneResult(Tabular):
         """``{quantity: {solver: (max |x − x_ref|, that / peak |x_ref|)}}``.
 
         Joint rates are measured on each solver's own points (see
-        :class:`~analogy.results.comparison.Comparison`); node voltages and element
+        :class:`~analogy.study.comparison.Comparison`); node voltages and element
         currents on the shared time points. Empty without a reference.
         """
         out: dict = {}

@@ -9,10 +9,9 @@ import numpy as np
 from ..circuit.netlist import ac_netlist
 from ..circuit.node_system import NodeSystem
 from ..errors import InputError, SimulationError, SpiceError
-from ..results.frequency import FrequencyResponse, exact_mobility, frequency_grid, resonance_report, sweep_range
-from ..results.modes import natural_modes
+from ..results.frequency import FrequencyResponse, frequency_grid
 
-__all__ = ["spice_mobility", "MobilityCheck", "mobility_check"]
+__all__ = ["spice_mobility"]
 
 
 def spice_mobility(system, f_start: float, f_stop: float, per_decade: int = 500) -> FrequencyResponse:
@@ -50,34 +49,3 @@ def spice_mobility(system, f_start: float, f_stop: float, per_decade: int = 500)
             out[:, k, j] = data[f"v(n{k + 1})"]
     return FrequencyResponse(grid, out, "spice", np.linalg.inv(system.topology.matrix), system.info.get("units"),
                              tuple(system.info.get("configuration") or ()) or None)
-
-
-class MobilityCheck(NamedTuple):
-    """SPICE's swept mobilities against the exact ones: the two responses, the report and the error."""
-
-    spice: FrequencyResponse
-    exact: FrequencyResponse
-    report: str
-    worst_resonance: float
-    error: float
-
-
-def mobility_check(system, f_start: float | None = None, f_stop: float | None = None,
-                   per_decade: int = 500) -> MobilityCheck:
-    """Sweep *system*'s circuit in ngspice and compare with (M's + B' + K'/s)⁻¹ and the natural frequencies.
-
-    Parameters
-    ----------
-    system : NodeSystem
-        A linear node system.
-    f_start, f_stop : float, optional
-        The sweep [Hz]; by default a decade beyond the natural frequencies each way.
-    per_decade : int
-        Points per decade.
-    """
-    modes = natural_modes(system.joint)
-    natural = modes.omega / (2 * np.pi)
-    lo, hi = sweep_range(natural)
-    spice = spice_mobility(system, f_start or lo, f_stop or hi, per_decade)
-    exact = exact_mobility(system, spice.frequency)
-    return MobilityCheck(spice, exact, *resonance_report(natural, modes.unstable, spice, exact))

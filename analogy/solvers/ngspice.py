@@ -141,6 +141,22 @@ def _remove_orphan_copies() -> None:
         shutil.rmtree(folder, ignore_errors=True)
 
 
+def _without_control(lines: list[str]) -> list[str]:
+    """*lines* without their ``.control`` … ``.endc`` blocks: a run in process is driven from
+    here, and what such a block sets (``option interp`` of a printed netlist) would stay set
+    for every later circuit of the library."""
+    out, inside = [], False
+    for line in lines:
+        word = line.strip().lower()
+        if word.startswith(".control"):
+            inside = True
+        elif word.startswith(".endc"):
+            inside = False
+        elif not inside:
+            out.append(line)
+    return out
+
+
 class NgspiceSession:
     """One loaded ngspice library: load a netlist, run it, read vectors, free the circuit.
 
@@ -201,7 +217,7 @@ class NgspiceSession:
 
     def _load(self, netlist: str) -> list[tuple[str, str]]:
         ffi = self._ffi
-        raw = [line.encode("ascii", "replace") for line in netlist.splitlines() if line]
+        raw = [line.encode("ascii", "replace") for line in _without_control(netlist.splitlines()) if line]
         # One buffer of NUL-terminated lines and pointers into it: one allocation, not one per line.
         buf = ffi.new("char[]", b"\0".join(raw) + b"\0")
         array = ffi.new("char *[]", len(raw) + 1)       # zero-filled: the last pointer is NULL

@@ -10,15 +10,16 @@ import numpy as np
 
 from ..circuit.currents import element_currents
 from ..circuit.description import circuit
-from ..circuit.netlist import batch_netlist, netlist, save_vectors
+from ..circuit.netlist import save_vectors, write_netlist
 from ..circuit.node_system import stacked
-from ..circuit.scales import combined_scales, stack_scales
+from ..circuit.scales import combined_scales, stack_scales, system_scales
 from ..errors import SimulationError
 from ..presets import Preset
 from ..presets import preset as get_preset
 from ..results.trajectory import SolverStats, Trajectory
 from .ngspice import NgspiceSession, library_path, run_netlist, session, vector_key
 from .registry import Solver, stacked_trajectories
+from .transient import batch_netlist, transient_settings
 
 __all__ = ["NgspiceSession", "session", "run_netlist", "solve_spice", "library_path", "vector_key",
            "SpiceSolver", "SOLVER", "RETRY_LOOSEN"]     # the session's names, re-exported
@@ -80,14 +81,18 @@ def solve_spice(system, preset="accurate", save=None) -> Trajectory:
     circ = circuit(system, describe=False)
     names = [e for e in (save or []) if e not in system.nodes] + circ.state_nodes
     vectors = save_vectors(circ, list(system.nodes) + names)
+    scales = system_scales(system)
+    settings = transient_settings(preset, system.t_stop, scales, behavioural=bool(circ.behavioural),
+                                  coupled=bool(circ.couplings), breakpoints=system.breakpoints())
     sess = session()
     start = _time.perf_counter()
     note = ""
     for loosen in RETRY_LOOSEN:
         stats: dict = {}
-        text = netlist(circ, preset, save=list(system.nodes) + names, printing=False, loosen=loosen)
+        settings = settings.loosened(loosen)
+        text = write_netlist(circ, settings, list(system.nodes) + names, printing=False)
         try:
-            data = sess.run(text, vectors, stats, timeout=_limit(circ.scales, system.t_stop, get_preset(preset)))
+            data = sess.run(text, vectors, stats, timeout=_limit(scales, system.t_stop, get_preset(preset)))
             break
         except SimulationError as exc:
             # Rounding read as truncation error collapses the step: retry with looser
@@ -100,7 +105,7 @@ def solve_spice(system, preset="accurate", save=None) -> Trajectory:
     x = np.column_stack([data[f"v({n})"] for n in circ.state_nodes]) if circ.state_nodes else None
     currents = {name: data[vec] for name, vec in zip(names, vectors[system.dof:]) if name not in circ.state_nodes}
     tr = _trajectory(system, *_from_start(data["time"]), v, currents, stats, elapsed, x)
-    return replace(tr, message=note) if note else tr
+    return replace(tr, message=note, settings=settings) if note else replace(tr, settings=settings)
 
 
 class SpiceSolver(Solver):

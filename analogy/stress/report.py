@@ -13,7 +13,7 @@ import numpy as np
 
 from ..errors import AnalogyError, InputError
 from ..progress import Progress
-from ..results.comparison import compare
+from ..study.comparison import compare
 from ..results.metrics import relative_error
 from ..results.output import Tabular, write_rows
 from .families import FAMILY_TITLES, StressCase, cases

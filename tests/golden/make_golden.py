@@ -30,7 +30,9 @@ def main() -> int:
     version = next((ln.strip("* ").strip() for ln in version.splitlines() if "ngspice-" in ln), "unknown")
     for cir in sorted(NETLISTS.glob("*.cir")):
         raw = HERE / f"{cir.stem}.raw"
-        body = [ln for ln in cir.read_text().splitlines() if ln.strip().lower() != ".end"]
+        text = cir.read_text()
+        # the netlist's own printing block is replaced by one that writes a raw file
+        body = [ln for ln in text.split(".control")[0].splitlines() if ln.strip().lower() != ".end"]
         control = [".control", "set filetype=binary", "run", "linearize", f"write {raw}", ".endc", ".end"]
         with tempfile.TemporaryDirectory() as tmp:
             deck = Path(tmp) / cir.name

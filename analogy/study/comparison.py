@@ -4,27 +4,71 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Sequence
+from typing import TYPE_CHECKING, NamedTuple, Sequence
 
 import numpy as np
 
 from ..circuit.currents import trajectory_currents
+from ..circuit.scales import combined_scales, stack_scales
 from ..errors import InputError
 from ..presets import Preset
 from ..presets import preset as get_preset
 from ..solvers.registry import SOLVER_NAMES, run_many, solver
-from ..solvers.work import check_work
-from .metrics import errors, peak
-from .output import Tabular, html_table
-from .trajectory import Trajectory
+from .work import check_work
+from ..results.metrics import errors, output_errors, peak
+from ..results.output import Tabular, html_table
+from ..results.trajectory import Trajectory
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-__all__ = ["Comparison", "compare", "compare_many", "output_grid", "DEFAULT_SOLVERS"]
+__all__ = ["Comparison", "OutputErrors", "compare", "compare_many", "output_grid", "DEFAULT_SOLVERS"]
 
 #: The solvers a comparison runs unless told otherwise.
 DEFAULT_SOLVERS: tuple[str, ...] = ("spice", "ode", "exact")
+
+
+class OutputErrors(NamedTuple):
+    """One solver's errors, each output against its own peak (joint rates ``r1`` …, currents ``i_C1_2`` …).
+
+    Indexed as a pair, it is (largest absolute error, worst relative error of any output).
+    """
+
+    absolute: float
+    relative: float
+    worst: str
+    per_output: dict
+    whole: float            # max |error| over every output over the largest output's peak
+
+    @classmethod
+    def of(cls, names: Sequence[str], absolute: np.ndarray, relative: np.ndarray, whole: float) -> "OutputErrors":
+        """From per-output arrays (NaN where nothing was measured).
+
+        Parameters
+        ----------
+        names : sequence of str
+            The outputs.
+        absolute, relative : ndarray
+            Per output: max |error| and that over the output's own peak.
+        whole : float
+            Max |error| over every output over the largest output's peak.
+        """
+        rel = np.asarray(relative, dtype=float)
+        worst = int(np.nanargmax(rel)) if rel.size and not np.all(np.isnan(rel)) else 0
+        return cls(float(np.max(absolute)) if np.size(absolute) else math.nan,
+                   float(rel[worst]) if rel.size else math.nan, names[worst] if names else "",
+                   dict(zip(names, rel.tolist())), whole)
+
+    @classmethod
+    def zero(cls, names: Sequence[str]) -> "OutputErrors":
+        """The reference against itself.
+
+        Parameters
+        ----------
+        names : sequence of str
+            The outputs.
+        """
+        return cls(0.0, 0.0, names[0] if names else "", dict.fromkeys(names, 0.0), 0.0)
 
 
 @dataclass(eq=False, slots=True)
@@ -54,9 +98,10 @@ class Comparison(Tabular):
     energy : dict of str to float
         Nonlinear systems: per solver, max |T + U − T(0) − W| over the energy scale
         (:meth:`~analogy.circuit.nonlinear.NonlinearNodeSystem.energy_residual`).
-    measured : dict of str to (float, float)
-        Per solver: max |R − R_ref| and that over the peak |R_ref|, measured on the
-        solver's own time points.
+    measured : dict of str to OutputErrors
+        Per solver, measured on its own time points: every output (joint rate, element
+        current asked for) against that output's own peak; indexed as a pair, (max |error|,
+        the worst output's error over its peak).
     """
 
     system: object
@@ -76,10 +121,21 @@ class Comparison(Tabular):
         ref = self.results.get(self.reference) if self.reference else None
         return peak(ref.rates) if ref is not None else math.nan
 
-    def errors(self) -> dict[str, tuple[float, float]]:
-        """Per solver: (max |R − R_ref|, that divided by the peak); NaN without a reference."""
-        nan = (math.nan, math.nan)
+    def errors(self) -> dict[str, OutputErrors]:
+        """Per solver: (max |error|, the worst output's error over its own peak, …); NaN without a reference."""
+        nan = OutputErrors(math.nan, math.nan, "", {}, math.nan)
         return {name: self.measured.get(name, nan) for name in self.results}
+
+    def worst_output(self, solver: str) -> tuple[str, float]:
+        """The output of *solver* farthest from the reference relative to its own peak, and that figure.
+
+        Parameters
+        ----------
+        solver : str
+            A solver that ran.
+        """
+        e = self.errors()[solver]
+        return e.worst, e.relative
 
     def horizon(self, solver: str, tolerance: float = 1e-6) -> float:
         """The first time at which *solver* leaves the reference by more than *tolerance* of
@@ -104,11 +160,11 @@ class Comparison(Tabular):
 
     def outside_bound(self) -> dict[str, float]:
         """Solvers whose error / peak exceeds the preset's bound: a broken promise, flagged."""
-        return {name: r for name, (_, r) in self.errors().items()
-                if name != self.reference and r > self.bound}
+        return {name: e[1] for name, e in self.errors().items()
+                if name != self.reference and e[1] > self.bound}
 
     def max_relative_error(self, solver: str) -> float:
-        """Max error of *solver* relative to the reference's peak joint rate.
+        """The worst error of *solver*'s outputs, each relative to its own peak.
 
         Parameters
         ----------
@@ -122,30 +178,35 @@ class Comparison(Tabular):
         for name in list(self.results) + [f for f in self.failures if f not in self.results]:
             tr = self.results.get(name)
             if tr is None:
-                rows.append([name, "failed", "", "", "", self.failures[name]])
+                rows.append([name, "failed", "", "", "", "", "", self.failures[name]])
                 continue
-            e, r = self.errors()[name]
+            err = self.errors()[name]
             st = tr.stats
             note = "reference" if name == self.reference else tr.message
             if name in self.energy:
                 note = f"energy residual {self.energy[name]:.2e}" + (f", {note}" if note else "")
-            rows.append([name, tr.run_time * 1e3, e, r, "" if st.steps is None else st.steps, note])
-        return rows + [[name, "skipped", "", "", "", why] for name, why in self.skipped.items()]
+            worst = "" if name == self.reference else err.worst
+            rows.append([name, tr.run_time * 1e3, err.absolute, worst, err.relative, err.whole,
+                         "" if st.steps is None else st.steps, note])
+        return rows + [[name, "skipped", "", "", "", "", "", why] for name, why in self.skipped.items()]
 
     def table(self) -> str:
         """A plain-text table of run time, error and steps per solver."""
         info = self.system.info
         ref = self.reference or "none"
-        where = " (errors on each solver's own points)" if self.reference else " (no errors measured)"
+        where = (" (errors on each solver's own points; each output against its own peak)" if self.reference
+                 else " (no errors measured)")
         lines = [f"robot {info.get('robot', 'custom')}, topology {self.system.topology.name}, "
                  f"preset {self.preset}, {self.time.size} time points, reference {ref}{where}",
-                 f"{'solver':<10}{'run time [ms]':>15}{'max |error|':>14}{'error / peak':>14}{'steps':>8}"]
-        for name, ms, e, r, steps, note in self._rows():
+                 f"{'solver':<10}{'run time [ms]':>15}{'max |error|':>14}{'worst output':>14}"
+                 f"{'error / peak':>14}{'all / peak':>12}{'steps':>8}"]
+        for name, ms, e, worst, r, whole, steps, note in self._rows():
             if ms in ("failed", "skipped"):
                 lines.append(f"{name:<10}  {'failed' if ms == 'failed' else 'does not apply'}: {note}")
                 continue
             tail = f"  ({note})" if note else ""
-            errs = f"{e:>14.3e}{r:>14.3e}" if self.reference else f"{'-':>14}{'-':>14}"
+            errs = (f"{e:>14.3e}{worst or '-':>14}{r:>14.3e}{whole:>12.2e}" if self.reference
+                    else f"{'-':>14}{'-':>14}{'-':>14}{'-':>12}")
             lines.append(f"{name:<10}{ms:>15.3f}{errs}{steps!s:>8}{tail}")
         if getattr(getattr(self.system, "joint", None), "unstable", False):
             lines.append("unstable equilibrium: K + ∂G/∂q has a negative eigenvalue, so the motion grows")
@@ -162,8 +223,8 @@ class Comparison(Tabular):
                 f"on {self.time.size} points, error/peak vs {self.reference}: {errs}{failed}>")
 
     def _repr_html_(self) -> str:
-        return html_table(["solver", "run time [ms]", "max |error|", "error / peak", "steps", "note"],
-                          self._rows())
+        return html_table(["solver", "run time [ms]", "max |error|", "worst output", "error / its peak",
+                           "all / largest peak", "steps", "note"], self._rows())
 
     def columns(self) -> dict[str, np.ndarray]:
         """``time``, then every solver's joint rates ``r1_spice`` …"""
@@ -181,7 +242,7 @@ class Comparison(Tabular):
         path : str or Path, optional
             Image file to write (``.png``, ``.svg``, ``.pdf`` …).
         """
-        from .plots import plot_comparison
+        from ..results.plots import plot_comparison
         return plot_comparison(self, path)
 
 
@@ -268,6 +329,7 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
     if not systems:
         return []
     p = get_preset(preset)
+    _check_work(systems, p)                 # a run past the budget is refused before any starts
     names = _names(solvers)
     ref_name = _reference(systems[0], names, reference)
     order = [s for s in SOLVER_NAMES if s in names or s == ref_name]
@@ -314,7 +376,7 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
                     tr.currents = trajectory_currents(sys_, tr, save)
         runs[name] = trs
     out = []
-    measured = _measure(systems, runs, native, ref_name, p)
+    measured = _measure(systems, runs, native, ref_name, p, tuple(save))
     columns = [(n, runs[n]) for n in order]
     for k, system in enumerate(systems):
         results, failures = {}, {}
@@ -336,6 +398,19 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
         out.append(Comparison(system, p.name, grid, results, failures, ref, measured[k] if ref else {},
                               p.bound, energy, skipped))
     return out
+
+
+def _check_work(systems: Sequence, p: Preset) -> None:
+    """The work guard on every system: one estimate per stack sharing forces, t_stop and size,
+    from the stack's combined scales (its fastest rate)."""
+    groups: dict = {}
+    for s in systems:
+        if getattr(s, "kind", "linear") == "linear":
+            groups.setdefault((float(s.t_stop), id(s.forces), s.dof, id(s.topology)), []).append(s)
+        else:
+            check_work(s, p)
+    for group in groups.values():
+        check_work(group[0], p, None if len(group) == 1 else combined_scales(stack_scales(group)))
 
 
 def _group_indices(grids: list) -> dict[int, list[int]]:
@@ -360,12 +435,23 @@ def _rows(arrays: list) -> np.ndarray:
     return np.stack(arrays)
 
 
-def _measure(systems, runs, native, ref_name, p) -> list[dict]:
-    """Per system and solver, (max |R − R_ref|, relative): on each solver's own points."""
+def _outputs(trs: list, names: Sequence[str]) -> np.ndarray:
+    """Joint rates, then the element currents *names*, as one (count, N, outputs) stack."""
+    rates = _rows([tr.rates for tr in trs])
+    if not names:
+        return rates
+    currents = np.stack([np.column_stack([tr.currents[c] for c in names]) for tr in trs])
+    return np.concatenate([rates, currents], axis=2)
+
+
+def _measure(systems, runs, native, ref_name, p, save=()) -> list[dict]:
+    """Per system and solver, its :class:`OutputErrors`: on each solver's own points."""
     out: list[dict] = [{} for _ in systems]
     if ref_name is None:
         return out
     ref = runs[ref_name]
+    n = systems[0].dof
+    names = tuple(f"r{j + 1}" for j in range(n)) + tuple(f"i_{c}" for c in save)
     for name, trs in runs.items():
         own = native.get(name, trs)
         for idx in _by_grid(own).values():
@@ -374,21 +460,28 @@ def _measure(systems, runs, native, ref_name, p) -> list[dict]:
                 continue
             if name == ref_name:
                 for k in ok:
-                    out[k][name] = (0.0, 0.0)
+                    out[k][name] = OutputErrors.zero(names)
                 continue
             if own[ok[0]] is not trs[ok[0]]:      # resampled: measure on its own points
                 refs = dict(zip(ok, run_many(ref_name, [systems[k] for k in ok], own[ok[0]].time, p)))
+                if save:
+                    for k in ok:
+                        if refs[k].success and not refs[k].currents:
+                            refs[k].currents = trajectory_currents(systems[k], refs[k], save)
+                        if not own[k].currents:
+                            own[k].currents = trajectory_currents(systems[k], own[k], save)
             else:
                 refs = {k: ref[k] for k in ok}
             ok = [k for k in ok if refs[k].success]
-            if len({own[k].rates.shape for k in ok}) == 1 and ok:
-                a, r = errors(_rows([own[k].rates for k in ok]), _rows([refs[k].rates for k in ok]),
-                              axis=(1, 2))
-                for k, x, y in zip(ok, np.atleast_1d(a).tolist(), np.atleast_1d(r).tolist()):
-                    out[k][name] = (x, y)
-            else:
-                for k in ok:
-                    out[k][name] = errors(own[k].rates, refs[k].rates)
+            groups: dict = {}
+            for k in ok:
+                groups.setdefault(own[k].rates.shape, []).append(k)
+            for group in groups.values():
+                a, b = _outputs([own[k] for k in group], save), _outputs([refs[k] for k in group], save)
+                err, rel = output_errors(a, b)
+                whole = errors(a, b, axis=(1, 2))[1]
+                for row, k in enumerate(group):
+                    out[k][name] = OutputErrors.of(names, err[row], rel[row], float(np.atleast_1d(whole)[row]))
     return out
 
 
@@ -419,6 +512,5 @@ def compare(system, preset: str | Preset = "accurate", solvers: Sequence[str] = 
     positions : bool
         Also keep node positions where the system has springs.
     """
-    check_work(system, get_preset(preset))         # a run past the budget is refused before it starts
     return compare_many([system], preset, solvers, times, reference=reference, step=step,
                         save=save, positions=positions)[0]

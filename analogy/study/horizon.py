@@ -8,8 +8,8 @@ from typing import TYPE_CHECKING, Sequence
 import numpy as np
 
 from .comparison import Comparison, compare
-from .metrics import peak
-from .output import Tabular
+from ..results.metrics import peak
+from ..results.output import Tabular
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -61,7 +61,7 @@ class LinearHorizon(Tabular):
         path : str or Path, optional
             Image file to write.
         """
-        from .plots import plot_linear_horizon
+        from ..results.plots import plot_linear_horizon
         ref = self.nonlinear.results[self.nonlinear.reference]
         robot = self.nonlinear.system.info.get("robot", "custom")
         return plot_linear_horizon(self.nonlinear.time, ref.rates, self.linear, self.deviation, self.held,

@@ -23,7 +23,7 @@ class WorkEstimate(NamedTuple):
     fastest: float      # the rate [rad/s] that sets the points: a mode, a decay or a sine
 
 
-def estimate_work(system, preset: Preset) -> WorkEstimate:
+def estimate_work(system, preset: Preset, scales=None) -> WorkEstimate:
     """The time points and force segments a solver run of *system* needs at *preset*.
 
     The points follow the fastest rate the preset resolves (one step per
@@ -36,16 +36,18 @@ def estimate_work(system, preset: Preset) -> WorkEstimate:
         A linear node system.
     preset : Preset
         The accuracy preset.
+    scales : Scales, optional
+        The system's scales, or the combined scales of a stack it stands for.
     """
     segments = len(system.breakpoints())
-    scales = system_scales(system)
+    scales = system_scales(system) if scales is None else scales
     rate = scales.fastest(preset.bound)
     phase = preset.phase_step if math.isfinite(preset.phase_step) else 1.0
     points = system.t_stop * rate / phase + _POINTS_PER_SEGMENT * segments
     return WorkEstimate(points if math.isfinite(points) else math.inf, segments, rate)
 
 
-def check_work(system, preset: Preset) -> WorkEstimate:
+def check_work(system, preset: Preset, scales=None) -> WorkEstimate:
     """:func:`estimate_work`, refused in one sentence past ``preset.work_budget`` or ``preset.segment_budget``.
 
     Parameters
@@ -54,10 +56,12 @@ def check_work(system, preset: Preset) -> WorkEstimate:
         A linear node system (others pass unchecked).
     preset : Preset
         The accuracy preset; ``dataclasses.replace(preset, work_budget=…)`` raises the budget.
+    scales : Scales, optional
+        The system's scales, or the combined scales of a stack sharing its forces and t_stop.
     """
     if getattr(system, "kind", "linear") != "linear":
         return WorkEstimate(0.0, 0, 0.0)
-    work = estimate_work(system, preset)
+    work = estimate_work(system, preset, scales)
     if work.segments > preset.segment_budget:
         raise InputError(f"the forces have {work.segments:,} segments between breakpoints (pwl points, pulse "
                          f"edges), more than the budget of {preset.segment_budget:,}: use fewer, or raise "

@@ -1,0 +1,227 @@
+"""The spice solver's transient settings (tolerances, step cap, print and first steps) and the netlist it runs."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Iterable, Sequence
+
+import numpy as np
+
+from ..circuit.description import Circuit, circuits
+from ..circuit.description import circuit as describe
+from ..circuit.elements import ZERO_TOL
+from ..circuit.netlist import write_batch, write_netlist
+from ..circuit.scales import Scales, combined_scales, stack_scales, system_scales
+from ..errors import InputError, SimulationError
+from ..presets import Preset
+from ..presets import preset as get_preset
+
+__all__ = ["TransientSettings", "transient_settings", "netlist", "batch_netlist", "ROUNDING_STEPS",
+           "NGSPICE_FIRST_STEP"]
+
+#: ngspice's own first step is this fraction of the print step (ngspice 39 and later, measured);
+#: it takes it by backward Euler and never checks its truncation error.
+NGSPICE_FIRST_STEP = 1e-2
+
+#: abstol is kept above this many n·ε·q/h: the rounding of a capacitor current Δq/h at the
+#: shortest step h ngspice is made to take, summed over the n nodes of a row. Under it,
+#: rounding reads as truncation error and the step collapses ("timestep too small").
+#: Measured in ngspice 39 at accurate, in ε·q/h: collapse below 2.1 on serial6, below about
+#: 25 on serial12, between 1.5 and 10 on two coupled oscillators, and below 0.6 on flex2 at
+#: its first step; 4·n leaves a factor of 1.9 to 11 over them. cond(M') does not predict them
+#: (98, 441, 1.5 and 79,000).
+ROUNDING_STEPS = 4.0
+
+_SCALE_NAMES = {"abstol": "current scale [A]", "vntol": "velocity scale [V]", "chgtol": "charge C·v [C]"}
+
+
+@dataclass(frozen=True)
+class TransientSettings:
+    """What one ngspice transient run is told: the netlist writer formats these and nothing else.
+
+    Attributes
+    ----------
+    options : tuple of (str, str)
+        ``.options`` in order, values formatted.
+    print_step : float
+        ``.tran`` TSTEP: t_stop/``preset.steps``, the grid ``ngspice -b`` prints on.
+    stop : float
+        ``.tran`` TSTOP.
+    max_step : float
+        ``.tran`` TMAX, the step cap.
+    first_step : float
+        The first (backward Euler, unchecked) step the run needs; where ngspice's own,
+        :data:`NGSPICE_FIRST_STEP` of the print step, is longer, :attr:`breakpoint` makes it shorter.
+    loosen : float
+        Factor on abstol and vntol (1 on the first run; a retry after a collapsed step raises it).
+    """
+
+    options: tuple
+    print_step: float
+    stop: float
+    max_step: float
+    first_step: float
+    loosen: float = 1.0
+
+    @property
+    def breakpoint(self) -> float | None:
+        """A time at which a zero current source has a corner, so that ngspice's first step is
+        a hundredth of it; None when ngspice's own first step is short enough."""
+        own = NGSPICE_FIRST_STEP * self.print_step
+        return None if self.first_step >= own else self.first_step / NGSPICE_FIRST_STEP
+
+    def option(self, name: str) -> str | None:
+        """The value written for ``.options`` *name*, or None.
+
+        Parameters
+        ----------
+        name : str
+            An option such as ``abstol``.
+        """
+        return dict(self.options).get(name)
+
+    def loosened(self, factor: float) -> "TransientSettings":
+        """These settings with abstol and vntol *factor* times larger than the preset's.
+
+        Parameters
+        ----------
+        factor : float
+            The retry's factor (1: the preset's own).
+        """
+        opts = []
+        for k, v in self.options:
+            if k in ("abstol", "vntol") and self.loosen != factor:
+                v = f"{float(v) / self.loosen * factor:.3g}"
+            opts.append((k, v))
+        return TransientSettings(tuple(opts), self.print_step, self.stop, self.max_step, self.first_step, factor)
+
+
+def _shortest_gap(breakpoints: np.ndarray, t_stop: float) -> float:
+    """The shortest interval between force breakpoints (ngspice cuts its step to a tenth of it)."""
+    t = np.unique(np.concatenate([[0.0], np.asarray(breakpoints, float), [t_stop]]))
+    gaps = np.diff(t)
+    gaps = gaps[gaps > 1e-12 * t_stop]
+    return float(np.min(gaps)) if gaps.size else t_stop
+
+
+def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | None, *,
+                       behavioural: bool = False, coupled: bool = False,
+                       breakpoints: np.ndarray | None = None, loosen: float = 1.0) -> TransientSettings:
+    """The transient settings of a circuit with *scales* over *t_stop* at *preset*.
+
+    The absolute tolerances are the preset's relative ones times the circuit's current,
+    velocity and charge scales; abstol stays above :data:`ROUNDING_STEPS` roundings of a
+    capacitor current at the shortest step the run takes (its first step, or a tenth of the
+    shortest interval between force breakpoints). The step cap is ``preset.phase_step``
+    of the fastest rate (within ``preset.step_budget``); the first step meets
+    ``preset.first_phase_step``; the print step is t_stop/``preset.steps``.
+
+    Parameters
+    ----------
+    preset : str or Preset
+        The accuracy preset.
+    t_stop : float
+        End of the transient [s].
+    scales : Scales or None
+        The circuit's scales (None: t_stop alone sets the steps, the options stay as the preset's).
+    behavioural : bool
+        The circuit has behavioural parts: the preset's behavioural options and step cap.
+    coupled : bool
+        The circuit has 1:−1 couplings (ideal sources across capacitors): gear integration,
+        since the trapezoidal rule rings from step to step there.
+    breakpoints : ndarray, optional
+        The forces' breakpoints.
+    loosen : float
+        Factor on abstol and vntol: the retry of a run whose step collapsed.
+    """
+    p = get_preset(preset)
+    opts = dict(p.behavioural_options if behavioural else p.spice_options)
+    if coupled:
+        opts["method"] = "gear"
+    tmax = t_stop / (p.behavioural_max_steps if behavioural else p.max_steps)
+    tstep = t_stop / p.steps
+    first = NGSPICE_FIRST_STEP * tstep
+    if scales is not None:
+        need = scales.step_limit(p.first_phase_step, p.bound / 10)
+        if not need > 0:                   # zero or NaN: a rate past the float range
+            raise InputError(f"the circuit's fastest rate ({scales.omega_max:.3g} rad/s) leaves the range "
+                             "ngspice can step: rescale the masses, dampers or springs")
+        first = min(first, need)
+        tmax = min(tmax, max(scales.step_limit(p.phase_step, p.bound), t_stop / p.step_budget))
+        shortest = min(first, 0.1 * _shortest_gap(np.zeros(0) if breakpoints is None else breakpoints, t_stop))
+        rounding = ROUNDING_STEPS * scales.size * float(np.finfo(float).eps) * scales.charge / shortest
+        for key, size in (("abstol", scales.current), ("vntol", scales.peak_velocity),
+                          ("chgtol", scales.charge)):
+            if key not in opts:
+                continue
+            value = max(float(opts[key]) * size, rounding if key == "abstol" else 0.0)
+            value *= loosen if key in ("abstol", "vntol") else 1.0     # Python floats overflow to inf
+            if not math.isfinite(value):
+                raise SimulationError(f"SPICE cannot run this circuit: its {key} scale is past the floating-point "
+                                      f"range ({_SCALE_NAMES[key]} = {size:.3g}); the ODE and exact solvers can")
+            opts[key] = f"{value:.3g}"
+    return TransientSettings(tuple((k, str(v)) for k, v in opts.items()), tstep, t_stop, tmax, first, loosen)
+
+
+def _settings_of(system, c: Circuit, preset, loosen: float = 1.0) -> TransientSettings:
+    return transient_settings(preset, system.t_stop, system_scales(system), behavioural=bool(c.behavioural),
+                              coupled=bool(c.couplings), breakpoints=system.breakpoints(), loosen=loosen)
+
+
+def netlist(system, preset: str | Preset = "accurate", save: Iterable[str] | None = None,
+            zero_tol: float = ZERO_TOL, title: str | None = None, realizable: bool = False,
+            printing: bool = True, loosen: float = 1.0) -> str:
+    """The netlist the spice solver runs for *system*; ``ngspice -b`` runs and prints it unchanged.
+
+    Parameters
+    ----------
+    system : NodeSystem, NonlinearNodeSystem or Circuit
+        The system (a bare circuit description gets the preset's settings over its t_stop).
+    preset : str or Preset
+        Accuracy preset.
+    save : iterable of str, optional
+        Node names (``n1`` …) and element names (``C1_2``, ``R1`` …) to save; default all nodes.
+    zero_tol : float
+        Relative tolerance under which an element is left out.
+    title : str, optional
+        First line of the netlist.
+    realizable : bool
+        Build negative elements from positive ones behind inverting couplings.
+    printing : bool
+        Print the saved vectors on the print step (``.print tran``, ``interp`` and 15
+        digits), which ``ngspice -b`` shows; the steps taken are the same without it.
+    loosen : float
+        Factor on abstol and vntol (see :class:`TransientSettings`).
+    """
+    if isinstance(system, Circuit):
+        settings = transient_settings(preset, system.t_stop, None, behavioural=bool(system.behavioural),
+                                      coupled=bool(system.couplings), loosen=loosen)
+        return write_netlist(system, settings, save, title, printing)
+    c = describe(system, zero_tol, realizable)
+    return write_netlist(c, _settings_of(system, c, preset, loosen), save, title, printing)
+
+
+def batch_netlist(systems: Sequence, preset: str | Preset = "fast", scales: Scales | None = None) -> str:
+    """One netlist holding every system as an independent sub-circuit (prefix ``x<k>_``).
+
+    All systems must share t_stop, so that one ``.tran`` serves them all.
+
+    Parameters
+    ----------
+    systems : sequence of NodeSystem
+        The systems, sharing t_stop.
+    preset : str or Preset
+        Accuracy preset.
+    scales : Scales, optional
+        Their combined scales, if already known (else computed here).
+    """
+    if not systems:
+        raise InputError("a batch needs at least one system")
+    t_stop = systems[0].t_stop
+    if any(s.t_stop != t_stop for s in systems):
+        raise InputError("systems in one ngspice run must share t_stop")
+    scales = scales or combined_scales(stack_scales(systems))
+    points = [s.breakpoints() for s in systems if s.forces is not systems[0].forces] + [systems[0].breakpoints()]
+    settings = transient_settings(preset, t_stop, scales, breakpoints=np.concatenate(points))
+    return write_batch(circuits(systems), settings)

@@ -1,0 +1,3 @@
+"""Studies of solved systems: solvers compared on shared grids, horizons, mobility checks, the work guard."""
+
+__all__: list[str] = []

@@ -1,0 +1,84 @@
+"""Every built-in robot's netlist, as `analogy netlist` writes it, runs in plain `ngspice -b`.
+
+Two claims per robot. (1) What is written is what runs in process: the printed table, on
+the print step, is the in-process run of the same text linearly interpolated there (the
+``option interp`` of the printing block), to the 15 printed digits. (2) That run, on its
+own points, keeps the preset's bound on every output against the exact solution (linear
+circuits) or the DOP853 reference (nonlinear ones), each output against its own peak.
+"""
+
+import shutil
+import subprocess
+
+import numpy as np
+import pytest
+
+from analogy.cli import build_parser, main
+from analogy.presets import PRESETS
+from analogy.results.metrics import output_errors
+from analogy.scenes.arguments import scene_from_args
+from analogy.solvers.rawfile import read_printed
+from analogy.solvers.registry import solver
+from analogy.solvers.spice import session
+
+QUICK = [f"--robot serial{n}" for n in range(2, 13)] + [
+    "--robot parallel2", "--robot parallel3", "--robot redundant",
+    "--robot serial2 --realizable", "--robot serial3 --realizable", "--robot parallel2 --realizable",
+    "--robot serial2 --dynamics nonlinear", "--robot serial3 --dynamics nonlinear",
+    "--robot serial2 --dynamics nonlinear --topology parallel",
+]
+# minutes in plain ngspice at accurate: run in CI's deep pass (pytest -m deep)
+DEEP = [f"--robot serial{n}" for n in range(13, 21)] + [
+    "--robot flex1", "--robot flex2", "--robot flex2 --realizable",
+]
+
+#: Printed with 15 significant digits, interpolated alike: agreement to 1e-12 of the peak
+#: leaves a factor of 1000 over the printing and n·ε of the interpolation.
+PRINTED = 1e-12
+
+
+def _plain_run(args: str, tmp_path):
+    words = args.split()
+    path = tmp_path / "robot.cir"
+    assert main(["netlist", *words, "-o", str(path)]) == 0
+    res = subprocess.run([shutil.which("ngspice") or "ngspice", "-b", str(path)], capture_output=True,
+                         text=True, timeout=1800)
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert "too small" not in (res.stdout + res.stderr).lower()
+    sc = scene_from_args(build_parser().parse_args(["netlist", *words]))
+    return sc, sc.system(), path.read_text(), read_printed(res.stdout)
+
+
+def _check(args: str, tmp_path):
+    sc, system, text, printed = _plain_run(args, tmp_path)
+    preset = PRESETS["accurate"]          # the netlist command's default
+    t = printed["time"]
+    assert t.size < 100_000 and t[-1] == pytest.approx(system.t_stop, rel=1e-12)
+    # (1) the printed table is the in-process run of this very text, interpolated
+    data = session().run(text, list(system.nodes))
+    own = data["time"]
+    here = np.column_stack([np.interp(t, own, data[n]) for n in system.nodes])
+    there = np.column_stack([printed[n] for n in system.nodes])
+    scale = np.max(np.abs(there))
+    assert np.max(np.abs(here - there)) <= PRINTED * scale
+    # (2) that run keeps the bound on every joint rate, each against its own peak
+    times = np.concatenate([[0.0], own]) if own[0] > 0 else own
+    volts = np.column_stack([np.concatenate([[v0], data[n]])[-times.size:]
+                             for n, v0 in zip(system.nodes, system.initial_voltages)])
+    name = "exact" if system.kind == "linear" else "reference"
+    ref = solver(name).solve(system, times, PRESETS["accurate"])
+    _, rel = output_errors(system.joint_rates(volts), ref.rates)
+    assert np.max(rel) <= preset.bound, f"joint {int(np.argmax(rel)) + 1}: {np.max(rel):.3g}"
+
+
+@pytest.mark.ngspice
+@pytest.mark.parametrize("args", QUICK)
+def test_the_written_netlist_runs_in_plain_ngspice_and_keeps_the_bound(args, tmp_path):
+    _check(args, tmp_path)
+
+
+@pytest.mark.ngspice
+@pytest.mark.deep
+@pytest.mark.parametrize("args", DEEP)
+def test_the_large_and_flexible_netlists_run_in_plain_ngspice_and_keep_the_bound(args, tmp_path):
+    _check(args, tmp_path)
