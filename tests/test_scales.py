@@ -70,13 +70,15 @@ def test_absolute_tolerances_follow_the_units_of_the_system():
 
 
 def test_abstol_stays_above_the_rounding_of_a_capacitor_current():
-    """A stiff, heavy circuit: abstol ≥ cond(M')·ε·q/h at the first step h = 3e-4/ω_max, or
+    """A stiff, heavy circuit: abstol ≥ 4·n·ε·q/h at the first step h = 3e-4/ω_max, or
     rounding reads as truncation error (written to 3 digits, hence 0.999)."""
+    from analogy.solvers.transient import ROUNDING_STEPS
     s = node_system(JointSpace([[50.0, 0], [0, 1.0]], stiffness=[[5e7, 0], [0, 1.0]]), forces=[1, 0])
     sc = system_scales(s)
     first = 3e-4 / sc.omega_max
-    assert sc.conditioning == pytest.approx(50.0, rel=1e-12)
-    assert float(options(netlist(s, "accurate"))["abstol"]) >= 0.999 * sc.rounding_current(first) > 1e-15 * sc.current
+    assert sc.rounding_current(first) == pytest.approx(2 * np.finfo(float).eps * sc.charge / first, rel=1e-12)
+    floor = ROUNDING_STEPS * sc.rounding_current(first)
+    assert float(options(netlist(s, "accurate"))["abstol"]) >= 0.999 * floor > 1e-15 * sc.current
 
 
 def test_a_step_budget_bounds_the_work_of_a_long_run():

@@ -47,9 +47,8 @@ class Scales:
     decays, shares : ndarray
         Per overdamped or free mode: its decay rate β_k [1/s], and its velocity over the
         peak velocity (see :meth:`fastest`).
-    conditioning : float
-        cond(M'), the largest over the smallest eigenvalue: how much the rounding of a
-        step's solve grows in the node voltages (the abstol floor follows it).
+    nodes : int or None
+        The node count n (None: the length of *velocity*).
     """
 
     omega_max: float
@@ -59,7 +58,6 @@ class Scales:
     charge: float
     decays: np.ndarray = field(default_factory=lambda: np.zeros(0))
     shares: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    conditioning: float = 1.0
     nodes: int | None = None
 
     def __repr__(self) -> str:
@@ -77,17 +75,17 @@ class Scales:
         return float(np.max(self.velocity))
 
     def rounding_current(self, step: float) -> float:
-        """cond(M')·ε·charge/h [A]: the rounding in a capacitor current Δq/h at steps *step*,
-        grown by the conditioning of the solve. An abstol under a few of these lets rounding
-        read as truncation error, and ngspice then cuts the step until it stops with
-        "timestep too small" (see :data:`analogy.solvers.transient.ROUNDING_STEPS`).
+        """n·ε·charge/h [A]: the rounding in a capacitor current Δq/h at steps *step*, summed
+        over the n nodes of a row. An abstol under a few of these lets rounding read as
+        truncation error, and ngspice then cuts the step until it stops with "timestep too
+        small" (see :data:`analogy.solvers.transient.ROUNDING_STEPS`).
 
         Parameters
         ----------
         step : float
             The shortest step the run takes [s].
         """
-        return self.conditioning * float(np.finfo(float).eps) * self.charge / step
+        return self.size * float(np.finfo(float).eps) * self.charge / step
 
     def fastest(self, bound: float) -> float:
         """ω_max, or the fastest decay of a mode larger than 10·*bound* of the peak if that is faster.
@@ -220,10 +218,8 @@ def _estimated_scales(first, m, b, k, v0) -> list[Scales]:
     # overdamped or free modes decay at up to β_k; their share of the peak velocity
     share = np.max(np.abs(phi), axis=1) * (drive * span + start) * growth / np.max(velocity, axis=1, keepdims=True)
     decays = np.where((beta > 0) & (beta >= 2 * np.sqrt(np.maximum(mu, 0.0))), beta, 0.0)
-    eig = np.linalg.eigvalsh(m)
-    cond = eig[:, -1] / eig[:, 0] if n else np.ones(count)
-    return [Scales(float(fastest[j]), velocity[j], position[j], current, float(charge[j]), decays[j], share[j],
-                   float(cond[j])) for j in range(count)]
+    return [Scales(float(fastest[j]), velocity[j], position[j], current, float(charge[j]), decays[j], share[j])
+            for j in range(count)]
 
 
 def combined_scales(scales: Sequence[Scales]) -> Scales:
@@ -239,4 +235,4 @@ def combined_scales(scales: Sequence[Scales]) -> Scales:
                   np.array([max(float(np.max(s.position)) for s in scales)]),
                   max(s.current for s in scales), max(s.charge for s in scales),
                   np.concatenate([s.decays for s in scales]), np.concatenate([s.shares for s in scales]),
-                  max(s.conditioning for s in scales), max(s.size for s in scales))
+                  max(s.size for s in scales))

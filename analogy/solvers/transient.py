@@ -150,7 +150,7 @@ def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | Non
         first = min(first, need)
         tmax = min(tmax, max(scales.step_limit(p.phase_step, p.bound), t_stop / p.step_budget))
         shortest = min(first, 0.1 * _shortest_gap(np.zeros(0) if breakpoints is None else breakpoints, t_stop))
-        rounding = ROUNDING_STEPS * scales.size * float(np.finfo(float).eps) * scales.charge / shortest
+        rounding = ROUNDING_STEPS * scales.rounding_current(shortest)
         for key, size in (("abstol", scales.current), ("vntol", scales.peak_velocity),
                           ("chgtol", scales.charge)):
             if key not in opts:
