@@ -26,7 +26,7 @@ class Preset:
     spice_options : dict
         ``.options`` for ngspice (integration method, tolerances).
     steps : int
-        ``.tran`` print step is t_stop/steps, or shorter (see *first_phase_step*).
+        ``.tran`` print step is t_stop/steps.
     max_steps : int
         ``.tran`` maximum internal step is t_stop/max_steps.
     ode_method, ode_rtol :
@@ -53,8 +53,9 @@ class Preset:
         against the exact solution), rather than the run taking without end.
     first_phase_step : float
         Largest ω_max·h of ngspice's first step, a backward-Euler step it never checks
-        (about a hundredth of the print step, which is shortened for it): on flex2 its
-        error is 0.13·(ω·h)² of the peak, so this keeps it under 5% of the bound.
+        (a hundredth of the print step, made shorter where needed by a source's corner,
+        see :mod:`analogy.solvers.transient`): on flex2 its error is 0.13·(ω·h)² of the
+        peak, so this keeps it under 5% of the bound.
     behavioural_options, behavioural_max_steps :
         ``.options`` and step cap t_stop/behavioural_max_steps for circuits with
         behavioural parts (the nonlinear circuits). Tight reltol with trtol = 1 makes

@@ -176,3 +176,24 @@ def test_library_copies_of_killed_processes_are_removed_and_live_ones_kept(tmp_p
         (d / "libngspice-1.so").write_bytes(b"x")
     ngspice._remove_orphan_copies()
     assert not orphan.exists() and live.exists()
+
+
+@pytest.mark.ngspice
+def test_a_scene_writes_the_netlist_of_the_retry_that_ran(monkeypatch, tmp_path):
+    """Where SPICE ran only on a retry, the scene's netlist file carries the retry's abstol:
+    the settings that ran, not those that collapsed."""
+    from analogy.scenes.run import run_scene
+    from analogy.scenes.scene import Scene
+    from analogy.scenes.spec import ModelSpec
+    from analogy.solvers import transient
+    monkeypatch.setattr(transient, "ROUNDING_STEPS", 0.0)
+    sc = Scene.of("pair", ModelSpec(mass=((1.0, 0.2), (0.2, 1.0)), damping=((0.02, 0), (0, 0.02)),
+                                    stiffness=((1.0, 0), (0, 1.0))), topology="parallel", forces=(1.0, 1.0),
+                  netlist=True, netlist_file="pair.cir", solvers=("spice", "exact"), preset="accurate")
+    result = run_scene(sc, tmp_path)
+    ran = result.comparison.results["spice"].settings
+    assert ran.loosen > 1
+    written = (tmp_path / "pair.cir").read_text()
+    assert written == result.netlist
+    abstol = next(w for w in written.split() if w.startswith("abstol="))
+    assert abstol == f"abstol={dict(ran.options)['abstol']}"

@@ -49,6 +49,8 @@ class Scales:
         peak velocity (see :meth:`fastest`).
     nodes : int or None
         The node count n (None: the length of *velocity*).
+    top_velocity, top_position : float
+        max of *velocity* and of *position*, where the builder has them at hand (NaN: derived).
     """
 
     omega_max: float
@@ -59,6 +61,8 @@ class Scales:
     decays: np.ndarray = field(default_factory=lambda: np.zeros(0))
     shares: np.ndarray = field(default_factory=lambda: np.zeros(0))
     nodes: int | None = None
+    top_velocity: float = math.nan
+    top_position: float = math.nan
 
     def __repr__(self) -> str:
         return (f"Scales(omega_max={self.omega_max:.4g} rad/s, velocity={float(np.max(self.velocity)):.3g}, "
@@ -72,7 +76,12 @@ class Scales:
     @property
     def peak_velocity(self) -> float:
         """The largest node velocity scale."""
-        return float(np.max(self.velocity))
+        return float(np.max(self.velocity)) if math.isnan(self.top_velocity) else self.top_velocity
+
+    @property
+    def peak_position(self) -> float:
+        """The largest node displacement scale."""
+        return float(np.max(self.position)) if math.isnan(self.top_position) else self.top_position
 
     def rounding_current(self, step: float) -> float:
         """n·ε·charge/h [A]: the rounding in a capacitor current Δq/h at steps *step*, summed
@@ -137,15 +146,30 @@ _PEAKS: dict = {}
 def system_scales(system) -> Scales:
     """The :class:`Scales` of a linear or nonlinear node system.
 
+    Systems are not changed once built, so the scales are kept on the system: the work
+    guard, the SPICE settings and the ODE tolerances read them from one computation.
+
     Parameters
     ----------
     system : NodeDynamics
         The system; a nonlinear one is evaluated at x = 0.
     """
+    cached = getattr(system, "_scales", None)
+    if cached is not None:
+        return cached
     m = np.asarray(system.node_mass(np.zeros(system.dof)), dtype=float)[None]
     k = None if system.stiffness is None else np.asarray(system.stiffness, dtype=float)[None]
-    return _stack_scales(system, m, np.asarray(system.damping, dtype=float)[None], k,
-                         np.asarray(system.initial_voltages, dtype=float)[None])[0]
+    out = _stack_scales(system, m, np.asarray(system.damping, dtype=float)[None], k,
+                        np.asarray(system.initial_voltages, dtype=float)[None])[0]
+    _keep(system, out)
+    return out
+
+
+def _keep(system, scales: Scales) -> None:
+    try:
+        system._scales = scales
+    except AttributeError:          # a system type without room for it: computed again next time
+        pass
 
 
 def stack_scales(systems: Sequence) -> list[Scales]:
@@ -156,16 +180,18 @@ def stack_scales(systems: Sequence) -> list[Scales]:
     systems : sequence of NodeSystem
         Linear systems.
     """
-    out: list = [None] * len(systems)
+    out: list = [getattr(s, "_scales", None) for s in systems]
     groups: dict = {}
     for i, s in enumerate(systems):
-        groups.setdefault((s.dof, s.stiffness is None, id(s.forces), id(s.topology), s.t_stop), []).append(i)
+        if out[i] is None:
+            groups.setdefault((s.dof, s.stiffness is None, id(s.forces), id(s.topology), s.t_stop), []).append(i)
     for (_, springless, _, _, _), idx in groups.items():
         group = [systems[i] for i in idx]
         k = None if springless else stacked(group, "stiffness")
         for i, sc in zip(idx, _stack_scales(group[0], stacked(group, "mass"), stacked(group, "damping"), k,
                                             stacked(group, "initial_voltages"))):
             out[i] = sc
+            _keep(systems[i], sc)
     return out
 
 
@@ -218,8 +244,10 @@ def _estimated_scales(first, m, b, k, v0) -> list[Scales]:
     # overdamped or free modes decay at up to β_k; their share of the peak velocity
     share = np.max(np.abs(phi), axis=1) * (drive * span + start) * growth / np.max(velocity, axis=1, keepdims=True)
     decays = np.where((beta > 0) & (beta >= 2 * np.sqrt(np.maximum(mu, 0.0))), beta, 0.0)
-    return [Scales(float(fastest[j]), velocity[j], position[j], current, float(charge[j]), decays[j], share[j])
-            for j in range(count)]
+    tops = np.max(velocity, axis=1).tolist() if n else [1.0] * count
+    reaches = np.max(position, axis=1).tolist() if n else [t_stop] * count
+    return [Scales(float(fastest[j]), velocity[j], position[j], current, float(charge[j]), decays[j], share[j],
+                   None, tops[j], reaches[j]) for j in range(count)]
 
 
 def combined_scales(scales: Sequence[Scales]) -> Scales:
@@ -230,9 +258,8 @@ def combined_scales(scales: Sequence[Scales]) -> Scales:
     scales : sequence of Scales
         The circuits' scales (velocity vectors may differ in length).
     """
-    top = max(s.peak_velocity for s in scales)
-    return Scales(max(s.omega_max for s in scales), np.array([top]),
-                  np.array([max(float(np.max(s.position)) for s in scales)]),
+    top, reach = max(s.peak_velocity for s in scales), max(s.peak_position for s in scales)
+    return Scales(max(s.omega_max for s in scales), np.array([top]), np.array([reach]),
                   max(s.current for s in scales), max(s.charge for s in scales),
                   np.concatenate([s.decays for s in scales]), np.concatenate([s.shares for s in scales]),
-                  max(s.size for s in scales))
+                  max(s.size for s in scales), top, reach)

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+from typing import NamedTuple, Sequence
+
 import numpy as np
 
-__all__ = ["relative_error", "absolute_error", "peak", "errors", "output_errors", "PEAK_FLOOR"]
+__all__ = ["relative_error", "absolute_error", "peak", "errors", "output_errors", "OutputErrors", "PEAK_FLOOR"]
 
 #: An output whose own peak is under this fraction of the largest output's is judged against
 #: this fraction instead: below it the reference itself is rounding (the exact and reference
@@ -116,3 +118,27 @@ def output_errors(values: np.ndarray, reference: np.ndarray) -> tuple[np.ndarray
     with np.errstate(divide="ignore", invalid="ignore"):
         rel = np.where(floor > 0, err / np.where(floor > 0, floor, 1.0), np.where(err == 0, 0.0, np.inf))
     return err, np.where(np.isnan(err), np.nan, rel)
+
+
+class OutputErrors(NamedTuple):
+    """One solver's errors, each output against its own peak (joint rates ``r1`` …, currents ``i_C1_2`` …).
+
+    Indexed as a pair, it is (largest absolute error, worst relative error of any output).
+    """
+
+    absolute: float
+    relative: float
+    worst: str
+    per_output: dict
+    whole: float            # max |error| over every output over the largest output's peak
+
+    @classmethod
+    def zero(cls, names: Sequence[str]) -> "OutputErrors":
+        """The reference against itself.
+
+        Parameters
+        ----------
+        names : sequence of str
+            The outputs.
+        """
+        return cls(0.0, 0.0, names[0] if names else "", dict.fromkeys(names, 0.0), 0.0)

@@ -7,6 +7,7 @@ from matplotlib.figure import Figure  # no pyplot: works headless, with no globa
 
 from ..errors import InputError
 from ..units import quantity_label, rate_label, rate_unit
+from .metrics import PEAK_FLOOR
 from .output import check_plot_path
 
 __all__ = ["solver_style", "shown_joints", "error_envelope", "plot_trajectory", "plot_comparison",
@@ -149,17 +150,19 @@ def plot_comparison(comparison, path=None) -> Figure:
                  f"(preset {comparison.preset}){shown}", fontsize="medium")
     _legends(ax, joints, units, list(ok))
     if ref is not None:
-        peak = comparison.peak or 1.0
+        own = np.max(np.abs(ref.rates), axis=0)
+        peak = np.maximum(own, PEAK_FLOOR * np.max(own))      # each joint against its own peak, as the table
+        peak = np.where(peak > 0, peak, 1.0)
         for name, tr in ok.items():
             if name == comparison.reference or tr.rates.shape != ref.rates.shape:
                 continue
-            err = np.max(np.abs(tr.rates - ref.rates), axis=1) / peak
+            err = np.max(np.abs(tr.rates - ref.rates) / peak, axis=1)
             t, env = error_envelope(tr.time, np.where(err > 0, err, np.nan))     # log axis: no zeros
             axe.semilogy(t, env, color="k", label=name, **solver_style(name))
-        axe.set_title(f"error against {comparison.reference}: max over all {n} joints, relative to the "
-                      "peak rate (running maximum)", fontsize="small")
+        axe.set_title(f"error against {comparison.reference}: worst of all {n} joints, each relative to its "
+                      "own peak rate (running maximum)", fontsize="small")
     axe.set_xlabel("time [s]")
-    axe.set_ylabel("|error| / peak rate [1]")
+    axe.set_ylabel("|error| / own peak rate [1]")
     if axe.lines:
         axe.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False, fontsize="small",
                    title="solver", title_fontsize="small")

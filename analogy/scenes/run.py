@@ -64,17 +64,25 @@ def run_scene(scene: Scene, output_dir=None) -> "SceneResult":
     system = scene.system()
     result = SceneResult(scene, system)
     save = save_names(scene, system)
-    if scene.netlist:
-        title = f"analogy scene {scene.name}" + (f": {scene.description}" if scene.description else "")
-        result.netlist = make_netlist(system, p, save=save, title=title)
+    title = f"analogy scene {scene.name}" + (f": {scene.description}" if scene.description else "")
+
+    def write_netlist(loosen: float = 1.0) -> None:
+        result.netlist = make_netlist(system, p, save=save, title=title, loosen=loosen)
         if scene.netlist_file:
-            result.written.append(_write_text(scene.path(scene.netlist_file, output_dir), result.netlist))
+            path = _write_text(scene.path(scene.netlist_file, output_dir), result.netlist)
+            if path not in result.written:
+                result.written.append(path)
+    if scene.netlist:
+        write_netlist()             # written before any run, so a failing solver loses nothing
     if not scene.solvers:
         return result
     reference = "auto" if scene.errors else ("exact" if "exact" in scene.solvers else None)
     currents = list(scene.element_currents)
     comparison = compare(system, p, scene.solvers, reference=reference, step=scene.step,
                          save=currents, positions=bool(currents))
+    ran = getattr(comparison.results.get("spice"), "settings", None)
+    if scene.netlist and ran is not None and ran.loosen != 1.0:
+        write_netlist(ran.loosen)   # the settings of the retry that ran, not those that collapsed
     result.time = comparison.time
     result.failures = dict(comparison.failures)
     result.reference = comparison.reference

@@ -141,6 +141,9 @@ def _remove_orphan_copies() -> None:
         shutil.rmtree(folder, ignore_errors=True)
 
 
+_CONTROL = re.compile(r"^\s*\.control", re.I | re.M)
+
+
 def _without_control(lines: list[str]) -> list[str]:
     """*lines* without their ``.control`` … ``.endc`` blocks: a run in process is driven from
     here, and what such a block sets (``option interp`` of a printed netlist) would stay set
@@ -217,7 +220,10 @@ class NgspiceSession:
 
     def _load(self, netlist: str) -> list[tuple[str, str]]:
         ffi = self._ffi
-        raw = [line.encode("ascii", "replace") for line in _without_control(netlist.splitlines()) if line]
+        lines = netlist.splitlines()
+        if _CONTROL.search(netlist):
+            lines = _without_control(lines)
+        raw = [line.encode("ascii", "replace") for line in lines if line]
         # One buffer of NUL-terminated lines and pointers into it: one allocation, not one per line.
         buf = ffi.new("char[]", b"\0".join(raw) + b"\0")
         array = ffi.new("char *[]", len(raw) + 1)       # zero-filled: the last pointer is NULL

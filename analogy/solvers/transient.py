@@ -71,16 +71,6 @@ class TransientSettings:
         own = NGSPICE_FIRST_STEP * self.print_step
         return None if self.first_step >= own else self.first_step / NGSPICE_FIRST_STEP
 
-    def option(self, name: str) -> str | None:
-        """The value written for ``.options`` *name*, or None.
-
-        Parameters
-        ----------
-        name : str
-            An option such as ``abstol``.
-        """
-        return dict(self.options).get(name)
-
     def loosened(self, factor: float) -> "TransientSettings":
         """These settings with abstol and vntol *factor* times larger than the preset's.
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, NamedTuple, Sequence
+from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
@@ -14,61 +14,19 @@ from ..errors import InputError
 from ..presets import Preset
 from ..presets import preset as get_preset
 from ..solvers.registry import SOLVER_NAMES, run_many, solver
+from .grid import output_grid
 from .work import check_work
-from ..results.metrics import errors, output_errors, peak
+from ..results.metrics import OutputErrors, errors, output_errors, peak
 from ..results.output import Tabular, html_table
 from ..results.trajectory import Trajectory
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-__all__ = ["Comparison", "OutputErrors", "compare", "compare_many", "output_grid", "DEFAULT_SOLVERS"]
+__all__ = ["Comparison", "compare", "compare_many", "DEFAULT_SOLVERS"]
 
 #: The solvers a comparison runs unless told otherwise.
 DEFAULT_SOLVERS: tuple[str, ...] = ("spice", "ode", "exact")
-
-
-class OutputErrors(NamedTuple):
-    """One solver's errors, each output against its own peak (joint rates ``r1`` …, currents ``i_C1_2`` …).
-
-    Indexed as a pair, it is (largest absolute error, worst relative error of any output).
-    """
-
-    absolute: float
-    relative: float
-    worst: str
-    per_output: dict
-    whole: float            # max |error| over every output over the largest output's peak
-
-    @classmethod
-    def of(cls, names: Sequence[str], absolute: np.ndarray, relative: np.ndarray, whole: float) -> "OutputErrors":
-        """From per-output arrays (NaN where nothing was measured).
-
-        Parameters
-        ----------
-        names : sequence of str
-            The outputs.
-        absolute, relative : ndarray
-            Per output: max |error| and that over the output's own peak.
-        whole : float
-            Max |error| over every output over the largest output's peak.
-        """
-        rel = np.asarray(relative, dtype=float)
-        worst = int(np.nanargmax(rel)) if rel.size and not np.all(np.isnan(rel)) else 0
-        return cls(float(np.max(absolute)) if np.size(absolute) else math.nan,
-                   float(rel[worst]) if rel.size else math.nan, names[worst] if names else "",
-                   dict(zip(names, rel.tolist())), whole)
-
-    @classmethod
-    def zero(cls, names: Sequence[str]) -> "OutputErrors":
-        """The reference against itself.
-
-        Parameters
-        ----------
-        names : sequence of str
-            The outputs.
-        """
-        return cls(0.0, 0.0, names[0] if names else "", dict.fromkeys(names, 0.0), 0.0)
 
 
 @dataclass(eq=False, slots=True)
@@ -244,29 +202,6 @@ class Comparison(Tabular):
         """
         from ..results.plots import plot_comparison
         return plot_comparison(self, path)
-
-
-def output_grid(t_stop: float, step: float | None, default: int) -> np.ndarray:
-    """Uniform output times 0, step, 2·step, … with t_stop last (or *default* + 1 points).
-
-    Parameters
-    ----------
-    t_stop : float
-        End time.
-    step : float or None
-        Output step; None gives *default* intervals.
-    default : int
-        Number of intervals without a step.
-    """
-    if step is None:
-        return np.linspace(0.0, t_stop, default + 1)
-    if not (math.isfinite(step) and 0 < step <= t_stop):
-        raise InputError(f"the output step must be a time in (0, t_stop = {t_stop:g} s], got {step!r}")
-    count = int(math.floor(t_stop / step * (1 + 1e-12)))
-    if count > 10_000_000:
-        raise InputError(f"the output step {step:g} s gives more than 10 million points")
-    t = np.arange(count + 1) * step
-    return t if t[-1] >= t_stop * (1 - 1e-12) else np.append(t, t_stop)
 
 
 def _names(solvers: Sequence[str]) -> list[str]:
@@ -479,9 +414,12 @@ def _measure(systems, runs, native, ref_name, p, save=()) -> list[dict]:
             for group in groups.values():
                 a, b = _outputs([own[k] for k in group], save), _outputs([refs[k] for k in group], save)
                 err, rel = output_errors(a, b)
-                whole = errors(a, b, axis=(1, 2))[1]
-                for row, k in enumerate(group):
-                    out[k][name] = OutputErrors.of(names, err[row], rel[row], float(np.atleast_1d(whole)[row]))
+                whole = np.atleast_1d(errors(a, b, axis=(1, 2))[1]).tolist()
+                worst = np.argmax(np.where(np.isnan(rel), -np.inf, rel), axis=1)
+                top, peaks, rows = np.max(err, axis=1).tolist(), rel[np.arange(len(group)), worst].tolist(), rel.tolist()
+                for row, k in enumerate(group):      # plain floats: one record per scene, built cheaply
+                    out[k][name] = OutputErrors(top[row], peaks[row], names[worst[row]],
+                                                dict(zip(names, rows[row])), whole[row])
     return out
 
 
