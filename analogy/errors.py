@@ -1,7 +1,15 @@
 """Exception types that carry one clear, user-facing sentence, and the exit codes they map to."""
 
-__all__ = ["AnalogyError", "InputError", "SimulationError", "SpiceError", "AccuracyError", "EXIT_OK", "EXIT_FAILED",
-           "EXIT_USAGE", "EXIT_ACCURACY", "EXIT_INTERRUPTED"]
+from contextlib import contextmanager
+from typing import Iterator, Literal
+
+__all__ = ["AnalogyError", "InputError", "SimulationError", "SpiceError", "AccuracyError", "InputField", "concerning",
+           "EXIT_OK", "EXIT_FAILED", "EXIT_USAGE", "EXIT_ACCURACY", "EXIT_INTERRUPTED"]
+
+#: The parts of a job an input error can concern; each front end names them its own way
+#: (``--mass`` on the command line, ``[model] mass`` in a scene file).
+InputField = Literal["robot", "mass", "damping", "stiffness", "gravity", "parameters", "q", "topology", "forces",
+                     "initial_rates", "t_stop", "dynamics", "link_modes", "budget", "output", "trajectories"]
 
 #: Exit codes of the command line: success, a simulation failed, bad input, a result outside its
 #: accuracy bound, and stopped by SIGINT or SIGTERM.
@@ -13,7 +21,36 @@ class AnalogyError(Exception):
 
 
 class InputError(AnalogyError, ValueError):
-    """The user's input (matrix, vector, expression, option) is invalid."""
+    """The user's input (matrix, vector, expression, option) is invalid.
+
+    Parameters
+    ----------
+    message : str
+        One sentence for the user.
+    field : InputField, optional
+        The part of the job it concerns, where the raiser knows it.
+    """
+
+    def __init__(self, message: str = "", field: InputField | None = None):
+        super().__init__(message)
+        self.field = field
+
+
+@contextmanager
+def concerning(field: InputField) -> Iterator[None]:
+    """An :class:`InputError` raised inside, and not yet placed, concerns *field*.
+
+    Parameters
+    ----------
+    field : InputField
+        The part of the job the enclosed work checks.
+    """
+    try:
+        yield
+    except InputError as exc:
+        if exc.field is None:
+            exc.field = field
+        raise
 
 
 class SimulationError(AnalogyError, RuntimeError):

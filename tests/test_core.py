@@ -252,6 +252,9 @@ def test_a_scene_is_hashable_data_with_a_content_key():
     assert a.key == a.replace(q=(0, 0.3)).key               # 0 and 0.0 give the same result
     assert a.key != a.replace(q=(0.0, 0.31)).key
     assert a.key != a.replace(preset="fast").key
+    # where the results go is no part of them; what is computed is
+    assert a.key == a.replace(plot_file="elsewhere/x.png", csv_file="y.csv", netlist_file="z.cir").key
+    assert a.key != a.replace(netlist=not a.netlist).key
     assert len(a.key) == 64 and int(a.key, 16) >= 0
 
 

@@ -149,7 +149,7 @@ def test_numeric_warnings_never_add_lines_to_a_refusal():
 def test_numeric_warnings_on_success_become_one_sentence(capsys, monkeypatch):
     import numpy as np
 
-    from analogy import cli
+    from analogy.cli import commands as cli
 
     def noisy(args):
         np.ones(3) / np.zeros(3)

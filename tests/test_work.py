@@ -41,3 +41,27 @@ def test_the_budget_is_raised_deliberately():
 def test_the_cli_budget_must_be_a_count(capsys):
     assert main(["compare", "--budget", "0"]) == 2
     assert "--budget must be at least 1" in capsys.readouterr().err
+
+
+def test_the_guard_holds_on_the_batch_path_too():
+    """compare_many refuses what compare refuses, for the fastest system of a stack: the
+    error concerns the budget, and names no command-line flag (the front end adds it)."""
+    from analogy.study.comparison import compare_many
+    sc = SCENES["default"].replace(t_stop=1e8)
+    systems = sc.systems([[0.0, q] for q in (0.1, 0.3, 0.5)])
+    with pytest.raises(InputError, match="time points") as caught:
+        compare_many(systems, "fast", ["spice", "exact"])
+    assert caught.value.field == "budget" and "--" not in str(caught.value)
+
+
+def test_a_sweep_past_the_budget_stores_each_scene_as_invalid(tmp_path):
+    """analogy batch: every scene refused by the guard is stored as invalid with its sentence."""
+    import pandas as pd
+    sweep = tmp_path / "long.toml"
+    sweep.write_text('name = "long"\n[model]\nrobot = "serial2"\n[inputs]\nforces = ["step(1)", "step(0.5)"]\n'
+                     't_stop = 1e8\n[solvers]\nuse = ["spice", "exact"]\npreset = "fast"\n[sweep]\n'
+                     'method = "grid"\n[sweep.axes]\nq2 = { low = 0.1, high = 0.5, count = 3 }\n')
+    main(["batch", str(sweep), "-o", str(tmp_path / "store"), "--no-progress", "--workers", "1"])
+    frame = pd.read_parquet(tmp_path / "store")
+    assert frame["status"].tolist() == ["invalid"] * 3
+    assert all("time points" in m and "work budget" in m for m in frame["message"])

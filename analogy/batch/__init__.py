@@ -13,7 +13,7 @@ if TYPE_CHECKING:
 __all__ = ["Axis", "BatchReport", "BatchResult", "Sweep", "SweepRun", "batch_report", "load_sweep", "read",
            "read_trajectories", "run_batch", "run_sweep", "sweep_from"]
 
-# Loaded on first use, so that the command line's parser (analogy.batch.cli) starts without them.
+# Loaded on first use, so that the command line's parser (analogy.cli.batch) starts without them.
 _WHERE = {"BatchReport": "report", "batch_report": "report", "BatchResult": "run", "run_batch": "run",
           "SweepRun": "runner", "run_sweep": "runner", "read": "store", "read_trajectories": "store",
           "Axis": "sweep", "Sweep": "sweep", "load_sweep": "sweep", "sweep_from": "sweep"}

@@ -216,7 +216,8 @@ def read_trajectories(directory) -> "pandas.DataFrame":
     import pandas as pd
     path = Path(directory) / _TRAJECTORIES
     if not path.is_dir() or not any(path.glob("part-*.parquet")):
-        raise InputError(f"{directory} holds no trajectories: run analogy batch with --trajectories N")
+        raise InputError(f"{directory} holds no trajectories: the sweep was run without keeping any",
+                         field="trajectories")
     return pd.read_parquet(path)
 
 

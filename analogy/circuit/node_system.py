@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
-from functools import lru_cache
 from typing import Iterator, Mapping, NamedTuple, Protocol, Sequence
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, concerning
 from ..presets import DEFAULT_T_STOP
 from ..units import joint_units
 from ..model.dynamics import DynamicsKind
@@ -19,7 +18,8 @@ from ..model.joint import (
     configuration_stack,
     stack_fault,
 )
-from ..waveforms import Step, Waveform, parse_waveform
+from ..waveforms import Step
+from .joint_forces import force_breakpoints, joint_forces, waveforms
 from .topology import Topology, symmetric_part
 from .topology import topology as make_topology
 
@@ -43,8 +43,8 @@ class Evaluable(Protocol):
             Parameter overrides.
         """
 
-__all__ = ["Evaluable", "NodeCoordinates", "NodeSystem", "Family", "stacked", "node_system", "node_systems", "output_times", "joint_forces",
-           "force_breakpoints", "waveforms"]
+__all__ = ["Evaluable", "NodeCoordinates", "NodeSystem", "Family", "stacked", "node_system", "node_systems",
+           "output_times"]
 
 
 class NodeCoordinates:
@@ -142,22 +142,31 @@ class NodeSystem(NodeCoordinates):
                  t_stop: float, info: Mapping | None = None):
         n = joint.dof
         if topology.dof != n:
-            raise InputError(f"topology is {topology.dof}x{topology.dof} but the robot has {n} joints")
+            raise InputError(f"topology is {topology.dof}x{topology.dof} but the robot has {n} joints",
+                             field="topology")
         if not (np.isfinite(t_stop) and 1e-9 <= t_stop <= 1e9):
-            raise InputError("t_stop must be a time between 1e-9 s and 1e9 s")
+            raise InputError("t_stop must be a time between 1e-9 s and 1e9 s", field="t_stop")
         if len(forces) != n:
-            raise InputError(f"forces must have {n} entries (one per joint), got {len(forces)}")
-        r0 = check_vector("initial rates r0", initial_rates, n)
+            raise InputError(f"forces must have {n} entries (one per joint), got {len(forces)}", field="forces")
+        with concerning("initial_rates"):
+            r0 = check_vector("initial rates r0", initial_rates, n)
         mass = topology.node_matrix(joint.mass_matrix)
         damping = topology.node_matrix(joint.damping)
         stiffness = None if joint.stiffness is None else topology.node_matrix(joint.stiffness)
-        # T can be well conditioned yet scale M', B' or K' out of floating-point range.
-        for label, part in (("node mass matrix M'", mass), ("node damping matrix B'", damping),
-                            ("node stiffness matrix K'", stiffness), ("current map T^-T", topology.current_map)):
-            check_node_form(label, part)
-        check_square_symmetric("node mass matrix M'", mass, definite=True)
+        # T can be well conditioned yet scale M', B' or K' out of floating-point range. The
+        # joint matrices passed their own checks, so a node form that fails concerns a T
+        # given as a matrix, and otherwise the joint matrices it was made from.
+        custom = topology.name not in ("serial", "parallel")
+        for field, label, part in (("mass", "node mass matrix M'", mass), ("damping", "node damping matrix B'", damping),
+                                   ("stiffness", "node stiffness matrix K'", stiffness),
+                                   ("topology", "current map T^-T", topology.current_map)):
+            with concerning("topology" if custom else field):
+                check_node_form(label, part)
+        with concerning("topology" if custom else "mass"):
+            check_square_symmetric("node mass matrix M'", mass, definite=True)
         self._store(joint, topology, tuple(forces), r0, float(t_stop), dict(info or {}), mass, damping, stiffness)
-        self.breakpoints()          # checks every waveform against t_stop before any solver runs
+        with concerning("forces"):
+            self.breakpoints()      # checks every waveform against t_stop before any solver runs
 
     def _store(self, joint, topology, forces, r0, t_stop, info, mass, damping, stiffness, family=None):
         self.joint, self.topology, self.forces = joint, topology, forces
@@ -282,83 +291,6 @@ def output_times(t_stop: float, times=None, default: int = 1001) -> np.ndarray:
     return np.minimum(t, t_stop)
 
 
-def joint_forces(forces: tuple, t) -> np.ndarray:
-    """The summed waveforms of every joint at times *t*, shape (len(t), n).
-
-    Parameters
-    ----------
-    forces : tuple of tuple of Waveform
-        Per joint, its waveforms.
-    t : float or array_like
-        Times.
-    """
-    t = np.atleast_1d(np.asarray(t, dtype=float))
-    return np.stack([sum((w(t) for w in ws), np.zeros_like(t)) for ws in forces], axis=-1)
-
-
-def force_breakpoints(forces: tuple, t_stop: float) -> np.ndarray:
-    """Sorted segment ends in (0, t_stop] between which every force is smooth.
-
-    Parameters
-    ----------
-    forces : tuple of tuple of Waveform
-        Per joint, its waveforms.
-    t_stop : float
-        End time.
-    """
-    pts = {t_stop}
-    for ws in forces:
-        for w in ws:
-            pts.update(b for b in w.breakpoints(t_stop) if 0 < b < t_stop)
-    return np.array(sorted(pts))
-
-
-@lru_cache(maxsize=1024)
-def _step(value: float) -> Step:
-    # Waveforms are immutable; a batch of scenes shares its constant forces.
-    return Step(value)
-
-
-def waveforms(spec, n: int) -> tuple:
-    """Per joint, the tuple of waveforms a force specification sums (see :func:`node_system`).
-
-    Parameters
-    ----------
-    spec : sequence or None
-        One entry per joint: a number, a waveform, a waveform string or a list of these.
-    n : int
-        Number of joints.
-    """
-    if spec is None:
-        return tuple(() for _ in range(n))
-    if isinstance(spec, (str, Waveform)) or np.isscalar(spec):
-        raise InputError(f"forces must be a list with one entry per joint ({n})")
-    spec = list(spec)
-    if len(spec) != n:
-        raise InputError(f"forces must have {n} entries (one per joint), got {len(spec)}")
-    out = []
-    for item in spec:
-        items = item if isinstance(item, (list, tuple)) else [item]
-        ws = []
-        for w in items:
-            if isinstance(w, Waveform):
-                ws.append(w)
-            elif isinstance(w, str):
-                ws.append(parse_waveform(w))
-            else:
-                try:
-                    value = float(w)
-                except (TypeError, ValueError):
-                    raise InputError(f"cannot use {w!r} as a force") from None
-                except OverflowError:
-                    raise InputError("forces must be finite: a number is outside the floating-point range") from None
-                if not np.isfinite(value):
-                    raise InputError("forces must be finite")
-                ws.append(_step(value))
-        out.append(tuple(ws))
-    return tuple(out)
-
-
 def node_system(model: Evaluable | JointSpace, q: Sequence[float] | None = None, *,
                 parameters: Mapping[str, float] | None = None,
                 topology: str | Topology | np.ndarray | None = None,
@@ -410,8 +342,10 @@ def _evaluated(model, q, parameters, topology):
 def _mapped(joint, top_spec, base_info, forces, initial_rates, t_stop, info) -> NodeSystem:
     """A joint space mapped to node coordinates, with its forces and initial rates."""
     n = joint.dof
-    top = make_topology(top_spec, n)
-    ws = waveforms(forces, n)
+    with concerning("topology"):
+        top = make_topology(top_spec, n)
+    with concerning("forces"):
+        ws = waveforms(forces, n)
     if joint.gravity is not None:
         ws = tuple(w + (Step(-g),) if g else w for w, g in zip(ws, joint.gravity))
     r0 = np.zeros(n) if initial_rates is None else initial_rates

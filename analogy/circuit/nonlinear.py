@@ -11,7 +11,8 @@ from ..presets import DEFAULT_T_STOP
 from ..units import joint_units
 from ..model.dynamics import DynamicsKind, MechanicalFunctions
 from ..model.joint import check_square_symmetric, check_vector
-from .node_system import NodeCoordinates, force_breakpoints, waveforms
+from .joint_forces import force_breakpoints, waveforms
+from .node_system import NodeCoordinates
 from .topology import Topology
 from .topology import topology as make_topology
 

@@ -9,7 +9,8 @@ from typing import Sequence
 import numpy as np
 
 from ..errors import InputError
-from .node_system import joint_forces, stacked
+from .joint_forces import joint_forces
+from .node_system import stacked
 from .topology import symmetric_part
 
 __all__ = ["Scales", "system_scales", "stack_scales", "combined_scales"]

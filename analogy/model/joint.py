@@ -6,7 +6,7 @@ from typing import Mapping, NamedTuple, Sequence
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, concerning
 
 __all__ = ["JointSpace", "unstable_stiffness", "JointStack", "check_square_symmetric", "check_node_form",
            "check_vector", "evaluation_arguments", "stack_arguments", "configuration_stack", "evaluate_entries",
@@ -320,13 +320,16 @@ class JointSpace:
     __slots__ = ("mass_matrix", "damping", "stiffness", "gravity")
 
     def __init__(self, mass_matrix, damping=None, stiffness=None, gravity=None):
-        m = check_square_symmetric("mass matrix M", mass_matrix, definite=True)
+        with concerning("mass"):
+            m = check_square_symmetric("mass matrix M", mass_matrix, definite=True)
         n = m.shape[0]
-        b = np.zeros((n, n)) if damping is None else \
-            check_square_symmetric("damping matrix B", damping, n=n, semidefinite=True)
-        k = None if stiffness is None else \
-            check_square_symmetric("stiffness matrix K", stiffness, n=n)
-        g = None if gravity is None else check_vector("gravity vector G", gravity, n)
+        with concerning("damping"):
+            b = np.zeros((n, n)) if damping is None else \
+                check_square_symmetric("damping matrix B", damping, n=n, semidefinite=True)
+        with concerning("stiffness"):
+            k = None if stiffness is None else check_square_symmetric("stiffness matrix K", stiffness, n=n)
+        with concerning("gravity"):
+            g = None if gravity is None else check_vector("gravity vector G", gravity, n)
         self._store(m, b, k, g)
 
     def _store(self, m, b, k, g):

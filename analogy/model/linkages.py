@@ -292,7 +292,7 @@ class _AssemblySolver:
             if h < 1e-6:
                 raise InputError(f"model {self.model.name!r} does not assemble at q = {_fmt(q1)} "
                                  f"in its working mode (continuation from q = {_fmt(q0)} fails "
-                                 f"near q = {_fmt(qs)})")
+                                 f"near q = {_fmt(qs)})", field="q")
         return p
 
 

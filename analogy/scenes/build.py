@@ -8,7 +8,8 @@ from typing import Iterator, Mapping
 
 import numpy as np
 
-from ..circuit.node_system import node_system, node_systems, waveforms
+from ..circuit.joint_forces import waveforms
+from ..circuit.node_system import node_system, node_systems
 from ..circuit.nonlinear import nonlinear_system
 from ..errors import InputError
 from ..model.catalog import ROBOT_NAMES, check_robot_name
@@ -20,7 +21,7 @@ from ..model.joint import JointSpace
 from .spec import ModelSpec, SceneData
 
 __all__ = ["scene_model", "symbolic_model", "scene_system", "scene_systems", "entry_value", "TOML_KEYS",
-           "CLI_KEYS", "keyed"]
+           "LABELS", "keyed"]
 
 #: How errors name each part of a scene: in a scene file, and on the command line.
 TOML_KEYS = {"robot": "[model] robot", "mass": "[model] mass", "damping": "[model] damping",
@@ -29,10 +30,10 @@ TOML_KEYS = {"robot": "[model] robot", "mass": "[model] mass", "damping": "[mode
              "initial_rates": "[inputs] initial_rates", "t_stop": "[inputs] t_stop",
              "parameters": "[parameters]", "model": "[model]", "inputs": "[inputs]",
              "dynamics": "dynamics", "link_modes": "[model] link_modes"}
-CLI_KEYS = {"robot": "--robot", "mass": "--mass", "damping": "--damping", "stiffness": "--stiffness",
-            "gravity": "--gravity", "q": "--q", "topology": "--topology", "forces": "--force",
-            "initial_rates": "--r0", "t_stop": "--t-stop", "parameters": "--param", "model": "--mass",
-            "inputs": "--force", "dynamics": "--dynamics", "link_modes": "--link-modes"}
+
+#: How errors name each part of a scene, by the scene's source: a front end adds its own
+#: (the command line registers its flags); any other source gets the scene-file keys.
+LABELS: dict[str, dict] = {}
 _QNAME = re.compile(r"^q[0-9]+$")
 _MODELS: dict = {}
 
@@ -55,7 +56,7 @@ def keyed(key: str | None) -> Iterator[None]:
 
 
 def _keys(scene: SceneData) -> dict:
-    return CLI_KEYS if scene.source == "command line" else TOML_KEYS
+    return LABELS.get(scene.source, TOML_KEYS)
 
 
 def _where(scene: SceneData):
@@ -119,13 +120,6 @@ def _vector(value, n: int) -> list:
     if not isinstance(value, tuple) or len(value) != n:
         raise InputError(f"expected {n} entries (one per joint)")
     return [entry_value(x, f"entry {k + 1}") for k, x in enumerate(value)]
-
-
-def _joint_key(message: str, keys: dict) -> str:
-    for part in ("damping", "stiffness", "gravity"):
-        if message.startswith((part, f"node {part}")):
-            return keys[part]
-    return keys["mass"]
 
 
 def _matrices(spec: ModelSpec, keys: dict) -> tuple[dict, bool]:
@@ -233,7 +227,7 @@ def scene_model(scene: SceneData) -> object:
                                   None if "stiffness" not in parts else np.array(parts["stiffness"]),
                                   None if "gravity" not in parts else np.array(parts["gravity"]))
             except InputError as exc:
-                raise InputError(f"{_joint_key(str(exc), keys)}: {exc}") from None
+                raise InputError(f"{keys.get(exc.field, keys['mass'])}: {exc}", field=exc.field) from None
         cache = (spec, scene.parameters)
         model = _MODELS.get(cache)
         if model is None:
@@ -307,7 +301,7 @@ def _inputs(scene: SceneData, n: int, keys: dict) -> dict:
             raise InputError(f"expected {n} entries (one per joint), got {len(forces)}")
     out = []
     for k, item in enumerate(forces):
-        with keyed(f"{keys['forces']}[{k + 1}]" if keys is TOML_KEYS else keys["forces"]):
+        with keyed(f"{keys['forces']}[{k + 1}]" if keys.get("numbered", True) else keys["forces"]):
             if isinstance(item, tuple) and not item:
                 raise InputError("an empty list: give a number or a waveform such as \"step(1)\"")
             out.append(waveforms([item], 1)[0])
@@ -349,19 +343,19 @@ def scene_system(scene: SceneData, model=None) -> object:
             return node_system(m, q, parameters=params, topology=top, t_stop=scene.t_stop, info=info,
                                **inputs)
         except InputError as exc:
-            text = str(exc)
-            if text.startswith(("topology", "unknown topology", "current map")) or (
-                    text.startswith("node ") and isinstance(scene.topology, tuple)):
-                raise InputError(f"{keys['topology']}: {text}") from None
-            if text.startswith("t_stop"):
-                raise InputError(f"{keys['t_stop']}: {text}") from None
-            if "does not assemble" in text:
-                raise InputError(f"{keys['q']}: {text}") from None
-            if text.startswith(("mass", "damping", "stiffness", "gravity", "node ", "model")):
-                # a built-in robot's matrices come from its parameters
-                key = keys["parameters"] if scene.model.robot is not None else _joint_key(text, keys)
-                raise InputError(f"{key}: {text}") from None
-            raise InputError(f"{keys['inputs']}: {text}") from None
+            raise InputError(f"{_blamed(exc, scene, keys)}: {exc}", field=exc.field) from None
+
+
+_MATRICES = ("mass", "damping", "stiffness", "gravity")
+
+
+def _blamed(exc: InputError, scene: SceneData, keys: dict) -> str:
+    """The key of the part of *scene* that *exc* concerns: a built-in robot's matrices come
+    from its parameters, and what no raiser placed is blamed on the inputs."""
+    field = exc.field
+    if field in _MATRICES and scene.model.robot is not None:
+        return keys["parameters"]
+    return keys.get(field, keys["inputs"]) if field is not None else keys["inputs"]
 
 
 def scene_systems(scene: SceneData, qs, model=None, parameters=None) -> list:

@@ -25,10 +25,11 @@ __all__ = ["Scene", "OUTPUTS", "SCENE_SCHEMA", "content_key"]
 OUTPUTS = ("joint_rates", "node_voltages", "element_currents")
 
 #: Version of what a content key covers; bumped when the meaning of a field changes.
-SCENE_SCHEMA = "analogy-scene-1"
+SCENE_SCHEMA = "analogy-scene-2"
 
 # Fields that name, describe or locate a scene but do not change its result.
-_NOT_CONTENT = ("name", "description", "source")
+# Where results are written changes no result: a renamed output file or folder re-solves nothing.
+_NOT_CONTENT = ("name", "description", "source", "netlist_file", "csv_file", "plot_file")
 
 
 @dataclass(frozen=True)
@@ -257,7 +258,8 @@ def _canonical(value):
 def content_key(scene: Scene) -> str:
     """A hex SHA-256 of every field that determines *scene*'s result, in a canonical form.
 
-    Names, descriptions and the source file are left out; numbers are written with
+    Names, descriptions, the source file and the output file names are left out (what is
+    computed, and with which settings, is in); numbers are written with
     ``repr`` (exact for floats), so the key is the same in every process and on
     every machine. :data:`SCENE_SCHEMA` is part of it.
 

@@ -193,8 +193,8 @@ def solve_ode(system, times=None, method: str = "DOP853", rtol: float = 1e-10,
                                           f"({_plain(message)}): try the other preset or the exact solver")
                 if timeout is not None and _time.perf_counter() - start > timeout:
                     raise SimulationError(f"the ODE solver {method} passed its time limit of {timeout:g} s at "
-                                          f"t = {sol.t:.6g} of {system.t_stop:g} s: raise --timeout or use "
-                                          "the fast preset")
+                                          f"t = {sol.t:.6g} of {system.t_stop:g} s: raise the preset's timeout or "
+                                          "use the fast preset")
                 steps += 1
                 stop = k
                 while stop < idx.size and t[idx[stop]] <= sol.t:

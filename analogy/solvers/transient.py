@@ -189,7 +189,11 @@ def netlist(system, preset: str | Preset = "accurate", save: Iterable[str] | Non
                                       coupled=bool(system.couplings), loosen=loosen)
         return write_netlist(system, settings, save, title, printing)
     c = describe(system, zero_tol, realizable)
-    return write_netlist(c, _settings_of(system, c, preset, loosen), save, title, printing)
+    try:
+        settings = _settings_of(system, c, preset, loosen)
+    except SimulationError as exc:      # no netlist can be written for it: the input's scale
+        raise InputError(str(exc)) from None
+    return write_netlist(c, settings, save, title, printing)
 
 
 def batch_netlist(systems: Sequence, preset: str | Preset = "fast", scales: Scales | None = None) -> str:

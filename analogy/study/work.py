@@ -65,9 +65,10 @@ def check_work(system, preset: Preset, scales=None) -> WorkEstimate:
     if work.segments > preset.segment_budget:
         raise InputError(f"the forces have {work.segments:,} segments between breakpoints (pwl points, pulse "
                          f"edges), more than the budget of {preset.segment_budget:,}: use fewer, or raise "
-                         "the budget with --budget")
+                         "the preset's segment budget", field="budget")
     if work.points > preset.work_budget:
         raise InputError(f"the run would need about {work.points:.3g} time points (the fastest rate, "
                          f"{work.fastest:.3g} rad/s, over t_stop = {system.t_stop:g} s), more than the budget "
-                         f"of {preset.work_budget:.3g}: shorten t_stop, or raise the budget with --budget")
+                         f"of {preset.work_budget:.3g}: shorten t_stop, or raise the preset's work budget",
+                         field="budget")
     return work

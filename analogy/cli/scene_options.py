@@ -14,12 +14,21 @@ from ..model.expressions import (
     split_entries,
 )
 from ..presets import PRESETS
-from .build import scene_model
-from .builtin import SCENES, scene
-from .scene import Scene
-from .spec import ModelSpec
+from ..scenes.build import LABELS, scene_model
+from ..scenes.builtin import SCENES, scene
+from ..scenes.scene import Scene
+from ..scenes.spec import ModelSpec
 
-__all__ = ["PRESET_HELP", "scene_from_args", "scene_options"]
+__all__ = ["CLI_KEYS", "PRESET_HELP", "scene_from_args", "scene_options"]
+
+#: The flag that sets each part of a scene, for input errors (forces are one repeated flag,
+#: so they are not numbered).
+CLI_KEYS = {"robot": "--robot", "mass": "--mass", "damping": "--damping", "stiffness": "--stiffness",
+            "gravity": "--gravity", "q": "--q", "topology": "--topology", "forces": "--force",
+            "initial_rates": "--r0", "t_stop": "--t-stop", "parameters": "--param", "model": "--mass",
+            "inputs": "--force", "dynamics": "--dynamics", "link_modes": "--link-modes", "numbered": False}
+LABELS["command line"] = CLI_KEYS
+
 
 #: The --preset help text: each preset and what it promises.
 PRESET_HELP = "accuracy preset: " + "; ".join(f"{k} ({p.description})" for k, p in PRESETS.items())

@@ -93,8 +93,8 @@ def batch_command(args) -> int:
         raise InputError("give the results folder with -o DIR")
     if args.workers < 1:
         raise InputError("--workers must be at least 1")
-    from .runner import run_sweep, with_overrides
-    from .sweep import load_sweep
+    from ..batch.runner import run_sweep, with_overrides
+    from ..batch.sweep import load_sweep
     solvers = None
     if args.solvers is not None:
         solvers = tuple(dict.fromkeys(s.strip() for s in args.solvers.split(",") if s.strip()))
@@ -125,7 +125,7 @@ def batch_command(args) -> int:
 
 
 def _report(args) -> int:
-    from .report import batch_report
+    from ..batch.report import batch_report
     if args.report_dir is None:
         raise InputError("give the store to report on: analogy batch report DIR")
     report = batch_report(args.report_dir)

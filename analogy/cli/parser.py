@@ -1,0 +1,119 @@
+"""The command line's parser: every subcommand and its options, with one-line errors."""
+
+from __future__ import annotations
+
+import argparse
+
+from .. import __version__
+from ..errors import InputError
+from ..presets import PRESETS
+from .batch import batch_options
+from .scene_options import PRESET_HELP, scene_options
+
+__all__ = ["build_parser"]
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line errors (exit 2) instead of a usage dump."""
+
+    def error(self, message):
+        raise InputError(f"{message} (see {self.prog} --help)")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``analogy`` argument parser, with one subcommand per task."""
+    parser = _Parser(prog="analogy",
+                     description="Robot dynamics as electric circuits: netlists, SPICE and checks.")
+    parser.add_argument("--version", action="version", version=f"analogy {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    p = sub.add_parser("netlist", help="write the equivalent-circuit SPICE netlist")
+    scene_options(p)
+    p.add_argument("-o", "--output", help="file to write (default: stdout)")
+    p.add_argument("--save", metavar="NAMES", help="nodes or elements to save, e.g. 'n1, C1_2' (default: all nodes)")
+    p.add_argument("--realizable", action="store_true",
+                   help="no negative values: negative elements behind 1:-1 couplings")
+    p.add_argument("--dynamics", default="linear", choices=["linear", "nonlinear"],
+                   help="the circuit at q (linear), or the robot's full nonlinear circuit: "
+                        "charge-defined capacitors, behavioural forces and integrators")
+    p = sub.add_parser("compare", help="run SPICE, ODE and exact solvers and compare them")
+    scene_options(p)
+    p.add_argument("--solvers", default="spice,ode,exact",
+                   help="comma-separated registered solvers: spice, ode, exact, reference")
+    p.add_argument("--dynamics", default="linear", choices=["linear", "nonlinear", "both"],
+                   help="the circuit at q (linear), the full configuration-dependent motion, or both: "
+                        "how long the linear circuit holds")
+    p.add_argument("--step", metavar="SECONDS", help="output step of the shared time grid "
+                   "(default: SPICE's own points); errors are measured on each solver's own points")
+    p.add_argument("--timeout", metavar="SECONDS", help="wall-time limit of each ODE integration "
+                   "(default: the preset's, 300 s); past it the solver fails with one sentence")
+    p.add_argument("--budget", metavar="POINTS", help="most time points (and force segments) a run may "
+                   "need, estimated before it starts (default: the preset's, 1e8 at accurate, 1e7 at fast)")
+    p.add_argument("--csv", metavar="FILE", help="write joint rates of every solver to CSV")
+    p.add_argument("--plot", metavar="FILE.png", help="write a plot of rates and errors")
+    p.add_argument("--no-plot", action="store_true", help="never import the plotting library")
+    p = sub.add_parser("modes", help="natural frequencies and damping ratios of the linear system at q")
+    scene_options(p)
+    p.add_argument("--locked", metavar="JOINTS", help="joints held clamped, e.g. '1' or '1,2'")
+    p.add_argument("--csv", metavar="FILE", help="write mode, omega_rad_s, f_hz, damping_ratio")
+    p = sub.add_parser("ac", help="ngspice's .ac sweep against the exact mobility (M's + B' + K'/s)^-1")
+    scene_options(p)
+    for flag, what in (("--f-start", "first frequency (default: modes / 10)"), ("--f-stop", "last (modes x 10)")):
+        p.add_argument(flag, type=float, metavar="HZ", help=what)
+    p.add_argument("--points", type=int, default=500, help="points per decade (default 500)")
+    for flag, what in (("--csv", "|Y| and phase of SPICE's mobilities"), ("--plot", "a Bode plot")):
+        p.add_argument(flag, metavar="FILE", help=f"write {what}")
+    p = sub.add_parser("verify", help="check every built-in example: SPICE and ODE against exact, "
+                                      "exact against a 40-digit mpmath solution")
+    p.add_argument("--preset", default="accurate", choices=list(PRESETS), help=PRESET_HELP)
+    p.add_argument("--scenes", default=None, help="comma-separated scene names (default: all)")
+    sub.add_parser("scenes", help="list the built-in scenes")
+    p = sub.add_parser("draw", help="draw the equivalent circuit and the mechanical system (SVG and PNG)")
+    scene_options(p)
+    p.add_argument("-o", "--output-dir", default=".", help="folder for the drawings (default: .)")
+    p.add_argument("--stem", help="file name stem (default: the scene's name, with its content "
+                                  "key when changed from a built-in scene)")
+    p.add_argument("--schematic", action="store_true", help="draw schematics even past 6 nodes "
+                   "(default there: a map of the element values by node pair)")
+    p = sub.add_parser("run", help="run scene files (TOML): exactly what each asks for")
+    p.add_argument("scene_files", nargs="+", metavar="SCENE.toml", help="one or more .toml scenes")
+    p.add_argument("--preset", choices=list(PRESETS), help="override each scene's accuracy preset")
+    p.add_argument("--solvers", help="override each scene's solvers, e.g. spice,exact")
+    p.add_argument("--output-dir", help="folder for the scene's output files (default: next to it)")
+    p.add_argument("--no-plot", action="store_true", help="skip plots even if the scene asks for one")
+    p.add_argument("--dynamics", choices=["linear", "nonlinear"], help="override the scene's dynamics")
+    batch_options(sub)
+    p = sub.add_parser("bench", help="run time against error: ngspice settings, ODE methods, exact solver")
+    p.add_argument("--repeats", type=int, default=5, help="timed runs per setting (median; default 5)")
+    p.add_argument("--quick", action="store_true", help="a small grid on the 2- and 10-DOF scenes "
+                   "(seconds), for a first look")
+    p.add_argument("--full", action="store_true", help="the full ngspice grid (method x reltol x trtol x max step)")
+    p.add_argument("--csv", default="bench.csv", help="CSV output (default: bench.csv)")
+    p.add_argument("--plot", default="bench.png", help="work-precision plot (default: bench.png)")
+    p.add_argument("--no-progress", action="store_true", help="no progress (a bar on a terminal, "
+                   "plain lines otherwise)")
+    p = sub.add_parser("stress", help="stress-test numerical stability: families of hard cases, each run by "
+                                      "every solver that applies (CSV, a plot per family, a summary)")
+    p.add_argument("--quick", action="store_true", help="only the ends of each sweep (under a minute)")
+    p.add_argument("--families", default="abcdefg", help="family letters (default abcdefg): a conditioning, "
+                   "b time scales, c long runs, d size, e units, f near-singular, g nonlinear")
+    p.add_argument("-o", "--output", default="stress", help="folder for stress.csv, stress.md and "
+                   "stress_<family>.png (made if missing; default: stress)")
+    p.add_argument("--timeout", type=float, default=10.0, help="wall-time limit of each ODE run [s] (default 10)")
+    p.add_argument("--no-progress", action="store_true", help="no progress (a bar on a terminal, "
+                   "plain lines otherwise)")
+    p = sub.add_parser("memory", help="resident memory grown per in-process SPICE run (kB/run)")
+    p.add_argument("--runs", type=int, default=10_000, help="counted runs (default 10000)")
+    p.add_argument("--preset", default="accurate", choices=list(PRESETS), help=PRESET_HELP)
+    p.add_argument("--scene", default="default", help="built-in scene (default: default)")
+    p = sub.add_parser("throughput", help="scenes per second: batched ngspice runs against per-scene loops")
+    p.add_argument("-n", type=int, default=10_000, help="number of 2-DOF scenes (default 10000)")
+    p.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
+    p.add_argument("--group-size", type=int, default=100, help="scenes per ngspice run (default 100)")
+    p.add_argument("--baseline", type=int, default=500, help="scenes for the per-scene loops (default 500)")
+    p.add_argument("--repeats", type=int, default=3, help="turns of every path; medians are reported (default 3)")
+    p.add_argument("--preset", default="fast", choices=list(PRESETS), help=PRESET_HELP)
+    p.add_argument("--no-progress", action="store_true", help="no progress lines")
+    p.add_argument("--sweep", metavar="SWEEP.toml", help="instead: this sweep into the store -o DIR, "
+                   "beside the in-memory batched path on its first --baseline scenes, with peak memory")
+    p.add_argument("-o", "--output", metavar="DIR", help="the store of --sweep")
+    return parser
