@@ -16,7 +16,7 @@ _EXPORTS = {
     "AnalogyError": "errors", "InputError": "errors", "SimulationError": "errors",
     "SpiceError": "errors", "AccuracyError": "errors",
     "solve_exact": "solvers.exact", "solve_ode": "solvers.ode", "solve_spice": "solvers.spice",
-    "solve_reference": "solvers.reference", "solver": "solvers.registry", "SOLVER_NAMES": "solvers.registry",
+    "solve_reference": "solvers.reference", "solver": "solvers.registry", "SOLVER_NAMES": "solvers.registry", "solve": "solvers.registry",
     "JointSpace": "model.joint", "Model": "model.symbolic", "NodeDynamics": "model.dynamics",
     "christoffel_symbols": "model.symbolic", "velocity_terms": "model.symbolic",
     "netlist": "solvers.transient",

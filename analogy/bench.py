@@ -349,7 +349,7 @@ def bench(repeats: int = 5, full: bool = False, scenes=None, progress: bool = Tr
                 # that is affordable; above 10 DOF it has no independent reference here.
                 err = float("nan")
                 if n <= 10:
-                    mp = solve_reference(system, probe)
+                    mp = solve_reference(system, probe).voltages
                     ex = solve_exact(system, probe).voltages
                     err = relative_error(ex, mp)
             result.rows.append(BenchRow(sc.name, n, kind, label, tol, med, err, len(t), runs=runs))

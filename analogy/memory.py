@@ -66,11 +66,11 @@ def memory_per_run(runs: int = 10_000, preset: str = "accurate", scene_name: str
         raise InputError("runs must be at least 1 and warmup at least 0")
     system = scene(scene_name).system()
     for _ in range(warmup):
-        solve_spice(system, preset)
+        solve_spice(system, preset=preset)
     gc.collect()
     before, start = _resident_kb(), _time.perf_counter()
     for _ in range(runs):
-        solve_spice(system, preset)
+        solve_spice(system, preset=preset)
     gc.collect()
     ng = session()._ng
     lines = len(getattr(ng, "_stdout", [])) + len(getattr(ng, "_stderr", []))

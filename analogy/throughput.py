@@ -67,7 +67,7 @@ def _solo_loop(payload):
             start = _time.perf_counter()
             solves = []
         s = _system(item)
-        tr = solve_spice(s, preset_name)
+        tr = solve_spice(s, preset=preset_name)
         solves.append(tr.run_time)
         ex = solve_exact(s, tr.time).rates
         worst = max(worst, relative_error(tr.rates, ex))

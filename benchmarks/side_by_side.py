@@ -36,10 +36,10 @@ try:
 except ImportError:
     from analogy.solvers.spice import solve_spice
 s = analogy.scene("default").system()
-for _ in range(50): solve_spice(s, "fast")
+for _ in range(50): solve_spice(s, preset="fast")
 ts = []
 for _ in range(400):
-    t0 = time.perf_counter(); solve_spice(s, "fast"); ts.append(time.perf_counter() - t0)
+    t0 = time.perf_counter(); solve_spice(s, preset="fast"); ts.append(time.perf_counter() - t0)
 print(json.dumps(statistics.median(ts)))
 '''
 BYTECODE = os.environ.get("BYTECODE", "1") == "1"

@@ -117,7 +117,7 @@ def test_results_start_at_t0_and_an_output_step_sets_the_rows(tmp_path):
 @pytest.mark.ngspice
 def test_spice_results_include_the_initial_state():
     import analogy
-    tr = analogy.solve_spice(analogy.scene("serial2").system(), "fast")
+    tr = analogy.solve_spice(analogy.scene("serial2").system(), preset="fast")
     assert tr.time[0] == 0.0 and tr.time[1] > 0
     assert tr.voltages[0].tolist() == analogy.scene("serial2").system().initial_voltages.tolist()
 

@@ -239,5 +239,5 @@ def test_the_charge_form_forgets_the_initial_condition_so_the_circuit_uses_a_fol
     assert np.max(np.abs(vb - np.exp(-t / 2))) <= 1e-3
     assert np.max(np.abs(va)) <= 1e-12
     moving = nonlinear("default", initial_rates=(0.5, -0.2))
-    tr = analogy.solve_spice(moving, "accurate")
+    tr = analogy.solve_spice(moving, preset="accurate")
     np.testing.assert_allclose(tr.rates[1], [0.5, -0.2], atol=1e-3)     # its first step keeps r(0)

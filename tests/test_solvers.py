@@ -32,7 +32,7 @@ def test_exact_matches_40_digit_reference(name):
     """Eigen-decomposition of the pencil vs mpmath.expm of the augmented system: ≤ 1e-12."""
     s = scene(name).system()
     t = np.linspace(0.0, s.t_stop, 7)
-    ref = solve_reference(s, t)
+    ref = solve_reference(s, t).voltages
     assert rel_err(solve_exact(s, t).voltages, ref) <= 1e-12
 
 
@@ -42,7 +42,7 @@ def test_exact_with_springs_and_every_waveform_matches_reference():
               "pwl(0, 0, 1, 1, 2, -1)", ["sine(0.2, 1, 0.8, 0.3, 0.4, 30)", "step(-0.5)"]]
     s = node_system(model, forces=forces, initial_rates=[0.3, -0.2, 0.1, 0.0], t_stop=4.0)
     t = np.linspace(0.0, 4.0, 9)
-    assert rel_err(solve_exact(s, t).voltages, solve_reference(s, t)) <= 1e-12
+    assert rel_err(solve_exact(s, t).voltages, solve_reference(s, t).voltages) <= 1e-12
 
 
 def test_exact_satisfies_the_differential_equation():
@@ -143,7 +143,7 @@ def test_the_exact_solution_of_a_stiff_pencil_keeps_its_slow_rate():
     s = node_system(JointSpace([[1e-9, 0], [0, 1.0]], damping=[[1e6, 0], [0, 1.0]],
                                stiffness=[[1e9, 0], [0, 1.0]]), forces=[1, 1], t_stop=10.0)
     t = np.array([0, 1e-15, 1e-9, 1e-6, 1e-4, 1e-3, 1e-2, 0.1, 1, 10])
-    ref = solve_reference(s, t)
+    ref = solve_reference(s, t).voltages
     assert np.max(np.abs(solve_exact(s, t).voltages - ref)) <= 1e-9 * np.max(np.abs(ref))
 
 
@@ -163,7 +163,7 @@ def test_an_explicit_method_on_a_stiff_system_is_replaced_and_says_so():
                         np.zeros(20)) == ("DOP853", "")
     t = np.linspace(0, 10, 101)
     tr = solve_ode(s, t, "DOP853", 1e-12)
-    ref = solve_reference(s, t)
+    ref = solve_reference(s, t).voltages
     assert "Radau" in tr.message and tr.stats.steps < 100_000
     assert np.max(np.abs(tr.voltages - ref)) <= 1e-6 * np.max(np.abs(ref))
 
@@ -183,4 +183,24 @@ def test_a_critically_damped_stiff_mode_keeps_a_solvable_modal_basis():
     s = node_system(JointSpace(np.array([[1.0, 0.2], [0.2, 1.0]]), np.diag(2 * w), np.diag(w ** 2)),
                     forces=[1.0, 1.0], t_stop=10.0)
     t = 10 * np.sort(np.concatenate([[0, 1], np.modf(np.arange(1, 8) * 0.6180339887498949)[0]]))
-    assert relative_error(solve_exact(s, t).voltages, solve_reference(s, t)) <= 1e-9
+    assert relative_error(solve_exact(s, t).voltages, solve_reference(s, t).voltages) <= 1e-9
+
+
+@pytest.mark.ngspice
+def test_one_solve_shaped_like_solve_ivp_times_resamples_and_checks_every_solver():
+    """analogy.solve(system, method, t_eval): every registered solver returns a Trajectory on
+    t_eval, from t = 0, timed by the base class; a solver may not bypass that contract."""
+    import analogy
+    from analogy.solvers.registry import SOLVER_NAMES, Solver
+    s = analogy.scene("default").system()
+    t = np.linspace(0.0, s.t_stop, 51)
+    exact = analogy.solve(s, "exact", t)
+    for name in SOLVER_NAMES:
+        tr = analogy.solve(s, name, t, "accurate")
+        assert tr.success and tr.solver == name and np.array_equal(tr.time, t)
+        assert tr.stats.wall_time > 0 and tr.rates.shape == (t.size, s.dof)
+        assert analogy.relative_error(tr.rates, exact.rates) <= 1e-6     # the accurate bound
+    with pytest.raises(TypeError, match="implement _solve"):
+        type("Rogue", (Solver,), {"solve": lambda self, *a, **k: None})
+    with pytest.raises(analogy.InputError, match="sorted"):      # bad input raises; a failure does not
+        analogy.solve(s, "exact", [2.0, 1.0])

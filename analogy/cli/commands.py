@@ -165,7 +165,7 @@ def _cmd_verify(args) -> int:
         system = systems[name]
         c = compare(system, args.preset)
         probe = np.linspace(0, system.t_stop, 9)
-        mp_err = relative_error(solve_exact(system, probe).voltages, solve_reference(system, probe))
+        mp_err = relative_error(solve_exact(system, probe).voltages, solve_reference(system, probe).voltages)
         errs = c.errors()
         sp_err = errs.get("spice", (np.nan, np.nan))[1]
         od_err = errs.get("ode", (np.nan, np.nan))[1]

@@ -309,15 +309,15 @@ class ExactSolver(Solver):
     linear_only = True
     label = "modal closed form"
 
-    def solve(self, system, times, preset: Preset, *, save=(), positions=False) -> Trajectory:
-        """The exact solution at *times* (None: the preset's uniform grid); see :meth:`Solver.solve`.
+    def _solve(self, system, times, preset: Preset, *, save=(), positions=False) -> Trajectory:
+        """The exact solution at *times*; see :meth:`Solver.solve`.
 
         Parameters
         ----------
         system : NodeSystem
             A linear system.
-        times : array_like or None
-            Output times.
+        times : ndarray
+            Checked output times.
         preset : Preset
             Sets the default grid only.
         save : sequence of str
@@ -325,8 +325,7 @@ class ExactSolver(Solver):
         positions : bool
             Also return node positions where the system has springs.
         """
-        grid = self.grid(system, times, preset)
-        return solve_exact(system, grid, positions)
+        return solve_exact(system, times, positions)
 
     def solve_many(self, systems, times, preset: Preset, *, save=(), positions=False) -> list[Trajectory]:
         """All systems at once with stacked linear algebra; if that fails, one by one.

@@ -238,15 +238,15 @@ class OdeSolver(Solver):
     name = "ode"
     label = "scipy.integrate"
 
-    def solve(self, system, times, preset: Preset, *, save=(), positions=False) -> Trajectory:
+    def _solve(self, system, times, preset: Preset, *, save=(), positions=False) -> Trajectory:
         """Integrate with ``preset.ode_method`` at ``preset.ode_rtol``; see :meth:`Solver.solve`.
 
         Parameters
         ----------
         system : NodeDynamics
             The system.
-        times : array_like or None
-            Output times; None is the preset's uniform grid.
+        times : ndarray
+            Checked output times.
         preset : Preset
             Accuracy settings.
         save : sequence of str
@@ -254,8 +254,7 @@ class OdeSolver(Solver):
         positions : bool
             Also return node positions where the system has springs.
         """
-        grid = self.grid(system, times, preset)
-        return solve_ode(system, grid, preset.ode_method, preset.ode_rtol, positions=positions,
+        return solve_ode(system, times, preset.ode_method, preset.ode_rtol, positions=positions,
                          timeout=preset.timeout)
 
 

@@ -11,7 +11,12 @@ A solver is an instance of :class:`Solver` registered in :data:`REGISTRY` by nam
   :class:`~analogy.model.dynamics.NodeDynamics`, output times (None lets a solver with
   its own time points, such as SPICE, choose them) and a preset, and returns a
   :class:`~analogy.results.trajectory.Trajectory` that starts at t = 0 and carries its
-  :class:`~analogy.results.trajectory.SolverStats`.
+  :class:`~analogy.results.trajectory.SolverStats`. The base class keeps this once:
+  it checks the times, times the solver's own hook :meth:`Solver._solve`, interpolates a
+  solver with its own points onto given times and checks the result's shape; a
+  subclass implements ``_solve`` and may not override ``solve``.
+* :func:`solve` is the public entry, shaped like ``scipy.integrate.solve_ivp``:
+  ``solve(system, method, t_eval, preset)``.
 * A solver raises :class:`~analogy.errors.SimulationError` when it cannot produce a
   solution and :class:`~analogy.errors.InputError` for bad input; :func:`run` turns
   the former (and a solver that does not apply) into a failed Trajectory, so that only
@@ -27,6 +32,7 @@ loads ngspice.
 from __future__ import annotations
 
 import time as _time
+from dataclasses import replace
 from importlib import import_module
 from typing import Literal, Sequence
 
@@ -34,9 +40,10 @@ import numpy as np
 
 from ..errors import InputError, SimulationError
 from ..presets import Preset
+from ..presets import preset as get_preset
 from ..results.trajectory import SolverStats, Trajectory
 
-__all__ = ["Solver", "SolverName", "SOLVER_NAMES", "solver", "run", "run_many", "stacked_trajectories"]
+__all__ = ["Solver", "SolverName", "SOLVER_NAMES", "solver", "solve", "run", "run_many", "stacked_trajectories"]
 
 #: Registered solver names.
 SolverName = Literal["spice", "ode", "exact", "reference"]
@@ -73,6 +80,11 @@ class Solver:
     own_grid: bool = False
     label: str = ""
 
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        if "solve" in vars(cls):        # the contract is kept in one place: solvers implement _solve
+            raise TypeError(f"{cls.__name__} overrides Solver.solve: implement _solve instead")
+
     def supports(self, system) -> str | None:
         """None if the solver applies to *system*, else one sentence why not.
 
@@ -87,7 +99,12 @@ class Solver:
 
     def solve(self, system, times, preset: Preset, *, save: Sequence[str] = (),
               positions: bool = False) -> Trajectory:
-        """Solve *system*; see the module docstring.
+        """Solve *system*: the contract, kept here once for every solver.
+
+        The grid is checked (or the preset's uniform one made), the solver's own
+        :meth:`_solve` runs and is timed, a solver with its own points is interpolated
+        onto *times* when they are given, and the result is checked to start at t = 0
+        with one row of node voltages and joint rates per time point.
 
         Parameters
         ----------
@@ -101,6 +118,37 @@ class Solver:
             Element names whose currents the solver should report if it simulates them.
         positions : bool
             Also return node positions x = ∫v where the system has springs.
+        """
+        grid = None if times is None and self.own_grid else self.grid(system, times, preset)
+        start = _time.perf_counter()
+        tr = self._solve(system, None if self.own_grid else grid, preset, save=save, positions=positions)
+        elapsed = _time.perf_counter() - start
+        if not tr.success:
+            return replace(tr, stats=replace(tr.stats, wall_time=elapsed))
+        n = system.dof
+        if not (tr.time.size and tr.time[0] == 0.0 and tr.voltages.shape == (tr.time.size, n)
+                and tr.rates.shape == tr.voltages.shape):
+            raise SimulationError(f"the {self.name} solver broke its contract: its result must start at t = 0 "
+                                  f"with {n} node voltages and joint rates per time point")
+        tr = replace(tr, stats=replace(tr.stats, wall_time=elapsed))
+        return tr if grid is None or not self.own_grid else tr.resampled(grid, system.joint_rates)
+
+    def _solve(self, system, times, preset: Preset, *, save: Sequence[str] = (),
+               positions: bool = False) -> Trajectory:
+        """The solver's own work, which :meth:`solve` times, resamples and checks.
+
+        Parameters
+        ----------
+        system : NodeDynamics
+            The system.
+        times : ndarray or None
+            Checked output times; None for a solver with its own points.
+        preset : Preset
+            Accuracy settings.
+        save : sequence of str
+            Element currents wanted, where the solver simulates them.
+        positions : bool
+            Also return node positions where the system has springs.
         """
         raise NotImplementedError
 
@@ -235,3 +283,31 @@ def run_many(name: str, systems: Sequence, times, preset: Preset, *, save: Seque
         Also return node positions where the systems have springs.
     """
     return solver(name).solve_many(systems, times, preset, save=save, positions=positions)
+
+
+def solve(system, method: str = "spice", t_eval=None, preset: str | Preset = "accurate", *,
+          save: Sequence[str] = (), positions: bool = False) -> Trajectory:
+    """Solve *system* with the registered solver *method*, as ``scipy.integrate.solve_ivp`` does.
+
+    The system holds what ``solve_ivp`` takes as ``fun``, ``t_span`` and ``y0`` (its node
+    dynamics, t_stop and initial rates). Like ``solve_ivp``, a solver that cannot finish
+    returns its result with ``success`` False and the reason in ``message``; only bad input
+    raises.
+
+    Parameters
+    ----------
+    system : NodeDynamics
+        The system.
+    method : str
+        A registered solver (:data:`SOLVER_NAMES`).
+    t_eval : array_like, optional
+        Output times in [0, t_stop]; default the solver's own points (SPICE) or the
+        preset's uniform grid.
+    preset : str or Preset
+        Accuracy preset.
+    save : sequence of str
+        Element currents wanted from a solver that simulates them.
+    positions : bool
+        Also return node positions where the system has springs.
+    """
+    return run(method, system, t_eval, get_preset(preset), save=save, positions=positions)

@@ -61,7 +61,7 @@ def _limit(scales, t_stop: float, preset: Preset) -> float | None:
     return None if short else preset.timeout
 
 
-def solve_spice(system, preset="accurate", save=None) -> Trajectory:
+def solve_spice(system, times=None, *, preset="accurate", save=None) -> Trajectory:
     """Simulate *system*'s netlist in ngspice and recover joint rates from node voltages.
 
     A run whose step collapses ("time step too small": rounding read as truncation error)
@@ -73,6 +73,8 @@ def solve_spice(system, preset="accurate", save=None) -> Trajectory:
     system : NodeSystem or NonlinearNodeSystem
         A linear system, or a nonlinear one with a symbolic model (its circuit has
         charge-defined capacitors, behavioural currents and integrators).
+    times : array_like, optional
+        Output times, interpolated onto from SPICE's own points (default: those points, t = 0 added).
     preset : str or Preset
         Accuracy preset.
     save : sequence of str, optional
@@ -105,7 +107,8 @@ def solve_spice(system, preset="accurate", save=None) -> Trajectory:
     x = np.column_stack([data[f"v({n})"] for n in circ.state_nodes]) if circ.state_nodes else None
     currents = {name: data[vec] for name, vec in zip(names, vectors[system.dof:]) if name not in circ.state_nodes}
     tr = _trajectory(system, *_from_start(data["time"]), v, currents, stats, elapsed, x)
-    return replace(tr, message=note, settings=settings) if note else replace(tr, settings=settings)
+    tr = replace(tr, message=note, settings=settings) if note else replace(tr, settings=settings)
+    return tr if times is None else tr.resampled(system.time_points(times), system.joint_rates)
 
 
 class SpiceSolver(Solver):
@@ -127,15 +130,15 @@ class SpiceSolver(Solver):
             return "the spice solver needs the symbolic model of a nonlinear system"
         return None
 
-    def solve(self, system, times, preset: Preset, *, save=(), positions=False) -> Trajectory:
-        """Simulate on SPICE's own points; given *times*, the result is interpolated onto them.
+    def _solve(self, system, times, preset: Preset, *, save=(), positions=False) -> Trajectory:
+        """Simulate on SPICE's own points (t = 0 added); :meth:`Solver.solve` interpolates onto given times.
 
         Parameters
         ----------
         system : NodeSystem
-            A linear system.
-        times : array_like or None
-            None keeps SPICE's points (t = 0 added); else linear interpolation onto them.
+            A linear system, or a nonlinear one with a symbolic model.
+        times : None
+            SPICE chooses its points.
         preset : Preset
             Accuracy settings (``.options`` and ``.tran``).
         save : sequence of str
@@ -143,8 +146,7 @@ class SpiceSolver(Solver):
         positions : bool
             Unused: the circuit's states are node voltages.
         """
-        tr = solve_spice(system, preset, save)
-        return tr if times is None else tr.resampled(system.time_points(times), system.joint_rates)
+        return solve_spice(system, preset=preset, save=save)
 
     def solve_many(self, systems, times, preset: Preset, *, save=(), positions=False) -> list[Trajectory]:
         """One ngspice run for all systems (sharing t_stop); if it fails, one run each.

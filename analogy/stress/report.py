@@ -176,7 +176,7 @@ def _exact_check(system, points: int = 9) -> tuple[float, float, str]:
     seconds = _time.perf_counter() - start
     if system.dof > 20:
         return math.nan, seconds, "no 40-digit reference at this size"
-    return relative_error(exact, solve_reference(system, probe)), seconds, ""
+    return relative_error(exact, solve_reference(system, probe).voltages), seconds, ""
 
 
 # Swept quantities that carry a unit; the others are ratios or counts.
