@@ -281,7 +281,7 @@ def bench(repeats: int = 5, full: bool = False, scenes=None, progress: bool = Tr
     jobs = []
     for sc in scenes:
         system = sc.system()
-        linear = getattr(system, "kind", "linear") == "linear"
+        linear = system.kind == "linear"
         jobs += [("spice", sc, system, g) for g in (spice_grid(full, quick) if linear else nonlinear_spice_grid())]
         jobs += [("ode", sc, system, g) for g in ode_grid(quick)]
         jobs.append(("exact" if linear else "reference", sc, system, None))
@@ -289,7 +289,7 @@ def bench(repeats: int = 5, full: bool = False, scenes=None, progress: bool = Tr
     sess = session()
     for kind, sc, system, g in jobs:
         n = system.dof
-        linear = getattr(system, "kind", "linear") == "linear"
+        linear = system.kind == "linear"
         try:
             if kind == "spice":
                 label, opts, ms, tol = g

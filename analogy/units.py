@@ -2,46 +2,35 @@
 
 from __future__ import annotations
 
-import re
-from typing import Sequence
+from typing import Literal, Sequence
 
-__all__ = ["joint_units", "mechanical_units", "rate_unit", "force_unit", "rate_label", "force_label", "quantity_label"]
+from .errors import InputError
 
-_ANGLE = re.compile(r"^(q|theta)\d+$")
-_MODAL = re.compile(r"^delta\d+_\d+$")
+__all__ = ["JointKind", "JOINT_KINDS", "joint_units", "mechanical_units", "rate_unit", "force_unit", "rate_label", "force_label", "quantity_label"]
+
+#: The kinds of joint coordinate a model declares, and the SI unit of each: a revolute joint's
+#: angle, a prismatic joint's travel, a flexible link's modal amplitude (a deflection).
+JointKind = Literal["revolute", "prismatic", "modal"]
+JOINT_KINDS: dict[str, str] = {"revolute": "rad", "prismatic": "m", "modal": "m"}
 
 
-def joint_units(robot: str | None, coordinates: Sequence[str]) -> tuple[str, ...] | None:
-    """Per joint coordinate, ``"rad"`` or ``"m"``; None when the model does not say.
+def joint_units(joints: Sequence[str] | None) -> tuple[str, ...] | None:
+    """Per joint coordinate, ``"rad"`` or ``"m"``, from the kinds its model declares; None without them.
 
-    The built-in arms and linkages have revolute joints; the redundant actuators are
-    prismatic; a flexible link's modal amplitudes are deflections (m). A model given
-    by its matrices (``custom``) or a random one has no units beyond SI.
+    A model given by its matrices (``custom``) or a random one declares none: its
+    coordinates have no units beyond SI.
 
     Parameters
     ----------
-    robot : str or None
-        The model's name.
-    coordinates : sequence of str
-        Its coordinate names.
+    joints : sequence of JointKind or None
+        The model's :attr:`joints`.
     """
-    names = [str(c) for c in coordinates]
-    if robot is None or not names:
+    if joints is None:
         return None
-    if robot == "redundant":
-        return ("m",) * len(names)
-    family = robot.rstrip("0123456789")
-    if family in ("serial", "parallel", "flex"):
-        units = []
-        for c in names:
-            if _MODAL.match(c):
-                units.append("m")
-            elif _ANGLE.match(c):
-                units.append("rad")
-            else:
-                return None
-        return tuple(units)
-    return None
+    unknown = [k for k in joints if k not in JOINT_KINDS]
+    if unknown:
+        raise InputError(f"unknown joint kind {unknown[0]!r}: use {', '.join(JOINT_KINDS)}")
+    return tuple(JOINT_KINDS[k] for k in joints)
 
 
 def rate_unit(unit: str | None) -> str:

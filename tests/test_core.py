@@ -318,3 +318,16 @@ def test_results_are_tables_and_pictures_for_notebooks():
     from analogy.circuit.diagram import draw_circuit
     svg = draw_circuit(s)._repr_svg_()
     assert "<svg" in svg and "C1_2" in svg
+
+
+def test_a_system_records_what_it_was_built_from_in_a_typed_record():
+    """Provenance: robot, scene, parameters, configuration and units as fields, not a dict to guess from."""
+    from analogy.model.provenance import Provenance
+    s = scene("default").system()
+    made = s.provenance
+    assert isinstance(made, Provenance) and made.robot == "serial2" and made.scene == "default"
+    assert made.configuration == {"q1": 0.0, "q2": 0.3} and made.units == ("rad", "rad")
+    custom = analogy.node_system(JointSpace(np.eye(2)), forces=[1, 0], info={"robot": "my arm"})
+    assert custom.provenance.robot == "my arm" and custom.provenance.units is None
+    with pytest.raises(InputError, match="unknown provenance field 'robto'"):
+        analogy.node_system(JointSpace(np.eye(2)), forces=[1, 0], info={"robto": "typo"})

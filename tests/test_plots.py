@@ -30,7 +30,7 @@ def test_a_comparison_plot_labels_units_keeps_legends_off_the_data_and_one_colou
     c = compare(scene(name).replace(t_stop=1.0).system(), "fast")
     fig = c.plot()
     top, bottom = fig.axes[:2]
-    units = c.system.info.get("units")
+    units = c.system.provenance.units
     expected = {("rad",) * 2: "[rad/s]", ("m",) * 2: "[m/s]"}.get(units, "[rad/s or m/s]")
     assert top.get_ylabel().endswith(expected) and bottom.get_ylabel().endswith("[1]")
     assert top.get_xlabel() == "" and bottom.get_xlabel() == "time [s]"

@@ -61,7 +61,7 @@ def test_stack_equals_one_at_a_time(name):
         if ref.stiffness is not None:
             assert_rounding_equal(s.stiffness, ref.stiffness)
         assert_rounding_equal(s.joint.mass_matrix, ref.joint.mass_matrix)
-        assert repr(s.forces) == repr(ref.forces) and s.t_stop == ref.t_stop and s.info == ref.info
+        assert repr(s.forces) == repr(ref.forces) and s.t_stop == ref.t_stop and s.provenance == ref.provenance
 
 
 def test_gravity_and_springs_follow_each_row_and_vanish_where_they_vanish():
@@ -80,8 +80,8 @@ def test_nearly_symmetric_stack_is_built_one_at_a_time_with_the_same_result():
     for s, q in zip(node_systems(model, qs, forces=(1.0, 0.0)), qs):
         ref = node_system(model, q, forces=(1.0, 0.0))
         np.testing.assert_array_equal(s.mass, ref.mass)
-        assert s.info["configuration"] == {"q1": q[0], "q2": q[1]}
-        assert all(type(v) is float for v in s.info["configuration"].values())
+        assert s.provenance.configuration == {"q1": q[0], "q2": q[1]}
+        assert all(type(v) is float for v in s.provenance.configuration.values())
 
 
 def test_stack_shapes_for_one_joint_and_for_no_coordinates():
@@ -100,8 +100,8 @@ def test_rows_of_a_stack_cannot_change_each_other():
     with pytest.raises(ValueError):
         systems[0].mass[0, 0] = 1.0
     systems[0].initial_rates[0] = 5.0
-    systems[0].info["parameters"]["l1"] = 7.0
-    assert systems[1].initial_rates[0] == 0.0 and systems[1].info["parameters"]["l1"] == 1.0
+    systems[0].provenance.parameters["l1"] = 7.0
+    assert systems[1].initial_rates[0] == 0.0 and systems[1].provenance.parameters["l1"] == 1.0
 
 
 def test_joint_stack_of_symbolic_and_compiled_models_agree():
@@ -170,7 +170,7 @@ def test_a_system_the_exact_solver_cannot_take_fails_alone(monkeypatch):
     solve = exact._solve
 
     def refusing(systems, t):
-        if any(s.info["configuration"]["q2"] == 0.7 for s in systems):
+        if any(s.provenance.configuration["q2"] == 0.7 for s in systems):
             raise analogy.SimulationError("the modes are nearly defective")
         return solve(systems, t)
 
@@ -215,7 +215,7 @@ def test_parameters_per_row_build_the_systems_each_scene_builds_alone():
     for alone, stacked in zip((s.system() for s in items), items[0].systems(qs, parameters=per_row)):
         np.testing.assert_array_equal(stacked.mass, alone.mass)
         np.testing.assert_array_equal(stacked.damping, alone.damping)
-        assert stacked.info["parameters"] == alone.info["parameters"]
+        assert stacked.provenance.parameters == alone.provenance.parameters
 
 
 def test_nonlinear_and_equilibrium_scenes_form_no_stack():

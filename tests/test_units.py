@@ -74,11 +74,18 @@ def test_pint_is_imported_only_when_an_input_carries_a_unit():
     assert out.strip().endswith("False")
 
 
-def test_joint_units_follow_the_joints():
-    assert scene("default").system().info["units"] == ("rad", "rad")
-    assert scene("redundant").system().info["units"] == ("m", "m")
-    assert joint_units("flex2", ["theta1", "theta2", "delta1_1", "delta2_1"]) == ("rad", "rad", "m", "m")
-    assert joint_units("random10", [f"q{k}" for k in range(1, 11)]) is None
+def test_joint_units_follow_the_joint_kinds_each_model_declares():
+    """Units come from what a model says its coordinates are, not from its name."""
+    from analogy.model.robots import robot
+    assert scene("default").system().provenance.units == ("rad", "rad")
+    assert scene("redundant").system().provenance.units == ("m", "m")
+    flex = robot("flex2")
+    assert flex.joints == ("revolute", "revolute") + ("modal",) * (flex.dof - 2)
+    assert flex.units == ("rad", "rad") + ("m",) * (flex.dof - 2)
+    assert scene("random10").system().provenance.units is None          # a matrix declares no joints
+    assert joint_units(["revolute", "prismatic", "modal"]) == ("rad", "m", "m")
+    with pytest.raises(InputError, match="unknown joint kind 'spherical'"):
+        joint_units(["spherical"])
     assert rate_label(("rad", "rad")) == "joint rate [rad/s]"
     assert rate_label(("rad", "m")) == "joint rate [rad/s or m/s]"
     assert mechanical_units(("m", "m"))["C"] == "kg" and mechanical_units(("rad",))["C"] == "kg\u00b7m\u00b2"

@@ -281,7 +281,7 @@ class Sweep:
                 "axes": [{"name": a.name, "values": None if a.values is None else list(a.values),
                           "low": a.low, "high": a.high, "log": a.log} for a in self.axes],
                 "solvers": list(self.base.solvers), "source": self.base.source,
-                "joint_units": list(self.base.system().info.get("units") or ())}
+                "joint_units": list(self.base.system().provenance.units or ())}
 
 
 def sweep_from(base: Scene, axes: dict, **design) -> Sweep:

@@ -75,7 +75,7 @@ def circuit(system, zero_tol: float = ZERO_TOL, realizable: bool = False, descri
     InputError
         If leaving out the capacitors under the tolerance makes the circuit singular.
     """
-    if getattr(system, "kind", "linear") != "linear":
+    if system.kind != "linear":
         from .nonlinear_circuit import (
             nonlinear_circuit,  # sympy: only for nonlinear circuits
         )
@@ -97,7 +97,8 @@ def circuit(system, zero_tol: float = ZERO_TOL, realizable: bool = False, descri
             across = (v0[e.b - 1] if e.b else 0.0) - v0[e.a - 1]
             initial += [(node, float(across)) for node in c.auxiliary_nodes]
     return Circuit(system.dof, tuple(parts), current_sources(system, zero_tol), tuple(initial),
-                   system.t_stop, couplings, (), comments(system) if describe else ())
+                   system.t_stop, couplings, (), comments(system) if describe else (),
+                   system.provenance.robot)
 
 
 def circuits(systems: Sequence, zero_tol: float = ZERO_TOL) -> list[Circuit]:

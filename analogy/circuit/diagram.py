@@ -104,7 +104,7 @@ class _Layout:
 def _parts(system: NodeSystem, zero_tol: float) -> list[_Part]:
     """Elements then force sources, read from the circuit description."""
     c = circuit(system, zero_tol)
-    units = mechanical_units(system.info.get("units"))
+    units = mechanical_units(system.provenance.units)
     parts = [_Part(e.name, e.kind, e.a, e.b, e.value, e.coefficient, unit=units[e.kind]) for e in c.elements]
     for src in c.sources:
         if src.b == 0 or src.scale != 1.0:
@@ -348,7 +348,7 @@ def _render(layout: _Layout, symbol: Callable[[_Part], elm.Element2Term],
 
 
 def _title(system: NodeSystem, what: str) -> str:
-    return f"{system.info.get('robot', 'custom')} ({system.topology.name} topology): {what}"
+    return f"{system.provenance.robot} ({system.topology.name} topology): {what}"
 
 
 def draw_circuit(system: NodeSystem, path: str | Path | None = None, *, zero_tol: float = ZERO_TOL,

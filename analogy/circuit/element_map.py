@@ -45,7 +45,7 @@ def draw_element_map(system: "NodeSystem", path: str | Path | None = None, *,
 
     c = circuit(system, zero_tol)
     n = c.nodes
-    units = mechanical_units(system.info.get("units"))
+    units = mechanical_units(system.provenance.units)
     present = [(k, label) for k, label in _KINDS if any(e.kind == k for e in c.elements)]
     fig = Figure(figsize=(5.4 * len(present) + 0.4, 4.8 + 0.12 * n), layout="constrained")
     grid = fig.add_gridspec(1, 2 * len(present), width_ratios=[n, 1.6] * len(present))
@@ -89,7 +89,7 @@ def draw_element_map(system: "NodeSystem", path: str | Path | None = None, *,
         ticks = [s * top * f for s in (-1, 1) for f in (1.0, 0.01)] + [0.0]
         bar.set_ticks(sorted(ticks), labels=[f"{t:.2g}" for t in sorted(ticks)])
     count = len(c.elements)
-    fig.suptitle(f"{system.info.get('robot', 'custom')} ({system.topology.name} topology): {count} elements "
+    fig.suptitle(f"{system.provenance.robot} ({system.topology.name} topology): {count} elements "
                  f"on {n} nodes, by node pair; red is negative, blank is left out", fontsize="medium")
     if path is not None:
         fig.savefig(path, dpi=110)

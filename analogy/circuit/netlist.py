@@ -205,8 +205,7 @@ def save_vectors(c: Circuit, save: Iterable[str] | None = None) -> list[str]:
 
 
 def _header(c: Circuit, title: str | None, realizable: bool) -> list[str]:
-    robot = next((line.split(": ", 1)[1] for line in c.comments if line.startswith("robot: ")), "custom")
-    lines = [f"* {comment_text(title or 'analogy equivalent circuit: ' + robot)}"]
+    lines = [f"* {comment_text(title or 'analogy equivalent circuit: ' + c.robot)}"]
     lines += [f"* {comment_text(line)}" for line in c.comments]
     lines += ["* analogy: force = current [A], velocity = voltage [V], mass = capacitance [F],",
               "* damping = conductance [S], stiffness = 1/inductance [1/H]; floating C = MP model"]
@@ -289,8 +288,7 @@ def ac_netlist(system, joint: int, f_start: float, f_stop: float, per_decade: in
     if not driven:
         raise InputError(f"joint {joint} drives no source: the circuit has joints 1 to {system.dof}")
     nodes = [f"v({n})" for n in c.node_names]
-    robot = next((line.split(": ", 1)[1] for line in c.comments if line.startswith("robot: ")), "custom")
-    lines = _header(c, f"analogy AC sweep of {robot}: unit force on joint {joint}", False)
+    lines = _header(c, f"analogy AC sweep of {c.robot}: unit force on joint {joint}", False)
     lines += circuit_lines(c._replace(sources=()))
     lines += [f"I{s.name[1:]} {_node(s.b)} {_node(s.a)} DC 0 AC {_num(s.scale)}" for s in driven]
     lines += [".options rshunt=1e12", f".ac dec {int(per_decade)} {_num(f_start)} {_num(f_stop)}",

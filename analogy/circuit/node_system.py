@@ -8,8 +8,8 @@ import numpy as np
 
 from ..errors import InputError, concerning
 from ..presets import DEFAULT_T_STOP
-from ..units import joint_units
 from ..model.dynamics import DynamicsKind
+from ..model.provenance import Provenance
 from ..model.joint import (
     JointSpace,
     check_node_form,
@@ -132,8 +132,9 @@ class NodeSystem(NodeCoordinates):
         Joint rates R(0).
     t_stop : float
         End of the simulated interval [s].
-    info : mapping, optional
-        Robot name, parameters and configuration, for netlist headers and reports.
+    info : Provenance or mapping, optional
+        What the system was built from (robot, scene, parameters, configuration, units),
+        kept as :attr:`provenance` for netlist headers and reports.
     """
 
     kind: DynamicsKind = "linear"
@@ -164,14 +165,14 @@ class NodeSystem(NodeCoordinates):
                 check_node_form(label, part)
         with concerning("topology" if custom else "mass"):
             check_square_symmetric("node mass matrix M'", mass, definite=True)
-        self._store(joint, topology, tuple(forces), r0, float(t_stop), dict(info or {}), mass, damping, stiffness)
+        self._store(joint, topology, tuple(forces), r0, float(t_stop), info, mass, damping, stiffness)
         with concerning("forces"):
             self.breakpoints()      # checks every waveform against t_stop before any solver runs
 
     def _store(self, joint, topology, forces, r0, t_stop, info, mass, damping, stiffness, family=None):
         self.joint, self.topology, self.forces = joint, topology, forces
         self.dof = joint.dof                                # number of nodes (and joints) n
-        self.initial_rates, self.t_stop, self.info = r0, t_stop, info
+        self.initial_rates, self.t_stop, self.provenance = r0, t_stop, Provenance.of(info)
         self.initial_voltages = topology.matrix @ r0        # node velocities v(0) = T·R(0)
         self.mass, self.damping, self.stiffness = mass, damping, stiffness
         self.current_map = topology.current_map
@@ -195,8 +196,8 @@ class NodeSystem(NodeCoordinates):
             Joint rates at t = 0.
         t_stop : float
             End time.
-        info : mapping
-            Report fields.
+        info : Provenance
+            What the system was built from.
         mass : ndarray
             M'.
         damping : ndarray
@@ -212,7 +213,7 @@ class NodeSystem(NodeCoordinates):
 
     def __repr__(self) -> str:
         springs = ", springs" if self.stiffness is not None else ""
-        return (f"NodeSystem({self.info.get('robot', 'custom')}, {self.dof} nodes, "
+        return (f"NodeSystem({self.provenance.robot}, {self.dof} nodes, "
                 f"{self.topology.name} topology{springs}, t_stop={self.t_stop:g} s)")
 
     def node_mass(self, x: np.ndarray) -> np.ndarray:
@@ -315,8 +316,8 @@ def node_system(model: Evaluable | JointSpace, q: Sequence[float] | None = None,
         Joint rates at t = 0 (default zero).
     t_stop : float
         End of the simulated interval.
-    info : mapping, optional
-        Extra report fields (scene name and the like).
+    info : Provenance or mapping, optional
+        Provenance fields beyond the model's own (the scene's name, a robot name for a JointSpace).
     """
     return _mapped(*_evaluated(model, q, parameters, topology), forces, initial_rates, t_stop, info)
 
@@ -329,11 +330,11 @@ def _evaluated(model, q, parameters, topology):
         values = dict(model.parameters, **(parameters or {}))
         base_info = {"robot": model.name, "parameters": values,
                      "configuration": dict(zip((str(c) for c in model.coordinates), q or [])),
-                     "units": joint_units(model.name, model.coordinates)}
+                     "units": model.units}
     elif isinstance(model, JointSpace):
         joint = model
         top_spec = topology if topology is not None else "parallel"
-        base_info = {"robot": "custom", "parameters": {}, "configuration": {}}
+        base_info = {}
     else:
         raise InputError("model must be an analogy Model or JointSpace")
     return joint, top_spec, base_info
@@ -349,8 +350,7 @@ def _mapped(joint, top_spec, base_info, forces, initial_rates, t_stop, info) -> 
     if joint.gravity is not None:
         ws = tuple(w + (Step(-g),) if g else w for w, g in zip(ws, joint.gravity))
     r0 = np.zeros(n) if initial_rates is None else initial_rates
-    base_info.update(info or {})
-    return NodeSystem(joint, top, ws, r0, float(t_stop), base_info)
+    return NodeSystem(joint, top, ws, r0, float(t_stop), Provenance.of(info, **base_info))
 
 
 def node_systems(model, qs, *, parameters: Mapping[str, float] | None = None,
@@ -437,8 +437,7 @@ def node_systems(model, qs, *, parameters: Mapping[str, float] | None = None,
         ws = shared_forces if grav is None else \
             tuple(w + (Step(-x),) if x else w for w, x in zip(shared_forces, grav))
         joint = JointSpace.from_checked(m[k], b[k], stiff, grav)
-        item_info = {**first.info, "parameters": {**first.info["parameters"], **row(k)} if varying
-                     else dict(first.info["parameters"]), "configuration": dict(zip(coords, qk.tolist()))}
+        item_info = first.provenance.at(dict(zip(coords, qk.tolist())), row(k) if varying else None)
         out.append(NodeSystem.from_checked(joint, top, ws, r0.copy(), t_end, item_info, node_mass[k],
                                            node_damping[k], None if stiff is None else node_stiffness[k],
                                            (family, k)))

@@ -6,9 +6,9 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from ..model.provenance import Provenance
 from ..errors import InputError
 from ..presets import DEFAULT_T_STOP
-from ..units import joint_units
 from ..model.dynamics import DynamicsKind, MechanicalFunctions
 from ..model.joint import check_square_symmetric, check_vector
 from .joint_forces import force_breakpoints, waveforms
@@ -65,7 +65,7 @@ class NonlinearNodeSystem(NodeCoordinates):
         if len(self.forces) != n:
             raise InputError(f"forces must have {n} entries (one per joint), got {len(self.forces)}")
         self.initial_rates = check_vector("initial rates r0", initial_rates, n)
-        self.info = dict(info or {})
+        self.provenance = Provenance.of(info)
         self.damping = topology.node_matrix(functions.damping)
         self.stiffness = None if functions.stiffness is None or not np.any(functions.stiffness) \
             else topology.node_matrix(functions.stiffness)
@@ -75,7 +75,7 @@ class NonlinearNodeSystem(NodeCoordinates):
         force_breakpoints(self.forces, self.t_stop)
 
     def __repr__(self) -> str:
-        return (f"NonlinearNodeSystem({self.info.get('robot', 'custom')}, {self.dof} nodes, "
+        return (f"NonlinearNodeSystem({self.provenance.robot}, {self.dof} nodes, "
                 f"{self.topology.name} topology, t_stop={self.t_stop:g} s)")
 
     @property
@@ -235,10 +235,9 @@ def nonlinear_system(model, q: Sequence[float], *, parameters: Mapping[str, floa
     n = model.dof
     top = make_topology(model.topology if topology is None else topology, n)
     values = dict(model.parameters, **(parameters or {}))
-    base = {"robot": model.name, "parameters": values,
-            "configuration": dict(zip((str(c) for c in model.coordinates), list(q))),
-            "units": joint_units(model.name, model.coordinates)}
-    base.update(info or {})
+    base = Provenance.of(info, robot=model.name, parameters=values,
+                         configuration=dict(zip((str(c) for c in model.coordinates), list(q))),
+                         units=model.units)
     return NonlinearNodeSystem(functions, q, top, waveforms(forces, n),
                                np.zeros(n) if initial_rates is None else initial_rates, t_stop, base,
                                model, values)

@@ -185,4 +185,5 @@ def nonlinear_circuit(system, zero_tol: float = ZERO_TOL, describe: bool = True)
                     + [(node, p.initial) for p in parts if isinstance(p, ChargeCapacitor) and p.initial != 0.0
                        for node in p.follower_nodes])
     return Circuit(n, elements, current_sources(system, zero_tol), initial, system.t_stop, (),
-                   tuple(parts), comments(system) if describe else ())
+                   tuple(parts), comments(system) if describe else (),
+                   system.provenance.robot)

@@ -115,6 +115,8 @@ class Circuit(NamedTuple):
         End of the transient.
     comments : tuple of str
         What was built: robot, parameters, configuration, topology, forces.
+    robot : str
+        The robot's name, for titles.
 
     A circuit is what is built, not how it is simulated: the spice solver derives its
     settings from the system (:mod:`analogy.solvers.transient`).
@@ -128,6 +130,7 @@ class Circuit(NamedTuple):
     couplings: tuple = ()
     behavioural: tuple = ()
     comments: tuple = ()
+    robot: str = "custom"
 
     def __repr__(self) -> str:
         kinds = ", ".join(f"{sum(e.kind == k for e in self.parts)} {k}" for k in "CRL"
@@ -185,17 +188,17 @@ def comments(system) -> tuple[str, ...]:
     system : NodeDynamics
         A node system.
     """
-    info = system.info
-    params = ", ".join(f"{k}={v!r}" for k, v in dict(info.get("parameters", {})).items())
-    config = ", ".join(f"{k}={v!r}" for k, v in dict(info.get("configuration", {})).items())
+    made = system.provenance
+    params = ", ".join(f"{k}={v!r}" for k, v in made.parameters.items())
+    config = ", ".join(f"{k}={v!r}" for k, v in made.configuration.items())
     top = system.topology
     matrix = "[" + ", ".join("[" + ", ".join(f"{x:.6g}" for x in row) + "]" for row in top.matrix) + "]"
     r0 = system.initial_rates
-    kind = getattr(system, "kind", "linear")
+    kind = system.kind
     dynamics = ("dynamics: linear, the circuit at the configuration above" if kind == "linear" else
                 "dynamics: nonlinear: M'(x) as charge-defined capacitors Q = c(x)*(v_a - v_b), "
                 "velocity terms and gravity as behavioural currents, x = integral of v on nodes x1...")
-    return (f"robot: {info.get('robot', 'custom')}",
+    return (f"robot: {made.robot}",
             f"parameters: {params or 'none'}",
             f"configuration: {config or 'none'}",
             f"topology: {top.describe()}, T = {matrix}",

@@ -133,8 +133,9 @@ def scene_from_args(args) -> Scene:
         spec = ModelSpec(robot=args.robot, link_modes=args.link_modes)
         probe = Scene.of(args.robot, spec, parameters=params, source="command line")
         model = scene_model(probe)          # one sentence on an unknown name or parameter
-        # unit steps on the joints; a flexible link's modal coordinates are not actuated
-        forces = tuple(float(not str(c).startswith("delta")) for c in model.coordinates) or (1.0,) * model.dof
+        # a unit step on every joint the model drives; a flexible link's modal amplitude is not driven
+        joints = model.joints or ("revolute",) * model.dof
+        forces = tuple(float(kind != "modal") for kind in joints)
         changes.update(model=spec, q=(0.0,) * len(model.coordinates), parameters=params,
                        forces=forces, initial_rates=None, topology=None)
     elif args.link_modes is not None:

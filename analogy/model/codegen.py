@@ -23,6 +23,7 @@ def module_source(model) -> str:
     header = [f"NAME = {model.name!r}", f"PARAMETERS = {dict(model.parameters)!r}",
               f"COORDINATES = {tuple(str(c) for c in model.coordinates)!r}",
               f"TOPOLOGY = {model.topology!r}", f"DESCRIPTION = {model.description!r}",
+              f"JOINTS = {None if model.joints is None else tuple(model.joints)!r}",
               f"DOF = {model.dof}", ""]
     body, used = [], set()
     for label, expr in zip(("mass_matrix", "damping", "stiffness", "gravity"), model.linear_parts()):

@@ -7,6 +7,7 @@ import importlib.util
 import os
 from pathlib import Path
 
+from ..units import joint_units
 from .joint import (
     JointSpace,
     JointStack,
@@ -55,6 +56,12 @@ class CompiledModel:
         self.coordinates = tuple(module.COORDINATES)
         self.topology = module.TOPOLOGY
         self.description = module.DESCRIPTION
+        self.joints = module.JOINTS
+
+    @property
+    def units(self) -> tuple[str, ...] | None:
+        """Per coordinate, ``"rad"`` or ``"m"``, from :attr:`joints`."""
+        return joint_units(self.joints)
 
     @property
     def dof(self) -> int:

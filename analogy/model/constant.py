@@ -32,6 +32,7 @@ class ConstantModel:
     def __init__(self, name: str, joint: JointSpace, topology: str = "parallel", description: str = ""):
         self.name, self.joint, self.topology, self.description = name, joint, topology, description
         self.parameters = {}
+        self.joints = self.units = None     # given by its numbers: no joint kinds declared
 
     def __repr__(self) -> str:
         return f"ConstantModel({self.name!r}, {self.dof} joints)"

@@ -36,7 +36,7 @@ class NodeDynamics(Protocol):
     topology: Any
     forces: tuple
     t_stop: float
-    info: Mapping
+    provenance: Any
     damping: np.ndarray
     stiffness: np.ndarray | None
 

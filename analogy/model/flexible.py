@@ -203,8 +203,10 @@ def flexible_chain(links: Sequence[FlexibleLink], *, gravity: float = 0.0, link_
     damp = np.diag(modal_damping).tolist() if not np.any(modal_damping - np.diag(np.diag(modal_damping))) \
         else sp.Matrix(modal_damping.tolist())
     g = list(grav)
+    modal = {c for ds in kin.modal for c in ds}
     return Model(name, mass, damping=damp, stiffness=sp.Matrix(stiffness.tolist()),
                  gravity=g if any(v != 0 for v in g) else None, coordinates=q, topology="parallel",
+                 joints=tuple("modal" if c in modal else "revolute" for c in q),
                  description=f"planar chain of {n} flexible links, assumed modes")
 
 

@@ -58,7 +58,7 @@ def redundant_actuators(d1: float = 1.5, d2: float = 1.0, b1: float = 1.0,
     positions = [sp.Matrix([q[0]]), sp.Matrix([q[0] + q[1]])]
     return Model("redundant", point_mass_matrix(d, positions, q), damping=b,
                  parameters={"d1": d1, "d2": d2, "b1": b1, "b2": b2}, coordinates=q,
-                 topology="serial",
+                 topology="serial", joints=("prismatic", "prismatic"),
                  description="redundant actuators on one axis: point masses d1 (stage 1) and d2 (stage 2)")
 
 
@@ -124,7 +124,7 @@ def planar_serial(n: int, lengths: Sequence[float] | None = None,
     mass, load = _planar_serial_parts(n)
     return Model(f"serial{n}" if n != 2 else "serial2", mass, gravity=list(load),
                  damping=b, stiffness=stiffness, parameters=params, coordinates=q,
-                 topology="serial",
+                 topology="serial", joints=("revolute",) * n,
                  description=f"planar {n}R serial arm, point masses d_k at the end of link k")
 
 
@@ -272,7 +272,7 @@ def _five_bar_chain() -> ClosedChainModel:
 
     return ClosedChainModel.from_links(
         "parallel2", links, q, psi, tips[0] - tips[1], reference,
-        parameters=dict.fromkeys(_FIVE_BAR, 1.0), topology="parallel",
+        parameters=dict.fromkeys(_FIVE_BAR, 1.0), topology="parallel", joints=("revolute", "revolute"),
         description="2-DOF parallel five-bar (haptic pantograph), elbows out, M(q) from kinematics")
 
 
@@ -350,7 +350,7 @@ def _three_rrr_chain() -> ClosedChainModel:
 
     return ClosedChainModel.from_links(
         "parallel3", links, q, psi + [x, y, phi], residual, reference,
-        parameters=dict.fromkeys(_THREE_RRR, 1.0), topology="parallel",
+        parameters=dict.fromkeys(_THREE_RRR, 1.0), topology="parallel", joints=("revolute",) * 3,
         description="3-DOF planar 3-RRR parallel mechanism, M(q) from kinematics")
 
 

@@ -53,6 +53,8 @@ class SerialChain:
         self.parameters = serial_defaults(self.n)
         self.coordinates = tuple(f"q{k + 1}" for k in range(self.n))
         self.description = f"planar {self.n}R serial arm, point masses d_k at the end of link k"
+        self.joints = ("revolute",) * self.n
+        self.units = ("rad",) * self.n
 
     def __repr__(self) -> str:
         return f"SerialChain({self.n} joints, numeric)"

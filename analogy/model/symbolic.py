@@ -9,6 +9,7 @@ from typing import Callable, Mapping, Sequence
 import numpy as np
 import sympy as sp
 
+from ..units import joint_units
 from ..errors import InputError
 from .dynamics import MechanicalFunctions
 from .joint import (
@@ -155,6 +156,9 @@ class Model:
         ``builder(**parameters)`` rebuilds the model for other parameter values, for
         models whose matrices are numbers computed from them (mode shapes of flexible
         links, whose count sets the coordinates).
+    joints : sequence of {"revolute", "prismatic", "modal"}, optional
+        What each coordinate is, which sets its unit (rad or m) and whether a joint force
+        drives it by default (a modal amplitude is not driven); None: not declared.
 
     Notes
     -----
@@ -173,6 +177,12 @@ class Model:
     description: str = ""
     spring_rest: Sequence[float] | None = None
     builder: Callable[..., "Model"] | None = None
+    joints: Sequence[str] | None = None
+
+    @property
+    def units(self) -> tuple[str, ...] | None:
+        """Per coordinate, ``"rad"`` or ``"m"``, from :attr:`joints` (None where not declared)."""
+        return joint_units(self.joints)
 
     def __post_init__(self):
         if isinstance(self.mass_matrix, sp.MatrixBase):
@@ -198,6 +208,11 @@ class Model:
                 raise InputError(f"{label} matrix must be {n}x{n}, got {mat.shape[0]}x{mat.shape[1]}")
         self.coordinates = tuple(self.coordinates)
         self.parameters = dict(self.parameters)
+        if self.joints is not None:
+            self.joints = tuple(self.joints)
+            if len(self.joints) != n:
+                raise InputError(f"joints must name the kind of each of the {n} coordinates, got {len(self.joints)}")
+            joint_units(self.joints)        # one sentence for an unknown kind
         if self.spring_rest is not None:
             self.spring_rest = tuple(float(x) for x in self.spring_rest)
             if len(self.spring_rest) != n or len(self.coordinates) != n:

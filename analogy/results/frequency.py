@@ -53,7 +53,7 @@ def exact_mobility(system, frequencies) -> "FrequencyResponse":
     impedance = system.mass * s + system.damping + k / s
     mobility = np.linalg.solve(impedance, np.broadcast_to(system.current_map, impedance.shape).astype(complex))
     return FrequencyResponse(f, mobility, "exact", np.linalg.inv(system.topology.matrix),
-                             system.info.get("units"), tuple(system.info.get("configuration") or ()) or None)
+                             system.provenance.units, tuple(system.provenance.configuration) or None)
 
 
 @dataclass(eq=False)

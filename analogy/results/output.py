@@ -141,7 +141,7 @@ class Tabular:
             The file to write (its folder must exist).
         """
         system = getattr(self, "system", None)
-        units = getattr(system, "info", {}).get("units") if system is not None else None
+        units = system.provenance.units if system is not None else None
         cols = self.columns()
         return write_columns(path, {_with_unit(name, units): v for name, v in cols.items()})
 

@@ -135,7 +135,7 @@ def plot_comparison(comparison, path=None) -> Figure:
     """
     fig = Figure(figsize=(9, 6), layout="constrained")
     ax, axe = fig.subplots(2, 1, sharex=True)
-    units = comparison.system.info.get("units")
+    units = comparison.system.provenance.units
     ok = {name: tr for name, tr in comparison.results.items() if tr.success and tr.rates.size}
     ref = ok.get(comparison.reference) if comparison.reference else None
     first = ref if ref is not None else next(iter(ok.values()), None)
@@ -146,7 +146,7 @@ def plot_comparison(comparison, path=None) -> Figure:
     ax.set_ylabel(rate_label(units))
     n = comparison.system.dof
     shown = f"; {len(joints)} of {n} joints shown (largest peaks)" if len(joints) < n else ""
-    ax.set_title(f"{comparison.system.info.get('robot', 'custom')}: {', '.join(ok)} "
+    ax.set_title(f"{comparison.system.provenance.robot}: {', '.join(ok)} "
                  f"(preset {comparison.preset}){shown}", fontsize="medium")
     _legends(ax, joints, units, list(ok))
     if ref is not None:

@@ -239,7 +239,7 @@ class SceneResult(Tabular):
             lines.append(self.comparison.table())
         elif sc.solvers:
             n = 0 if self.time is None else self.time.size
-            lines.append(f"robot {system.info.get('robot', 'custom')}, topology {system.topology.name}, "
+            lines.append(f"robot {system.provenance.robot}, topology {system.topology.name}, "
                          f"preset {sc.preset}, {n} time points, reference {self.reference or 'none'}")
             lines.append(f"{'solver':<10}{'run time [ms]':>15}")
             for s, seconds in self.run_times.items():
@@ -296,4 +296,4 @@ class SceneResult(Tabular):
         from ..results.plots import plot_quantities
         return plot_quantities(self.time, self._groups(), self.errors(),
                                f"scene {self.scene.name}: preset {self.scene.preset}", path,
-                               self.reference, units=self.system.info.get("units"))
+                               self.reference, units=self.system.provenance.units)

@@ -43,7 +43,7 @@ def validated(scene: Scene) -> Scene:
                 (_check_nodes(system, nv) if nv else ())
         with keyed("[outputs] element_currents"):
             ec = scene.element_currents
-            if ec and getattr(system, "kind", "linear") != "linear":
+            if ec and system.kind != "linear":
                 raise InputError("element currents need the linear circuit (dynamics = \"linear\")")
             if ec is True:
                 changes["element_currents"] = tuple(e.name for e in circuit(system).parts)

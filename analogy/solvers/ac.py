@@ -45,5 +45,5 @@ def spice_mobility(system, f_start: float, f_stop: float, per_decade: int = 500)
             raise SimulationError("ngspice swept other frequencies than asked for")
         for k in range(n):
             out[:, k, j] = data[f"v(n{k + 1})"]
-    return FrequencyResponse(grid, out, "spice", np.linalg.inv(system.topology.matrix), system.info.get("units"),
-                             tuple(system.info.get("configuration") or ()) or None)
+    return FrequencyResponse(grid, out, "spice", np.linalg.inv(system.topology.matrix), system.provenance.units,
+                             tuple(system.provenance.configuration) or None)

@@ -153,7 +153,7 @@ def solve_ode(system, times=None, method: str = "DOP853", rtol: float = 1e-10,
     start = _time.perf_counter()
     t = system.time_points(times)
     n = system.dof
-    linear = getattr(system, "kind", "linear") == "linear"
+    linear = system.kind == "linear"
     rhs, jac, y, has_x = _linear(system) if linear else _nonlinear(system)
     sc = None
     if atol is None:

@@ -144,7 +144,7 @@ class ReferenceSolver(Solver):
             Unused.
         """
         t = times
-        if getattr(system, "kind", "linear") != "linear":
+        if system.kind != "linear":
             from .ode import solve_ode  # scipy: only for nonlinear systems
             tr = solve_ode(system, t, "DOP853", NONLINEAR_RTOL, positions=True)
             return Trajectory(self.name, tr.time, tr.voltages, tr.rates, tr.positions, stats=tr.stats,

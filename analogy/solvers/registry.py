@@ -93,7 +93,7 @@ class Solver:
         system : NodeDynamics
             The system to be solved.
         """
-        if self.linear_only and getattr(system, "kind", "linear") != "linear":
+        if self.linear_only and system.kind != "linear":
             return f"the {self.name} solver applies only to linear systems"
         return None
 

@@ -126,7 +126,7 @@ class SpiceSolver(Solver):
         system : NodeDynamics
             The system to be solved.
         """
-        if getattr(system, "kind", "linear") != "linear" and getattr(system, "model", None) is None:
+        if system.kind != "linear" and getattr(system, "model", None) is None:
             return "the spice solver needs the symbolic model of a nonlinear system"
         return None
 

@@ -192,7 +192,7 @@ def _case_rows(case: StressCase) -> list[StressRow]:
         return [StressRow(**base, solver="build", status="failed", error=math.nan, bound=math.nan,
                           seconds=0.0, steps=math.nan, message=str(exc))]
     rows = []
-    linear = getattr(system, "kind", "linear") == "linear"
+    linear = system.kind == "linear"
     for label, preset in case.runs:
         solver = label.split("/")[0]
         if solver == "exact":

@@ -150,11 +150,10 @@ class Comparison(Tabular):
 
     def table(self) -> str:
         """A plain-text table of run time, error and steps per solver."""
-        info = self.system.info
         ref = self.reference or "none"
         where = (" (errors on each solver's own points; each output against its own peak)" if self.reference
                  else " (no errors measured)")
-        lines = [f"robot {info.get('robot', 'custom')}, topology {self.system.topology.name}, "
+        lines = [f"robot {self.system.provenance.robot}, topology {self.system.topology.name}, "
                  f"preset {self.preset}, {self.time.size} time points, reference {ref}{where}",
                  f"{'solver':<10}{'run time [ms]':>15}{'max |error|':>14}{'worst output':>14}"
                  f"{'error / peak':>14}{'all / peak':>12}{'steps':>8}"]
@@ -177,7 +176,7 @@ class Comparison(Tabular):
         worst = {k: v[1] for k, v in self.errors().items() if k != self.reference}
         errs = ", ".join(f"{k} {v:.2e}" for k, v in worst.items()) or "no errors"
         failed = f", {len(self.failures)} failed" if self.failures else ""
-        return (f"<Comparison {self.system.info.get('robot', 'custom')}: {', '.join(self.results)} "
+        return (f"<Comparison {self.system.provenance.robot}: {', '.join(self.results)} "
                 f"on {self.time.size} points, error/peak vs {self.reference}: {errs}{failed}>")
 
     def _repr_html_(self) -> str:
@@ -278,7 +277,7 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
     runs: dict[str, list[Trajectory]] = {}
     native: dict[str, list[Trajectory]] = {}
     grids: list = [base] * count
-    nonlinear = getattr(systems[0], "kind", "linear") != "linear"
+    nonlinear = systems[0].kind != "linear"
     want_x = positions or bool(save) or nonlinear       # the energy balance needs positions
     skipped = {}
     for name in list(order):
@@ -340,7 +339,7 @@ def _check_work(systems: Sequence, p: Preset) -> None:
     from the stack's combined scales (its fastest rate)."""
     groups: dict = {}
     for s in systems:
-        if getattr(s, "kind", "linear") == "linear":
+        if s.kind == "linear":
             groups.setdefault((float(s.t_stop), id(s.forces), s.dof, id(s.topology)), []).append(s)
         else:
             check_work(s, p)

@@ -63,10 +63,10 @@ class LinearHorizon(Tabular):
         """
         from ..results.plots import plot_linear_horizon
         ref = self.nonlinear.results[self.nonlinear.reference]
-        robot = self.nonlinear.system.info.get("robot", "custom")
+        robot = self.nonlinear.system.provenance.robot
         return plot_linear_horizon(self.nonlinear.time, ref.rates, self.linear, self.deviation, self.held,
                                    f"{robot}: nonlinear motion against the circuit at q0", path,
-                                   units=self.nonlinear.system.info.get("units"))
+                                   units=self.nonlinear.system.provenance.units)
 
 
 def linear_horizon(scene, preset="accurate", solvers: Sequence[str] = ("spice", "ode"),

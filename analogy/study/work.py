@@ -59,7 +59,7 @@ def check_work(system, preset: Preset, scales=None) -> WorkEstimate:
     scales : Scales, optional
         The system's scales, or the combined scales of a stack sharing its forces and t_stop.
     """
-    if getattr(system, "kind", "linear") != "linear":
+    if system.kind != "linear":
         return WorkEstimate(0.0, 0, 0.0)
     work = estimate_work(system, preset, scales)
     if work.segments > preset.segment_budget:

@@ -1,0 +1,76 @@
+"""Provenance: what a system was built from (robot, scene, parameters, configuration, coordinate units)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields, replace
+from typing import Mapping
+
+from ..errors import InputError
+
+__all__ = ["Provenance"]
+
+
+@dataclass(frozen=True)
+class Provenance:
+    """What a node system was built from, for netlist headers, reports and labels.
+
+    Attributes
+    ----------
+    robot : str
+        The model's name (``"custom"`` for one given by its matrices).
+    scene : str or None
+        The scene it came from.
+    parameters : dict of str to float
+        The model's parameter values.
+    configuration : dict of str to float
+        The coordinates it was built at.
+    units : tuple of str or None
+        Per joint coordinate, ``"rad"`` or ``"m"``; None where the model does not say.
+    """
+
+    robot: str = "custom"
+    scene: str | None = None
+    parameters: dict = field(default_factory=dict)
+    configuration: dict = field(default_factory=dict)
+    units: tuple | None = None
+
+    @classmethod
+    def of(cls, given: "Provenance | Mapping | None", **defaults) -> "Provenance":
+        """A record from a Provenance or a mapping of its fields, over *defaults*.
+
+        Parameters
+        ----------
+        given : Provenance, mapping or None
+            The fields given (``{"robot": "arm", "scene": "lab"}``); unknown names are refused.
+        **defaults
+            Fields the builder knows (robot, parameters, configuration, units).
+        """
+        if isinstance(given, Provenance):
+            return given
+        base = cls(**defaults)
+        if given is None:
+            return base
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(given) - known)
+        if unknown:
+            raise InputError(f"unknown provenance field {unknown[0]!r}: use {', '.join(sorted(known))}")
+        values = dict(given)
+        for key in ("parameters", "configuration"):
+            if key in values:
+                values[key] = dict(values[key] or {})
+        if values.get("units") is not None:
+            values["units"] = tuple(values["units"])
+        return replace(base, **values)
+
+    def at(self, configuration: Mapping[str, float], parameters: Mapping[str, float] | None = None) -> "Provenance":
+        """The same record at another configuration (and parameter values), with its own dicts.
+
+        Parameters
+        ----------
+        configuration : mapping
+            Coordinate values.
+        parameters : mapping, optional
+            Parameter values that change (the others are kept).
+        """
+        params = {**self.parameters, **(parameters or {})}
+        return replace(self, parameters=params, configuration=dict(configuration))
