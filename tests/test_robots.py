@@ -375,9 +375,34 @@ def test_long_serial_arms_are_numeric_and_their_symbolic_model_is_refused_with_a
     from analogy.model.robots import robot
     from analogy.model.serial_chain import SerialChain
     from analogy.scenes.build import scene_model
+    from analogy.scenes.builtin import SCENES
     from analogy.scenes.scene import Scene
     from analogy.scenes.spec import ModelSpec
     model = scene_model(Scene.of("long", ModelSpec(robot="serial200"), q=[0.1] * 200))
     assert isinstance(model, SerialChain) and model.joint_space([0.1] * 200).mass_matrix.shape == (200, 200)
     with pytest.raises(InputError, match="symbolic model .* up to 12 joints"):
         robot("serial13")
+
+
+def test_every_robot_family_is_one_registry_entry_that_builds():
+    """A name resolves to exactly one family; each family builds its linear system from its
+    entry alone, and an unknown name lists every family in one sentence."""
+    from analogy.errors import InputError
+    from analogy.model.catalog import FAMILIES, robot_family
+    from analogy.scenes.builtin import SCENES
+    from analogy.scenes.scene import Scene
+    from analogy.scenes.spec import ModelSpec
+    for family in FAMILIES:
+        name = f"{family.name}4" if family.sizes else family.name
+        assert robot_family(name) == (family, 4 if family.sizes else None)
+        if family.flexible:
+            continue                        # seconds of sympy each: tests/test_flexible.py builds them
+        model = Scene.of(name, ModelSpec(robot=name)).numeric_model()
+        # a robot's own scene where it has one (a closed chain assembles only near its pose)
+        sc = SCENES.get(name) or Scene.of(name, ModelSpec(robot=name), q=(0.1,) * len(model.coordinates),
+                                          forces=(1.0,) * model.dof)
+        system = sc.system()
+        assert system.provenance.robot == name and system.dof == model.dof
+    assert robot_family("serial2")[0].name == "serial2"       # a fixed name before its family
+    with pytest.raises(InputError, match=r"unknown robot 'ur5': use redundant, .*serial<N>.*random<N>"):
+        robot_family("ur5")

@@ -325,7 +325,19 @@ def run_sweep(sweep: Sweep, directory, *, workers: int = 2, executor: Executor |
                 if item is None:
                     break
                 a, b, pts = item
-                fut = pool.submit(_remote, (sweep, a, pts, ~done[a:b], isolated, trajectories))
+                try:
+                    fut = pool.submit(_remote, (sweep, a, pts, ~done[a:b], isolated, trajectories))
+                except BrokenProcessPool:
+                    # a worker died since the last wait: the group was never run, so it waits
+                    # for the new pool (made below when the dead futures come back, or here)
+                    if not own:
+                        raise
+                    retry.append(item)
+                    if not inflight:
+                        _end_pool(pool)
+                        pool = _local_pool(workers)
+                        continue
+                    break
                 inflight[fut] = item
             if not inflight:
                 break

@@ -1,17 +1,101 @@
-"""Names of the built-in robots, checked without deriving anything (no sympy)."""
+"""The built-in robots: one registry entry per robot family, read without deriving anything (no sympy)."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from importlib import import_module
+from typing import Callable
+
 from ..errors import InputError
 
-__all__ = ["ROBOT_NAMES", "check_robot_name", "MAX_SERIAL", "MAX_SYMBOLIC_SERIAL", "MAX_RANDOM"]
+__all__ = ["RobotFamily", "FAMILIES", "ROBOT_NAMES", "robot_family", "check_robot_name", "family_builder",
+           "MAX_SERIAL", "MAX_SYMBOLIC_SERIAL", "MAX_RANDOM"]
 
-#: Fixed built-in robots; ``serial<N>`` and ``random<N>`` name families.
-ROBOT_NAMES = ("redundant", "serial2", "parallel2", "serial3", "parallel3", "flex1", "flex2")
 MAX_SERIAL = 500
 #: serial<N> beyond this is numeric only (its linear dynamics): sympy takes minutes past it.
 MAX_SYMBOLIC_SERIAL = 12
 MAX_RANDOM = 2000
+
+
+@dataclass(frozen=True)
+class RobotFamily:
+    """One robot, or a family ``name<N>`` of sizes, and the builders that make it.
+
+    Attributes
+    ----------
+    name : str
+        The robot's name, or the family's prefix when *sizes* is set.
+    symbolic : str or None
+        ``"module:function"`` of the symbolic model (its nonlinear dynamics too); a sized
+        family's is called with N. None: the family has no symbolic model.
+    numeric : str or None
+        ``"module:function"`` of a numeric model of the linear dynamics at any size, used
+        instead of compiling the symbolic one (called with N, or with N and the seed).
+    sizes : int
+        The largest N of a family ``name<N>`` (0: a single robot).
+    symbolic_sizes : int
+        The largest N with a symbolic model.
+    flexible : bool
+        Its link mode shapes can be chosen (``link_modes``); rebuilt per parameter set.
+    seeded : bool
+        Its numeric builder takes the scene's seed.
+    args : tuple
+        Fixed arguments of the symbolic builder.
+    description : str
+        A few words for listings.
+    """
+
+    name: str
+    symbolic: str | None = None
+    numeric: str | None = None
+    sizes: int = 0
+    symbolic_sizes: int = 0
+    flexible: bool = False
+    seeded: bool = False
+    args: tuple = ()
+    description: str = ""
+
+
+#: Every built-in robot: a fixed name resolves before a sized family of the same prefix.
+FAMILIES: tuple[RobotFamily, ...] = (
+    RobotFamily("redundant", "analogy.model.robots:redundant_actuators",
+                description="redundant rotary and prismatic actuators on one axis"),
+    RobotFamily("serial2", "analogy.model.robots:serial_2dof", description="the papers' 2-DOF serial arm"),
+    RobotFamily("parallel2", "analogy.model.robots:five_bar", description="the five-bar parallel robot"),
+    RobotFamily("serial3", "analogy.model.robots:serial_3dof", description="the papers' 3-DOF serial arm"),
+    RobotFamily("parallel3", "analogy.model.robots:parallel_3dof", description="the 3-RRR parallel robot"),
+    RobotFamily("flex1", "analogy.model.flexible:flexible_arm", flexible=True, args=(1,),
+                description="one flexible link on a hub"),
+    RobotFamily("flex2", "analogy.model.flexible:flexible_arm", flexible=True, args=(2,),
+                description="two flexible links, serial"),
+    RobotFamily("serial", "analogy.model.robots:planar_serial", "analogy.model.serial_chain:SerialChain",
+                sizes=MAX_SERIAL, symbolic_sizes=MAX_SYMBOLIC_SERIAL, description="a planar N-joint arm"),
+    RobotFamily("random", None, "analogy.model.robots:random_spd_model", sizes=MAX_RANDOM, seeded=True,
+                description="a random SPD N-joint system"),
+)
+
+#: Names of the single built-in robots (the families are ``serial<N>`` and ``random<N>``).
+ROBOT_NAMES: tuple[str, ...] = tuple(f.name for f in FAMILIES if not f.sizes)
+
+
+def robot_family(name) -> tuple[RobotFamily, int | None]:
+    """The family *name* belongs to and its size N (None for a single robot); one sentence if none.
+
+    Parameters
+    ----------
+    name : str
+        A robot name: ``redundant``, ``serial2`` …, ``serial<N>`` or ``random<N>``.
+    """
+    if isinstance(name, str):
+        for family in FAMILIES:
+            if not family.sizes and name == family.name:
+                return family, None
+        for family in FAMILIES:
+            tail = name[len(family.name):]
+            if family.sizes and name.startswith(family.name) and tail.isdigit() and 1 <= int(tail) <= family.sizes:
+                return family, int(tail)
+    sized = ", ".join(f"{f.name}<N> ({f.description}, N = 1 to {f.sizes})" for f in FAMILIES if f.sizes)
+    raise InputError(f"unknown robot {name!r}: use {', '.join(ROBOT_NAMES)} or {sized}")
 
 
 def check_robot_name(name) -> str:
@@ -20,16 +104,19 @@ def check_robot_name(name) -> str:
     Parameters
     ----------
     name : str
-        ``redundant``, ``serial2``, ``serial3``, ``parallel2``, ``parallel3``, ``flex1``, ``flex2``,
-        ``serial<N>`` (a planar N-joint arm) or ``random<N>`` (a random SPD N-joint system).
+        A robot name (see :func:`robot_family`).
     """
-    if isinstance(name, str):
-        if name in ROBOT_NAMES:
-            return name
-        for family, top in (("serial", MAX_SERIAL), ("random", MAX_RANDOM)):
-            tail = name[len(family):]
-            if name.startswith(family) and tail.isdigit() and 1 <= int(tail) <= top:
-                return name
-    raise InputError(f"unknown robot {name!r}: use {', '.join(ROBOT_NAMES)}, serial<N> "
-                     f"(a planar N-joint arm, N = 1 to {MAX_SERIAL}, e.g. serial4) or random<N> "
-                     f"(a random N-joint system, N = 1 to {MAX_RANDOM})")
+    robot_family(name)
+    return name
+
+
+def family_builder(path: str) -> Callable:
+    """The builder ``"module:function"``, imported on first use (sympy only where it is needed).
+
+    Parameters
+    ----------
+    path : str
+        ``"package.module:function"``.
+    """
+    module, _, function = path.partition(":")
+    return getattr(import_module(module), function)

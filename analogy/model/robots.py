@@ -10,15 +10,14 @@ import numpy as np
 import sympy as sp
 
 from ..errors import InputError
-from .catalog import MAX_SERIAL, MAX_SYMBOLIC_SERIAL
+from .catalog import FAMILIES, ROBOT_NAMES, family_builder, robot_family
 from .constant import ConstantModel
-from .flexible import flexible_arm
 from .joint import JointSpace
 from .linkages import ClosedChainModel, link_mass_matrix
 from .symbolic import Model
 
 __all__ = ["point_mass_matrix", "redundant_actuators", "planar_serial", "serial_2dof",
-           "serial_3dof", "five_bar", "planar_3rrr", "numeric_model", "random_spd_model",
+           "serial_3dof", "five_bar", "planar_3rrr", "parallel_3dof", "numeric_model", "random_spd_model",
            "ROBOTS", "robot"]
 
 
@@ -404,42 +403,37 @@ def planar_3rrr(rb: float = 0.20, rp: float = 0.05, la: float = 0.12, lb: float 
                         dampings, stiffnesses)
 
 
-def _parallel_3dof() -> ClosedChainModel:
+def parallel_3dof() -> ClosedChainModel:
     # Return springs at the base joints, so that the paper's 3-DOF example has inductors.
     return planar_3rrr(stiffnesses=(0.01, 0.01, 0.01))
 
 
-#: Built-in models by name.
-ROBOTS = {
-    "redundant": redundant_actuators,
-    "serial2": serial_2dof,
-    "parallel2": five_bar,
-    "serial3": serial_3dof,
-    "parallel3": _parallel_3dof,
-    "flex1": partial(flexible_arm, 1),
-    "flex2": partial(flexible_arm, 2),
-}
-
-
 def robot(name: str, link_modes: str | None = None) -> Model:
-    """A built-in model by name (see :data:`ROBOTS`); ``serialN`` gives a planar N-joint arm.
+    """The symbolic model of a built-in robot (see :data:`~analogy.model.catalog.FAMILIES`).
 
     Parameters
     ----------
     name : str
-        A built-in robot (see :func:`analogy.model.catalog.check_robot_name`).
+        A built-in robot (see :func:`analogy.model.catalog.robot_family`).
     link_modes : {"clamped-free", "clamped-mass"}, optional
         The flexible arms' mode shapes (see :func:`analogy.model.flexible.flexible_chain`).
     """
-    if link_modes is not None and not name.startswith("flex"):
-        raise InputError(f"link modes apply to the flexible arms flex1 and flex2, not to {name}")
-    if name in ROBOTS:
-        return ROBOTS[name](**({} if link_modes is None else {"link_modes": link_modes}))
-    if name.startswith("serial") and name[6:].isdigit() and 1 <= int(name[6:]) <= MAX_SYMBOLIC_SERIAL:
-        return planar_serial(int(name[6:]))
-    if name.startswith("serial") and name[6:].isdigit() and int(name[6:]) <= MAX_SERIAL:
+    family, size = robot_family(name)
+    if link_modes is not None and not family.flexible:
+        flexible = " and ".join(f.name for f in FAMILIES if f.flexible)
+        raise InputError(f"link modes apply to the flexible arms {flexible}, not to {name}")
+    if family.symbolic is None:
+        raise InputError(f"{name} is given by its numbers: it has no symbolic model (its linear dynamics "
+                         "are built numerically)")
+    build = family_builder(family.symbolic)
+    if size is None:
+        return build(*family.args, **({} if link_modes is None else {"link_modes": link_modes}))
+    if size > family.symbolic_sizes:
         raise InputError(f"{name}'s symbolic model (needed for its nonlinear dynamics) is built up to "
-                         f"{MAX_SYMBOLIC_SERIAL} joints; its linear dynamics are numeric at any size "
-                         "(analogy.model.serial_chain.SerialChain)")
-    raise InputError(f"unknown robot {name!r}: use {', '.join(ROBOTS)} or serial<N> "
-                     f"(N = 1 to {MAX_SYMBOLIC_SERIAL})")
+                         f"{family.symbolic_sizes} joints; its linear dynamics are numeric at any size "
+                         f"({family.numeric.replace(':', '.')})")
+    return build(size)
+
+
+#: The single built-in robots by name, each a builder of its symbolic model.
+ROBOTS = {name: partial(robot, name) for name in ROBOT_NAMES}

@@ -12,11 +12,10 @@ from ..circuit.joint_forces import waveforms
 from ..circuit.node_system import node_system, node_systems
 from ..circuit.nonlinear import nonlinear_system
 from ..errors import InputError
-from ..model.catalog import ROBOT_NAMES, check_robot_name
+from ..model.catalog import family_builder, robot_family
 from ..model.compiled import compile_model, load_compiled
 from ..model.equilibrium import static_equilibrium
 from ..model.expressions import parse_expression, parse_number, reserved_name
-from ..model.serial_chain import SerialChain
 from ..model.joint import JointSpace
 from .spec import ModelSpec, SceneData
 
@@ -251,22 +250,20 @@ def symbolic_model(scene: SceneData) -> object:
 
 
 def _robot(spec: ModelSpec, dynamics: str):
-    name = check_robot_name(spec.robot)
-    if name.startswith("random"):
-        from ..model.robots import random_spd_model
-        return random_spd_model(int(name[6:]), seed=spec.seed)
-    if name.startswith("flex") or spec.link_modes is not None:
-        from ..model.robots import robot
-        return robot(name, spec.link_modes)     # numeric matrices, rebuilt per parameter set
-    if dynamics == "linear" and name.startswith("serial") and name not in ROBOT_NAMES:
-        return SerialChain(int(name[6:]))       # numeric at any size: no sympy
+    """A built-in robot's model, as its family's registry entry says to build it."""
+    family, size = robot_family(spec.robot)
+    if family.seeded:                           # numbers only, drawn from the scene's seed
+        return family_builder(family.numeric)(size, seed=spec.seed)
+    if family.flexible or spec.link_modes is not None:     # numeric matrices, rebuilt per parameter set
+        return family_builder("analogy.model.robots:robot")(spec.robot, spec.link_modes)
+    if dynamics == "linear" and family.numeric is not None:
+        return family_builder(family.numeric)(size)   # numeric at any size: no sympy
     if dynamics == "linear":
-        cached = load_compiled(name)
+        cached = load_compiled(spec.robot)           # compiled once: no sympy either
         if cached is not None:
             return cached
-    from ..model.robots import robot
-    model = robot(name)
-    return (compile_model(model, name) or model) if dynamics == "linear" else model
+    model = family_builder("analogy.model.robots:robot")(spec.robot)
+    return (compile_model(model, spec.robot) or model) if dynamics == "linear" else model
 
 
 def _configuration(scene: SceneData, model, keys: dict) -> list[float] | None:
