@@ -828,9 +828,6 @@ def test_eq40_to_eq42_package_modes_are_the_exact_modes(count):
     np.testing.assert_allclose((w * x) @ pkg, (w * x) @ exact, rtol=1e-10, atol=1e-12)
 
 
-@pytest.mark.xfail(strict=True, reason="beams.frequency_equation forms its determinant from cosh λ-sized "
-                                       "entries before dividing by cosh² λ: root errors grow like e^λ·eps "
-                                       "(3e-7 at mode 8, spurious roots from mode 13 on)")
 def test_package_cantilever_roots_beyond_eight_modes():
     """The package's cantilever roots for 16 modes should be those of 1 + cos λ cosh λ = 0."""
     np.testing.assert_allclose(frequency_roots(16), cantilever_roots(16), rtol=1e-9)

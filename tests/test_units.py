@@ -1,10 +1,14 @@
 """Units: inputs may carry them (converted to SI by pint), and every output names its own."""
 
 import math
+import re
 import subprocess
 import sys
 
+import numpy as np
 import pytest
+
+from hang_guard import finishes
 
 from analogy.cli import main
 from analogy.errors import InputError
@@ -96,3 +100,45 @@ def test_csv_headers_name_their_units():
     assert column_unit("r2_spice", ("rad", "m")) == "m/s"
     assert column_unit("v_n1_exact") == "V" and column_unit("i_C1_2_spice") == "A"
     assert column_unit("mode") == ""
+
+
+@pytest.mark.parametrize("unit", ["m^2^2^2^2^2^2^2^2", "m^2^2^2^2^2^2^2^2^2^2", "deg**1000", "m^1e300",
+                                  "kg/0", "µ)s", "k·", "m^(2^3)", "(m", "m^", "s^-99", "m^2.5"])
+def test_a_unit_is_read_by_a_bounded_grammar_and_refused_in_one_sentence(unit):
+    """Exponents are whole numbers up to ±12, written once: a tower of them never reaches pint."""
+    with pytest.raises(InputError) as caught:
+        finishes(lambda: parse_number(f"1 {unit}"))
+    assert "\n" not in str(caught.value) and unit in str(caught.value)
+
+
+@pytest.mark.parametrize("text, si", [("1 m^-3", 1.0), ("1 s^-1", 1.0), ("2 N m", 2.0), ("3 km^2", 3e6),
+                                      ("1 (mm/s)^2", 1e-6), ("1 m2", 1.0), ("1 kg*m^2/s^2", 1.0)])
+def test_products_quotients_and_whole_powers_of_units(text, si):
+    assert parse_number(text) == pytest.approx(si, rel=4 * np.finfo(float).eps)
+
+
+@pytest.mark.parametrize("text, dimension, message", [
+    ("10 kg", "time", "expected a time, got a unit of [mass]"),
+    ("100 kg", ("angle", "length"), "expected an angle or length"),
+    ("1 m", ("angular rate", "velocity"), "expected an angular rate or velocity, got a unit of [length]"),
+])
+def test_a_unit_of_the_wrong_dimension_is_refused(text, dimension, message):
+    with pytest.raises(InputError, match=re.escape(message)):
+        parse_number(text, dimension)
+
+
+@pytest.mark.parametrize("text, dimension", [("500 ms", "time"), ("30 deg", ("angle", "length")),
+                                             ("100 mm", ("angle", "length")), ("2 rad/s", ("angular rate", "velocity")),
+                                             ("5", "time")])
+def test_a_unit_of_the_field_s_dimension_is_converted(text, dimension):
+    assert parse_number(text, dimension) == parse_number(text)
+
+
+@pytest.mark.parametrize("argv, flag", [(["--t-stop", "10 kg"], "--t-stop: expected a time"),
+                                        (["--q=0, 100 kg"], "--q: expected an angle or length"),
+                                        (["--r0=0, 1 m"], "--r0: expected an angular rate or velocity"),
+                                        (["--t-stop", "0 m^2^2^2^2^2^2^2"], "--t-stop: 'm^2^2^2^2^2^2^2' is not a unit")])
+def test_the_command_line_names_the_option_whose_unit_is_wrong(argv, flag, capsys):
+    assert main(["netlist", *argv]) == 2
+    err = capsys.readouterr().err
+    assert flag in err and err.count("\n") == 1

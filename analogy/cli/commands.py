@@ -85,10 +85,10 @@ def _cmd_compare(args) -> int:
         check_plot_path(args.plot)
     for path in (args.csv, args.plot):
         _check_writable(path)
-    step = None if args.step is None else parse_number(args.step)
+    step = None if args.step is None else parse_number(args.step, "time")
     preset = get_preset(args.preset)
     if args.timeout is not None:
-        if not (limit := parse_number(args.timeout)) > 0:
+        if not (limit := parse_number(args.timeout, "time")) > 0:
             raise InputError(f"--timeout must be positive, got {args.timeout}")
         preset = replace(preset, timeout=limit)
     if args.budget is not None:

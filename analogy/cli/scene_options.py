@@ -13,6 +13,7 @@ from ..model.expressions import (
     parse_vector,
     split_entries,
 )
+from ..model.quantities import COORDINATE, RATE
 from ..presets import PRESETS
 from ..scenes.build import LABELS, scene_model
 from ..scenes.builtin import SCENES, scene
@@ -87,6 +88,14 @@ def _split_param(text: str) -> tuple[str, float]:
         raise InputError(f"--param {name.strip()}: {exc}") from None
 
 
+def _option(flag: str, parse, *args, **kwargs):
+    """*parse* of an option's text, its errors prefixed with the option."""
+    try:
+        return parse(*args, **kwargs)
+    except InputError as exc:
+        raise InputError(f"{flag}: {exc}", field=exc.field) from None
+
+
 def _entries(text: str | None, label: str):
     if text is None:
         return None
@@ -143,7 +152,7 @@ def scene_from_args(args) -> Scene:
     elif params:
         changes["parameters"] = dict(sc.parameters, **params)
     if args.q is not None:
-        changes["q"] = tuple(parse_vector(args.q, numeric=True))
+        changes["q"] = tuple(_option("--q", parse_vector, args.q, numeric=True, dimension=COORDINATE))
     if coords:
         if args.q is not None:
             raise InputError(f"--q and --param {', '.join(coords)} both set the configuration: use one")
@@ -164,9 +173,9 @@ def scene_from_args(args) -> Scene:
     if args.force:
         changes["forces"] = tuple(args.force)
     if args.r0 is not None:
-        changes["initial_rates"] = tuple(parse_vector(args.r0, numeric=True))
+        changes["initial_rates"] = tuple(_option("--r0", parse_vector, args.r0, numeric=True, dimension=RATE))
     if args.t_stop is not None:
-        changes["t_stop"] = parse_number(args.t_stop)
+        changes["t_stop"] = _option("--t-stop", parse_number, args.t_stop, "time")
     if args.equilibrium:
         changes["equilibrium"] = True
     if getattr(args, "dynamics", None) in ("linear", "nonlinear"):      # "both" is the command's

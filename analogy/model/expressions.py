@@ -14,7 +14,7 @@ from typing import Iterable, Mapping
 import numpy
 
 from ..errors import InputError
-from .quantities import split_unit, unit_factor
+from .quantities import Dimension, check_dimension, split_unit, unit_factor
 
 __all__ = ["parse_expression", "parse_matrix", "parse_vector", "parse_number",
            "parse_call", "split_entries", "reserved_name", "FUNCTION_NAMES", "MAX_LENGTH", "MAX_DEPTH",
@@ -317,13 +317,16 @@ def _finite(value, text: str) -> float:
     return number
 
 
-def parse_number(text: str) -> float:
-    """Parse a constant expression such as ``pi/4`` or ``1e-3`` to a finite float.
+def parse_number(text: str, dimension: Dimension | tuple[Dimension, ...] | None = None) -> float:
+    """Parse a constant expression such as ``pi/4``, ``1e-3`` or ``250 ms`` to a finite float in SI.
 
     Parameters
     ----------
     text : str
-        A constant expression such as ``pi/4``.
+        A constant expression, perhaps with a unit (``100 mm``, ``30 deg``).
+    dimension : Dimension or tuple of Dimension, optional
+        What the value measures: a unit of another dimension is refused in one sentence
+        (``"10 kg"`` for a time). A bare number is taken as SI.
     """
     try:
         return _finite(_Converter(text, _Numeric, {}, allow_lists=False).convert(_syntax_tree(text)), text)
@@ -332,6 +335,8 @@ def parse_number(text: str) -> float:
         if split is None:
             raise
     number, unit = split        # a number with a unit, e.g. "100 mm": converted to SI
+    if dimension is not None:
+        check_dimension(unit, dimension)
     return _finite(parse_number(number) * unit_factor(unit), text)
 
 
@@ -372,7 +377,8 @@ def parse_matrix(text: str, symbols: Mapping | None = None, numeric: bool = Fals
     return sp.Matrix(rows)
 
 
-def parse_vector(text: str, symbols: Mapping | None = None, numeric: bool = False) -> list:
+def parse_vector(text: str, symbols: Mapping | None = None, numeric: bool = False,
+                 dimension: Dimension | tuple[Dimension, ...] | None = None) -> list:
     """Parse ``[a, b, c]`` or ``a, b, c`` into a list of sympy expressions (or floats).
 
     Parameters
@@ -383,6 +389,8 @@ def parse_vector(text: str, symbols: Mapping | None = None, numeric: bool = Fals
         The names the entries may use.
     numeric : bool
         Return floats (constant entries only).
+    dimension : Dimension or tuple of Dimension, optional
+        What the entries measure, when they carry units (see :func:`parse_number`).
     """
     stripped = text.strip()
     if not stripped.startswith("["):
@@ -392,7 +400,7 @@ def parse_vector(text: str, symbols: Mapping | None = None, numeric: bool = Fals
     except InputError:
         if not numeric or not any(split_unit(e) for e in _flat(stripped)):
             raise
-        return [parse_number(e) for e in _flat(stripped)]        # entries with units
+        return [parse_number(e, dimension) for e in _flat(stripped)]        # entries with units
     return [_finite(x, text) for x in items] if numeric else items
 
 

@@ -55,6 +55,7 @@ from pathlib import Path
 from ..errors import InputError
 from ..model.dynamics import DYNAMICS
 from ..model.expressions import parse_number
+from ..model.quantities import COORDINATE, RATE
 from ..presets import preset as get_preset
 from ..results.output import check_plot_path
 from ..solvers.registry import SOLVER_NAMES
@@ -134,12 +135,12 @@ def _kind(value) -> str:
 
 # ---------------------------------------------------------------- values
 
-def _number(value) -> float:
-    """A finite float from a TOML number or a constant expression string."""
+def _number(value, dimension=None) -> float:
+    """A finite float from a TOML number or a constant expression string (its unit of *dimension*)."""
     if isinstance(value, bool) or not isinstance(value, (int, float, str)):
         raise InputError(f"expected a number, got {_kind(value)}")
     if isinstance(value, str):
-        return parse_number(value)
+        return parse_number(value, dimension)
     try:
         x = float(value)
     except OverflowError:                   # a TOML integer past 1.8e308
@@ -149,7 +150,7 @@ def _number(value) -> float:
     return x
 
 
-def _numbers(value, n: int | None = None) -> list[float]:
+def _numbers(value, n: int | None = None, dimension=None) -> list[float]:
     if not isinstance(value, list):
         raise InputError(f"expected a list of numbers, got {_kind(value)}")
     if n is not None and len(value) != n:
@@ -157,7 +158,7 @@ def _numbers(value, n: int | None = None) -> list[float]:
     out = []
     for k, item in enumerate(value):
         try:
-            out.append(_number(item))
+            out.append(_number(item, dimension))
         except InputError as exc:
             raise InputError(f"entry {k + 1}: {exc}") from None
     return out
@@ -343,7 +344,7 @@ def _model_fields(ctx: _Context, data: dict) -> dict:
         raise ctx.error("[model]", "give robot = \"serial2\" (a built-in robot) or mass = [[...]]")
     if "q" in config:
         with ctx.key("[configuration] q"):
-            out["q"] = tuple(_numbers(config["q"]))
+            out["q"] = tuple(_numbers(config["q"], dimension=COORDINATE))
     if "equilibrium" in config:
         if not isinstance(config["equilibrium"], bool):
             raise ctx.error("[configuration] equilibrium", f"expected true or false, got {_kind(config['equilibrium'])}")
@@ -373,10 +374,10 @@ def _model_fields(ctx: _Context, data: dict) -> dict:
     out["forces"] = freeze(raw)
     if "initial_rates" in inputs:
         with ctx.key("[inputs] initial_rates"):
-            out["initial_rates"] = tuple(_numbers(inputs["initial_rates"]))
+            out["initial_rates"] = tuple(_numbers(inputs["initial_rates"], dimension=RATE))
     if "t_stop" in inputs:
         with ctx.key("[inputs] t_stop"):
-            t_stop = _number(inputs["t_stop"])
+            t_stop = _number(inputs["t_stop"], "time")
             if t_stop <= 0:
                 raise InputError(f"must be a positive time, got {t_stop!r}")
             out["t_stop"] = t_stop
