@@ -3,17 +3,16 @@
 from __future__ import annotations
 
 import logging
-import multiprocessing
 import os
 import statistics
 import time as _time
-from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
 from .batch.run import _system, run_batch
 from .circuit.description import circuit
 from .errors import InputError
+from .processes import worker_pool
 from .presets import preset as get_preset
 from .progress import Progress
 from .results.metrics import relative_error
@@ -109,18 +108,17 @@ def throughput(n: int = 10_000, preset: str = "fast", group_size: int = 100, wor
     base = scene("default")
     q2 = np.random.default_rng(seed).uniform(-np.pi, np.pi, n)
     items = [base.replace(q=(0.0, float(x))) for x in q2]
-    ctx = multiprocessing.get_context("forkserver")
     rates: dict = {k: [] for k in ("batched", "one", "solo", "pyspice")}
     worst: dict = {k: 0.0 for k in rates}
     failed, solves = 0, []
     bar = Progress(4 * repeats, unit="path run", enabled=progress, every=0.0)
     for _ in range(repeats):
-        with ProcessPoolExecutor(1, mp_context=ctx) as ex:
+        with worker_pool(1, fresh=True) as ex:
             sec, err, med = ex.submit(_solo_loop, (items[:baseline_n], preset)).result()
         rates["solo"].append(baseline_n / sec)
         worst["solo"], solves = max(worst["solo"], err), solves + [med]
         bar.update(1)
-        with ProcessPoolExecutor(1, mp_context=ctx) as ex:
+        with worker_pool(1, fresh=True) as ex:
             sec, err = ex.submit(_pyspice_loop, (items[:baseline_n], preset)).result()
         rates["pyspice"].append(baseline_n / sec)
         worst["pyspice"] = max(worst["pyspice"], err)

@@ -1,5 +1,9 @@
 """ngspice in process: accuracy against the exact solution, failures, stderr notes and memory."""
 
+import os
+import tempfile
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -108,6 +112,8 @@ def test_a_broken_library_is_reloaded_from_a_private_copy():
     with pytest.raises(SpiceError):
         sess.run("* bad\nI1 0 n1 DC 1\nR1 n1 0 1\n.tran 0 1 uic\n.end\n")
     assert sess._generation == generation + 1 and not sess._ng.exited
+    # the copy is unlinked once loaded: nothing on disk for a SIGKILL to leave behind
+    assert not list(Path(tempfile.gettempdir()).glob(f"analogy-ngspice-{os.getpid()}-*"))
     after = sess.run(text)
     np.testing.assert_array_equal(before["n1"], after["n1"])
 

@@ -2,14 +2,8 @@
 
 from __future__ import annotations
 
-import ctypes
-import multiprocessing
-import os
-import signal
-import sys
-import threading
 import time as _time
-from concurrent.futures import Executor, ProcessPoolExecutor
+from concurrent.futures import Executor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Sequence
@@ -18,6 +12,7 @@ import numpy as np
 
 from ..errors import AnalogyError, InputError
 from ..presets import preset as get_preset
+from ..processes import worker_pool
 from ..study.comparison import compare_many
 from ..results.output import html_table, write_rows
 from ..scenes.scene import Scene
@@ -226,36 +221,6 @@ def _tasks(systems, group_size: int) -> list[tuple[list[int], tuple]]:
     return tasks
 
 
-def _die_with_parent(parent: int | None) -> None:
-    """Worker initialiser: end when the parent does (Linux parent-death signal), and leave Ctrl-C to it."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    if sys.platform.startswith("linux"):
-        try:
-            ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGKILL))     # PR_SET_PDEATHSIG
-        except (OSError, AttributeError):
-            pass
-    if parent is not None and os.getppid() != parent:      # the parent died before prctl
-        os._exit(1)
-
-
-def _worker_context():
-    """How worker processes start.
-
-    Fork when this process runs no other thread: workers start at once, with the
-    modules and models already loaded, and the caller's script is not imported again
-    (a lab without an ``if __name__ == "__main__"`` guard still works). Forking a
-    process with threads can deadlock, so then a fork server starts them clean.
-    """
-    if threading.active_count() == 1 and "fork" in multiprocessing.get_all_start_methods():
-        return multiprocessing.get_context("fork")
-    ctx = multiprocessing.get_context("forkserver")
-    # Imports done once in the server are shared by every worker forked from it.
-    ctx.set_forkserver_preload(["analogy.batch.run", "analogy.solvers.spice", "analogy.solvers.exact",
-                                "analogy.scenes.build", "analogy.model.compiled",
-                                "PySpice.Spice.NgSpice.Shared"])
-    return ctx
-
-
 def run_batch(systems: Sequence, preset="fast", *, solvers: Sequence[str] = ("spice",),
               group_size: int = 100, workers: int = 2, executor: Executor | None = None,
               compare_exact: bool = True, keep_rates: bool = False, progress: bool = False) -> BatchResult:
@@ -302,10 +267,7 @@ def run_batch(systems: Sequence, preset="fast", *, solvers: Sequence[str] = ("sp
     if executor is None and workers > 1 and len(tasks) > 1:
         for name in names + ["exact"]:
             solver(name)            # imported once here, so that forked workers start with it
-        ctx = _worker_context()
-        parent = os.getpid() if ctx.get_start_method() == "fork" else None
-        executor = own = ProcessPoolExecutor(workers, mp_context=ctx, initializer=_die_with_parent,
-                                             initargs=(parent,))
+        executor = own = worker_pool(workers)
     try:
         outputs = executor.map(_group, payloads) if executor is not None else map(_group, payloads)
         if progress:

@@ -2,24 +2,24 @@
 
 from __future__ import annotations
 
-import os
 import signal
 import sys
 import threading
 import time as _time
-from concurrent.futures import FIRST_COMPLETED, Executor, ProcessPoolExecutor, wait
+from concurrent.futures import FIRST_COMPLETED, CancelledError, Executor, wait
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, SimulationError
 from ..presets import PRESETS
 from ..presets import preset as get_preset
 from ..solvers.registry import SOLVER_NAMES
 from ..progress import Progress
-from .run import _die_with_parent, _group, _tasks, _worker_context
+from ..processes import worker_pool
+from .run import _group, _tasks
 from .store import ResultStore
 from .sweep import Sweep
 
@@ -238,12 +238,6 @@ def _remote(payload):
     return merged, None
 
 
-def _local_pool(workers: int) -> ProcessPoolExecutor:
-    ctx = _worker_context()
-    parent = os.getpid() if ctx.get_start_method() == "fork" else None
-    return ProcessPoolExecutor(workers, mp_context=ctx, initializer=_die_with_parent, initargs=(parent,))
-
-
 def _end_pool(pool) -> None:
     """Stop a process pool now: pending groups cancelled, workers killed."""
     procs = list(getattr(pool, "_processes", {}).values())
@@ -306,7 +300,7 @@ def run_sweep(sweep: Sweep, directory, *, workers: int = 2, executor: Executor |
     result = SweepRun(str(directory), sweep.size, int(done.sum()))
     bar = Progress(sweep.size, initial=result.skipped, bar=progress, stream=log or sys.stderr)
     own = executor is None
-    pool = _local_pool(workers) if own else executor
+    pool = worker_pool(workers) if own else executor
     limit = 4 * workers if own else 64
     chunks = ((a, b, pts) for a, b, pts in sweep.chunks() if not done[a:b].all())
     inflight: dict = {}
@@ -335,7 +329,7 @@ def run_sweep(sweep: Sweep, directory, *, workers: int = 2, executor: Executor |
                     retry.append(item)
                     if not inflight:
                         _end_pool(pool)
-                        pool = _local_pool(workers)
+                        pool = worker_pool(workers)
                         continue
                     break
                 inflight[fut] = item
@@ -348,6 +342,12 @@ def run_sweep(sweep: Sweep, directory, *, workers: int = 2, executor: Executor |
                 a, b, pts = item
                 try:
                     cols, traj = fut.result()
+                except CancelledError:
+                    # only an outside executor cancels: a Dask scheduler that stopped, say
+                    raise SimulationError(
+                        f"the executor cancelled the work (did the Dask scheduler stop?): "
+                        f"{int(done.sum()):,} of {sweep.size:,} scenes are stored in {directory}; "
+                        "run the same command to resume") from None
                 except deaths as exc:
                     broken = broken or isinstance(exc, BrokenProcessPool)
                     attempts[a] = attempts.get(a, 0) + 1
@@ -372,7 +372,7 @@ def run_sweep(sweep: Sweep, directory, *, workers: int = 2, executor: Executor |
                         done[a:b] = True
                 inflight.clear()
                 _end_pool(pool)
-                pool = _local_pool(workers)
+                pool = worker_pool(workers)
     except (KeyboardInterrupt, _Stop):
         result.interrupted = True
     finally:

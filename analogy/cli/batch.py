@@ -4,14 +4,19 @@ from __future__ import annotations
 
 import logging
 import sys
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
 from typing import Iterator
 
 from ..errors import EXIT_ACCURACY, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, InputError, SimulationError
 from ..presets import PRESETS
+from ..processes import scratch_folder
 
-__all__ = ["batch_command", "batch_options", "dask_executor"]
+__all__ = ["batch_command", "batch_options", "dask_executor", "scheduler_address", "CONNECT_SECONDS"]
+
+#: How long a scheduler has to answer: Dask's own timeout covers the TCP connection, not a
+#: listener that accepts and never speaks, so the whole handshake gets this deadline too.
+CONNECT_SECONDS = 15.0
 
 def batch_options(sub) -> None:
     """Add the ``batch`` subcommand and its options to the subparsers *sub*.
@@ -39,6 +44,51 @@ def batch_options(sub) -> None:
     p.add_argument("--no-progress", action="store_true", help="no progress bar (plain lines stay)")
 
 
+def scheduler_address(text: str) -> str:
+    """*text* as a Dask scheduler address ``tcp://host:port``, or one sentence saying what is wrong.
+
+    Parameters
+    ----------
+    text : str
+        ``tcp://host:port`` or ``host:port``.
+    """
+    address = text.strip()
+    scheme, sep, place = address.partition("://")
+    if not sep:
+        scheme, place = "tcp", address
+    host, colon, port = place.rpartition(":")
+    host = host[1:-1] if host.startswith("[") and host.endswith("]") else host
+    if scheme != "tcp" or not colon or not host or not port.isdigit() or not 0 < int(port) < 65536 \
+            or any(c in host for c in "/[]@ \\") or len(address) > 300:
+        shown = repr(text) if len(text) < 80 else "the one given"
+        raise InputError(f"--scheduler needs a Dask scheduler address like tcp://127.0.0.1:8786, got {shown}"
+                         + (" (only tcp:// is set up here: tls needs certificates, the other protocols their own libraries)"
+                            if sep and scheme != "tcp" else ""))
+    return f"tcp://{place}"
+
+
+def _connect(client_class, address: str):
+    """A client of the scheduler at *address*, or one sentence once :data:`CONNECT_SECONDS` pass."""
+    import threading
+    out: dict = {}
+
+    def connect():
+        try:
+            out["client"] = client_class(address, timeout=f"{CONNECT_SECONDS:g}s")
+        except Exception as exc:        # noqa: BLE001 - handed back as one sentence
+            out["error"] = exc
+    worker = threading.Thread(target=connect, daemon=True)
+    worker.start()
+    worker.join(CONNECT_SECONDS + 5)
+    if worker.is_alive():
+        raise InputError(f"the Dask scheduler at {address} did not answer within {CONNECT_SECONDS + 5:g} s")
+    if "error" in out:
+        exc = out["error"]
+        detail = " ".join(str(exc).split())[:200] or type(exc).__name__
+        raise InputError(f"cannot reach the Dask scheduler {address}: {detail}") from None
+    return out["client"]
+
+
 @contextmanager
 def dask_executor(workers: int, scheduler: str | None = None) -> Iterator[object]:
     """A ``concurrent.futures`` executor over Dask: the cluster at *scheduler*, or a LocalCluster.
@@ -58,16 +108,29 @@ def dask_executor(workers: int, scheduler: str | None = None) -> Iterator[object
     except ImportError:
         raise InputError("Dask is not installed: pip install 'analogy[dask]'") from None
     cluster = None
+    scratch = ExitStack()
+    # a lost worker or scheduler is reported here in one sentence, not by Dask's own tracebacks
+    for name in list(logging.root.manager.loggerDict):
+        if name.split(".")[0] in ("distributed", "tornado", "asyncio"):
+            quiet = logging.getLogger(name)
+            scratch.callback(quiet.setLevel, quiet.level)
+            quiet.setLevel(logging.CRITICAL + 1)
     try:
         if scheduler is None:
+            # the cluster's spill and lock files in a folder of ours, so that a stop leaves nothing in /tmp
+            import dask
+            folder = str(scratch.enter_context(scratch_folder("dask")))
+            scratch.enter_context(dask.config.set({"temporary-directory": folder}))
             cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                   dashboard_address=None, silence_logs=logging.ERROR)
+                                   dashboard_address=None, silence_logs=logging.ERROR, local_directory=folder)
             client = Client(cluster)
         else:
-            client = Client(scheduler, timeout="10s")
+            client = _connect(Client, scheduler_address(scheduler))
     except (OSError, TimeoutError) as exc:
+        scratch.close()
         raise InputError(f"cannot reach the Dask scheduler {scheduler}: {exc}") from None
     except RuntimeError as exc:
+        scratch.close()
         raise SimulationError(f"the Dask cluster did not start: {exc}") from None
     try:
         yield client.get_executor()
@@ -75,6 +138,7 @@ def dask_executor(workers: int, scheduler: str | None = None) -> Iterator[object
         client.close()
         if cluster is not None:
             cluster.close()
+        scratch.close()
 
 
 def batch_command(args) -> int:
@@ -102,7 +166,9 @@ def batch_command(args) -> int:
             raise InputError("--solvers names no solver")
     sweep = with_overrides(load_sweep(args.sweep_file), args.preset, solvers)
     progress = False if args.no_progress else None
-    if args.dask or args.scheduler:
+    if args.scheduler is not None:
+        scheduler_address(args.scheduler)       # one sentence before anything runs
+    if args.dask or args.scheduler is not None:
         with dask_executor(args.workers, args.scheduler) as executor:
             run = run_sweep(sweep, args.output, executor=executor, isolated=args.isolated,
                             trajectories=args.trajectories, progress=progress)

@@ -173,7 +173,6 @@ class NgspiceSession:
     def __init__(self, path: str | None = None):
         self._lock = threading.Lock()
         self._source = path or library_path()
-        self._tmp: tempfile.TemporaryDirectory | None = None
         self._generation = 0
         self._open(self._source)
 
@@ -187,15 +186,15 @@ class NgspiceSession:
         self._command("set nomoremode")
 
     def _reload(self):
-        # A fresh copy has its own global state; dlopen of the same path would share it.
-        if self._tmp is None:
-            _remove_orphan_copies()
-            self._tmp = tempfile.TemporaryDirectory(prefix=f"analogy-ngspice-{os.getpid()}-")
+        # A fresh copy has its own global state; dlopen of the same path would share it. The
+        # copy is removed once loaded (the mapping stays), so even SIGKILL leaves no file behind.
+        _remove_orphan_copies()
         src = Path(self._resolve(self._source))
         self._generation += 1
-        dst = Path(self._tmp.name) / f"libngspice-{self._generation}.so"
-        shutil.copy(src, dst)
-        self._open(str(dst))
+        with tempfile.TemporaryDirectory(prefix=f"analogy-ngspice-{os.getpid()}-") as folder:
+            dst = Path(folder) / f"libngspice-{self._generation}.so"
+            shutil.copy(src, dst)
+            self._open(str(dst))
 
     @staticmethod
     def _resolve(name: str) -> str:
