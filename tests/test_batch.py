@@ -75,3 +75,39 @@ def test_a_batch_result_is_a_short_repr_a_table_and_a_frame():
     assert list(frame.columns) == ["error_spice", "error_ode", "failure"] and len(frame) == 6
     assert (frame["error_spice"] <= 1e-3).all() and (frame["error_ode"] <= 1e-3).all()
     assert res._repr_html_().startswith("<table>")
+
+
+def _stiff_system():
+    from analogy import node_system
+    from analogy.model.joint import JointSpace
+    # √(k/m) ≈ 2.4e7 rad/s over 10 s: about 5e8 time points, past the fast preset's budget
+    return node_system(JointSpace(np.array([[2.0, 0.5], [0.5, 1.0]]), np.eye(2), np.diag([1e15, 1.0])), t_stop=10)
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_scene_past_the_work_budget_is_refused_alone_and_the_rest_run(workers):
+    base = scene("default")
+    items = [base.replace(q=(0.0, 0.01 * k)) for k in range(40)]
+    res = run_batch(items[:20] + [_stiff_system()] + items[20:], "fast", workers=workers, group_size=15)
+    assert list(res.failures) == [20] and "more than the budget" in res.failures[20]
+    assert np.isnan(res.errors[20]) and np.isfinite(np.delete(res.errors, 20)).all()
+    assert (np.delete(res.errors, 20) <= preset("fast").bound).all()
+
+
+def test_a_scene_whose_build_raises_anything_fails_alone(monkeypatch):
+    """An unexpected exception in one scene (a bug) is that scene's failure, not the batch's."""
+    import analogy.batch.run as run
+    base = scene("default")
+    items = [base.replace(q=(0.0, 0.01 * k)) for k in range(30)]
+    build = run._system
+
+    def faulty(item):
+        if tuple(item.q) == items[7].q:
+            raise RuntimeError("a bug in one scene")
+        return build(item)
+    monkeypatch.setattr(run, "_system", faulty)
+    monkeypatch.setattr(type(base), "systems", lambda self, *a, **k: (_ for _ in ()).throw(
+        analogy.InputError("built one by one")))
+    res = run_batch(items, "fast", workers=1, group_size=10)
+    assert list(res.failures) == [7] and "RuntimeError: a bug in one scene" in res.failures[7]
+    assert np.isfinite(np.delete(res.errors, 7)).all()

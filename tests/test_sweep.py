@@ -295,3 +295,16 @@ def test_progress_is_plain_lines_when_stderr_is_not_a_terminal():
     lines = log.getvalue().splitlines()
     assert lines and all("of 1,000 scenes" in line and "\r" not in line for line in lines)
     assert lines[-1].startswith("550 of 1,000 scenes (55.0%)")
+
+
+def test_a_sweep_scene_past_the_work_budget_is_stored_as_refused_and_the_others_run(tmp_path, capsys):
+    from analogy.batch.store import read
+    body = SWEEP.split("[sweep]")[0] + ('[sweep]\nmethod = "grid"\ngroup_size = 20\n[sweep.axes]\n'
+                                         't_stop = [1, 10, 1e8]\nq2 = [0.1, 0.5]\n')
+    (tmp_path / "s.toml").write_text(body)
+    assert main(["batch", str(tmp_path / "s.toml"), "-o", str(tmp_path / "out"), "--no-progress"]) == 1
+    rows = read(tmp_path / "out")
+    late = rows["t_stop"] == 1e8
+    assert (rows.loc[late, "status"] == "refused").all() and late.sum() == 2
+    assert rows.loc[late, "message"].str.contains("more than the budget").all()
+    assert (rows.loc[~late, "status"] == "ok").all() and (~late).sum() == 4

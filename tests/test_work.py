@@ -54,8 +54,8 @@ def test_the_guard_holds_on_the_batch_path_too():
     assert caught.value.field == "budget" and "--" not in str(caught.value)
 
 
-def test_a_sweep_past_the_budget_stores_each_scene_as_invalid(tmp_path):
-    """analogy batch: every scene refused by the guard is stored as invalid with its sentence."""
+def test_a_sweep_past_the_budget_stores_each_scene_as_refused(tmp_path):
+    """analogy batch: every scene refused by the guard is stored as refused with its sentence."""
     import pandas as pd
     sweep = tmp_path / "long.toml"
     sweep.write_text('name = "long"\n[model]\nrobot = "serial2"\n[inputs]\nforces = ["step(1)", "step(0.5)"]\n'
@@ -63,5 +63,5 @@ def test_a_sweep_past_the_budget_stores_each_scene_as_invalid(tmp_path):
                      'method = "grid"\n[sweep.axes]\nq2 = { low = 0.1, high = 0.5, count = 3 }\n')
     main(["batch", str(sweep), "-o", str(tmp_path / "store"), "--no-progress", "--workers", "1"])
     frame = pd.read_parquet(tmp_path / "store")
-    assert frame["status"].tolist() == ["invalid"] * 3
+    assert frame["status"].tolist() == ["refused"] * 3
     assert all("time points" in m and "work budget" in m for m in frame["message"])

@@ -199,7 +199,7 @@ class BatchReport:
         good = e > 0
         sc = ax.scatter(f[x][good], f[y][good], c=e[good], s=max(2.0, 3e4 / max(len(f), 1)), marker="s",
                         norm=LogNorm(), cmap="viridis", rasterized=True)
-        failed = f["status"].isin(["failed", "invalid", "worker-died"])
+        failed = f["status"].isin(["failed", "invalid", "refused", "worker-died"])
         if failed.any():
             ax.scatter(f[x][failed], f[y][failed], s=6, c="red", marker="x", label="no result")
             ax.legend(loc="outside lower center")

@@ -14,6 +14,7 @@ from ..errors import AnalogyError, InputError
 from ..presets import preset as get_preset
 from ..processes import worker_pool
 from ..study.comparison import compare_many
+from ..study.work import check_work, check_works
 from ..results.output import html_table, write_rows
 from ..scenes.scene import Scene
 from ..solvers.registry import solver
@@ -145,11 +146,8 @@ def _systems(task) -> tuple[list, dict]:
         try:
             return base.systems(qs, parameters=params), {}
         except AnalogyError:            # one row is bad: build row by row to keep the others
-            items = [base.replace(q=tuple(row), parameters={**dict(base.parameters),
-                                  **{k: float(v[i]) for k, v in params.items()}})
-                     for i, row in enumerate(np.asarray(qs).tolist())]
-    else:
-        items = rest[0]
+            pass
+    items = _items(task)
     systems, failures = [], {}
     for k, item in enumerate(items):
         try:
@@ -166,11 +164,22 @@ def _group(payload):
     SPICE runs the group as one circuit; if that run fails, each scene runs alone, so
     that one scene's failure is its own. Errors are against the exact solution. Returns
     per scene: errors and seconds per solver, failures (index to reason), the indices
-    that could not be built, and the kept trajectories.
+    that could not be built and those refused by the work guard, and the kept trajectories.
     """
     task, preset, solvers, reference, keep = payload
     built, failures = _systems(task)
     invalid = set(failures)
+    refused = set()
+    try:
+        check_works([s for s in built if s is not None], preset)
+    except InputError:                  # some scene is past the work budget: find which, and refuse it alone
+        for k, s in enumerate(built):
+            if s is not None:
+                try:
+                    check_work(s, preset)
+                except InputError as exc:
+                    built[k], failures[k] = None, str(exc)
+                    refused.add(k)
     ok = [k for k, s in enumerate(built) if s is not None]
     errors = {name: np.full(len(built), np.nan) for name in solvers}
     seconds = {name: np.zeros(len(built)) for name in solvers}
@@ -189,7 +198,46 @@ def _group(payload):
         if keep:
             rates[k] = {s: (c.results[s].time, c.results[s].rates) for s in solvers
                         if s in c.results and c.results[s].success}
-    return errors, seconds, failures, invalid, (rates if keep else None)
+    return errors, seconds, failures, (invalid, refused), (rates if keep else None)
+
+
+def _isolated_group(payload):
+    """Worker: :func:`_group`, and when it raises, each scene alone, so a bug in one scene fails only it."""
+    try:
+        return _group(payload)
+    except Exception:       # noqa: BLE001 - one scene's bug must not lose the group's other scenes
+        pass
+    task, preset, solvers, reference, keep = payload
+    items = _items(task)
+    count = len(items)
+    errors = {name: np.full(count, np.nan) for name in solvers}
+    seconds = {name: np.zeros(count) for name in solvers}
+    failures, invalid, refused, rates = {}, set(), set(), [None] * count
+    for k, item in enumerate(items):
+        try:
+            errs, secs, failed, (bad, late), kept = _group((("items", [item]), preset, solvers, reference, keep))
+        except Exception as exc:        # noqa: BLE001
+            failures[k] = f"internal error: {type(exc).__name__}: {' '.join(str(exc).split())[:300]}"
+            continue
+        for name in solvers:
+            errors[name][k], seconds[name][k] = errs[name][0], secs[name][0]
+        if 0 in failed:
+            failures[k] = failed[0]
+        invalid |= {k} if bad else set()
+        refused |= {k} if late else set()
+        if kept is not None:
+            rates[k] = kept[0]
+    return errors, seconds, failures, (invalid, refused), (rates if keep else None)
+
+
+def _items(task) -> list:
+    """The scenes or systems of a task, one by one."""
+    kind, *rest = task
+    if kind != "family":
+        return list(rest[0])
+    base, qs, params = rest
+    return [base.replace(q=tuple(row), parameters={**dict(base.parameters), **{k: float(v[i]) for k, v in params.items()}})
+            for i, row in enumerate(np.asarray(qs).tolist())]
 
 
 def _tasks(systems, group_size: int) -> list[tuple[list[int], tuple]]:
@@ -269,7 +317,7 @@ def run_batch(systems: Sequence, preset="fast", *, solvers: Sequence[str] = ("sp
             solver(name)            # imported once here, so that forked workers start with it
         executor = own = worker_pool(workers)
     try:
-        outputs = executor.map(_group, payloads) if executor is not None else map(_group, payloads)
+        outputs = executor.map(_isolated_group, payloads) if executor is not None else map(_isolated_group, payloads)
         if progress:
             from tqdm import tqdm
             outputs = tqdm(outputs, total=len(payloads), unit="group")

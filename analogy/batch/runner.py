@@ -160,7 +160,7 @@ def solve_group(sweep: Sweep, start: int, points: np.ndarray, todo: np.ndarray,
         tasks = [([k], ("items", [s])) for k, s in enumerate(group)] if isolated else \
             _tasks(group, len(group))
         for idx, task in tasks:
-            errs, secs, failed, invalid, rates = _group((task, PRESETS[preset_name], solvers, reference,
+            errs, secs, failed, (invalid, refused), rates = _group((task, PRESETS[preset_name], solvers, reference,
                                                          trajectories > 0))
             bound = PRESETS[preset_name].bound
             for local, k in enumerate(idx):
@@ -168,7 +168,7 @@ def solve_group(sweep: Sweep, start: int, points: np.ndarray, todo: np.ndarray,
                 for name in solvers:
                     errors[name][j], seconds[name][j] = errs[name][local], secs[name][local]
                 if local in failed:
-                    status[j] = "invalid" if local in invalid else "failed"
+                    status[j] = "invalid" if local in invalid else "refused" if local in refused else "failed"
                     message[j] = failed[local]
                 elif outside := [f"{n} {errs[n][local]:.3g}" for n in solvers
                                  if errs[n][local] > bound]:
@@ -218,7 +218,7 @@ def _remote(payload):
         one[j] = True
         try:
             cols, traj = solve_group(sweep, start, points, one, True, trajectories)
-        except InputError as exc:       # the scene itself: past the work budget, say
+        except InputError as exc:       # the scene itself could not be built
             cols, traj = _died(sweep, start, points, one, _solvers(sweep)), None
             cols["status"] = ["invalid"]
             cols["message"] = [str(exc)]

@@ -18,8 +18,9 @@ if TYPE_CHECKING:
 
 __all__ = ["ResultStore", "STATUSES", "manifest", "read", "read_trajectories"]
 
-#: Row status: solved within the bound, outside it, a solver failed, the scene is invalid, its worker died.
-STATUSES = ("ok", "inaccurate", "failed", "invalid", "worker-died")
+#: Row status: solved within the bound, outside it, a solver failed, the scene is invalid, its run is
+#: past the work budget (refused before it starts), its worker died.
+STATUSES = ("ok", "inaccurate", "failed", "invalid", "refused", "worker-died")
 
 _MANIFEST = "_sweep.json"
 _PENDING = "_pending"

@@ -181,7 +181,7 @@ def batch_command(args) -> int:
               "run the same command to resume", file=sys.stderr)
         return EXIT_INTERRUPTED
     print(f"stored in {args.output} (read it with pandas.read_parquet or 'analogy batch report {args.output}')")
-    if any(run.statuses.get(s) for s in ("failed", "invalid", "worker-died")):
+    if any(run.statuses.get(s) for s in ("failed", "invalid", "refused", "worker-died")):
         return EXIT_FAILED
     if run.statuses.get("inaccurate"):
         print(f"analogy: accuracy: {run.statuses['inaccurate']} scenes are outside their preset's bound "

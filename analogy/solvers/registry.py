@@ -121,7 +121,13 @@ class Solver:
         """
         grid = None if times is None and self.own_grid else self.grid(system, times, preset)
         start = _time.perf_counter()
-        tr = self._solve(system, None if self.own_grid else grid, preset, save=save, positions=positions)
+        try:
+            tr = self._solve(system, None if self.own_grid else grid, preset, save=save, positions=positions)
+        except (np.linalg.LinAlgError, FloatingPointError, OverflowError, ZeroDivisionError) as exc:
+            # the numbers left the floating-point range (g = 1e308, say): a failed run, said once
+            detail = " ".join(str(exc).split())[:200] or type(exc).__name__
+            raise SimulationError(f"the {self.name} solver's numerics broke down: {detail} (are the model's "
+                                  "values within the floating-point range?)") from None
         elapsed = _time.perf_counter() - start
         if not tr.success:
             return replace(tr, stats=replace(tr.stats, wall_time=elapsed))

@@ -9,13 +9,12 @@ from typing import TYPE_CHECKING, Sequence
 import numpy as np
 
 from ..circuit.currents import trajectory_currents
-from ..circuit.scales import combined_scales, stack_scales
 from ..errors import InputError
 from ..presets import Preset
 from ..presets import preset as get_preset
 from ..solvers.registry import SOLVER_NAMES, run_many, solver
 from .grid import output_grid
-from .work import check_work
+from .work import check_works
 from ..results.metrics import OutputErrors, errors, output_errors, peak
 from ..results.output import Tabular, html_table
 from ..results.trajectory import Trajectory
@@ -263,7 +262,7 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
     if not systems:
         return []
     p = get_preset(preset)
-    _check_work(systems, p)                 # a run past the budget is refused before any starts
+    check_works(systems, p)                 # a run past the budget is refused before any starts
     names = _names(solvers)
     ref_name = _reference(systems[0], names, reference)
     order = [s for s in SOLVER_NAMES if s in names or s == ref_name]
@@ -332,19 +331,6 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
         out.append(Comparison(system, p.name, grid, results, failures, ref, measured[k] if ref else {},
                               p.bound, energy, skipped))
     return out
-
-
-def _check_work(systems: Sequence, p: Preset) -> None:
-    """The work guard on every system: one estimate per stack sharing forces, t_stop and size,
-    from the stack's combined scales (its fastest rate)."""
-    groups: dict = {}
-    for s in systems:
-        if s.kind == "linear":
-            groups.setdefault((float(s.t_stop), id(s.forces), s.dof, id(s.topology)), []).append(s)
-        else:
-            check_work(s, p)
-    for group in groups.values():
-        check_work(group[0], p, None if len(group) == 1 else combined_scales(stack_scales(group)))
 
 
 def _group_indices(grids: list) -> dict[int, list[int]]:

@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from typing import NamedTuple, Sequence
 
-from ..circuit.scales import system_scales
+from ..circuit.scales import combined_scales, stack_scales, system_scales
 from ..errors import InputError
 from ..presets import Preset
 
-__all__ = ["WorkEstimate", "check_work", "estimate_work"]
+__all__ = ["WorkEstimate", "check_work", "check_works", "estimate_work"]
 
 #: Time points per force segment: each breakpoint restarts an integrator's step control.
 _POINTS_PER_SEGMENT = 4
@@ -42,6 +42,11 @@ def estimate_work(system, preset: Preset, scales=None) -> WorkEstimate:
     segments = len(system.breakpoints())
     scales = system_scales(system) if scales is None else scales
     rate = scales.fastest(preset.bound)
+    if system.kind != "linear":
+        # the configuration turns at the joint rates, and M'(x) with it: at least the start's
+        units = getattr(getattr(system, "provenance", None), "units", None) or ("rad",) * system.dof
+        turning = [abs(float(r)) for r, u in zip(system.initial_rates, units) if u == "rad"]
+        rate = max([rate, *turning])
     phase = preset.phase_step if math.isfinite(preset.phase_step) else 1.0
     points = system.t_stop * rate / phase + _POINTS_PER_SEGMENT * segments
     return WorkEstimate(points if math.isfinite(points) else math.inf, segments, rate)
@@ -52,15 +57,13 @@ def check_work(system, preset: Preset, scales=None) -> WorkEstimate:
 
     Parameters
     ----------
-    system : NodeSystem
-        A linear node system (others pass unchecked).
+    system : NodeSystem or NonlinearNodeSystem
+        A node system; a nonlinear one is estimated from its start (x = 0 and r0).
     preset : Preset
         The accuracy preset; ``dataclasses.replace(preset, work_budget=…)`` raises the budget.
     scales : Scales, optional
         The system's scales, or the combined scales of a stack sharing its forces and t_stop.
     """
-    if system.kind != "linear":
-        return WorkEstimate(0.0, 0, 0.0)
     work = estimate_work(system, preset, scales)
     if work.segments > preset.segment_budget:
         raise InputError(f"the forces have {work.segments:,} segments between breakpoints (pwl points, pulse "
@@ -72,3 +75,24 @@ def check_work(system, preset: Preset, scales=None) -> WorkEstimate:
                          f"of {preset.work_budget:.3g}: shorten t_stop, or raise the preset's work budget",
                          field="budget")
     return work
+
+
+def check_works(systems: Sequence, preset: Preset) -> None:
+    """:func:`check_work` on many systems: one estimate per stack sharing forces, t_stop and size,
+    from the stack's combined scales (its fastest rate); nonlinear systems one by one.
+
+    Parameters
+    ----------
+    systems : sequence of node systems
+        What one batched run would solve.
+    preset : Preset
+        The accuracy preset.
+    """
+    groups: dict = {}
+    for s in systems:
+        if s.kind == "linear":
+            groups.setdefault((float(s.t_stop), id(s.forces), s.dof, id(s.topology)), []).append(s)
+        else:
+            check_work(s, preset)
+    for group in groups.values():
+        check_work(group[0], preset, None if len(group) == 1 else combined_scales(stack_scales(group)))
