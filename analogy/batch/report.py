@@ -219,17 +219,24 @@ class BatchReport:
         folder : str or Path
             Where (made if missing).
         """
+        from ..scenes.paths import inside_folder
         out = Path(folder)
         out.mkdir(parents=True, exist_ok=True)
-        written = [out / "report.md"]
-        written[0].write_text(self.summary() + "\n")
+        # each file inside the folder, reached through no symlink (as every output of the package)
+        md, by_axis, histogram, error_map = (inside_folder(out, name) for name in REPORT_FILES)
+        written = [md]
+        md.write_text(self.summary() + "\n")
         if len(self.frame) and self.solvers:
-            self.plot_axes(out / "errors_by_axis.png")
-            self.plot_histogram(out / "error_histogram.png")
-            written += [out / "errors_by_axis.png", out / "error_histogram.png"]
-            if self.plot_map(out / "error_map.png") is not None:
-                written.append(out / "error_map.png")
+            self.plot_axes(by_axis)
+            self.plot_histogram(histogram)
+            written += [by_axis, histogram]
+            if self.plot_map(error_map) is not None:
+                written.append(error_map)
         return written
+
+
+#: The files :meth:`BatchReport.write` writes, in its folder.
+REPORT_FILES = ("report.md", "errors_by_axis.png", "error_histogram.png", "error_map.png")
 
 
 def _label(axis: str, joint_units=None) -> str:

@@ -380,8 +380,11 @@ def run_sweep(sweep: Sweep, directory, *, workers: int = 2, executor: Executor |
             signal.signal(signal.SIGTERM, old_term)
         if own:
             _end_pool(pool)
-        store.compact()
-        bar.close()
+        try:
+            store.compact()
+        finally:
+            store.close()
+            bar.close()
     result.wall_time = _time.perf_counter() - start_time
     return result
 

@@ -10,13 +10,13 @@ from typing import TYPE_CHECKING, Mapping
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import AnalogyError, InputError
 
 if TYPE_CHECKING:
     import pandas
     import pyarrow
 
-__all__ = ["ResultStore", "STATUSES", "manifest", "read", "read_trajectories"]
+__all__ = ["ResultStore", "StoreError", "STATUSES", "RESERVED_COLUMNS", "manifest", "read", "read_trajectories"]
 
 #: Row status: solved within the bound, outside it, a solver failed, the scene is invalid, its run is
 #: past the work budget (refused before it starts), its worker died.
@@ -24,9 +24,99 @@ STATUSES = ("ok", "inaccurate", "failed", "invalid", "refused", "worker-died")
 
 _MANIFEST = "_sweep.json"
 _PENDING = "_pending"
+_LOCK = "_lock"
 _TRAJECTORIES = "_trajectories"
 # Pending groups are merged into one Parquet file once this many scenes wait.
 _COMPACT_ROWS = 50_000
+
+
+#: Columns every row has besides its axes and solvers: no sweep axis may take these names.
+RESERVED_COLUMNS = ("key", "index", "status", "message")
+
+
+class StoreError(AnalogyError):
+    """The store cannot be written (a full disk, a read-only folder): what is stored is kept."""
+
+
+def _damaged(path: Path, exc: BaseException) -> InputError:
+    detail = " ".join(str(exc).split())[:160] or type(exc).__name__
+    return InputError(f"{path} is damaged ({detail}): move it out of {path.parent}; running the sweep "
+                      "again solves its scenes anew")
+
+
+def _own_file(path: Path) -> Path:
+    if path.is_symlink():
+        raise InputError(f"{path} is a symlink, not a file of this store: remove it (running the sweep again "
+                         "solves its scenes anew)")
+    return path
+
+
+def _read_manifest(path: Path) -> dict:
+    """The manifest at *path*: a JSON object with the sweep's key, or one sentence."""
+    try:
+        data = json.loads(_own_file(path).read_text())
+    except (OSError, ValueError, UnicodeDecodeError):
+        data = None
+    if not isinstance(data, dict) or not isinstance(data.get("key"), str) or \
+            not isinstance(data.get("size", 0), int) or not isinstance(data.get("scene", ""), str):
+        raise InputError(f"{path} is not a sweep manifest (a JSON object with the sweep's key): restore it, "
+                         "or use an empty folder")
+    return data
+
+
+def _parts(directory: Path) -> list[Path]:
+    return [_own_file(p) for p in sorted(directory.glob("part-*.parquet"))]
+
+
+def _read_part(path: Path, columns=None):
+    """One part's rows (with its page checksums verified), or one sentence naming the damaged file."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+    try:
+        names = pq.read_schema(path).names
+    except (OSError, pa.ArrowException, ValueError) as exc:
+        raise _damaged(path, exc) from None
+    missing = [c for c in (columns or RESERVED_COLUMNS) if c not in names]
+    if missing:
+        raise InputError(f"{path} is not a part of a sweep store (it has no {missing[0]!r} column): move it "
+                         "out of the folder")
+    try:
+        table = pq.read_table(path, columns=columns, page_checksum_verification=True)
+    except (OSError, pa.ArrowException, ValueError) as exc:
+        raise _damaged(path, exc) from None
+    return table
+
+
+def _write(path: Path, write) -> None:
+    """:func:`_atomic`, with a failed write (full disk, read-only folder) said in one sentence."""
+    try:
+        _atomic(path, write)
+    except OSError as exc:
+        raise StoreError(f"cannot write {path}: {exc.strerror or exc}: free space or make the folder writable, "
+                         "then run the same command to resume (what is stored is kept)") from None
+
+
+def _writer_lock(directory: Path):
+    """An exclusive lock on the store, held while this process writes it, or one sentence.
+
+    Two writers would each merge the pending groups and remove what the other wrote; the
+    lock is the kernel's (flock), so a writer killed even with SIGKILL releases it.
+    """
+    try:
+        import fcntl
+    except ImportError:         # not on POSIX: one writer at a time is the user's to keep
+        return None
+    try:
+        handle = open(directory / _LOCK, "a+")
+    except OSError as exc:
+        raise StoreError(f"cannot write to {directory}: {exc.strerror or exc}") from None
+    try:
+        fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        handle.close()
+        raise InputError(f"another analogy batch is writing to {directory}: wait for it to end, or use "
+                         "another folder") from None
+    return handle
 
 
 def _pa():
@@ -80,12 +170,10 @@ class ResultStore:
             (self.directory / _PENDING).mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             raise InputError(f"cannot create {self.directory}: {exc.strerror or exc}") from None
+        self._lock = _writer_lock(self.directory)
         path = self.directory / _MANIFEST
-        if path.exists():
-            try:
-                old = json.loads(path.read_text())
-            except (OSError, ValueError):
-                raise InputError(f"{path} is not a sweep manifest: use an empty folder") from None
+        if path.exists() or path.is_symlink():
+            old = _read_manifest(path)
             if old.get("key") != self.manifest["key"]:
                 raise InputError(f"{self.directory} holds the results of another sweep "
                                  f"({old.get('scene', '?')}, key {str(old.get('key'))[:12]}): "
@@ -94,11 +182,20 @@ class ResultStore:
             stray = [p for p in self.directory.glob("part-*.parquet")]
             if stray:
                 raise InputError(f"{self.directory} holds Parquet parts but no manifest: use an empty folder")
-            _atomic(path, lambda p: p.write_text(json.dumps(self.manifest, indent=1, default=str)))
+            _write(path, lambda p: p.write_text(json.dumps(self.manifest, indent=1, default=str)))
         for tmp in self.directory.rglob(".*.tmp"):     # from a run killed while writing
             tmp.unlink(missing_ok=True)
-        self._parts = len(list(self.directory.glob("part-*.parquet")))
+        self._parts = len(_parts(self.directory))
+        names = [p.name for p in _parts(self.directory)]
+        # the next part's number follows the highest, so a copied-in or removed part is never overwritten
+        self._next = 1 + max((int(n[5:11]) for n in names if n[5:11].isdigit()), default=-1)
         self._pending_rows = 0
+
+    def close(self) -> None:
+        """Let another writer have the folder (the lock also ends with the process, however it ends)."""
+        if self._lock is not None:
+            self._lock.close()
+            self._lock = None
 
     # --------------------------------------------------------------- reading
 
@@ -108,11 +205,10 @@ class ResultStore:
         return self._index_column()
 
     def _index_column(self) -> np.ndarray:
-        import pyarrow.parquet as pq
-        parts = sorted(self.directory.glob("part-*.parquet"))
+        parts = _parts(self.directory)
         if not parts:
             return np.empty(0, dtype=np.int64)
-        return np.concatenate([pq.read_table(p, columns=["index"]).column("index").to_numpy() for p in parts])
+        return np.unique(np.concatenate([_read_part(p, ["index"]).column("index").to_numpy() for p in parts]))
 
     # --------------------------------------------------------------- writing
 
@@ -133,8 +229,8 @@ class ResultStore:
         first = int(table.column("index")[0].as_py())
         stem = f"g{first:012d}"
         if trajectories is not None and trajectories.num_rows:
-            _atomic(self.directory / _PENDING / f"{stem}.traj.arrow", lambda p: _write_ipc(p, trajectories))
-        _atomic(self.directory / _PENDING / f"{stem}.arrow", lambda p: _write_ipc(p, table))
+            _write(self.directory / _PENDING / f"{stem}.traj.arrow", lambda p: _write_ipc(p, trajectories))
+        _write(self.directory / _PENDING / f"{stem}.arrow", lambda p: _write_ipc(p, table))
         self._pending_rows += table.num_rows
         if self._pending_rows >= _COMPACT_ROWS:
             self.compact()
@@ -150,7 +246,10 @@ class ResultStore:
         stored = np.sort(self._index_column()) if self._parts else np.empty(0, dtype=np.int64)
         tables, done = [], []
         for p in pending:
-            t = _read_ipc(p)
+            try:
+                t = _read_ipc(_own_file(p))
+            except (OSError, self._pa.ArrowException, ValueError) as exc:
+                raise _damaged(p, exc) from None
             done.append(p)
             first = int(t.column("index")[0].as_py())
             at = np.searchsorted(stored, first)
@@ -162,12 +261,14 @@ class ResultStore:
                 tp = self.directory / _TRAJECTORIES
                 tp.mkdir(exist_ok=True)
                 name = f"part-{p.stem}.parquet"
-                _atomic(tp / name, lambda q, t=_read_ipc(traj): pq.write_table(t, q))
+                _write(tp / name, lambda q, t=_read_ipc(traj): pq.write_table(t, q))
         if tables:
             merged = pa.concat_tables(tables).cast(self.schema)
-            name = f"part-{self._parts:06d}.parquet"
-            _atomic(self.directory / name, lambda q: pq.write_table(merged, q, compression="zstd"))
+            name = f"part-{self._next:06d}.parquet"
+            _write(self.directory / name, lambda q: pq.write_table(merged, q, compression="zstd",
+                                                                   write_page_checksum=True))
             self._parts += 1
+            self._next += 1
         for p in done:
             p.with_name(p.name.replace(".arrow", ".traj.arrow")).unlink(missing_ok=True)
             p.unlink(missing_ok=True)
@@ -195,15 +296,26 @@ def read(directory) -> "pandas.DataFrame":
         The folder ``analogy batch`` wrote.
     """
     import pandas as pd
-    _pa()
+    pa = _pa()
     path = Path(directory)
     if not (path / _MANIFEST).exists():
         raise InputError(f"{path} is not a results store (no {_MANIFEST}): run analogy batch -o {path} first")
-    parts = sorted(path.glob("part-*.parquet"))
-    if not parts:
+    _read_manifest(path / _MANIFEST)
+    tables = [_read_part(p) for p in _parts(path)]
+    if not tables:
         return pd.DataFrame()
-    frame = pd.read_parquet(path)
-    return frame.sort_values("index", kind="stable").reset_index(drop=True)
+    try:
+        frame = pa.concat_tables(tables, promote_options="permissive").to_pandas()
+    except (pa.ArrowException, ValueError) as exc:
+        raise InputError(f"the parts of {path} do not share one schema ({' '.join(str(exc).split())[:120]}): "
+                         "move the foreign part out of the folder") from None
+    frame = frame.sort_values("index", kind="stable")
+    # a part copied in twice holds the same scenes again: each scene counts once
+    frame = frame[~frame.duplicated(["index", "key"])]
+    if frame["index"].duplicated().any():
+        raise InputError(f"{path} holds two different scenes under one index: a part of another store was "
+                         "copied in; move it out of the folder")
+    return frame.reset_index(drop=True)
 
 
 def read_trajectories(directory) -> "pandas.DataFrame":
@@ -231,7 +343,6 @@ def manifest(directory) -> dict:
         The folder.
     """
     path = Path(directory) / _MANIFEST
-    try:
-        return json.loads(path.read_text())
-    except (OSError, ValueError):
-        raise InputError(f"{directory} is not a results store (no readable {_MANIFEST})") from None
+    if not path.exists():
+        raise InputError(f"{directory} is not a results store (no {_MANIFEST})")
+    return _read_manifest(path)

@@ -12,6 +12,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..presets import PRESETS
+from .store import RESERVED_COLUMNS
 from ..scenes.scene import Scene
 from .designs import DESIGNS, design_points
 
@@ -107,6 +108,19 @@ class Axis:
                      repr(self.low), repr(self.high), self.log))
 
 
+#: Most scenes in one sweep.
+MAX_SCENES = 100_000_000
+
+
+def _parameters(base: Scene) -> tuple[str, ...]:
+    """The parameter names the base scene's model takes (built once; an error there is the scene's)."""
+    from ..scenes.build import scene_model
+    try:
+        return tuple(getattr(scene_model(base), "parameters", None) or ())
+    except InputError:
+        return tuple(dict(base.parameters))         # the scenes themselves will say what is wrong
+
+
 @dataclass(frozen=True)
 class Sweep:
     """A base scene and axes: the scenes of a design, by index, never all held at once.
@@ -143,6 +157,12 @@ class Sweep:
         names = [a.name for a in self.axes]
         if len(set(names)) != len(names):
             raise InputError(f"axis {next(n for n in names if names.count(n) > 1)} is given twice")
+        if clash := [n for n in names if n in RESERVED_COLUMNS or n.startswith(("error_", "seconds_"))]:
+            raise InputError(f"axis {clash[0]}: the results store has a column of that name (key, index, "
+                             "status, message, error_<solver>, seconds_<solver>): sweep a model parameter, "
+                             "q<k>, rate<k>, force<k>, topology, preset, dynamics or t_stop")
+        if not (isinstance(self.seed, int) and 0 <= self.seed < 2 ** 63):
+            raise InputError(f"seed must be a whole number from 0 to 2^63 - 1, got {self.seed!r}")
         if self.method == "grid":
             if bad := [a.name for a in self.axes if a.values is None]:
                 raise InputError(f"axis {bad[0]}: a grid needs a list of values (a range needs "
@@ -151,9 +171,18 @@ class Sweep:
                 raise InputError(f"a grid of these axes has {self.size} scenes, not count = {self.count}")
         elif self.count is None or self.count < 1:
             raise InputError(f"method {self.method!r} needs count, the number of scenes (at least 1)")
+        if self.size > MAX_SCENES:
+            raise InputError(f"a sweep of {self.size:,} scenes is more than {MAX_SCENES:,} (a store holds a "
+                             "done-flag per scene, and a run of that size takes days): split it into sweeps")
         if not 1 <= self.group_size <= 100_000:
             raise InputError(f"group_size must be between 1 and 100000, got {self.group_size}")
         kinds = tuple(axis_kind(a.name) for a in self.axes)
+        if params := [a.name for a, (kind, _) in zip(self.axes, kinds) if kind == "parameter"]:
+            known = _parameters(self.base)
+            if bad := [name for name in params if name not in known]:
+                raise InputError(f"axis {bad[0]}: not something a sweep can vary; the model's parameters "
+                                 f"are {', '.join(known) or 'none'}, and the scene's own axes are q<k>, "
+                                 "rate<k>, force<k>, topology, preset, dynamics and t_stop")
         n = len(self.base.q)
         for axis, (kind, joint) in zip(self.axes, kinds):
             if kind in ("q", "rate", "force") and joint >= n:
@@ -321,6 +350,8 @@ def _axis(name: str, spec, method: str) -> Axis:
             n = spec.get("count")
             if not isinstance(n, int) or isinstance(n, bool) or n < 1:
                 raise InputError(f"axis {name}: a grid over a range needs count, the number of values")
+            if n > MAX_SCENES:
+                raise InputError(f"axis {name}: count {n:,} is more than a sweep's {MAX_SCENES:,} scenes")
             pts = np.geomspace(low, high, n) if scale == "log" else np.linspace(low, high, n)
             return Axis(name, values=tuple(float(x) for x in pts))
         return Axis(name, low=low, high=high, log=scale == "log")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import os
 import sys
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
@@ -195,9 +196,12 @@ def _report(args) -> int:
     if args.report_dir is None:
         raise InputError("give the store to report on: analogy batch report DIR")
     report = batch_report(args.report_dir)
-    store = Path(args.report_dir).resolve()
-    folder = Path(args.output) if args.output else Path(args.report_dir) / "_report"
-    inside = folder.resolve().relative_to(store).parts if folder.resolve().is_relative_to(store) else None
+    store = Path(os.path.abspath(args.report_dir))
+    folder = Path(os.path.abspath(args.output)) if args.output else store / "_report"
+    inside = folder.relative_to(store).parts if folder.is_relative_to(store) else None
+    if inside:              # below the store, no part of the path may be a symlink out of it
+        from ..scenes.paths import inside_folder
+        inside_folder(store, str(Path(*inside, "report.md")))
     if inside is not None and (not inside or not inside[0].startswith("_")):
         raise InputError(f"a report inside the store {args.report_dir} goes in a folder whose name starts "
                          "with _ (the default is _report), so that the store stays a Parquet dataset")
