@@ -73,6 +73,10 @@ def _solo_loop(payload):
     return _time.perf_counter() - start, worst, statistics.median(solves)
 
 
+#: Most scenes of one throughput measurement (all held in memory at once).
+MAX_SCENES = 1_000_000
+
+
 def throughput(n: int = 10_000, preset: str = "fast", group_size: int = 100, workers: int = 2,
                baseline_n: int = 500, seed: int = 0, repeats: int = 3, progress: bool = True) -> str:
     """Scenes per second: batched (grouped runs on *workers* processes) against per-scene paths.
@@ -105,6 +109,9 @@ def throughput(n: int = 10_000, preset: str = "fast", group_size: int = 100, wor
     """
     if min(n, baseline_n, repeats, workers, group_size) < 1:
         raise InputError("n, baseline_n, repeats, workers and group_size must be at least 1")
+    if n > MAX_SCENES or baseline_n > MAX_SCENES or repeats > 1000 or workers > 256:
+        raise InputError(f"throughput runs at most {MAX_SCENES:,} scenes (-n, --baseline), 1000 repeats and "
+                         "256 workers: each scene is held in memory; use analogy batch for more")
     base = scene("default")
     q2 = np.random.default_rng(seed).uniform(-np.pi, np.pi, n)
     items = [base.replace(q=(0.0, float(x))) for x in q2]

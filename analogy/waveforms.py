@@ -116,8 +116,8 @@ class PWL(Waveform):
         body = " ".join(f"{_num(t)} {_num(float(scale) * float(v))}" for t, v in zip(times, values))
         return f"PWL({body})"
 
-    def breakpoints(self, t_stop) -> list[float]:
-        return [float(t) for t in self.times if 0 < t < t_stop]
+    def breakpoints(self, t_stop) -> np.ndarray:
+        return self.times[(self.times > 0) & (self.times < t_stop)]
 
     def label(self) -> str:
         pairs = np.column_stack([self.times, self.values]).ravel()

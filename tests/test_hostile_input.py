@@ -3,6 +3,7 @@
 import os
 import subprocess
 import sys
+import numpy as np
 import pytest
 import sympy as sp
 
@@ -159,3 +160,34 @@ def test_numeric_warnings_on_success_become_one_sentence(capsys, monkeypatch):
     assert main(["scenes"]) == 0
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("analogy: warning: the numerics gave 2 warning(s)"), err
+
+
+@pytest.mark.parametrize("argv, said", [
+    (["throughput", "-n", "1000000000"], "throughput runs at most 1,000,000 scenes"),
+    (["ac", "--f-start", "1e-300", "--f-stop", "1e300"], "more than 200,000 frequencies"),
+    (["compare", "--param", "g=1e308", "--dynamics", "nonlinear", "--preset", "fast"], "are not finite at the start"),
+])
+def test_options_that_ask_too_much_get_one_sentence(argv, said, capsys):
+    assert finishes(lambda: main(argv)) in (1, 2)
+    err = capsys.readouterr().err
+    assert said in err and "Traceback" not in err
+
+
+def test_ngspice_points_past_f_stop_are_dropped_and_every_asked_point_kept():
+    """Past about 2,000 points a decade ngspice's accumulated step lets a few points beyond f_stop through."""
+    from analogy.results.frequency import frequency_grid
+    from analogy.solvers.ac import spice_mobility
+    from analogy.scenes.builtin import scene
+    s = scene("default").system()
+    r = spice_mobility(s, 1e-2, 1e2, 10_000)
+    np.testing.assert_array_equal(r.frequency, frequency_grid(1e-2, 1e2, 10_000))
+
+
+def test_a_million_point_pwl_force_is_refused_by_its_segment_count():
+    from analogy.scenes.builtin import scene
+    from analogy.study.comparison import compare
+    from analogy.waveforms import PWL
+    t = np.linspace(0.0, 10.0, 10 ** 6)
+    sc = scene("default").replace(forces=(PWL(list(zip(t.tolist(), np.sin(t).tolist()))), 0.0))
+    with pytest.raises(InputError, match="999,999 segments"):
+        finishes(lambda: compare(sc.system(), "fast"))

@@ -36,11 +36,9 @@ def force_breakpoints(forces: tuple, t_stop: float) -> np.ndarray:
     t_stop : float
         End time.
     """
-    pts = {t_stop}
-    for ws in forces:
-        for w in ws:
-            pts.update(b for b in w.breakpoints(t_stop) if 0 < b < t_stop)
-    return np.array(sorted(pts))
+    parts = [np.asarray(w.breakpoints(t_stop), dtype=float).ravel() for ws in forces for w in ws]
+    pts = np.concatenate(parts + [np.array([t_stop])])
+    return np.unique(pts[(pts > 0) & (pts <= t_stop)])
 
 
 @lru_cache(maxsize=1024)

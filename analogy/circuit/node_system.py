@@ -102,8 +102,13 @@ class NodeCoordinates:
         return joint_forces(self.forces, t)
 
     def breakpoints(self) -> np.ndarray:
-        """Segment ends 0 < t_1 < … < t_stop between which every force is smooth."""
-        return force_breakpoints(self.forces, self.t_stop)
+        """Segment ends 0 < t_1 < … < t_stop between which every force is smooth (kept: forces are immutable)."""
+        kept = self.__dict__.get("_breakpoints")
+        if kept is None or kept[0] is not self.forces or kept[1] != self.t_stop:
+            points = force_breakpoints(self.forces, self.t_stop)
+            points.setflags(write=False)
+            kept = self.__dict__["_breakpoints"] = (self.forces, self.t_stop, points)
+        return kept[2]
 
     def segments(self) -> Iterator[tuple[float, float]]:
         """Yield (t0, t1) intervals on which all forces are given by one closed form."""

@@ -72,6 +72,11 @@ class NonlinearNodeSystem(NodeCoordinates):
         self.current_map = topology.current_map
         self.initial_voltages = topology.matrix @ self.initial_rates       # v(0) = T·R(0)
         check_square_symmetric("node mass matrix M'(0)", self.node_mass(np.zeros(n)), definite=True)
+        with np.errstate(all="ignore"):         # past the float range is said below, once
+            load = self.node_load(np.zeros(n), self.initial_voltages, 0.0)
+        if not np.all(np.isfinite(load)):
+            raise InputError("the gravity and velocity terms h(x, v) are not finite at the start (a parameter "
+                             "such as g past the floating-point range?)")
         force_breakpoints(self.forces, self.t_stop)
 
     def __repr__(self) -> str:

@@ -14,7 +14,11 @@ from .output import Tabular
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-__all__ = ["FrequencyResponse", "exact_mobility", "frequency_grid", "sweep_range", "resonance_report"]
+__all__ = ["FrequencyResponse", "exact_mobility", "frequency_grid", "sweep_range", "resonance_report", "MAX_FREQUENCIES"]
+
+
+#: Most frequencies in one sweep (a mobility matrix each).
+MAX_FREQUENCIES = 200_000
 
 
 def frequency_grid(f_start: float, f_stop: float, per_decade: int) -> np.ndarray:
@@ -31,6 +35,10 @@ def frequency_grid(f_start: float, f_stop: float, per_decade: int) -> np.ndarray
         raise InputError(f"frequencies must satisfy 0 < f_start < f_stop, got {f_start:g} and {f_stop:g}")
     if not 1 <= per_decade <= 100000:
         raise InputError(f"points per decade must be 1 to 100000, got {per_decade}")
+    decades = math.log10(f_stop) - math.log10(f_start)
+    if per_decade * decades > MAX_FREQUENCIES:
+        raise InputError(f"{decades:.3g} decades at {per_decade} points each is more than {MAX_FREQUENCIES:,} "
+                         "frequencies: narrow the range or take fewer points per decade")
     count = int(math.floor(per_decade * math.log10(f_stop / f_start) + 1e-9)) + 1
     return f_start * 10.0 ** (np.arange(count) / per_decade)
 

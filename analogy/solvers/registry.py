@@ -136,6 +136,9 @@ class Solver:
                 and tr.rates.shape == tr.voltages.shape):
             raise SimulationError(f"the {self.name} solver broke its contract: its result must start at t = 0 "
                                   f"with {n} node voltages and joint rates per time point")
+        if not np.all(np.isfinite(tr.voltages)):
+            first = float(tr.time[np.flatnonzero(~np.isfinite(tr.voltages).all(axis=1))[0]])
+            return Trajectory.failed(self.name, f"its result is not finite from t = {first:g} s on", elapsed)
         tr = replace(tr, stats=replace(tr.stats, wall_time=elapsed))
         return tr if grid is None or not self.own_grid else tr.resampled(grid, system.joint_rates)
 
