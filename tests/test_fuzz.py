@@ -35,7 +35,8 @@ from analogy.waveforms import parse_waveform
 
 DEEP = os.environ.get("ANALOGY_FUZZ") == "deep"
 #: Cases per target: about 2,000 in all by default, 10,000 each in the deep profile.
-CASES = {"expressions": 500, "matrices": 300, "waveforms": 400, "scenes": 250, "cli": 250, "netlist_text": 300}
+CASES = {"expressions": 500, "matrices": 300, "waveforms": 400, "scenes": 250, "cli": 250, "netlist_text": 300,
+         "units": 400, "sweeps": 200, "store": 60}
 if DEEP:
     CASES = dict.fromkeys(CASES, 10_000)
 COUNTS: Counter = Counter()
@@ -358,3 +359,100 @@ def test_titles_and_saved_names_never_add_netlist_lines(title, save, realizable)
             refused("netlist_text", exc)
             return
         check_netlist(text)
+
+
+# ------------------------------------------------------------------ units, sweep files, the store
+
+UNIT_NAMES = ["m", "mm", "km", "s", "ms", "kg", "g", "N", "deg", "rad", "turn", "Hz", "J", "W", "µm", "°",
+              "Ω", "degC", "blorb", "e", "pi", "k", "M"]
+unit_text = st.one_of(
+    st.lists(st.one_of(st.sampled_from(UNIT_NAMES), st.sampled_from(["^", "**", "*", "/", "·", " ", "(", ")", "-"]),
+                       st.integers(-30, 30).map(str), st.sampled_from(["2", "2^2", "^2^2^2^2^2^2", "1e300"])),
+             min_size=1, max_size=12).map("".join),
+    st.text(alphabet="mskgN^*/·() 0123456789-µ°", max_size=40))
+
+
+@given(st.sampled_from(["1", "0", "2.5", "-3", "pi/6"]), unit_text)
+@profile("units")
+def test_numbers_with_units_give_a_finite_si_value_or_one_sentence(number, unit):
+    with case("units"):
+        try:
+            value = finishes(lambda: parse_number(f"{number} {unit}"), 5.0)
+        except InputError as exc:
+            refused("units", exc)
+        else:
+            assert math.isfinite(value)
+
+
+SWEEP_HEAD = ('name = "fuzz"\n[model]\nrobot = "serial2"\n[inputs]\nforces = [1, 0]\nt_stop = 1\n'
+              '[solvers]\nuse = ["spice", "exact"]\npreset = "fast"\n')
+# mostly axes a sweep takes, so that the valid path is fuzzed as well as the refusals
+axis_names = st.one_of(st.sampled_from(["q1", "q2", "d1", "l2", "b1", "t_stop"]),
+                       st.sampled_from(["q3", "q0", "rate1", "force2", "g", "dd1", "preset", "topology", "dynamics",
+                                        "key", "index", "status", "message", "error_spice", "seconds_exact",
+                                        "__class__", "q2 ", ""]))
+axis_values = st.one_of(
+    st.lists(st.floats(0.1, 5.0), min_size=1, max_size=4).map(lambda xs: "[" + ", ".join(map(str, xs)) + "]"),
+    st.lists(st.one_of(st.floats(-1e3, 1e3), st.integers(-10, 10), st.sampled_from(['"fast"', '"serial"', '"x"'])),
+             min_size=0, max_size=4).map(lambda xs: "[" + ", ".join(str(x) for x in xs) + "]"),
+    st.tuples(st.floats(-10, 10), st.floats(-10, 10), st.integers(-5, 10 ** 12), st.sampled_from(["linear", "log", "x"]))
+    .map(lambda t: f'{{ low = {t[0]}, high = {t[1]}, count = {t[2]}, scale = "{t[3]}" }}'))
+sweep_design = st.tuples(st.sampled_from(["grid", "random", "lhs", "sobol", "halton"]),
+                         st.one_of(st.none(), st.integers(1, 1000), st.integers(-5, 2 ** 70), st.sampled_from([1e12, 0])),
+                         st.one_of(st.none(), st.integers(0, 100), st.integers(-2 ** 64, 2 ** 64)),
+                         st.one_of(st.none(), st.integers(1, 100), st.integers(-3, 200_000)))
+
+
+@given(sweep_design, st.dictionaries(axis_names, axis_values, min_size=1, max_size=4))
+@profile("sweeps")
+def test_sweep_files_give_a_bounded_sweep_or_one_sentence(design, axes):
+    from analogy.batch.sweep import MAX_SCENES, load_sweep
+    method, count, seed, group = design
+    body = SWEEP_HEAD + f'[sweep]\nmethod = "{method}"\n'
+    body += "".join(f"{k} = {v}\n" for k, v in (("count", count), ("seed", seed), ("group_size", group))
+                    if v is not None)
+    body += "[sweep.axes]\n" + "".join(f'"{name}" = {value}\n' for name, value in axes.items())
+    with case("sweeps"), tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "s.toml"
+        path.write_text(body)
+        try:
+            sweep = finishes(lambda: load_sweep(path), 5.0)
+            first = next(sweep.chunks(), None)          # its first design points come at once
+        except InputError as exc:
+            refused("sweeps", exc)
+        else:
+            assert 1 <= sweep.size <= MAX_SCENES and first is not None
+
+
+@pytest.fixture(scope="module")
+def small_store(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("fuzz-store")
+    (folder / "s.toml").write_text(SWEEP_HEAD + '[sweep]\nmethod = "random"\ncount = 20\nseed = 1\n'
+                                                'group_size = 10\n[sweep.axes]\nq2 = [-1.0, 1.0]\n')
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+        assert main(["batch", str(folder / "s.toml"), "-o", str(folder / "base"), "--no-progress"]) == 0
+    return folder
+
+
+@given(st.sampled_from(["part", "manifest"]), st.lists(st.tuples(st.floats(0, 1), st.integers(0, 255)),
+                                                       min_size=1, max_size=4), st.one_of(st.none(), st.floats(0, 1)))
+@profile("store")
+def test_a_corrupted_store_reads_or_says_what_is_damaged(small_store, target, flips, cut):
+    import shutil
+    from analogy.batch.store import read
+    with case("store"), tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp) / "store"
+        shutil.copytree(small_store / "base", folder)
+        victim = sorted(folder.glob("part-*.parquet"))[0] if target == "part" else folder / "_sweep.json"
+        data = bytearray(victim.read_bytes())
+        for where, byte in flips:
+            data[min(int(where * len(data)), len(data) - 1)] = byte
+        if cut is not None:
+            data = data[:int(cut * len(data))]
+        victim.write_bytes(bytes(data))
+        try:
+            frame = finishes(lambda: read(folder), 5.0)
+        except InputError as exc:
+            refused("store", exc)
+        else:
+            assert len(frame) <= 20 and frame["index"].is_unique

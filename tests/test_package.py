@@ -26,6 +26,8 @@ def imports(path: Path):
     name = module_name(path)
     package = name if path.name == "__init__.py" else name.rsplit(".", 1)[0]
     top = {id(n) for n in tree.body}
+    # a module-level try around an import (a platform's optional module) is still the top
+    top |= {id(n) for guard in tree.body if isinstance(guard, ast.Try) for n in guard.body}
     typing_only = set()
     for guard in (n for n in tree.body if isinstance(n, ast.If)):
         if "TYPE_CHECKING" in ast.unparse(guard.test):

@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..errors import InputError
+from ..scenes.paths import inside_folder
 from ..units import force_unit, rate_unit
 from .store import manifest, read
 from .sweep import axis_kind
@@ -219,7 +220,6 @@ class BatchReport:
         folder : str or Path
             Where (made if missing).
         """
-        from ..scenes.paths import inside_folder
         out = Path(folder)
         out.mkdir(parents=True, exist_ok=True)
         # each file inside the folder, reached through no symlink (as every output of the package)

@@ -12,6 +12,11 @@ import numpy as np
 
 from ..errors import AnalogyError, InputError
 
+try:
+    import fcntl
+except ImportError:             # not on POSIX
+    fcntl = None
+
 if TYPE_CHECKING:
     import pandas
     import pyarrow
@@ -102,9 +107,7 @@ def _writer_lock(directory: Path):
     Two writers would each merge the pending groups and remove what the other wrote; the
     lock is the kernel's (flock), so a writer killed even with SIGKILL releases it.
     """
-    try:
-        import fcntl
-    except ImportError:         # not on POSIX: one writer at a time is the user's to keep
+    if fcntl is None:           # not on POSIX: one writer at a time is the user's to keep
         return None
     try:
         handle = open(directory / _LOCK, "a+")

@@ -13,6 +13,7 @@ import numpy as np
 from ..errors import InputError
 from ..presets import PRESETS
 from .store import RESERVED_COLUMNS
+from ..scenes.build import scene_model
 from ..scenes.scene import Scene
 from .designs import DESIGNS, design_points
 
@@ -114,7 +115,6 @@ MAX_SCENES = 100_000_000
 
 def _parameters(base: Scene) -> tuple[str, ...]:
     """The parameter names the base scene's model takes (built once; an error there is the scene's)."""
-    from ..scenes.build import scene_model
     try:
         return tuple(getattr(scene_model(base), "parameters", None) or ())
     except InputError:
@@ -352,8 +352,12 @@ def _axis(name: str, spec, method: str) -> Axis:
                 raise InputError(f"axis {name}: a grid over a range needs count, the number of values")
             if n > MAX_SCENES:
                 raise InputError(f"axis {name}: count {n:,} is more than a sweep's {MAX_SCENES:,} scenes")
+            if scale == "log" and not 0 < min(low, high):
+                raise InputError(f"axis {name}: a log scale needs low and high above 0, got {low:g} and {high:g}")
             pts = np.geomspace(low, high, n) if scale == "log" else np.linspace(low, high, n)
             return Axis(name, values=tuple(float(x) for x in pts))
+        if scale == "log" and not 0 < min(low, high):
+            raise InputError(f"axis {name}: a log scale needs low and high above 0, got {low:g} and {high:g}")
         return Axis(name, low=low, high=high, log=scale == "log")
     items = _list(name, spec)
     pair = len(items) == 2 and all(isinstance(x, float) for x in items)

@@ -1,4 +1,4 @@
-"""Numbers with units (``100 mm``, ``30 deg``, ``2 kg``): split off the unit, read it with a bounded grammar, convert to SI with pint."""
+"""Numbers with units (``100 mm``, ``30 deg``): the unit read by a bounded grammar, converted to SI by pint."""
 
 from __future__ import annotations
 
