@@ -325,7 +325,10 @@ def parse_waveform(text: str) -> Waveform:
         code = cls.__init__.__code__
         params = code.co_varnames[1:code.co_argcount]
         need = len(params) - len(cls.__init__.__defaults__ or ())
-        if not need <= len(args) + len(kwargs) <= len(params) or any(k not in params for k in kwargs):
+        if unknown := [k for k in kwargs if k not in params]:
+            raise InputError(f"{text!r}: {name} has no argument {unknown[0]!r}; its arguments are "
+                             f"{', '.join(params)}")
+        if not need <= len(args) + len(kwargs) <= len(params):
             raise InputError(f"{text!r}: {name} takes {need} to {len(params)} arguments "
                              f"({', '.join(params)}), got {len(args) + len(kwargs)}")
         return cls(*args, **kwargs)

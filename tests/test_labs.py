@@ -130,7 +130,9 @@ def test_the_envelope_of_an_alternating_error_is_its_largest_value_in_each_windo
 
 @pytest.mark.ngspice
 @pytest.mark.slow
-@pytest.mark.parametrize("lab", LABS)
+# the flexible arm's lab takes a minute or more (its models and plain-ngspice runs): the deep pass runs it
+@pytest.mark.parametrize("lab", [pytest.param(lab, marks=pytest.mark.deep) if "flexible" in lab else lab
+                                 for lab in LABS])
 def test_lab_runs_as_a_notebook(lab, tmp_path, monkeypatch):
     jupytext = pytest.importorskip("jupytext")
     nbclient = pytest.importorskip("nbclient")

@@ -204,3 +204,20 @@ def test_one_solve_shaped_like_solve_ivp_times_resamples_and_checks_every_solver
         type("Rogue", (Solver,), {"solve": lambda self, *a, **k: None})
     with pytest.raises(analogy.InputError, match="sorted"):      # bad input raises; a failure does not
         analogy.solve(s, "exact", [2.0, 1.0])
+
+
+def test_every_keyword_the_force_help_shows_is_one_the_parser_takes():
+    """The --force help and the waveform parser name the same arguments (sine's frequency and phase)."""
+    import re as _re
+    from analogy.cli.parser import build_parser
+    from analogy.errors import InputError
+    from analogy.waveforms import parse_waveform
+    text = next(a.help for a in build_parser()._subparsers._group_actions[0].choices["netlist"]._actions
+                if "--force" in a.option_strings)
+    sine = _re.search(r"sine\(([^)]*)\)", text).group(1)
+    names = [p.split("=")[0].strip() for p in sine.split(",")]
+    assert names == ["offset", "amplitude", "frequency", "delay", "damping", "phase"]
+    w = parse_waveform("sine(0, 1, frequency=2, delay=0, damping=0, phase=90)")
+    assert w.frequency == 2.0 and w.phase == 90.0
+    with pytest.raises(InputError, match="no argument 'freq'; its arguments are offset, amplitude, frequency"):
+        parse_waveform("sine(0, 1, freq=3)")

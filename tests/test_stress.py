@@ -34,6 +34,7 @@ def quick_report(tmp_path_factory):
 
 
 @pytest.mark.ngspice
+@pytest.mark.deep       # the whole quick stress report: about a minute
 def test_the_stress_report_has_every_family_and_no_ok_row_past_its_bound(quick_report):
     out, rows, stdout = quick_report
     assert {r["family"] for r in rows} == set(FAMILY_TITLES)
@@ -48,6 +49,7 @@ def test_the_stress_report_has_every_family_and_no_ok_row_past_its_bound(quick_r
 
 
 @pytest.mark.ngspice
+@pytest.mark.deep
 def test_the_error_does_not_depend_on_the_units(quick_report):
     """Family e: masses 1e-9 to 1e6, time scales 1e-6 to 1e4, velocities 1e-9 to 1e3: every
     solver within a factor of 10 of its unit-scale error (SPICE measured 7.0e-8 throughout)."""

@@ -68,8 +68,8 @@ def scene_options(p: argparse.ArgumentParser, preset: str = "accurate") -> None:
     g.add_argument("--force", action="append", metavar="SPEC",
                    help="force on the next joint [N·m or N] (repeat once per joint): a number, step(a), "
                         "step(a, delay, rise), pulse(v1, v2, delay=0, rise=1e-6, fall=1e-6, width=1, "
-                        "period=one pulse), sine(offset, amplitude, freq, delay=0, damping=0, "
-                        "phase_deg=0), pwl(t1, v1, t2, v2, ...)")
+                        "period=one pulse), sine(offset, amplitude, frequency, delay=0, damping=0, "
+                        "phase=0 [deg]), pwl(t1, v1, t2, v2, ...)")
     g.add_argument("--r0", metavar="VALUES", help="initial joint rates [rad/s or m/s], e.g. '0, 0'")
     g.add_argument("--t-stop", metavar="SECONDS", help="end time of the simulation [s] (default 10, "
                    "or the scene's), e.g. 2 or '500 ms'")
