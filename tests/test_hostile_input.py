@@ -191,3 +191,8 @@ def test_a_million_point_pwl_force_is_refused_by_its_segment_count():
     sc = scene("default").replace(forces=(PWL(list(zip(t.tolist(), np.sin(t).tolist()))), 0.0))
     with pytest.raises(InputError, match="999,999 segments"):
         finishes(lambda: compare(sc.system(), "fast"))
+
+
+def test_a_closed_chain_many_turns_from_its_reference_is_refused_not_followed_for_minutes(capsys):
+    assert finishes(lambda: main(["netlist", "--robot", "parallel2", "--q", "1e5,0.9"])) == 2
+    assert "too far from its reference assembly" in capsys.readouterr().err

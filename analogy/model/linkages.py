@@ -201,6 +201,11 @@ class ClosedChainModel(Model):
         return p.copy(), rates.copy()
 
 
+#: Continuation steps from the reference assembly to the asked configuration (each a few Newton
+#: iterations); a pose many turns away would otherwise take minutes.
+_MAX_CONTINUATION_STEPS = 2000
+
+
 class _AssemblySolver:
     """Numeric loop closure by continuation from the reference assembly; remembers the last answer."""
 
@@ -276,7 +281,9 @@ class _AssemblySolver:
 
         sign = np.sign(np.linalg.det(self._jp(q0, p0, params)))
         s, h, p = 0.0, 1.0, p0
-        while s < 1.0:
+        for _ in range(_MAX_CONTINUATION_STEPS):
+            if s >= 1.0:
+                break
             # s and h stay dyadic, so the last step lands on s = 1 exactly.
             h = min(h, 1.0 - s)
             qs = at(s)
@@ -293,6 +300,10 @@ class _AssemblySolver:
                 raise InputError(f"model {self.model.name!r} does not assemble at q = {_fmt(q1)} "
                                  f"in its working mode (continuation from q = {_fmt(q0)} fails "
                                  f"near q = {_fmt(qs)})", field="q")
+        if s < 1.0:
+            raise InputError(f"model {self.model.name!r}: q = {_fmt(q1)} is too far from its reference assembly "
+                             f"q = {_fmt(q0)} to follow the loop there in {_MAX_CONTINUATION_STEPS:,} steps: give "
+                             "joint angles within a few turns of it", field="q")
         return p
 
 
