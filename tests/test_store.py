@@ -161,7 +161,8 @@ def test_a_report_folder_that_is_a_symlink_out_of_the_store_is_refused(stored, t
     ('method = "sobol"\ncount = 1099511627776\n[sweep.axes]\nq2 = [0.0, 1.0]', "more than 100,000,000"),
     ('method = "lhs"\ncount = 9223372036854775807\n[sweep.axes]\nq2 = [0.0, 1.0]', "more than 100,000,000"),
     ('method = "random"\ncount = 10\nseed = -1\n[sweep.axes]\nq2 = [0.0, 1.0]', "seed must be a whole number"),
-    ('method = "grid"\n[sweep.axes]\nq2 = {low = 0, high = 1, count = 1000000000}', "more than a sweep's"),
+    ('method = "grid"\n[sweep.axes]\nq2 = {low = 0, high = 1, count = 1000000000}', "values a grid axis may list"),
+    ('method = "grid"\n[sweep.axes]\nq2 = {low = 0, high = 1, count = 73632978}', "values a grid axis may list"),
     ('method = "grid"\n[sweep.axes]\n' + "".join(f"{n} = {{low = 1, high = 2, count = 1000}}\n"
                                                for n in ("q1", "q2", "l1", "l2", "d1", "d2", "b1", "b2")),
      "more than 100,000,000"),

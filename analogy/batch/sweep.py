@@ -111,6 +111,8 @@ class Axis:
 
 #: Most scenes in one sweep.
 MAX_SCENES = 100_000_000
+#: Most values of one grid axis: they are listed (and written into the sweep's key) one by one.
+MAX_AXIS_VALUES = 100_000
 
 
 def _parameters(base: Scene) -> tuple[str, ...]:
@@ -350,8 +352,9 @@ def _axis(name: str, spec, method: str) -> Axis:
             n = spec.get("count")
             if not isinstance(n, int) or isinstance(n, bool) or n < 1:
                 raise InputError(f"axis {name}: a grid over a range needs count, the number of values")
-            if n > MAX_SCENES:
-                raise InputError(f"axis {name}: count {n:,} is more than a sweep's {MAX_SCENES:,} scenes")
+            if n > MAX_AXIS_VALUES:
+                raise InputError(f"axis {name}: count {n:,} is more than the {MAX_AXIS_VALUES:,} values a grid axis "
+                                 "may list: for finer sampling use method = \"random\", \"lhs\" or \"sobol\"")
             if scale == "log" and not 0 < min(low, high):
                 raise InputError(f"axis {name}: a log scale needs low and high above 0, got {low:g} and {high:g}")
             pts = np.geomspace(low, high, n) if scale == "log" else np.linspace(low, high, n)
