@@ -117,29 +117,30 @@ def dask_executor(workers: int, scheduler: str | None = None) -> Iterator[object
             scratch.callback(quiet.setLevel, quiet.level)
             quiet.setLevel(logging.CRITICAL + 1)
     try:
-        if scheduler is None:
-            # the cluster's spill and lock files in a folder of ours, so that a stop leaves nothing in /tmp
-            import dask
-            folder = str(scratch.enter_context(scratch_folder("dask")))
-            scratch.enter_context(dask.config.set({"temporary-directory": folder}))
-            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                   dashboard_address=None, silence_logs=logging.ERROR, local_directory=folder)
-            client = Client(cluster)
-        else:
-            client = _connect(Client, scheduler_address(scheduler))
-    except (OSError, TimeoutError) as exc:
+        try:
+            if scheduler is None:
+                # the cluster's spill and lock files in a folder of ours, so that a stop leaves nothing in /tmp
+                import dask
+                folder = str(scratch.enter_context(scratch_folder("dask")))
+                scratch.enter_context(dask.config.set({"temporary-directory": folder}))
+                cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                       dashboard_address=None, silence_logs=logging.ERROR, local_directory=folder)
+                scratch.callback(cluster.close)
+                client = Client(cluster)
+            else:
+                client = _connect(Client, scheduler_address(scheduler))
+        except (OSError, TimeoutError) as exc:
+            raise InputError(f"cannot reach the Dask scheduler {scheduler}: {exc}") from None
+        except RuntimeError as exc:
+            raise SimulationError(f"the Dask cluster did not start: {exc}") from None
+    except BaseException:           # SIGTERM or Ctrl-C while the cluster starts: nothing left behind
         scratch.close()
-        raise InputError(f"cannot reach the Dask scheduler {scheduler}: {exc}") from None
-    except RuntimeError as exc:
-        scratch.close()
-        raise SimulationError(f"the Dask cluster did not start: {exc}") from None
+        raise
     try:
         yield client.get_executor()
     finally:
         client.close()
-        if cluster is not None:
-            cluster.close()
-        scratch.close()
+        scratch.close()             # the cluster, then its folder and the loggers' levels
 
 
 def batch_command(args) -> int:

@@ -7,7 +7,9 @@ starts without the solvers, the batch machinery or the benchmarks.
 from __future__ import annotations
 
 import os
+import signal
 import sys
+import threading
 import warnings
 from concurrent.futures import BrokenExecutor
 from dataclasses import replace
@@ -360,6 +362,9 @@ def main(argv=None) -> int:
     """
     parser = build_parser()
     caught: dict[str, int] = {}
+    # SIGTERM ends a command as Ctrl-C does: every clean-up runs (workers, scratch folders, stores)
+    old_term = signal.signal(signal.SIGTERM, _terminate) \
+        if threading.current_thread() is threading.main_thread() else None
     try:
         with warnings.catch_warnings():
             # numpy's and scipy's warnings are counted here, and said in one sentence below
@@ -393,6 +398,13 @@ def main(argv=None) -> int:
     except BrokenExecutor as exc:       # a worker process died (killed, or out of memory)
         print(f"analogy: simulation failed: a worker process died ({exc or type(exc).__name__})", file=sys.stderr)
         return EXIT_FAILED
+    finally:
+        if old_term is not None:
+            signal.signal(signal.SIGTERM, old_term)
+
+
+def _terminate(signum, frame):
+    raise KeyboardInterrupt
 
 
 if __name__ == "__main__":  # pragma: no cover
