@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
-from ..errors import InputError, SimulationError
+from ..errors import AnalogyError, InputError, SimulationError
 from ..presets import PRESETS
 from ..presets import preset as get_preset
 from ..solvers.registry import SOLVER_NAMES
@@ -375,6 +375,14 @@ def run_sweep(sweep: Sweep, directory, *, workers: int = 2, executor: Executor |
                 pool = worker_pool(workers)
     except (KeyboardInterrupt, _Stop):
         result.interrupted = True
+    except Exception as exc:
+        # a scene's own failure is stored by _remote: what reaches here is the outside executor's
+        if own or isinstance(exc, AnalogyError):
+            raise
+        detail = " ".join(str(exc).split())[:160] or type(exc).__name__
+        raise SimulationError(f"the executor failed ({type(exc).__name__}: {detail}; did the Dask scheduler "
+                              f"stop?): {int(done.sum()):,} of {sweep.size:,} scenes are stored in {directory}; "
+                              "run the same command to resume") from None
     finally:
         if old_term is not None:
             signal.signal(signal.SIGTERM, old_term)
