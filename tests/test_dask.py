@@ -17,27 +17,10 @@ import numpy as np
 import pytest
 
 from analogy.cli import main
+from sweep_text import sweep_text
 
 pytest.importorskip("distributed")
 
-SWEEP = """name = "arm"
-[model]
-robot = "serial2"
-[inputs]
-forces = [1, 0]
-t_stop = 10
-[solvers]
-use = ["spice", "exact"]
-preset = "fast"
-[sweep]
-method = "random"
-count = {count}
-seed = 3
-group_size = 20
-[sweep.axes]
-q2 = [-3.0, 3.0]
-d1 = [0.5, 3]
-"""
 
 ANALOGY = [sys.executable, "-c", "import sys; from analogy.cli import main; sys.exit(main())"]
 DASK = shutil.which("dask", path=os.path.dirname(sys.executable)) or shutil.which("dask")
@@ -46,7 +29,7 @@ DASK = shutil.which("dask", path=os.path.dirname(sys.executable)) or shutil.whic
 @pytest.mark.parametrize("address", ["not an address", "bogus://x:1", "http://x:1", "ucx://x:1", "inproc://x",
                                      "tls://127.0.0.1:1", "tcp://[::1", "/etc/passwd", "", "x:99999"])
 def test_what_cannot_be_a_scheduler_address_is_refused_before_anything_runs(address, tmp_path, capsys):
-    (tmp_path / "s.toml").write_text(SWEEP.format(count=10))
+    (tmp_path / "s.toml").write_text(sweep_text(10, "q2 = [-3.0, 3.0]\nd1 = [0.5, 3]\n"))
     assert main(["batch", str(tmp_path / "s.toml"), "-o", str(tmp_path / "out"), "--scheduler", address]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--scheduler needs a Dask scheduler address" in err
@@ -61,7 +44,7 @@ def test_a_listener_that_never_answers_is_refused_within_the_deadline(tmp_path, 
     listener.listen(8)
     held = []
     threading.Thread(target=lambda: held.extend(listener.accept() for _ in range(8)), daemon=True).start()
-    (tmp_path / "s.toml").write_text(SWEEP.format(count=10))
+    (tmp_path / "s.toml").write_text(sweep_text(10, "q2 = [-3.0, 3.0]\nd1 = [0.5, 3]\n"))
     address = f"127.0.0.1:{listener.getsockname()[1]}"
     assert main(["batch", str(tmp_path / "s.toml"), "-o", str(tmp_path / "out"), "--scheduler", address]) == 2
     err = capsys.readouterr().err
@@ -97,7 +80,7 @@ def _rows(folder: Path) -> int:
 def test_a_sweep_survives_a_killed_worker_and_resumes_after_a_killed_scheduler(tmp_path):
     from analogy.batch.store import read
     count = 4000
-    (tmp_path / "s.toml").write_text(SWEEP.format(count=count))
+    (tmp_path / "s.toml").write_text(sweep_text(count, "q2 = [-3.0, 3.0]\nd1 = [0.5, 3]\n"))
     # the values of an uninterrupted run, on local processes
     assert subprocess.run(ANALOGY + ["batch", str(tmp_path / "s.toml"), "-o", str(tmp_path / "plain"),
                                      "--no-progress"], capture_output=True).returncode == 0

@@ -12,25 +12,11 @@ from pathlib import Path
 
 import pytest
 
+from sweep_text import sweep_text
+
 pytestmark = [pytest.mark.ngspice, pytest.mark.slow]
 
-SWEEP = """name = "arm"
-[model]
-robot = "serial2"
-[inputs]
-forces = [1, 0]
-t_stop = 10
-[solvers]
-use = ["spice", "exact"]
-preset = "fast"
-[sweep]
-method = "random"
-count = 1000000
-seed = 3
-group_size = 20
-[sweep.axes]
-q2 = [-3.0, 3.0]
-"""
+SWEEP = sweep_text(1_000_000)
 
 SCRIPT = """
 from analogy import run_batch

@@ -17,20 +17,11 @@ import pytest
 
 from analogy.batch.store import read
 from analogy.cli import main
+from sweep_text import HEAD, sweep_text
 
 pytestmark = pytest.mark.ngspice
 
-HEAD = """name = "arm"
-[model]
-robot = "serial2"
-[inputs]
-forces = [1, 0]
-t_stop = 10
-[solvers]
-use = ["spice", "exact"]
-preset = "fast"
-"""
-SWEEP = HEAD + '[sweep]\nmethod = "random"\ncount = 60\nseed = 3\ngroup_size = 20\n[sweep.axes]\nq2 = [-3.0, 3.0]\n'
+SWEEP = sweep_text(60)
 
 
 @pytest.fixture(scope="module")

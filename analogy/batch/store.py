@@ -188,8 +188,8 @@ class ResultStore:
             _write(path, lambda p: p.write_text(json.dumps(self.manifest, indent=1, default=str)))
         for tmp in self.directory.rglob(".*.tmp"):     # from a run killed while writing
             tmp.unlink(missing_ok=True)
-        self._parts = len(_parts(self.directory))
         names = [p.name for p in _parts(self.directory)]
+        self._parts = len(names)
         # the next part's number follows the highest, so a copied-in or removed part is never overwritten
         self._next = 1 + max((int(n[5:11]) for n in names if n[5:11].isdigit()), default=-1)
         self._pending_rows = 0
