@@ -1,6 +1,9 @@
 """Work estimates: a run past the budget is refused in one sentence before it starts, and the budget can be raised."""
 
+import os
 from dataclasses import replace
+
+import numpy as np
 
 import pytest
 
@@ -65,3 +68,64 @@ def test_a_sweep_past_the_budget_stores_each_scene_as_refused(tmp_path):
     frame = pd.read_parquet(tmp_path / "store")
     assert frame["status"].tolist() == ["refused"] * 3
     assert all("time points" in m and "work budget" in m for m in frame["message"])
+
+
+@pytest.mark.parametrize("pattern, operations", [
+    ("dense", lambda n: n ** 3),                            # every node coupled to all n
+    ("diagonal", lambda n: n),                              # each node alone
+    ("tridiagonal", lambda n: 2 * 2 ** 2 + (n - 2) * 3 ** 2),   # end rows couple 2, inner rows 3
+])
+def test_a_spice_point_costs_the_sum_of_squared_couplings(pattern, operations):
+    """Σᵢ cᵢ², the work of a sparse LU whose fill stays in the pattern of M', B' and K'."""
+    from analogy.study.work import point_operations
+    n = 12
+    mass = {"dense": np.full((n, n), 0.1) + np.eye(n), "diagonal": np.eye(n),
+            "tridiagonal": np.eye(n) + 0.3 * (np.eye(n, k=1) + np.eye(n, k=-1))}[pattern]
+    system = analogy.node_system(JointSpace(mass, np.eye(n)), t_stop=1.0)
+    assert point_operations(system) == operations(n)
+
+
+def test_a_circuit_too_large_for_spice_is_refused_and_runs_without_it():
+    """A dense 200-node circuit over the preset's 20,000-point step cap is 200³·2e4 = 1.6e11
+    operations, past the budget of 5e10, whatever its t_stop; the ODE and exact solvers still take it."""
+    n = 200
+    mass = np.full((n, n), 0.5) + np.eye(n)
+    system = analogy.node_system(JointSpace(mass, np.eye(n)), t_stop=0.01)
+    p = PRESETS["accurate"]
+    with pytest.raises(InputError, match=r"200 nodes\) would need about 1.6e\+11 operations") as caught:
+        check_work(system, p)
+    assert "shorten t_stop" not in str(caught.value) and caught.value.field == "budget"
+    assert check_work(system, p, spice=False).points == p.max_steps + 4     # 4 points for its one force segment
+    assert check_work(system, replace(p, operation_budget=2e11)).operations == pytest.approx(1.6e11, rel=1e-3)
+
+
+def test_every_built_in_scene_is_far_inside_the_operation_budget():
+    for sc in SCENES.values():
+        for p in PRESETS.values():
+            assert estimate_work(sc.system(), p).operations < 1e-2 * p.operation_budget
+
+
+@pytest.mark.ngspice
+@pytest.mark.slow
+def test_sigterm_stops_a_long_spice_run_at_once():
+    """serial100 over ngspice's 20,000 points is 2e10 operations, a minute or more of stepping:
+    SIGTERM in the middle ends the command (exit 130) within seconds, not when ngspice is done."""
+    import signal
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+    proc = subprocess.Popen([sys.executable, "-m", "analogy", "compare", "--robot", "serial100", "--solvers",
+                             "spice", "--no-plot"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    ticks = os.sysconf("SC_CLK_TCK")
+    end = time.monotonic() + 120
+    while time.monotonic() < end and proc.poll() is None:      # 3 s of CPU: built, and inside ngspice
+        if int(Path(f"/proc/{proc.pid}/stat").read_text().rsplit(")", 1)[1].split()[11]) > 3 * ticks:
+            break
+        time.sleep(0.1)
+    assert proc.poll() is None, proc.communicate()
+    proc.send_signal(signal.SIGTERM)
+    start = time.monotonic()
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130 and "interrupted" in err
+    assert time.monotonic() - start < 15, "the run went on past the signal"

@@ -171,12 +171,12 @@ def _group(payload):
     invalid = set(failures)
     refused = set()
     try:
-        check_works([s for s in built if s is not None], preset)
+        check_works([s for s in built if s is not None], preset, spice="spice" in solvers)
     except InputError:                  # some scene is past the work budget: find which, and refuse it alone
         for k, s in enumerate(built):
             if s is not None:
                 try:
-                    check_work(s, preset)
+                    check_work(s, preset, spice="spice" in solvers)
                 except InputError as exc:
                     built[k], failures[k] = None, str(exc)
                     refused.add(k)

@@ -96,7 +96,9 @@ def _cmd_compare(args) -> int:
     if args.budget is not None:
         if not (budget := parse_number(args.budget)) >= 1:
             raise InputError(f"--budget must be at least 1, got {args.budget}")
-        preset = replace(preset, work_budget=budget, segment_budget=int(min(budget, 2 ** 62)))
+        # one knob: the operation budget scales with the points'
+        preset = replace(preset, work_budget=budget, segment_budget=int(min(budget, 2 ** 62)),
+                         operation_budget=preset.operation_budget * budget / preset.work_budget)
     if args.dynamics == "both":
         return _compare_both(sc, args, solvers, step)
     result = compare(sc.system(), preset, solvers, step=step)

@@ -47,7 +47,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--timeout", metavar="SECONDS", help="wall-time limit of each ODE integration "
                    "(default: the preset's, 300 s); past it the solver fails with one sentence")
     p.add_argument("--budget", metavar="POINTS", help="most time points (and force segments) a run may "
-                   "need, estimated before it starts (default: the preset's, 1e8 at accurate, 1e7 at fast)")
+                   "need, estimated before it starts (default: the preset's, 1e8 at accurate, 1e7 at fast); "
+                   "the SPICE circuit's operation budget scales with it")
     p.add_argument("--csv", metavar="FILE", help="write joint rates of every solver to CSV")
     p.add_argument("--plot", metavar="FILE.png", help="write a plot of rates and errors")
     p.add_argument("--no-plot", action="store_true", help="never import the plotting library")

@@ -313,13 +313,22 @@ class NgspiceSession:
         self._ng.finished.clear()
         if self._lib.ngSpice_Command(b"bg_run"):
             raise SpiceError("ngspice rejected the command 'bg_run'")
-        if not self._ng.finished.wait(timeout):
-            self._lib.ngSpice_Command(b"bg_halt")
-            self._ng.finished.wait(60.0)
-            self._free()
+        try:
+            finished = self._ng.finished.wait(timeout)
+        except BaseException:           # a signal (Ctrl-C, SIGTERM) while ngspice runs: halt it first
+            self._halt()
+            raise
+        if not finished:
+            self._halt()
             raise SpiceError(f"ngspice passed its time limit of {timeout:g} s: the circuit needs more "
                              "steps than that allows (raise the timeout, or use the fast preset)")
         return self._ng.lines
+
+    def _halt(self) -> None:
+        """Stop a background run and free its circuit."""
+        self._lib.ngSpice_Command(b"bg_halt")
+        self._ng.finished.wait(60.0)
+        self._free()
 
     def _run(self, netlist, vectors, stats=None, analysis="tran", timeout=None):
         index = "time" if analysis == "tran" else "frequency"

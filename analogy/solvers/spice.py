@@ -52,12 +52,13 @@ def _trajectory(system, time, prepended: bool, volts, currents, stats, elapsed,
                       stats=info)
 
 
-def _limit(scales, t_stop: float, preset: Preset) -> float | None:
-    """The preset's wall-time limit where the run may be long (its fastest rate times t_stop past
-    10^4); None runs in the foreground, which costs a quarter millisecond less."""
+def _limit(scales, t_stop: float, preset: Preset, dof: int) -> float | None:
+    """The preset's wall-time limit where the run may be long: its fastest rate times t_stop
+    past 10^4, or its step cap's points times the dense circuit's n³ past 10^8 (about half a
+    second); None runs in the foreground, which costs a quarter millisecond less."""
     if scales is None or preset.timeout is None or not math.isfinite(preset.timeout):
         return None
-    short = scales.fastest(preset.bound) * t_stop <= 1e4
+    short = scales.fastest(preset.bound) * t_stop <= 1e4 and preset.max_steps * float(dof) ** 3 <= 1e8
     return None if short else preset.timeout
 
 
@@ -94,7 +95,7 @@ def solve_spice(system, times=None, *, preset="accurate", save=None) -> Trajecto
         settings = settings.loosened(loosen)
         text = write_netlist(circ, settings, list(system.nodes) + names, printing=False)
         try:
-            data = sess.run(text, vectors, stats, timeout=_limit(scales, system.t_stop, get_preset(preset)))
+            data = sess.run(text, vectors, stats, timeout=_limit(scales, system.t_stop, get_preset(preset), system.dof))
             break
         except SimulationError as exc:
             # Rounding read as truncation error collapses the step: retry with looser
@@ -171,7 +172,7 @@ class SpiceSolver(Solver):
         stats: dict = {}
         start = _time.perf_counter()
         try:
-            data = session().run(text, None, stats, timeout=_limit(scales, systems[0].t_stop, preset))
+            data = session().run(text, None, stats, timeout=_limit(scales, systems[0].t_stop, preset, sum(x.dof for x in systems)))
         except SimulationError:
             return super().solve_many(systems, times, preset)
         elapsed = (_time.perf_counter() - start) / len(systems)

@@ -262,8 +262,8 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
     if not systems:
         return []
     p = get_preset(preset)
-    check_works(systems, p)                 # a run past the budget is refused before any starts
     names = _names(solvers)
+    check_works(systems, p, spice="spice" in names)     # a run past the budget is refused before any starts
     ref_name = _reference(systems[0], names, reference)
     order = [s for s in SOLVER_NAMES if s in names or s == ref_name]
     order += [s for s in names if s not in order]

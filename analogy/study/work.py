@@ -5,11 +5,13 @@ from __future__ import annotations
 import math
 from typing import NamedTuple, Sequence
 
+import numpy as np
+
 from ..circuit.scales import combined_scales, stack_scales, system_scales
 from ..errors import InputError
 from ..presets import Preset
 
-__all__ = ["WorkEstimate", "check_work", "check_works", "estimate_work"]
+__all__ = ["WorkEstimate", "check_work", "check_works", "estimate_work", "point_operations"]
 
 #: Time points per force segment: each breakpoint restarts an integrator's step control.
 _POINTS_PER_SEGMENT = 4
@@ -21,14 +23,39 @@ class WorkEstimate(NamedTuple):
     points: float
     segments: int
     fastest: float      # the rate [rad/s] that sets the points: a mode, a decay or a sine
+    operations: float = 0.0     # of the SPICE circuit: points × point_operations, summed over a stack
 
 
-def estimate_work(system, preset: Preset, scales=None) -> WorkEstimate:
+def point_operations(system) -> float:
+    """The operations of one SPICE time point of *system*'s circuit: Σᵢ cᵢ².
+
+    cᵢ counts the nonzeros of row i of M', B' and K' together, the nodes that node i's
+    parts couple it to: a sparse LU whose fill stays inside that pattern costs Σᵢ cᵢ²
+    (n³ for a dense M', n for a diagonal one), and it is refactored at every Newton
+    step. A nonlinear circuit couples every node through M'(x) and counts as dense.
+
+    Parameters
+    ----------
+    system : NodeSystem or NonlinearNodeSystem
+        A node system.
+    """
+    n = system.dof
+    if system.kind != "linear":
+        return float(n) ** 3
+    pattern = (system.mass != 0) | (system.damping != 0) | np.eye(n, dtype=bool)
+    if system.stiffness is not None:
+        pattern |= system.stiffness != 0
+    couplings = pattern.sum(axis=1, dtype=float)
+    return float(couplings @ couplings)
+
+
+def estimate_work(system, preset: Preset, scales=None, stacked: int = 1) -> WorkEstimate:
     """The time points and force segments a solver run of *system* needs at *preset*.
 
     The points follow the fastest rate the preset resolves (one step per
     ``preset.phase_step`` radians of it, the SPICE step cap and the ODE's step size
-    alike), plus a few per force breakpoint.
+    alike) and no fewer than the preset's ``max_steps``, plus a few per force breakpoint. The SPICE circuit's operations are the
+    points times :func:`point_operations`.
 
     Parameters
     ----------
@@ -38,6 +65,8 @@ def estimate_work(system, preset: Preset, scales=None) -> WorkEstimate:
         The accuracy preset.
     scales : Scales, optional
         The system's scales, or the combined scales of a stack it stands for.
+    stacked : int
+        How many systems like it one SPICE circuit holds.
     """
     segments = len(system.breakpoints())
     scales = system_scales(system) if scales is None else scales
@@ -48,12 +77,15 @@ def estimate_work(system, preset: Preset, scales=None) -> WorkEstimate:
         turning = [abs(float(r)) for r, u in zip(system.initial_rates, units) if u == "rad"]
         rate = max([rate, *turning])
     phase = preset.phase_step if math.isfinite(preset.phase_step) else 1.0
-    points = system.t_stop * rate / phase + _POINTS_PER_SEGMENT * segments
-    return WorkEstimate(points if math.isfinite(points) else math.inf, segments, rate)
+    # at least t_stop/max_steps: the SPICE step cap
+    points = max(system.t_stop * rate / phase, preset.max_steps) + _POINTS_PER_SEGMENT * segments
+    points = points if math.isfinite(points) else math.inf
+    return WorkEstimate(points, segments, rate, points * stacked * point_operations(system))
 
 
-def check_work(system, preset: Preset, scales=None) -> WorkEstimate:
-    """:func:`estimate_work`, refused in one sentence past ``preset.work_budget`` or ``preset.segment_budget``.
+def check_work(system, preset: Preset, scales=None, *, stacked: int = 1, spice: bool = True) -> WorkEstimate:
+    """:func:`estimate_work`, refused in one sentence past ``preset.work_budget``, ``preset.segment_budget``
+    or, where SPICE runs, ``preset.operation_budget``.
 
     Parameters
     ----------
@@ -63,8 +95,12 @@ def check_work(system, preset: Preset, scales=None) -> WorkEstimate:
         The accuracy preset; ``dataclasses.replace(preset, work_budget=…)`` raises the budget.
     scales : Scales, optional
         The system's scales, or the combined scales of a stack sharing its forces and t_stop.
+    stacked : int
+        How many systems like it one SPICE circuit holds.
+    spice : bool
+        Whether SPICE is among the solvers, so that the circuit's operations count.
     """
-    work = estimate_work(system, preset, scales)
+    work = estimate_work(system, preset, scales, stacked)
     if work.segments > preset.segment_budget:
         raise InputError(f"the forces have {work.segments:,} segments between breakpoints (pwl points, pulse "
                          f"edges), more than the budget of {preset.segment_budget:,}: use fewer, or raise "
@@ -74,10 +110,17 @@ def check_work(system, preset: Preset, scales=None) -> WorkEstimate:
                          f"{work.fastest:.3g} rad/s, over t_stop = {system.t_stop:g} s), more than the budget "
                          f"of {preset.work_budget:.3g}: shorten t_stop, or raise the preset's work budget",
                          field="budget")
+    if spice and work.operations > preset.operation_budget:
+        size = f"{stacked} circuits of {system.dof} nodes" if stacked > 1 else f"{system.dof} nodes"
+        shorter = ", shorten t_stop" if work.points > preset.max_steps + _POINTS_PER_SEGMENT * work.segments else ""
+        raise InputError(f"the SPICE circuit ({size}) would need about {work.operations:.3g} operations "
+                         f"({work.points:.3g} time points of {work.operations / work.points:.3g}), more than "
+                         f"the budget of {preset.operation_budget:.3g}: solve it without spice{shorter}, "
+                         "or raise the preset's operation budget", field="budget")
     return work
 
 
-def check_works(systems: Sequence, preset: Preset) -> None:
+def check_works(systems: Sequence, preset: Preset, *, spice: bool = True) -> None:
     """:func:`check_work` on many systems: one estimate per stack sharing forces, t_stop and size,
     from the stack's combined scales (its fastest rate); nonlinear systems one by one.
 
@@ -87,12 +130,15 @@ def check_works(systems: Sequence, preset: Preset) -> None:
         What one batched run would solve.
     preset : Preset
         The accuracy preset.
+    spice : bool
+        Whether SPICE is among the solvers (one circuit per stack).
     """
     groups: dict = {}
     for s in systems:
         if s.kind == "linear":
             groups.setdefault((float(s.t_stop), id(s.forces), s.dof, id(s.topology)), []).append(s)
         else:
-            check_work(s, preset)
+            check_work(s, preset, spice=spice)
     for group in groups.values():
-        check_work(group[0], preset, None if len(group) == 1 else combined_scales(stack_scales(group)))
+        scales = None if len(group) == 1 else combined_scales(stack_scales(group))
+        check_work(group[0], preset, scales, stacked=len(group), spice=spice)
