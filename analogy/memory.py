@@ -1,4 +1,4 @@
-"""Resident memory grown per in-process SPICE run: the leak check behind ``analogy memory``."""
+"""Resident memory grown per in-process solver run: the leak check behind ``analogy memory``."""
 
 from __future__ import annotations
 
@@ -11,14 +11,15 @@ from dataclasses import dataclass
 from .errors import InputError
 from .presets import preset as get_preset
 from .scenes.builtin import scene
-from .solvers.spice import session, solve_spice
+from .solvers.registry import solver as registered
+from .solvers.spice import session
 
 __all__ = ["MemoryResult", "memory_per_run"]
 
 
 @dataclass(frozen=True)
 class MemoryResult:
-    """Resident memory growth over many in-process SPICE runs of one system."""
+    """Resident memory growth over many in-process runs of one solver on one system."""
 
     runs: int
     preset: str
@@ -26,15 +27,17 @@ class MemoryResult:
     grown_kb: float
     seconds: float
     buffered_lines: int
+    solver: str = "spice"
 
     @property
     def kb_per_run(self) -> float:
         return self.grown_kb / self.runs
 
     def __str__(self) -> str:
-        return (f"memory: {self.runs} in-process SPICE runs of scene {self.scene} at preset {self.preset}: "
-                f"resident memory grew {self.grown_kb:.0f} kB, {self.kb_per_run:.3f} kB per run "
-                f"({self.seconds:.1f} s; ngspice lines buffered after the runs: {self.buffered_lines})")
+        lines = f"; ngspice lines buffered after the runs: {self.buffered_lines}" if self.solver == "spice" else ""
+        return (f"memory: {self.runs} in-process {self.solver} runs of scene {self.scene} at preset "
+                f"{self.preset}: resident memory grew {self.grown_kb:.0f} kB, {self.kb_per_run:.3f} kB per run "
+                f"({self.seconds:.1f} s{lines})")
 
 
 def _resident_kb() -> float:
@@ -46,8 +49,8 @@ def _resident_kb() -> float:
 
 
 def memory_per_run(runs: int = 10_000, preset: str = "accurate", scene_name: str = "default",
-                   warmup: int = 200) -> MemoryResult:
-    """Resident memory grown per in-process SPICE run (netlist, ngspice run, vectors read, freed).
+                   warmup: int = 200, solver: str = "spice") -> MemoryResult:
+    """Resident memory grown per in-process solver run (for SPICE: netlist, ngspice run, vectors read, freed).
 
     The first *warmup* runs are not counted: they fill caches and the allocator's pools.
 
@@ -61,18 +64,23 @@ def memory_per_run(runs: int = 10_000, preset: str = "accurate", scene_name: str
         A built-in scene.
     warmup : int
         Runs before the count starts.
+    solver : str
+        A registered solver: ``spice``, ``ode``, ``exact`` or ``reference``.
     """
     if runs < 1 or warmup < 0:
         raise InputError("runs must be at least 1 and warmup at least 0")
+    method, p = registered(solver), get_preset(preset)
     system = scene(scene_name).system()
     for _ in range(warmup):
-        solve_spice(system, preset=preset)
+        method.solve(system, None, p)
     gc.collect()
     before, start = _resident_kb(), _time.perf_counter()
     for _ in range(runs):
-        solve_spice(system, preset=preset)
+        method.solve(system, None, p)
     gc.collect()
-    ng = session()._ng
-    lines = len(getattr(ng, "_stdout", [])) + len(getattr(ng, "_stderr", []))
-    return MemoryResult(runs, get_preset(preset).name, scene_name, _resident_kb() - before,
-                        _time.perf_counter() - start, lines)
+    lines = 0
+    if solver == "spice":
+        ng = session()._ng
+        lines = len(getattr(ng, "_stdout", [])) + len(getattr(ng, "_stderr", []))
+    return MemoryResult(runs, p.name, scene_name, _resident_kb() - before,
+                        _time.perf_counter() - start, lines, solver)

@@ -319,7 +319,7 @@ def _cmd_throughput(args) -> int:
 def _cmd_memory(args) -> int:
     from ..memory import memory_per_run
     scene(args.scene)                   # an unknown name is refused before any run
-    print(memory_per_run(_positive(args.runs, "--runs"), args.preset, args.scene))
+    print(memory_per_run(_positive(args.runs, "--runs"), args.preset, args.scene, solver=args.solver))
     return EXIT_OK
 
 

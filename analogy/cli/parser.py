@@ -102,8 +102,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--timeout", type=float, default=10.0, help="wall-time limit of each ODE run [s] (default 10)")
     p.add_argument("--no-progress", action="store_true", help="no progress (a bar on a terminal, "
                    "plain lines otherwise)")
-    p = sub.add_parser("memory", help="resident memory grown per in-process SPICE run (kB/run)")
+    p = sub.add_parser("memory", help="resident memory grown per in-process solver run (kB/run)")
     p.add_argument("--runs", type=int, default=10_000, help="counted runs (default 10000)")
+    p.add_argument("--solver", default="spice", help="registered solver: spice, ode, exact or reference "
+                   "(default spice)")
     p.add_argument("--preset", default="accurate", choices=list(PRESETS), help=PRESET_HELP)
     p.add_argument("--scene", default="default", help="built-in scene (default: default)")
     p = sub.add_parser("throughput", help="scenes per second: batched ngspice runs against per-scene loops")

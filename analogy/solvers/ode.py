@@ -184,7 +184,16 @@ def solve_ode(system, times=None, method: str = "DOP853", rtol: float = 1e-10,
             work[at_start] = y[-1]
         idx = idx[t[idx] > t0]
         k = 0
-        if t1 > t0:
+        if t1 > t0 and method == "LSODA":
+            values, counts = _lsoda(rhs, jac, y, t0, t1, t[idx], rtol, atol, start, timeout, system.t_stop)
+            out[idx] = values[1:1 + idx.size, vs]
+            if pos is not None:
+                pos[idx] = values[1:1 + idx.size, :n]
+            if work is not None:
+                work[idx] = values[1:1 + idx.size, -1]
+            y = values[-1]
+            steps, nfev, njev = steps + counts[0], nfev + counts[1], njev + counts[2]
+        elif t1 > t0:
             sol = _guarded(method, t0, cls, rhs, t0, y, t1, rtol=rtol, atol=atol, **extra)
             while sol.status == "running":
                 message = _guarded(method, sol.t, sol.step)
@@ -212,6 +221,51 @@ def solve_ode(system, times=None, method: str = "DOP853", rtol: float = 1e-10,
     elapsed = _time.perf_counter() - start
     stats = SolverStats(elapsed, steps, None, nfev, njev)
     return Trajectory("ode", t, out, system.joint_rates(out), pos, stats=stats, work=work, message=note)
+
+
+#: odeint's failure messages, in the words of the solver's other failures.
+_ODEPACK_REASONS = (
+    ("Excess work done", "it took 1e8 steps in one output interval"),
+    ("Excess accuracy requested", "the tolerances are below what rounding allows"),
+    ("Illegal input", "the state left the floating-point range"),
+    ("Repeated convergence failures", "its corrector iterations did not converge"),
+    ("Error weight became zero", "a state's absolute tolerance fell to zero"),
+)
+
+
+class _PastLimit(Exception):
+    """Raised from the right-hand side when the wall-time limit has passed."""
+
+
+def _lsoda(rhs, jac, y0, t0: float, t1: float, times: np.ndarray, rtol, atol, start: float,
+           timeout: float | None, t_stop: float):
+    """One force segment [t0, t1] with ODEPACK's LSODA (``odeint``): the state at t0, *times*
+    and t1, and (steps, f and Jacobian evaluations). Not scipy's ``LSODA`` class, which keeps
+    0.8 kB per call (scipy 1.17), so that a loop of runs grows without bound; ``tcrit`` stops
+    the steps at t1, so none reaches into the next segment's forces."""
+    grid = np.concatenate([[t0], times, [t1]] if not times.size or times[-1] < t1 else [[t0], times])
+    deadline = None if timeout is None else start + timeout
+
+    def f(tt, yy):
+        if deadline is not None and _time.perf_counter() > deadline:
+            raise _PastLimit(tt)
+        return rhs(tt, yy)
+    dfun = None if jac is None else (jac if callable(jac) else (lambda tt, yy: jac))
+    try:
+        values, info = _guarded("LSODA", t0, integrate.odeint, f, y0, grid, Dfun=dfun, tfirst=True,
+                                rtol=rtol, atol=atol, tcrit=[t1], mxstep=100_000_000, full_output=True,
+                                printmessg=False)
+    except _PastLimit as exc:
+        raise SimulationError(f"the ODE solver LSODA passed its time limit of {timeout:g} s at t = "
+                              f"{exc.args[0]:.6g} of {t_stop:g} s: raise the preset's timeout or use the fast "
+                              "preset") from None
+    if info["message"] != "Integration successful.":
+        reached = float(np.max(info["tcur"], initial=t0))
+        reason = next((why for start_, why in _ODEPACK_REASONS if info["message"].startswith(start_)),
+                      "its step size fell to rounding")
+        raise SimulationError(f"the ODE solver LSODA could not continue at t = {reached:.6g} s "
+                              f"({reason}): try the other preset or the exact solver")
+    return values, (int(info["nst"][-1]), int(info["nfe"][-1]), int(info["nje"][-1]))
 
 
 def _guarded(method: str, at: float, fn, *args, **kwargs):
