@@ -172,3 +172,23 @@ def test_a_corrected_sweep_runs_in_the_folder_its_typo_was_refused_from(tmp_path
     (tmp_path / "t.toml").write_text(HEAD + '[sweep]\nmethod = "grid"\n[sweep.axes]\nd1 = [0.5, 1]\n')
     assert main(["batch", str(tmp_path / "t.toml"), "-o", str(tmp_path / "out"), "--no-progress"]) == 0
     assert (read(tmp_path / "out")["status"] == "ok").all()
+
+
+def test_a_folder_of_invalid_scenes_only_is_taken_by_the_corrected_sweep(tmp_path, capsys):
+    """Nothing was computed in it, so nothing is lost; a folder with one computed scene stays refused."""
+    from sweep_text import HEAD
+
+    def sweep(name, values):
+        path = tmp_path / f"{name}.toml"
+        path.write_text(HEAD + f'[sweep]\nmethod = "grid"\n[sweep.axes]\nl1 = {values}\n')
+        return str(path)
+    folder = str(tmp_path / "store")
+    assert main(["batch", sweep("typo", "[0.0]"), "-o", folder, "--no-progress", "--workers", "1"]) == 1
+    assert read(folder)["status"].tolist() == ["invalid"]
+    capsys.readouterr()
+    assert main(["batch", sweep("fixed", "[0.5, 0.0]"), "-o", folder, "--no-progress", "--workers", "1"]) == 1
+    assert "held only invalid scenes of sweep arm, which this one replaced" in capsys.readouterr().out
+    assert read(folder)["status"].tolist() == ["ok", "invalid"]
+    assert main(["batch", sweep("other", "[0.7]"), "-o", folder, "--no-progress", "--workers", "1"]) == 2
+    assert "holds the results of another sweep" in capsys.readouterr().err
+    assert read(folder)["status"].tolist() == ["ok", "invalid"]

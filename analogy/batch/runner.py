@@ -52,6 +52,8 @@ class SweepRun:
         Seconds of this run.
     interrupted : bool
         Stopped by SIGINT or SIGTERM before the end.
+    replaced : str or None
+        The sweep whose store this run took over, because it held invalid scenes only.
     """
 
     directory: str
@@ -61,6 +63,7 @@ class SweepRun:
     statuses: dict = field(default_factory=dict)
     wall_time: float = 0.0
     interrupted: bool = False
+    replaced: str | None = None
 
     @property
     def throughput(self) -> float:
@@ -70,9 +73,13 @@ class SweepRun:
     def summary(self) -> str:
         """One line: what was solved, how fast, and the statuses."""
         counts = ", ".join(f"{v} {k}" for k, v in sorted(self.statuses.items())) or "none new"
-        head = "interrupted after" if self.interrupted else "solved"
-        return (f"{head} {self.solved} of {self.total} scenes in {self.wall_time:.1f} s "
-                f"({self.throughput:,.0f} scenes/s; {self.skipped} already stored): {counts}")
+        took = (f" (the folder held only invalid scenes of sweep {self.replaced}, which this one replaced)"
+                if self.replaced else "")
+        rate = f"{self.throughput:,.0f} scenes/s; {self.skipped} already stored"
+        if self.interrupted:        # counted as the progress lines count: every stored scene
+            return (f"interrupted with {self.skipped + self.solved:,} of {self.total:,} scenes stored, "
+                    f"{self.solved:,} by this run in {self.wall_time:.1f} s ({rate}): {counts}{took}")
+        return f"solved {self.solved} of {self.total} scenes in {self.wall_time:.1f} s ({rate}): {counts}{took}"
 
     def __repr__(self) -> str:
         return f"<SweepRun {self.summary()}>"
@@ -297,7 +304,7 @@ def run_sweep(sweep: Sweep, directory, *, workers: int = 2, executor: Executor |
     done = np.zeros(sweep.size, dtype=bool)
     stored = store.stored_indices()
     done[stored[(stored >= 0) & (stored < sweep.size)]] = True
-    result = SweepRun(str(directory), sweep.size, int(done.sum()))
+    result = SweepRun(str(directory), sweep.size, int(done.sum()), replaced=store.replaced)
     bar = Progress(sweep.size, initial=result.skipped, bar=progress, stream=log or sys.stderr)
     own = executor is None
     pool = worker_pool(workers) if own else executor

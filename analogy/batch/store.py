@@ -92,6 +92,17 @@ def _read_part(path: Path, columns=None):
     return table
 
 
+def _computed(directory: Path) -> bool:
+    """Whether the store holds a scene that was computed: any status but ``invalid``."""
+    statuses = [_read_part(p, ["status"]).column("status") for p in _parts(directory)]
+    for p in sorted((directory / _PENDING).glob("g*[0-9].arrow")):
+        try:
+            statuses.append(_read_ipc(_own_file(p)).column("status"))
+        except (OSError, ValueError, KeyError) as exc:
+            raise _damaged(p, exc) from None
+    return any(v != "invalid" for column in statuses for v in column.to_pylist())
+
+
 def _write(path: Path, write) -> None:
     """:func:`_atomic`, with a failed write (full disk, read-only folder) said in one sentence."""
     try:
@@ -174,13 +185,21 @@ class ResultStore:
         except OSError as exc:
             raise InputError(f"cannot create {self.directory}: {exc.strerror or exc}") from None
         self._lock = _writer_lock(self.directory)
+        #: The sweep whose store this one replaced: it held invalid scenes only.
+        self.replaced: str | None = None
         path = self.directory / _MANIFEST
         if path.exists() or path.is_symlink():
             old = _read_manifest(path)
             if old.get("key") != self.manifest["key"]:
-                raise InputError(f"{self.directory} holds the results of another sweep "
-                                 f"({old.get('scene', '?')}, key {str(old.get('key'))[:12]}): "
-                                 "use another folder, or the same sweep to resume it")
+                if not _computed(self.directory):
+                    # every stored scene was invalid, so nothing computed is lost: the corrected sweep takes it
+                    self._clear()
+                    self.replaced = str(old.get("scene", "?"))
+                    _write(path, lambda p: p.write_text(json.dumps(self.manifest, indent=1, default=str)))
+                else:
+                    raise InputError(f"{self.directory} holds the results of another sweep "
+                                     f"({old.get('scene', '?')}, key {str(old.get('key'))[:12]}): "
+                                     "use another folder, or the same sweep to resume it")
         else:
             stray = [p for p in self.directory.glob("part-*.parquet")]
             if stray:
@@ -193,6 +212,16 @@ class ResultStore:
         # the next part's number follows the highest, so a copied-in or removed part is never overwritten
         self._next = 1 + max((int(n[5:11]) for n in names if n[5:11].isdigit()), default=-1)
         self._pending_rows = 0
+
+    def _clear(self) -> None:
+        """Remove every part, pending group and trajectory (under the writer lock)."""
+        for folder, pattern in ((self.directory, "part-*.parquet"), (self.directory / _PENDING, "g*.arrow"),
+                                (self.directory / _TRAJECTORIES, "part-*.parquet")):
+            for p in folder.glob(pattern):
+                try:
+                    p.unlink()
+                except OSError as exc:
+                    raise StoreError(f"cannot remove {p}: {exc.strerror or exc}") from None
 
     def close(self) -> None:
         """Let another writer have the folder (the lock also ends with the process, however it ends)."""
