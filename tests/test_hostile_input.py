@@ -165,7 +165,12 @@ def test_numeric_warnings_on_success_become_one_sentence(capsys, monkeypatch):
 @pytest.mark.parametrize("argv, said", [
     (["throughput", "-n", "1000000000"], "throughput runs at most 1,000,000 scenes"),
     (["ac", "--f-start", "1e-300", "--f-stop", "1e300"], "more than 200,000 frequencies"),
-    (["compare", "--param", "g=1e308", "--dynamics", "nonlinear", "--preset", "fast"], "are not finite at the start"),
+    (["compare", "--param", "g=1e308", "--dynamics", "nonlinear", "--preset", "fast"],
+     "--param: the gravity and velocity terms h(x, v) are not finite at the start"),
+    # a negative damper feeds energy in without bound: refused as it is for the linear circuit
+    (["compare", "--param", "b1=-5", "--dynamics", "nonlinear", "--t-stop", "100"],
+     "--param: damping matrix B is not positive semidefinite"),
+    (["compare", "--robot", "serial500"], "500 nodes) would need about 2.5e+12 operations"),
 ])
 def test_options_that_ask_too_much_get_one_sentence(argv, said, capsys):
     assert finishes(lambda: main(argv)) in (1, 2)

@@ -7,7 +7,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from ..model.provenance import Provenance
-from ..errors import InputError
+from ..errors import InputError, concerning
 from ..presets import DEFAULT_T_STOP
 from ..model.dynamics import DynamicsKind, MechanicalFunctions
 from ..model.joint import check_square_symmetric, check_vector
@@ -66,17 +66,21 @@ class NonlinearNodeSystem(NodeCoordinates):
             raise InputError(f"forces must have {n} entries (one per joint), got {len(self.forces)}")
         self.initial_rates = check_vector("initial rates r0", initial_rates, n)
         self.provenance = Provenance.of(info)
+        # as for the linear circuit: a negative damper feeds energy in without bound
+        with concerning("damping"):
+            check_square_symmetric("damping matrix B", functions.damping, n=n, semidefinite=True)
         self.damping = topology.node_matrix(functions.damping)
         self.stiffness = None if functions.stiffness is None or not np.any(functions.stiffness) \
             else topology.node_matrix(functions.stiffness)
         self.current_map = topology.current_map
         self.initial_voltages = topology.matrix @ self.initial_rates       # v(0) = T·R(0)
-        check_square_symmetric("node mass matrix M'(0)", self.node_mass(np.zeros(n)), definite=True)
+        with concerning("mass"):
+            check_square_symmetric("node mass matrix M'(0)", self.node_mass(np.zeros(n)), definite=True)
         with np.errstate(all="ignore"):         # past the float range is said below, once
             load = self.node_load(np.zeros(n), self.initial_voltages, 0.0)
         if not np.all(np.isfinite(load)):
             raise InputError("the gravity and velocity terms h(x, v) are not finite at the start (a parameter "
-                             "such as g past the floating-point range?)")
+                             "such as g past the floating-point range?)", field="gravity")
         force_breakpoints(self.forces, self.t_stop)
 
     def __repr__(self) -> str:

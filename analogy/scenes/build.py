@@ -332,14 +332,15 @@ def scene_system(scene: SceneData, model=None) -> object:
         params = scene.parameter_values if scene.model.robot is not None else None
         if scene.equilibrium and q is not None:
             q = [float(x) for x in static_equilibrium(m, q, params)]
-        if scene.dynamics == "nonlinear":
-            with keyed(keys["dynamics"]):
+        try:
+            if scene.dynamics == "nonlinear":
                 return nonlinear_system(m, q or [0.0] * n, parameters=params, topology=top,
                                         t_stop=scene.t_stop, info=info, **inputs)
-        try:
             return node_system(m, q, parameters=params, topology=top, t_stop=scene.t_stop, info=info,
                                **inputs)
         except InputError as exc:
+            if exc.field is None and scene.dynamics == "nonlinear":
+                exc.field = "dynamics"      # what the nonlinear build alone refuses
             raise InputError(f"{_blamed(exc, scene, keys)}: {exc}", field=exc.field) from None
 
 
