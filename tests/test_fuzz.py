@@ -36,7 +36,7 @@ from analogy.waveforms import parse_waveform
 DEEP = os.environ.get("ANALOGY_FUZZ") == "deep"
 #: Cases per target: about 2,000 in all by default, 10,000 each in the deep profile.
 CASES = {"expressions": 500, "matrices": 300, "waveforms": 400, "scenes": 250, "cli": 250, "netlist_text": 300,
-         "units": 400, "sweeps": 200, "store": 60}
+         "units": 400, "sweeps": 200, "store": 60, "options": 300}
 if DEEP:
     CASES = dict.fromkeys(CASES, 10_000)
 COUNTS: Counter = Counter()
@@ -456,3 +456,71 @@ def test_a_corrupted_store_reads_or_says_what_is_damaged(small_store, target, fl
             refused("store", exc)
         else:
             assert len(frame) <= 20 and frame["index"].is_unique
+
+
+class _Reached(BaseException):
+    """Raised where a command's work would start: its options were all accepted."""
+
+
+#: Where each command's work starts, wrapped to check what it is given and then stop.
+_WORK = {"stress": ("analogy.stress.report", "cases"), "bench": ("analogy.bench", "bench_scenes"),
+         "memory": ("analogy.memory", "scene"), "throughput": ("analogy.throughput", "scene")}
+option_value = st.one_of(number_text, hostile_text, st.integers(-3, 5).map(str), st.sampled_from(
+    ["abc", "xyz", "a", "spice", "ode", "exact", "reference", "odd", "default", "serial2", "flex2", "fast", "bogus"]))
+_OPTIONS = {
+    "stress": ["--families", "--timeout", "--quick", "-o"], "bench": ["--repeats", "--quick", "--full"],
+    "memory": ["--runs", "--solver", "--preset", "--scene"],
+    "throughput": ["-n", "--workers", "--group-size", "--baseline", "--repeats", "--preset"],
+}
+_FLAGS = {"--quick", "--full"}
+
+
+@st.composite
+def command_options(draw):
+    command = draw(st.sampled_from(sorted(_OPTIONS)))
+    args = [command]
+    for flag in draw(st.lists(st.sampled_from(_OPTIONS[command]), max_size=4)):
+        args += [flag] if flag in _FLAGS else [flag, draw(option_value) if flag != "-o" else
+                                               draw(st.sampled_from(["out", "a-file", "sub/dir"]))]
+    return args
+
+
+@given(args=command_options())
+@profile("options")
+def test_the_options_of_stress_bench_memory_and_throughput_reach_their_work_or_one_sentence(monkeypatch_module,
+                                                                                             options_folder, args):
+    """Each is refused with one line and exit 2, or reaches the point where the command's work starts
+    (stopped there, so a case costs milliseconds), with its checked values in range."""
+    import importlib
+    module, name = _WORK[args[0]]
+    real = getattr(importlib.import_module(module), name)
+
+    def reached(*a, **k):
+        real(*a, **k) if args[0] == "memory" else None        # memory's scene name is checked by its lookup
+        raise _Reached
+    with case("options"), monkeypatch_module.context() as mp:
+        mp.setattr(importlib.import_module(module), name, reached)
+        mp.chdir(options_folder)
+        out, err = io.StringIO(), io.StringIO()
+        try:
+            with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+                code = finishes(lambda: main(args), 5.0)
+        except _Reached:
+            assert not err.getvalue().strip(), err.getvalue()
+            return
+        lines = err.getvalue().splitlines()
+        assert code == 2 and len(lines) == 1 and lines[0].startswith("analogy: error: "), (code, lines)
+        REFUSED["options"] += 1
+
+
+@pytest.fixture(scope="module")
+def options_folder(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("options")
+    (folder / "a-file").write_text("")
+    return folder
+
+
+@pytest.fixture(scope="module")
+def monkeypatch_module():
+    with pytest.MonkeyPatch.context() as mp:
+        yield mp

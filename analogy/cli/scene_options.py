@@ -19,6 +19,7 @@ from ..scenes.build import LABELS, scene_model
 from ..scenes.builtin import SCENES, scene
 from ..scenes.scene import Scene
 from ..scenes.spec import ModelSpec
+from ..model.urdf import read_urdf
 
 __all__ = ["CLI_KEYS", "PRESET_HELP", "scene_from_args", "scene_options"]
 
@@ -27,7 +28,8 @@ __all__ = ["CLI_KEYS", "PRESET_HELP", "scene_from_args", "scene_options"]
 CLI_KEYS = {"robot": "--robot", "mass": "--mass", "damping": "--damping", "stiffness": "--stiffness",
             "gravity": "--gravity", "q": "--q", "topology": "--topology", "forces": "--force",
             "initial_rates": "--r0", "t_stop": "--t-stop", "parameters": "--param", "model": "--mass",
-            "inputs": "--force", "dynamics": "--dynamics", "link_modes": "--link-modes", "numbered": False}
+            "inputs": "--force", "dynamics": "--dynamics", "link_modes": "--link-modes", "urdf": "--urdf",
+            "joints": "--joints", "numbered": False}
 LABELS["command line"] = CLI_KEYS
 
 
@@ -50,6 +52,10 @@ def scene_options(p: argparse.ArgumentParser, preset: str = "accurate") -> None:
     g.add_argument("--scene", default="default", help="built-in scene to start from (see 'analogy scenes')")
     g.add_argument("--robot", help=f"built-in robot: {', '.join(ROBOT_NAMES)}, serial<N> (a planar "
                                    f"N-joint arm, e.g. serial4, N up to {MAX_SERIAL}) or random<N>")
+    g.add_argument("--urdf", metavar="FILE", help="a robot from its URDF file (revolute, continuous, prismatic "
+                   "and fixed joints; gravity along -z, --param g=0 turns it off)")
+    g.add_argument("--joints", metavar="NAMES", help="with --urdf: the movable joints kept, e.g. "
+                   "'shoulder_pan_joint,elbow_joint'; the others are frozen at 0")
     g.add_argument("--mass", metavar="MATRIX", help="mass matrix, e.g. '[[m1, m3], [m3, m2]]'; "
                    "may use --param names and q1..qn")
     g.add_argument("--damping", metavar="VECTOR|MATRIX", help="damping: diagonal '[b1, b2]' or a matrix")
@@ -135,6 +141,16 @@ def scene_from_args(args) -> Scene:
         n = len(mass)
         changes.update(model=spec, parameters=params, q=(0.0,) * n, initial_rates=None, topology=None,
                        forces=(1.0,) * n)
+    elif args.urdf is not None:
+        if args.robot is not None:
+            raise InputError("--robot and --urdf both name the robot: give one")
+        names = None if args.joints is None else tuple(n.strip() for n in args.joints.split(",") if n.strip())
+        spec = ModelSpec(urdf=_option("--urdf", read_urdf, args.urdf), joints=names or None)
+        model = scene_model(Scene.of("urdf", spec, parameters=params, source="command line"))
+        changes.update(model=spec, q=(0.0,) * model.dof, parameters=params, forces=(1.0,) * model.dof,
+                       initial_rates=None, topology=None)
+    elif args.joints is not None:
+        raise InputError("--joints selects the joints of a --urdf robot")
     elif args.damping or args.stiffness or args.gravity:
         raise InputError("--damping, --stiffness and --gravity need --mass (built-in robots have their own; "
                          "the serial arms take --param g=9.81)")

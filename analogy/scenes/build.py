@@ -28,7 +28,8 @@ TOML_KEYS = {"robot": "[model] robot", "mass": "[model] mass", "damping": "[mode
              "topology": "[configuration] topology", "forces": "[inputs] forces",
              "initial_rates": "[inputs] initial_rates", "t_stop": "[inputs] t_stop",
              "parameters": "[parameters]", "model": "[model]", "inputs": "[inputs]",
-             "dynamics": "dynamics", "link_modes": "[model] link_modes"}
+             "dynamics": "dynamics", "link_modes": "[model] link_modes", "urdf": "[model] urdf",
+             "joints": "[model] joints"}
 
 #: How errors name each part of a scene, by the scene's source: a front end adds its own
 #: (the command line registers its flags); any other source gets the scene-file keys.
@@ -190,6 +191,8 @@ def scene_model(scene: SceneData) -> object:
     spec, keys = scene.model, _keys(scene)
     params = scene.parameter_values
     with _where(scene):
+        if spec.urdf is not None:
+            return _urdf(spec, params, scene.dynamics, keys)
         if spec.robot is not None:
             for label in ("mass", "damping", "stiffness", "gravity"):
                 if getattr(spec, label) is not None:
@@ -232,6 +235,21 @@ def scene_model(scene: SceneData) -> object:
         if model is None:
             model = _MODELS[cache] = _symbolic(parts, params, keys)
         return model
+
+
+def _urdf(spec: ModelSpec, params: Mapping[str, float], dynamics: str, keys: dict):
+    """A URDF robot's model (parsed once per process), at the scene's g."""
+    from ..model.urdf import STANDARD_GRAVITY, urdf_model
+    if dynamics == "nonlinear":
+        raise InputError(f"{keys['dynamics']}: a URDF robot's nonlinear dynamics are not built yet: use its "
+                         "linear circuit at a pose")
+    for label in ("mass", "damping", "stiffness", "gravity"):
+        if getattr(spec, label) is not None:
+            raise InputError(f"{keys[label]}: a URDF robot has its own")
+    if unknown := [k for k in params if k != "g"]:
+        raise InputError(f"{keys['parameters']} {unknown[0]}: a URDF robot has no such parameter (it has: g)")
+    with keyed(keys.get("urdf", keys["robot"])):
+        return urdf_model(spec.urdf, spec.joints, None, float(params.get("g", STANDARD_GRAVITY)))
 
 
 def symbolic_model(scene: SceneData) -> object:

@@ -250,8 +250,9 @@ def _canonical(value):
         return f"s:{value}"
     if isinstance(value, tuple):
         return [_canonical(v) for v in value]
-    if isinstance(value, ModelSpec):
-        return {f.name: _canonical(getattr(value, f.name)) for f in fields(value)}
+    if isinstance(value, ModelSpec):      # the URDF fields only when set: other scenes keep their keys
+        return {f.name: _canonical(getattr(value, f.name)) for f in fields(value)
+                if f.name not in ("urdf", "joints") or getattr(value, f.name) is not None}
     return repr(value)
 
 

@@ -40,6 +40,10 @@ class ModelSpec:
         Random robots only: the seed of their mass matrix.
     link_modes : str or None
         Flexible arms only: ``"clamped-free"`` (the default) or ``"clamped-mass"`` mode shapes.
+    urdf : str or None
+        A URDF robot: the file's text (its content, not its path, is part of the scene).
+    joints : tuple of str or None
+        A URDF robot's movable joints kept (None: all); the others are frozen at 0.
     """
 
     robot: str | None = None
@@ -49,6 +53,8 @@ class ModelSpec:
     gravity: tuple | None = None
     seed: int = 0
     link_modes: str | None = None
+    urdf: str | None = None
+    joints: tuple | None = None
 
     @classmethod
     def of(cls, robot: str | None = None, **parts) -> "ModelSpec":
@@ -66,7 +72,7 @@ class ModelSpec:
     @property
     def label(self) -> str:
         """The robot's name, or ``custom``."""
-        return self.robot or "custom"
+        return self.robot or ("urdf" if self.urdf is not None else "custom")
 
 
 class SceneData(Protocol):

@@ -1,0 +1,182 @@
+"""URDF robots: M(q), G(q), c(q, q̇) and ∂G/∂q from the kinematic tree, against Pinocchio, and their circuits."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from analogy import InputError
+from analogy.cli import main
+from analogy.model.urdf import UrdfModel
+
+BENCH = Path(__file__).parent / "urdf" / "bench.urdf"
+
+#: The two sum the same products in other orders: each entry is a sum of about n² terms no
+#: larger than the quantity's peak over the poses, so they agree to about n²·ε of that peak
+#: (2e-14 for n = 10); 1e-12 of the peak is the promise.
+AGREEMENT = 1e-12
+
+
+def random_tree_urdf(seed: int, movable: int = 6) -> str:
+    """A random kinematic tree: branches, revolute, continuous and prismatic joints on unnormalised
+    axes, fixed joints carrying links, rotated joint and inertial frames, and massless links."""
+    rng = np.random.default_rng(seed)
+    links = ['<link name="base"/>']
+    joints = []
+    names = ["base"]
+
+    def inertial():
+        a = rng.normal(size=(3, 3))
+        moments = np.sort(rng.uniform(0.01, 0.1, 3))
+        moments[2] = min(moments[2], moments[0] + moments[1])
+        xyz, rpy = rng.uniform(-0.2, 0.2, 3), rng.uniform(-np.pi, np.pi, 3)
+        del a
+        return (f'<inertial><origin xyz="{xyz[0]} {xyz[1]} {xyz[2]}" rpy="{rpy[0]} {rpy[1]} {rpy[2]}"/>'
+                f'<mass value="{rng.uniform(0.2, 3.0)}"/><inertia ixx="{moments[0]}" ixy="0" ixz="0" '
+                f'iyy="{moments[1]}" iyz="0" izz="{moments[2]}"/></inertial>')
+
+    def joint(name, kind, parent, child):
+        xyz, rpy, axis = rng.uniform(-0.4, 0.4, 3), rng.uniform(-np.pi, np.pi, 3), rng.normal(size=3)
+        return (f'<joint name="{name}" type="{kind}"><parent link="{parent}"/><child link="{child}"/>'
+                f'<origin xyz="{xyz[0]} {xyz[1]} {xyz[2]}" rpy="{rpy[0]} {rpy[1]} {rpy[2]}"/>'
+                f'<axis xyz="{axis[0]} {axis[1]} {axis[2]}"/>'
+                f'<limit lower="-3" upper="3" effort="1" velocity="1"/></joint>')
+    for k in range(movable):
+        parent = names[rng.integers(len(names))]
+        kind = rng.choice(["revolute", "continuous", "prismatic"])
+        links.append(f'<link name="l{k}">{inertial()}</link>')
+        joints.append(joint(f"j{k}", kind, parent, f"l{k}"))
+        names.append(f"l{k}")
+        if rng.random() < 0.4:          # a part on a fixed joint, with or without mass
+            links.append(f'<link name="f{k}">{inertial() if rng.random() < 0.7 else ""}</link>')
+            joints.append(joint(f"fixed{k}", "fixed", f"l{k}", f"f{k}"))
+            names.append(f"f{k}")
+    return f'<robot name="tree{seed}">' + "".join(links + joints) + "</robot>"
+
+
+def _pinocchio_differences(path: Path, poses: int = 100, seed: int = 0) -> dict:
+    pin = pytest.importorskip("pinocchio")
+    ours = UrdfModel(path.read_text())
+    pm = pin.buildModelFromUrdf(str(path))
+    pd = pm.createData()
+    pm.gravity.linear = np.array([0.0, 0.0, -ours.parameters["g"]])
+    rng = np.random.default_rng(seed)
+    diff: dict = {k: 0.0 for k in ("M", "G", "c", "dG/dq")}
+    peak = dict(diff)
+    tree = ours.tree
+    for _ in range(poses):
+        q, qd = rng.uniform(-np.pi, np.pi, ours.dof), rng.normal(size=ours.dof)
+        qp = pin.integrate(pm, pin.neutral(pm), q)      # continuous joints are (cos, sin) in Pinocchio
+        m = pin.crba(pm, pd, qp)
+        m = np.triu(m) + np.triu(m, 1).T
+        g = pin.computeGeneralizedGravity(pm, pd, qp).copy()
+        c = pin.rnea(pm, pd, qp, qd, np.zeros(ours.dof)) - g
+        dg = pin.computeGeneralizedGravityDerivatives(pm, pd, qp)
+        for key, mine, theirs in (("M", tree.mass_matrix(q), m), ("G", tree.gravity_load(q), g),
+                                  ("c", tree.velocity_load(q, qd), c), ("dG/dq", tree.gravity_stiffness(q), dg)):
+            diff[key] = max(diff[key], float(np.abs(mine - theirs).max()))
+            peak[key] = max(peak[key], float(np.abs(theirs).max()))
+    return {k: diff[k] / peak[k] for k in diff}
+
+
+def test_the_bench_urdf_matches_pinocchio_at_100_poses():
+    """A prismatic joint, a continuous one, a fixed joint and a rotated inertial frame."""
+    rel = _pinocchio_differences(BENCH)
+    assert max(rel.values()) <= AGREEMENT, rel
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_random_trees_match_pinocchio(tmp_path, seed):
+    path = tmp_path / "tree.urdf"
+    path.write_text(random_tree_urdf(seed))
+    rel = _pinocchio_differences(path, poses=20, seed=seed)
+    assert max(rel.values()) <= AGREEMENT, rel
+
+
+def test_the_mass_matrix_is_symmetric_positive_definite_and_gravity_stiffness_symmetric():
+    m = UrdfModel(BENCH.read_text())
+    for q in np.random.default_rng(1).uniform(-3, 3, (20, 3)):
+        mq = m.tree.mass_matrix(q)
+        assert np.array_equal(mq, mq.T) and np.linalg.eigvalsh(mq).min() > 0
+        k = m.tree.gravity_stiffness(q)
+        assert np.array_equal(k, k.T)
+
+
+def test_the_slide_along_x_feels_no_gravity_and_its_damper_is_a_resistor():
+    """The slide is horizontal: G and ∂G/∂q vanish on its row; <dynamics damping> is B's diagonal."""
+    m = UrdfModel(BENCH.read_text())
+    j = m.joint_space([0.3, 0.5, -0.3])
+    weight = 9.80665 * (4.0 + 1.5 + 0.5 + 0.8)         # its terms are this large: zero to rounding of them
+    assert abs(j.gravity[0]) <= 10 * np.finfo(float).eps * weight
+    assert np.abs(j.stiffness[0]).max() <= 10 * np.finfo(float).eps * weight
+    np.testing.assert_array_equal(np.diag(j.damping), [2.0, 0.05, 0.0])
+    assert m.units == ("m", "rad", "rad")
+
+
+def test_a_urdf_scene_key_follows_the_file_content_not_its_path(tmp_path, capsys):
+    from analogy.cli.parser import build_parser
+    from analogy.cli.scene_options import scene_from_args
+    a, b = tmp_path / "a.urdf", tmp_path / "sub" / "b.urdf"
+    b.parent.mkdir()
+    a.write_text(BENCH.read_text())
+    b.write_text(BENCH.read_text())
+
+    def key(path):
+        return scene_from_args(build_parser().parse_args(["compare", "--urdf", str(path)])).key
+    assert key(a) == key(b)
+    b.write_text(BENCH.read_text().replace('value="4.0"', 'value="4.5"'))
+    assert key(a) != key(b)
+
+
+@pytest.mark.ngspice
+def test_the_bench_circuit_keeps_the_accurate_bound_on_every_joint(capsys):
+    assert main(["compare", "--urdf", str(BENCH), "--q", "0.1, 0.5, -0.3", "--t-stop", "2", "--no-plot"]) == 0
+    out = capsys.readouterr().out
+    assert "robot bench" in out
+
+
+@pytest.mark.ngspice
+def test_the_written_netlist_runs_in_plain_ngspice(tmp_path):
+    cir = tmp_path / "bench.cir"
+    assert main(["netlist", "--urdf", str(BENCH), "--q", "0.1, 0.5, -0.3", "--t-stop", "1", "-o", str(cir)]) == 0
+    run = subprocess.run(["ngspice", "-b", str(cir)], capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0 and "Timestep too small" not in run.stdout + run.stderr
+
+
+_GOOD = BENCH.read_text()
+
+
+@pytest.mark.parametrize("text, said", [
+    (None, "no URDF file"),
+    ("<robot name='x'><link name='a'>", "not a readable URDF"),
+    (_GOOD.replace('value="4.0"', 'value="-4.0"'), "link carriage: mass -4 is negative"),
+    (_GOOD.replace('ixx="0.02"', 'ixx="-0.02"'), "link carriage: its inertia is not positive semidefinite"),
+    (_GOOD.replace('izz="0.04"', 'izz="0.09"'), "break the triangle inequality"),
+    (_GOOD.replace('<axis xyz="0 0 1"/>', '<axis xyz="0 0 0"/>'), "joint turn has no axis"),
+    (_GOOD.replace('type="continuous"', 'type="floating"'), "joint turn is floating"),
+    (_GOOD.replace('<dynamics damping="0.05"/>', '<mimic joint="slide"/>'), "joint turn mimics slide"),
+    (_GOOD.replace('<link name="floor"/>', '<link name="floor"/><link name="stray"/>'), "2 root links"),
+    (_GOOD.replace('damping="2.0"', 'damping="-2.0"'), "joint slide: damping -2 is negative"),
+])
+def test_bad_urdf_input_is_one_sentence_and_exit_2(tmp_path, capsys, text, said):
+    path = tmp_path / "robot.urdf"
+    if text is not None:
+        path.write_text(text)
+    assert main(["netlist", "--urdf", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert said in err and err.count("\n") == 1 and err.startswith("analogy: error: --urdf: "), err
+
+
+def test_a_selection_freezes_the_other_joints(capsys):
+    """Keeping the turntable and the arm, the slide frozen at 0: the same M as the full tree's
+    lower-right block, since the slide's coordinate does not enter M."""
+    full = UrdfModel(_GOOD)
+    kept = UrdfModel(_GOOD, ["turn", "tilt"])
+    q = [0.0, 0.5, -0.3]
+    np.testing.assert_array_equal(kept.tree.mass_matrix(q[1:]), full.tree.mass_matrix(q)[1:, 1:])
+    with pytest.raises(InputError, match="no movable joint 'mount'"):
+        UrdfModel(_GOOD, ["mount"])
