@@ -180,3 +180,17 @@ def test_a_selection_freezes_the_other_joints(capsys):
     np.testing.assert_array_equal(kept.tree.mass_matrix(q[1:]), full.tree.mass_matrix(q)[1:, 1:])
     with pytest.raises(InputError, match="no movable joint 'mount'"):
         UrdfModel(_GOOD, ["mount"])
+
+
+def test_a_scene_file_names_its_urdf_relative_to_itself(tmp_path):
+    from analogy.scenes.toml import load_scene
+    (tmp_path / "arms").mkdir()
+    (tmp_path / "arms" / "bench.urdf").write_text(_GOOD)
+    scene_file = tmp_path / "bench.toml"
+    scene_file.write_text('name = "bench"\n[model]\nurdf = "arms/bench.urdf"\njoints = ["turn", "tilt"]\n'
+                          '[configuration]\nq = [0.5, -0.3]\n[inputs]\nforces = [1, 0.5]\nt_stop = 2\n')
+    sc = load_scene(scene_file)
+    assert sc.model.urdf == _GOOD and sc.model.joints == ("turn", "tilt") and sc.system().dof == 2
+    scene_file.write_text(scene_file.read_text().replace("arms/bench.urdf", "../bench.urdf"))
+    with pytest.raises(InputError, match=r"\[model\] urdf: '../bench.urdf' must be a relative path"):
+        load_scene(scene_file)

@@ -59,7 +59,7 @@ from ..model.quantities import COORDINATE, RATE
 from ..presets import preset as get_preset
 from ..results.output import check_plot_path
 from ..solvers.registry import SOLVER_NAMES
-from .paths import check_relative_name
+from .paths import check_relative_name, inside_folder
 from .scene import OUTPUTS, Scene
 from .spec import ModelSpec, freeze
 from .validate import validated
@@ -67,7 +67,7 @@ from .validate import validated
 __all__ = ["load_scene", "parse_scene", "parse_toml", "read_text", "scene_from_table", "toml_table", "validated"]
 
 _TABLES = {
-    "model": ("robot", "mass", "damping", "stiffness", "gravity", "link_modes"),
+    "model": ("robot", "mass", "damping", "stiffness", "gravity", "link_modes", "urdf", "joints"),
     "parameters": None,         # free names
     "configuration": ("q", "topology", "equilibrium"),
     "inputs": ("forces", "initial_rates", "t_stop"),
@@ -303,6 +303,22 @@ def scene_from_table(data: dict, source="scene.toml") -> Scene:
                     preset=solvers["preset"], errors=solvers["errors"], step=solvers["step"], **fields)
 
 
+def _urdf_spec(ctx: _Context, model: dict) -> ModelSpec:
+    """A URDF robot: the file relative to the scene file's folder, under the output paths' rules."""
+    from ..model.urdf import read_urdf
+    name, joints = model["urdf"], model.get("joints")
+    if not isinstance(name, str):
+        raise ctx.error("[model] urdf", f"expected a file name, got {_kind(name)}")
+    for key in ("mass", "damping", "stiffness", "gravity"):
+        if key in model:
+            raise ctx.error(f"[model] {key}", "a URDF robot has its own")
+    if joints is not None and not (isinstance(joints, list) and joints and all(isinstance(j, str) for j in joints)):
+        raise ctx.error("[model] joints", "expected a list of joint names")
+    with ctx.key("[model] urdf"):
+        text = read_urdf(inside_folder(Path(str(ctx.source)).parent, name))
+    return ModelSpec(urdf=text, joints=None if joints is None else tuple(joints))
+
+
 def _model_fields(ctx: _Context, data: dict) -> dict:
     """The model, configuration and inputs as Scene fields (values checked for their type only)."""
     model = ctx.table(data, "model")
@@ -333,6 +349,8 @@ def _model_fields(ctx: _Context, data: dict) -> dict:
         out["model"] = ModelSpec(robot=model["robot"], link_modes=link_modes)
     elif "link_modes" in model:
         raise ctx.error("[model] link_modes", "applies to the flexible arms: give robot = \"flex2\"")
+    elif "urdf" in model:
+        out["model"] = _urdf_spec(ctx, model)
     elif "mass" in model:
         parts = {}
         for key in ("mass", "damping", "stiffness", "gravity"):
@@ -341,7 +359,10 @@ def _model_fields(ctx: _Context, data: dict) -> dict:
                     parts[key] = _entries(model[key], key)
         out["model"] = ModelSpec.of(None, **parts)
     else:
-        raise ctx.error("[model]", "give robot = \"serial2\" (a built-in robot) or mass = [[...]]")
+        raise ctx.error("[model]", "give robot = \"serial2\" (a built-in robot), urdf = \"arm.urdf\" or "
+                                   "mass = [[...]]")
+    if "joints" in model and "urdf" not in model:
+        raise ctx.error("[model] joints", "selects the joints of a urdf robot")
     if "q" in config:
         with ctx.key("[configuration] q"):
             out["q"] = tuple(_numbers(config["q"], dimension=COORDINATE))
