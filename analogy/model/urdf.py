@@ -4,9 +4,12 @@ from __future__ import annotations
 
 import hashlib
 import io
+import logging
+import warnings
 from functools import lru_cache
 from pathlib import Path
 from typing import Mapping, Sequence
+from xml.etree import ElementTree
 
 import numpy as np
 
@@ -41,21 +44,78 @@ def read_urdf(path) -> str:
         raise InputError(f"cannot read {p}: {getattr(exc, 'strerror', None) or exc}", field="robot") from None
 
 
+def _triple(text: str | None, what: str, default=(0.0, 0.0, 0.0)) -> tuple:
+    if text is None:
+        return default
+    parts = text.split()
+    try:
+        values = tuple(float(x) for x in parts)
+    except ValueError:
+        raise InputError(f"{what} is not three numbers: {text!r}", field="robot") from None
+    if len(values) != 3 or not all(np.isfinite(values)):
+        raise InputError(f"{what} must be three finite numbers, got {text!r}", field="robot")
+    return values
+
+
+def _check_document(root) -> None:
+    """What the recovering parser would let through: the structure, names and numbers of the XML."""
+    if root.tag != "robot" or not root.get("name"):
+        raise InputError("not a URDF: its root element must be <robot name=\"...\">", field="robot")
+    for kind in ("link", "joint"):
+        seen: set = set()
+        for e in root.findall(kind):
+            name = e.get("name")
+            if not name:
+                raise InputError(f"a <{kind}> has no name", field="robot")
+            if name in seen:
+                raise InputError(f"two {kind}s are named {name!r}", field="robot")
+            seen.add(name)
+    for link in root.findall("link"):
+        for inertial in link.findall("inertial"):
+            where = f"link {link.get('name')}"
+            mass = inertial.find("mass")
+            if mass is None or mass.get("value") is None:
+                raise InputError(f"{where}: its <inertial> has no <mass value=...>", field="robot")
+            inertia = inertial.find("inertia")
+            missing = [a for a in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+                       if inertia is None or inertia.get(a) is None]
+            if missing:
+                raise InputError(f"{where}: its <inertia> has no {missing[0]} (all six are needed)", field="robot")
+            for a in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz"):
+                _number(inertia.get(a), f"{where}: {a}")
+            _number(mass.get("value"), f"{where}: mass")
+            origin = inertial.find("origin")
+            if origin is not None:
+                _triple(origin.get("xyz"), f"{where}: inertial origin xyz")
+                _triple(origin.get("rpy"), f"{where}: inertial origin rpy")
+    for joint in root.findall("joint"):
+        where = f"joint {joint.get('name')}"
+        for end in ("parent", "child"):
+            e = joint.find(end)
+            if e is None or not e.get("link"):
+                raise InputError(f"{where} has no <{end} link=...>", field="robot")
+        origin = joint.find("origin")
+        if origin is not None:
+            _triple(origin.get("xyz"), f"{where}: origin xyz")
+            _triple(origin.get("rpy"), f"{where}: origin rpy")
+        axis = joint.find("axis")
+        if axis is not None:
+            _triple(axis.get("xyz"), f"{where}: axis", (1.0, 0.0, 0.0))
+
+
 def _parse(text: str):
     # no DTD: entities could expand without bound or read other files into the names
     if "<!DOCTYPE" in text or "<!ENTITY" in text:
         raise InputError("the URDF has a DTD (<!DOCTYPE or <!ENTITY>): URDF files need none", field="robot")
-    from xml.etree import ElementTree
     try:
-        ElementTree.fromstring(text.encode("utf-8"))        # well-formed, before a recovering parser
+        root = ElementTree.fromstring(text.encode("utf-8"))     # well-formed, before a recovering parser
     except ElementTree.ParseError as exc:
         raise InputError(f"not a readable URDF (malformed XML: {exc})", field="robot") from None
+    _check_document(root)
     try:
         import yourdfpy
     except ImportError:
         raise InputError("URDF robots need yourdfpy: pip install yourdfpy", field="robot") from None
-    import warnings
-    import logging
     logging.getLogger("yourdfpy").setLevel(logging.CRITICAL)
     try:
         with warnings.catch_warnings():
@@ -77,8 +137,12 @@ def _number(value, what: str) -> float:
     return x
 
 
-def _inertia(link) -> np.ndarray:
-    """The link's spatial inertia about its own frame (zero for a link without <inertial>)."""
+def _inertia(link, scale: float) -> np.ndarray:
+    """The link's spatial inertia about its own frame (zero for a link without <inertial>).
+
+    *scale* is the largest principal moment of any link: a moment that misses positivity
+    by less than 1e-12 of it is rounding in the file.
+    """
     inertial = link.inertial
     if inertial is None:
         return np.zeros((6, 6))
@@ -87,19 +151,21 @@ def _inertia(link) -> np.ndarray:
     rot = np.asarray(inertial.inertia if inertial.inertia is not None else np.zeros((3, 3)), dtype=float)
     if mass < 0:
         raise InputError(f"link {link.name}: mass {mass:g} is negative", field="robot")
-    if not (np.all(np.isfinite(frame)) and np.all(np.isfinite(rot))):
-        raise InputError(f"link {link.name}: its inertial origin or inertia is not finite", field="robot")
     eig = np.linalg.eigvalsh(0.5 * (rot + rot.T))
-    scale = max(abs(eig).max(initial=0.0), 1e-300)
-    if eig.min(initial=0.0) < -1e-12 * scale:
-        raise InputError(f"link {link.name}: its inertia is not positive semidefinite (eigenvalue "
-                         f"{eig.min():.3g})", field="robot")
-    # principal moments obey the triangle inequality, within rounding of the largest
-    if mass > 0 and eig.size == 3 and eig[0] + eig[1] < eig[2] * (1 - 1e-9):
-        raise InputError(f"link {link.name}: its principal moments {eig[0]:.3g}, {eig[1]:.3g}, {eig[2]:.3g} "
-                         "break the triangle inequality (no body has them)", field="robot")
+    floor = 1e-12 * scale
+    if eig[0] < -floor:
+        raise InputError(f"link {link.name}: its inertia is not positive semidefinite (principal moment "
+                         f"{eig[0]:.3g})", field="robot")
+    # moments that break the triangle inequality (no body has them, but real files carry such
+    # placeholders, as Pinocchio accepts them) are kept: M(q) is checked positive definite
     r = frame[:3, :3]
     return spatial_inertia(mass, frame[:3, 3], r @ rot @ r.T)
+
+
+def _largest_moment(robot) -> float:
+    moments = [np.abs(np.linalg.eigvalsh(0.5 * (i + i.T))).max() for link in robot.links
+               if link.inertial is not None and (i := np.asarray(link.inertial.inertia, dtype=float)).shape == (3, 3)]
+    return max(moments, default=0.0)
 
 
 def _tree(robot, gravity: float, joints: Sequence[str] | None = None, pose: Mapping[str, float] | None = None):
@@ -127,49 +193,63 @@ def _tree(robot, gravity: float, joints: Sequence[str] | None = None, pose: Mapp
     if unknown := [name for name in kept if name not in movable]:
         raise InputError(f"no movable joint {unknown[0]!r} (the URDF's are {', '.join(movable)})", field="robot")
     for j in robot.joints:
+        if j.mimic is not None and j.mimic.joint not in movable:
+            raise InputError(f"joint {j.name} mimics {j.mimic.joint!r}, which is not a movable joint",
+                             field="robot")
         if j.mimic is not None and (j.name in kept or j.mimic.joint in kept):
             raise InputError(f"joint {j.name} mimics {j.mimic.joint}: mimic joints are not modelled; keep "
                              "both out of the joints selected (they are then frozen)", field="robot")
     pose = dict(pose or {})
     parents, kinds, axes, placements, inertias, names, damping = [], [], [], [], [], [], []
 
-    def visit(link_name, body: int, frame: np.ndarray, seen: set):
-        if link_name in seen:
-            raise InputError(f"link {link_name} is reached twice: closed loops are not modelled", field="robot")
-        seen.add(link_name)
-        inertia = _inertia(links[link_name])
-        x = plucker(frame[:3, :3], frame[:3, 3])           # the link's frame from its body's
-        if body >= 0:
-            inertias[body] = inertias[body] + x.T @ inertia @ x
-        for j in children.get(link_name, []):
-            origin = frame @ np.asarray(j.origin if j.origin is not None else np.eye(4), dtype=float)
-            if j.type == "fixed" or j.name not in kept:
-                if j.type != "fixed":       # frozen at its pose: a fixed joint there
-                    origin = origin @ _joint_motion(j, _number(pose.get(j.name, 0.0), f"joint {j.name}: pose"))
-                visit(j.child, body, origin, seen)
-                continue
-            axis = np.asarray(j.axis if j.axis is not None else (1.0, 0.0, 0.0), dtype=float)
-            norm = np.linalg.norm(axis)
-            if not np.isfinite(norm) or norm < 1e-12:
-                raise InputError(f"joint {j.name} has no axis (its axis is zero)", field="robot")
-            parents.append(body)
-            kinds.append(_MOVING[j.type])
-            axes.append(axis / norm)
-            placements.append(plucker(origin[:3, :3], origin[:3, 3]))
-            inertias.append(np.zeros((6, 6)))
-            names.append(j.name)
-            d = getattr(j.dynamics, "damping", None) if j.dynamics is not None else None
-            d = 0.0 if d is None else _number(d, f"joint {j.name}: damping")
-            if d < 0:
-                raise InputError(f"joint {j.name}: damping {d:g} is negative", field="robot")
-            damping.append(d)
-            visit(j.child, len(names) - 1, np.eye(4), seen)
+    scale = _largest_moment(robot)
+    # depth first, each link's joints in name order, numbered when reached: Pinocchio's order
+    stack: list = [("link", roots[0], -1, np.eye(4))]
+    seen: set = set()
+    while stack:
+        item = stack.pop()
+        if item[0] == "link":
+            _, link_name, body, frame = item
+            if link_name in seen:
+                raise InputError(f"link {link_name} is reached twice: closed loops are not modelled", field="robot")
+            seen.add(link_name)
+            if body >= 0:       # a link welded to the fixed base never moves: its inertia does not enter
+                x = plucker(frame[:3, :3], frame[:3, 3])    # the link's frame from its body's
+                inertias[body] = inertias[body] + x.T @ _inertia(links[link_name], scale) @ x
+            for j in sorted(children.get(link_name, []), key=lambda j: j.name, reverse=True):
+                stack.append(("joint", j, body, frame))
+            continue
+        _, j, body, frame = item
+        origin = frame @ np.asarray(j.origin if j.origin is not None else np.eye(4), dtype=float)
+        if j.type == "fixed" or j.name not in kept:
+            if j.type != "fixed":       # frozen at its pose: a fixed joint there
+                origin = origin @ _joint_motion(j, _number(pose.get(j.name, 0.0), f"joint {j.name}: pose"))
+            stack.append(("link", j.child, body, origin))
+            continue
+        axis = np.asarray(j.axis if j.axis is not None else (1.0, 0.0, 0.0), dtype=float)
+        norm = np.linalg.norm(axis)
+        if norm < 1e-12:
+            raise InputError(f"joint {j.name} has no axis (its axis is zero)", field="robot")
+        parents.append(body)
+        kinds.append(_MOVING[j.type])
+        axes.append(axis / norm)
+        placements.append(plucker(origin[:3, :3], origin[:3, 3]))
+        inertias.append(np.zeros((6, 6)))
+        names.append(j.name)
+        d = getattr(j.dynamics, "damping", None) if j.dynamics is not None else None
+        d = 0.0 if d is None else _number(d, f"joint {j.name}: damping")
+        if d < 0:
+            raise InputError(f"joint {j.name}: damping {d:g} is negative", field="robot")
+        damping.append(d)
+        stack.append(("link", j.child, len(names) - 1, np.eye(4)))
 
-    visit(roots[0], -1, np.eye(4), set())
-    if not names:
-        raise InputError("the URDF has no movable joint", field="robot")
     tree = RigidTree(tuple(parents), tuple(kinds), np.array(axes), np.array(placements), np.array(inertias),
                      np.array([0.0, 0.0, -gravity]))
+    # a joint that moves nothing with mass or inertia along its motion makes M singular: name it
+    resisted = np.diag(tree.mass_matrix(np.zeros(tree.dof)))
+    if still := [names[k] for k in range(tree.dof) if not resisted[k] > 1e-12 * resisted.max(initial=0.0)]:
+        raise InputError(f"joint {still[0]} moves no mass or inertia along its motion (every link it carries "
+                         "is massless there)", field="robot")
     return tree, tuple(names), tuple(kinds), np.array(damping)
 
 
@@ -260,8 +340,29 @@ class UrdfModel:
         model = self._at(parameters)
         q = configuration_stack(self.name, self.coordinates, [list(q or [])])[0]
         tree = model.tree
-        k = tree.gravity_stiffness(q) if np.any(tree.gravity) else None
-        return JointSpace(tree.mass_matrix(q), np.diag(self.joint_damping), k, tree.gravity_load(q))
+        if not np.any(tree.gravity):
+            return JointSpace(tree.mass_matrix(q), np.diag(self.joint_damping))
+        # G and ∂G/∂q are sums of terms up to g·Σm·reach: below n·ε of that they are rounding,
+        # which would become loads and inductors of random sign (1e38 H) in the circuit
+        floor = 16 * self.dof * np.finfo(float).eps * model.gravity_scale
+        k, g = tree.gravity_stiffness(q), tree.gravity_load(q)
+        k[np.abs(k) < floor] = 0.0
+        g[np.abs(g) < floor] = 0.0
+        return JointSpace(tree.mass_matrix(q), np.diag(self.joint_damping), k, g)
+
+    @property
+    def gravity_scale(self) -> float:
+        """g·Σm·reach [N·m]: how large a gravity load or stiffness of the tree can be."""
+        t = self.tree
+        mass = t.inertias[:, 5, 5]
+        com = np.array([[i[1, 5], i[2, 3], i[0, 4]] for i in t.inertias]) / np.where(mass > 0, mass, 1.0)[:, None]
+        offsets = []
+        for x in t.placements:
+            e = x[:3, :3].T
+            px = -e @ x[3:, :3]
+            offsets.append(np.linalg.norm([px[2, 1], px[0, 2], px[1, 0]]))
+        reach = sum(offsets) + float(np.linalg.norm(com, axis=1).max(initial=0.0))
+        return float(np.linalg.norm(t.gravity) * mass.sum() * reach)
 
     def joint_stack(self, qs, parameters: Mapping[str, float] | None = None) -> JointStack:
         """:meth:`joint_space` at every row of *qs*.

@@ -15,6 +15,7 @@ from ..errors import InputError
 from ..model.catalog import family_builder, robot_family
 from ..model.compiled import compile_model, load_compiled
 from ..model.equilibrium import static_equilibrium
+from ..model.urdf import STANDARD_GRAVITY, urdf_model
 from ..model.expressions import parse_expression, parse_number, reserved_name
 from ..model.joint import JointSpace
 from .spec import ModelSpec, SceneData
@@ -239,7 +240,6 @@ def scene_model(scene: SceneData) -> object:
 
 def _urdf(spec: ModelSpec, params: Mapping[str, float], dynamics: str, keys: dict):
     """A URDF robot's model (parsed once per process), at the scene's g."""
-    from ..model.urdf import STANDARD_GRAVITY, urdf_model
     if dynamics == "nonlinear":
         raise InputError(f"{keys['dynamics']}: a URDF robot's nonlinear dynamics are not built yet: use its "
                          "linear circuit at a pose")

@@ -7,10 +7,7 @@ the outputs wanted and the solvers that produce them. Example::
     description = "2-DOF serial arm at q2 = 0.3 rad, step torques"
 
     [model]
-    robot = "serial2"              # a built-in robot (analogy.model.robots.robot) ...
-
-    [parameters]                   # ... with parameter overrides
-    d2 = 1.0
+    robot = "serial2"              # a built-in robot, or urdf = "arm.urdf", or mass = [[...]]
 
     [configuration]
     q = [0.0, 0.3]                 # joint coordinates q1 … qn
@@ -21,21 +18,8 @@ the outputs wanted and the solvers that produce them. Example::
     initial_rates = [0.0, 0.0]
     t_stop = 10.0
 
-    [outputs]
-    joint_rates = true
-    node_voltages = ["n1"]         # or true: every node
-    element_currents = ["C1_2"]    # or true: every element
-    netlist = "default.cir"        # or true: netlist text only, no file
-    csv = "default.csv"
-    plot = "default.png"
-
-    [solvers]
-    use = ["spice", "ode", "exact"]
-    preset = "accurate"
-    errors = true
-    step = 0.01                    # output step [s]; default SPICE's own points
-
-Every table and key is described in ``docs/scenes.md``. Every key is checked: an
+Every table and key (``[parameters]``, ``[outputs]``, ``[solvers]`` …) is described in
+``docs/scenes.md``. Every key is checked: an
 unknown key is an error, and a malformed scene raises
 :class:`~analogy.errors.InputError` with one line naming the file, the key and the
 problem, e.g. ``scene.toml: [configuration] q: expected 2 numbers, got 3``. Entries
@@ -54,6 +38,7 @@ from pathlib import Path
 
 from ..errors import InputError
 from ..model.dynamics import DYNAMICS
+from ..model.urdf import read_urdf
 from ..model.expressions import parse_number
 from ..model.quantities import COORDINATE, RATE
 from ..presets import preset as get_preset
@@ -305,13 +290,11 @@ def scene_from_table(data: dict, source="scene.toml") -> Scene:
 
 def _urdf_spec(ctx: _Context, model: dict) -> ModelSpec:
     """A URDF robot: the file relative to the scene file's folder, under the output paths' rules."""
-    from ..model.urdf import read_urdf
     name, joints = model["urdf"], model.get("joints")
     if not isinstance(name, str):
         raise ctx.error("[model] urdf", f"expected a file name, got {_kind(name)}")
-    for key in ("mass", "damping", "stiffness", "gravity"):
-        if key in model:
-            raise ctx.error(f"[model] {key}", "a URDF robot has its own")
+    if extra := [k for k in ("mass", "damping", "stiffness", "gravity") if k in model]:
+        raise ctx.error(f"[model] {extra[0]}", "a URDF robot has its own")
     if joints is not None and not (isinstance(joints, list) and joints and all(isinstance(j, str) for j in joints)):
         raise ctx.error("[model] joints", "expected a list of joint names")
     with ctx.key("[model] urdf"):
