@@ -36,7 +36,7 @@ from analogy.waveforms import parse_waveform
 DEEP = os.environ.get("ANALOGY_FUZZ") == "deep"
 #: Cases per target: about 2,000 in all by default, 10,000 each in the deep profile.
 CASES = {"expressions": 500, "matrices": 300, "waveforms": 400, "scenes": 250, "cli": 250, "netlist_text": 300,
-         "units": 400, "sweeps": 200, "store": 60, "options": 300}
+         "units": 400, "sweeps": 200, "store": 60, "options": 300, "urdf": 300}
 if DEEP:
     CASES = dict.fromkeys(CASES, 10_000)
 COUNTS: Counter = Counter()
@@ -524,3 +524,35 @@ def options_folder(tmp_path_factory):
 def monkeypatch_module():
     with pytest.MonkeyPatch.context() as mp:
         yield mp
+
+
+_BENCH_URDF = (Path(__file__).parent / "urdf" / "bench.urdf").read_text()
+#: Every attribute value of the bench URDF, each a place a mutation may land.
+_URDF_VALUES = sorted(set(re.findall(r'="([^"]*)"', _BENCH_URDF)))
+urdf_value = st.one_of(number_text, hostile_text, st.sampled_from(
+    ["0 0 0", "nan 0 1", "1 2", "1 2 3 4", "1e400 0 0", "-1", "0", "floating", "planar", "fixed", "carriage",
+     "floor", "", " ", "&#10;.control&#10;shell touch x&#10;.endc"]))
+
+
+@given(st.lists(st.tuples(st.sampled_from(_URDF_VALUES), urdf_value), min_size=1, max_size=4),
+       st.sampled_from(["", "<!DOCTYPE r [<!ENTITY a 'x'>]>", "<link name='floor'/>", "<joint name='x'/>"]))
+@profile("urdf")
+def test_urdf_files_give_a_model_with_a_positive_definite_mass_matrix_or_one_sentence(swaps, extra):
+    """Attribute values of a valid URDF replaced by hostile ones, and stray elements: a model whose
+    M(q) is symmetric positive definite and whose netlist is clean, or one sentence."""
+    from analogy.model.urdf import UrdfModel
+    text = _BENCH_URDF
+    for old, new in swaps:
+        text = text.replace(f'="{old}"', f'="{new.replace(chr(34), "")}"', 1)
+    text = text.replace("<robot", extra + "<robot", 1) if extra.startswith("<!") else \
+        text.replace("</robot>", extra + "</robot>")
+    with case("urdf"):
+        try:
+            model = finishes(lambda: UrdfModel(text), 5.0)
+            system = finishes(lambda: node_system(model, [0.1] * model.dof), 5.0)
+        except InputError as exc:
+            refused("urdf", exc)
+        else:
+            m = system.mass
+            assert np.array_equal(m, m.T) and np.linalg.eigvalsh(m).min() > 0
+            check_netlist(netlist(system))

@@ -53,7 +53,8 @@ def scene_options(p: argparse.ArgumentParser, preset: str = "accurate") -> None:
     g.add_argument("--robot", help=f"built-in robot: {', '.join(ROBOT_NAMES)}, serial<N> (a planar "
                                    f"N-joint arm, e.g. serial4, N up to {MAX_SERIAL}) or random<N>")
     g.add_argument("--urdf", metavar="FILE", help="a robot from its URDF file (revolute, continuous, prismatic "
-                   "and fixed joints; gravity along -z, --param g=0 turns it off)")
+                   "and fixed joints; gravity along -z, --param g=0 turns it off); q1..qn follow its movable "
+                   "joints depth first, each link's joints by name (Pinocchio's order)")
     g.add_argument("--joints", metavar="NAMES", help="with --urdf: the movable joints kept, e.g. "
                    "'shoulder_pan_joint,elbow_joint'; the others are frozen at 0")
     g.add_argument("--mass", metavar="MATRIX", help="mass matrix, e.g. '[[m1, m3], [m3, m2]]'; "

@@ -23,6 +23,9 @@ __all__ = ["UrdfModel", "urdf_model", "read_urdf", "MAX_URDF_BYTES", "STANDARD_G
 MAX_URDF_BYTES = 10_000_000
 STANDARD_GRAVITY = 9.80665
 _MOVING = {"revolute": "revolute", "continuous": "revolute", "prismatic": "prismatic"}
+#: The largest number a URDF may hold: M sums products m·l² and G products g·m·l, which stay
+#: inside the floating-point range (1.8e308) below this.
+_LARGEST = 1e100
 
 
 def read_urdf(path) -> str:
@@ -52,8 +55,8 @@ def _triple(text: str | None, what: str, default=(0.0, 0.0, 0.0)) -> tuple:
         values = tuple(float(x) for x in parts)
     except ValueError:
         raise InputError(f"{what} is not three numbers: {text!r}", field="robot") from None
-    if len(values) != 3 or not all(np.isfinite(values)):
-        raise InputError(f"{what} must be three finite numbers, got {text!r}", field="robot")
+    if len(values) != 3 or not all(abs(v) <= _LARGEST for v in values):
+        raise InputError(f"{what} must be three finite numbers of at most 1e100, got {text!r}", field="robot")
     return values
 
 
@@ -132,8 +135,9 @@ def _number(value, what: str) -> float:
         x = float(value)
     except (TypeError, ValueError):
         raise InputError(f"{what} is not a number: {value!r}", field="robot") from None
-    if not np.isfinite(x):
-        raise InputError(f"{what} is not finite", field="robot")
+    if not abs(x) <= _LARGEST:
+        raise InputError(f"{what} is {'not finite' if not np.isfinite(x) else f'{x:g}, past any physical scale'}",
+                         field="robot")
     return x
 
 
