@@ -187,7 +187,7 @@ def test_a_folder_of_invalid_scenes_only_is_taken_by_the_corrected_sweep(tmp_pat
     assert read(folder)["status"].tolist() == ["invalid"]
     capsys.readouterr()
     assert main(["batch", sweep("fixed", "[0.5, 0.0]"), "-o", folder, "--no-progress", "--workers", "1"]) == 1
-    assert "held only invalid scenes of sweep arm, which this one replaced" in capsys.readouterr().out
+    assert "held no computed scene of sweep arm" in capsys.readouterr().out
     assert read(folder)["status"].tolist() == ["ok", "invalid"]
     assert main(["batch", sweep("other", "[0.7]"), "-o", folder, "--no-progress", "--workers", "1"]) == 2
     assert "holds the results of another sweep" in capsys.readouterr().err

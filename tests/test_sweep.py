@@ -204,12 +204,12 @@ def test_a_dask_local_cluster_gives_the_rows_of_local_processes(tmp_path):
     pd.testing.assert_frame_equal(local.drop(columns=seconds), dask.drop(columns=seconds))
 
 
+@pytest.mark.ngspice
 def test_a_folder_of_another_sweep_is_refused(tmp_path, capsys):
+    """It holds computed scenes, which the other sweep would lose (an empty or all-invalid one is taken over)."""
     pytest.importorskip("pyarrow")
-    a = load_sweep(sweep_file(tmp_path, count=10))
-    from analogy.batch.runner import row_schema
-    from analogy.batch.store import ResultStore
-    ResultStore(tmp_path / "s", a.describe(), row_schema(a, ["spice"]))
+    assert main(["batch", str(sweep_file(tmp_path, count=10)), "-o", str(tmp_path / "s"), "--no-progress",
+                 "--workers", "1"]) == 0
     path = sweep_file(tmp_path, count=11)
     assert main(["batch", str(path), "-o", str(tmp_path / "s")]) == 2
     assert "holds the results of another sweep" in capsys.readouterr().err

@@ -53,7 +53,7 @@ class SweepRun:
     interrupted : bool
         Stopped by SIGINT or SIGTERM before the end.
     replaced : str or None
-        The sweep whose store this run took over, because it held invalid scenes only.
+        The sweep whose store this run took over, because it held no computed scene.
     """
 
     directory: str
@@ -73,7 +73,7 @@ class SweepRun:
     def summary(self) -> str:
         """One line: what was solved, how fast, and the statuses."""
         counts = ", ".join(f"{v} {k}" for k, v in sorted(self.statuses.items())) or "none new"
-        took = (f" (the folder held only invalid scenes of sweep {self.replaced}, which this one replaced)"
+        took = (f" (the folder held no computed scene of sweep {self.replaced}, only invalid ones or none, and this one replaced it)"
                 if self.replaced else "")
         rate = f"{self.throughput:,.0f} scenes/s; {self.skipped} already stored"
         if self.interrupted:        # counted as the progress lines count: every stored scene

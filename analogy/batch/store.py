@@ -185,7 +185,7 @@ class ResultStore:
         except OSError as exc:
             raise InputError(f"cannot create {self.directory}: {exc.strerror or exc}") from None
         self._lock = _writer_lock(self.directory)
-        #: The sweep whose store this one replaced: it held invalid scenes only.
+        #: The sweep whose store this one replaced: it held no computed scene (none, or invalid ones only).
         self.replaced: str | None = None
         path = self.directory / _MANIFEST
         if path.exists() or path.is_symlink():
