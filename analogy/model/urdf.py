@@ -2,9 +2,7 @@
 
 from __future__ import annotations
 
-import hashlib
 import io
-import logging
 import warnings
 from functools import lru_cache
 from pathlib import Path
@@ -119,7 +117,7 @@ def _parse(text: str):
         import yourdfpy
     except ImportError:
         raise InputError("URDF robots need yourdfpy: pip install yourdfpy", field="robot") from None
-    logging.getLogger("yourdfpy").setLevel(logging.CRITICAL)
+    yourdfpy.urdf._logger.disabled = True      # its notes on a file are said here, in one sentence, or not at all
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -303,7 +301,6 @@ class UrdfModel:
         self.parameters = {"g": float(g)}
         self.coordinates = tuple(f"q{i + 1}" for i in range(len(kinds)))
         self.description = f"URDF {self.name}: {len(kinds)} joints ({', '.join(self.joint_names)})"
-        self.key = hashlib.sha256(text.encode()).hexdigest()[:16]
 
     def __repr__(self) -> str:
         return f"UrdfModel({self.name!r}, {self.dof} joints)"
