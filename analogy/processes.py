@@ -19,7 +19,7 @@ __all__ = ["worker_pool", "die_with_parent", "scratch_folder"]
 
 
 def die_with_parent(parent: int) -> None:
-    """Worker initialiser: end when *parent* does (Linux parent-death signal), and leave Ctrl-C to it.
+    """Worker initialiser: end when *parent* does (Linux parent-death signal) or on SIGTERM, and leave Ctrl-C to it.
 
     Parameters
     ----------
@@ -27,6 +27,8 @@ def die_with_parent(parent: int) -> None:
         The pid of the process that started this worker, its direct parent.
     """
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    # a forked worker inherits the command's SIGTERM handler: told to end, it ends (its groups are retried)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
     if sys.platform.startswith("linux"):
         try:
             ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGKILL))     # PR_SET_PDEATHSIG

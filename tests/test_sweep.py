@@ -257,15 +257,18 @@ def test_trajectories_are_kept_downsampled_in_a_second_table(tmp_path):
 
 @pytest.mark.ngspice
 @pytest.mark.slow
-def test_groups_of_a_killed_worker_are_retried_and_every_scene_stored_once(tmp_path):
+@pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGTERM])
+def test_groups_of_a_killed_worker_are_retried_and_every_scene_stored_once(tmp_path, sig):
+    """SIGTERM ends the worker, as SIGKILL does: the batch is not interrupted (a forked worker
+    does not keep the command's own SIGTERM handler)."""
     path = sweep_file(tmp_path, count=4000, group=50)
     store = tmp_path / "s"
     proc = _start_batch(path, store)
     _wait_for_groups(store, proc, 5)
     victim = _children(proc.pid)[0]
-    os.kill(victim, signal.SIGKILL)
+    os.kill(victim, sig)
     out, err = proc.communicate(timeout=120)
-    assert proc.returncode == 0, err
+    assert proc.returncode == 0 and "Traceback" not in err, err
     frame = read(store)
     assert len(frame) == 4000 and frame["index"].is_unique
     assert set(frame["status"]) == {"ok"}          # retried groups were solved, not lost
