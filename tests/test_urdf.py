@@ -222,3 +222,13 @@ def test_gravity_terms_at_rounding_are_zero_not_huge_inductors():
     for part in (j.gravity, j.stiffness):
         if part is not None:
             assert np.all((part == 0) | (np.abs(part) >= floor))
+
+
+def test_a_stack_of_poses_gives_each_pose_its_joint_space():
+    m = UrdfModel(_GOOD)
+    qs = np.random.default_rng(2).uniform(-2, 2, (5, 3))
+    stack = m.joint_stack(qs)
+    for k, q in enumerate(qs):                  # a numpy row is a pose as a list is
+        j = m.joint_space(q)
+        np.testing.assert_array_equal(stack.mass_matrix[k], j.mass_matrix)
+        np.testing.assert_array_equal(stack.gravity[k], j.gravity)

@@ -339,7 +339,7 @@ class UrdfModel:
             ``g``.
         """
         model = self._at(parameters)
-        q = configuration_stack(self.name, self.coordinates, [list(q or [])])[0]
+        q = configuration_stack(self.name, self.coordinates, [[] if q is None else list(q)])[0]
         tree = model.tree
         if not np.any(tree.gravity):
             return JointSpace(tree.mass_matrix(q), np.diag(self.joint_damping))
