@@ -62,22 +62,6 @@ def spatial_inertia(mass: float, com: np.ndarray, inertia_at_com: np.ndarray) ->
     return i
 
 
-def _rotation(axis: np.ndarray, angle):
-    """Rodrigues: the axes of a frame turned by *angle* about the unit *axis* (complex angles too)."""
-    k = _skew(axis.astype(np.result_type(axis, angle)))
-    return np.eye(3) + np.sin(angle) * k + (1.0 - np.cos(angle)) * (k @ k)
-
-
-def _crm(v: np.ndarray) -> np.ndarray:
-    """v×, the spatial cross product of motion vectors."""
-    out = np.zeros((6, 6), dtype=v.dtype)
-    w, u = _skew(v[:3]), _skew(v[3:])
-    out[:3, :3] = w
-    out[3:, 3:] = w
-    out[3:, :3] = u
-    return out
-
-
 @dataclass(frozen=True)
 class RigidTree:
     """Bodies on joints, each joint on its parent body (−1: the fixed base).
@@ -115,114 +99,156 @@ class RigidTree:
             s[i, slice(0, 3) if kind == "revolute" else slice(3, 6)] = axis
         return s
 
-    def _links(self, q) -> list[np.ndarray]:
-        """Per joint, ⁱX_λ(q): its body's frame from its parent's."""
-        out = []
-        for kind, axis, placement, qi in zip(self.kinds, self.axes, self.placements, q):
-            if kind == "revolute":
-                joint = plucker(_rotation(axis, qi), np.zeros(3))
-            else:
-                joint = plucker(np.eye(3), axis * qi)
-            out.append(joint @ placement)
-        return out
+    def _links(self, qs: np.ndarray) -> np.ndarray:
+        """ⁱX_λ(q) per pose and joint, shape (poses, n, 6, 6): each body's frame from its parent's."""
+        p, n = qs.shape
+        x = np.zeros((p, n, 6, 6), dtype=qs.dtype)
+        for i, (kind, axis) in enumerate(zip(self.kinds, self.axes)):
+            if kind == "revolute":          # Rodrigues, batched: the child's axes turned by q about the axis
+                k = _skew(axis)
+                c, sn = np.cos(qs[:, i])[:, None, None], np.sin(qs[:, i])[:, None, None]
+                et = (np.eye(3) + sn * k + (1.0 - c) * (k @ k)).transpose(0, 2, 1)
+                x[:, i, :3, :3] = et
+                x[:, i, 3:, 3:] = et
+            else:                           # a slide by q along the axis: [[1, 0], [−p×, 1]]
+                x[:, i, :3, :3] = x[:, i, 3:, 3:] = np.eye(3)
+                x[:, i, 3:, :3] = -qs[:, i, None, None] * _skew(axis)
+        return x @ self.placements
+
+    def mass_matrices(self, qs) -> np.ndarray:
+        """M(q) at every row of *qs* by the composite-rigid-body algorithm, shape (poses, n, n).
+
+        Parameters
+        ----------
+        qs : array_like, shape (poses, n)
+            Joint coordinates [rad or m].
+        """
+        qs = np.atleast_2d(np.asarray(qs, dtype=float))
+        x = self._links(qs)
+        s = self._subspaces()
+        composite = np.broadcast_to(self.inertias, (len(qs),) + self.inertias.shape).copy()
+        for i in range(self.dof - 1, -1, -1):
+            if self.parents[i] >= 0:
+                composite[:, self.parents[i]] += x[:, i].transpose(0, 2, 1) @ composite[:, i] @ x[:, i]
+        m = np.zeros((len(qs), self.dof, self.dof))
+        for i in range(self.dof):
+            f = composite[:, i] @ s[i]
+            m[:, i, i] = f @ s[i]
+            j = i
+            while self.parents[j] >= 0:
+                f = (f[:, None, :] @ x[:, j])[:, 0]
+                j = self.parents[j]
+                m[:, i, j] = m[:, j, i] = f @ s[j]
+        return m
 
     def mass_matrix(self, q: Sequence[float]) -> np.ndarray:
-        """M(q) by the composite-rigid-body algorithm.
+        """M(q) at one pose (:meth:`mass_matrices`).
 
         Parameters
         ----------
         q : sequence of float
             Joint coordinates [rad or m].
         """
-        x = self._links(np.asarray(q, dtype=float))
-        s = self._subspaces()
-        composite = self.inertias.copy()
-        for i in range(self.dof - 1, -1, -1):
-            if self.parents[i] >= 0:
-                composite[self.parents[i]] += x[i].T @ composite[i] @ x[i]
-        m = np.zeros((self.dof, self.dof))
-        for i in range(self.dof):
-            f = composite[i] @ s[i]
-            m[i, i] = s[i] @ f
-            j = i
-            while self.parents[j] >= 0:
-                f = x[j].T @ f
-                j = self.parents[j]
-                m[i, j] = m[j, i] = s[j] @ f
-        return m
+        return self.mass_matrices(np.asarray(q, dtype=float)[None])[0]
 
-    def inverse_dynamics(self, q, rates, accelerations, gravity: bool = True) -> np.ndarray:
-        """τ = M(q)·q̈ + c(q, q̇) + G(q) by recursive Newton–Euler (complex q allowed).
+    def inverse_dynamics(self, qs, rates, accelerations, gravity: bool = True) -> np.ndarray:
+        """τ = M(q)·q̈ + c(q, q̇) + G(q) at every row, by recursive Newton–Euler (complex q allowed).
 
         Parameters
         ----------
-        q, rates, accelerations : sequence of float
-            q, q̇ and q̈.
+        qs, rates, accelerations : array_like, shape (poses, n) or (n,)
+            q, q̇ and q̈; one pose gives one row back as a vector.
         gravity : bool
             Include G(q).
         """
-        q = np.asarray(q)
-        dtype = np.result_type(q, float)
-        x = self._links(q)
+        single = np.ndim(qs) == 1
+        qs = np.atleast_2d(np.asarray(qs))
+        dtype = np.result_type(qs, float)
+        qs = qs.astype(dtype)
+        p = len(qs)
+        x = self._links(qs)
         s = self._subspaces()
-        qd = np.asarray(rates, dtype=dtype)
-        qdd = np.asarray(accelerations, dtype=dtype)
-        base = np.zeros(6, dtype=dtype)
+        qd = np.broadcast_to(np.asarray(rates, dtype=dtype), qs.shape)
+        qdd = np.broadcast_to(np.asarray(accelerations, dtype=dtype), qs.shape)
+        base = np.zeros((p, 6), dtype=dtype)
         if gravity:
-            base[3:] = -self.gravity        # the base accelerates up: gravity on every body at once
-        v = np.zeros((self.dof, 6), dtype=dtype)
-        a = np.zeros((self.dof, 6), dtype=dtype)
-        f = np.zeros((self.dof, 6), dtype=dtype)
+            base[:, 3:] = -self.gravity     # the base accelerates up: gravity on every body at once
+        v = np.zeros((p, self.dof, 6), dtype=dtype)
+        a = np.zeros((p, self.dof, 6), dtype=dtype)
+        f = np.zeros((p, self.dof, 6), dtype=dtype)
         for i in range(self.dof):
-            p = self.parents[i]
-            vp, ap = (np.zeros(6, dtype=dtype), base) if p < 0 else (v[p], a[p])
-            v[i] = x[i] @ vp + s[i] * qd[i]
-            a[i] = x[i] @ ap + s[i] * qdd[i] + _crm(v[i]) @ (s[i] * qd[i])
-            f[i] = self.inertias[i] @ a[i] - _crm(v[i]).T @ (self.inertias[i] @ v[i])
-        tau = np.zeros(self.dof, dtype=dtype)
+            parent = self.parents[i]
+            vp, ap = (np.zeros((p, 6), dtype=dtype), base) if parent < 0 else (v[:, parent], a[:, parent])
+            sqd = s[i] * qd[:, i, None]
+            v[:, i] = np.einsum("pij,pj->pi", x[:, i], vp) + sqd
+            a[:, i] = np.einsum("pij,pj->pi", x[:, i], ap) + s[i] * qdd[:, i, None] + _cross_motion(v[:, i], sqd)
+            iv = v[:, i] @ self.inertias[i].T
+            f[:, i] = a[:, i] @ self.inertias[i].T + _cross_force(v[:, i], iv)
+        tau = np.zeros((p, self.dof), dtype=dtype)
         for i in range(self.dof - 1, -1, -1):
-            tau[i] = s[i] @ f[i]
+            tau[:, i] = f[:, i] @ s[i]
             if self.parents[i] >= 0:
-                f[self.parents[i]] += x[i].T @ f[i]
-        return tau
+                f[:, self.parents[i]] += np.einsum("pji,pj->pi", x[:, i], f[:, i])
+        return tau[0] if single else tau
 
-    def gravity_load(self, q: Sequence[float]) -> np.ndarray:
-        """G(q), the joint forces that hold the tree still against gravity.
+    def gravity_load(self, q) -> np.ndarray:
+        """G(q), the joint forces that hold the tree still against gravity (rows of poses too).
 
         Parameters
         ----------
-        q : sequence of float
+        q : array_like, shape (n,) or (poses, n)
             Joint coordinates.
         """
-        zero = np.zeros(self.dof)
-        return self.inverse_dynamics(q, zero, zero).real
+        return self.inverse_dynamics(q, 0.0, 0.0).real
 
-    def velocity_load(self, q: Sequence[float], rates: Sequence[float]) -> np.ndarray:
+    def velocity_load(self, q, rates) -> np.ndarray:
         """c(q, q̇) = C(q, q̇)·q̇, the Coriolis and centrifugal joint forces.
 
         Parameters
         ----------
-        q, rates : sequence of float
+        q, rates : array_like, shape (n,) or (poses, n)
             q and q̇.
         """
-        return self.inverse_dynamics(q, rates, np.zeros(self.dof), gravity=False).real
+        return self.inverse_dynamics(q, rates, 0.0, gravity=False).real
 
-    def gravity_stiffness(self, q: Sequence[float]) -> np.ndarray:
+    def gravity_stiffness(self, q) -> np.ndarray:
         """∂G/∂q, the stiffness gravity adds about q, by the complex step (exact to rounding).
 
         G = ∂U/∂q for the potential U, so ∂G/∂q is U's Hessian and symmetric.
 
         Parameters
         ----------
-        q : sequence of float
+        q : array_like, shape (n,) or (poses, n)
             Joint coordinates.
         """
-        q = np.asarray(q, dtype=float)
+        single = np.ndim(q) == 1
+        qs = np.atleast_2d(np.asarray(q, dtype=float))
         h = 1e-30                   # no subtraction: the step may be far below rounding
-        zero = np.zeros(self.dof)
-        k = np.empty((self.dof, self.dof))
-        for j in range(self.dof):
-            qc = q.astype(complex)
-            qc[j] += 1j * h
-            k[:, j] = self.inverse_dynamics(qc, zero, zero).imag / h
-        return 0.5 * (k + k.T)
+        n = self.dof
+        # every pose once per coordinate stepped, in one batch
+        stepped = np.repeat(qs.astype(complex), n, axis=0)
+        stepped[np.arange(len(stepped)), np.tile(np.arange(n), len(qs))] += 1j * h
+        k = (self.inverse_dynamics(stepped, 0.0, 0.0).imag / h).reshape(len(qs), n, n).transpose(0, 2, 1)
+        k = 0.5 * (k + k.transpose(0, 2, 1))
+        return k[0] if single else k
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Rows of a × b (numpy's cross costs a hundred times more on short rows)."""
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape), dtype=np.result_type(a, b))
+    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
+    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
+    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    return out
+
+
+def _cross_motion(v: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """v × m for rows of motion vectors [ω; u]: [ω×m_ω; u×m_ω + ω×m_u]."""
+    w, u = v[:, :3], v[:, 3:]
+    return np.concatenate([_cross(w, m[:, :3]), _cross(u, m[:, :3]) + _cross(w, m[:, 3:])], axis=1)
+
+
+def _cross_force(v: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """v ×* f for rows, the force cross product: [ω×f_n + u×f_l; ω×f_l]."""
+    w, u = v[:, :3], v[:, 3:]
+    return np.concatenate([_cross(w, f[:, :3]) + _cross(u, f[:, 3:]), _cross(w, f[:, 3:])], axis=1)

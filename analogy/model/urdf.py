@@ -338,18 +338,25 @@ class UrdfModel:
         parameters : mapping, optional
             ``g``.
         """
+        q = configuration_stack(self.name, self.coordinates, [[] if q is None else list(q)])
+        m, b, k, g = self._parts(q, parameters)
+        return JointSpace(m[0], b[0], None if k is None else k[0], None if g is None else g[0])
+
+    def _parts(self, qs: np.ndarray, parameters) -> tuple:
+        """M, B, ∂G/∂q and G at every row of *qs* (the last two None without gravity)."""
         model = self._at(parameters)
-        q = configuration_stack(self.name, self.coordinates, [[] if q is None else list(q)])[0]
         tree = model.tree
+        m = tree.mass_matrices(qs)
+        b = np.broadcast_to(np.diag(self.joint_damping), m.shape)
         if not np.any(tree.gravity):
-            return JointSpace(tree.mass_matrix(q), np.diag(self.joint_damping))
+            return m, b, None, None
         # G and ∂G/∂q are sums of terms up to g·Σm·reach: below n·ε of that they are rounding,
         # which would become loads and inductors of random sign (1e38 H) in the circuit
         floor = 16 * self.dof * np.finfo(float).eps * model.gravity_scale
-        k, g = tree.gravity_stiffness(q), tree.gravity_load(q)
+        k, g = tree.gravity_stiffness(qs), tree.gravity_load(qs)
         k[np.abs(k) < floor] = 0.0
         g[np.abs(g) < floor] = 0.0
-        return JointSpace(tree.mass_matrix(q), np.diag(self.joint_damping), k, g)
+        return m, b, k, g
 
     @property
     def gravity_scale(self) -> float:
@@ -377,8 +384,7 @@ class UrdfModel:
         """
         if parameters and any(np.ndim(v) for v in parameters.values()):
             raise InputError(f"URDF robot {self.name}'s g cannot vary along a stack", field="parameters")
-        q = configuration_stack(self.name, self.coordinates, qs)
-        return JointStack.of([self.joint_space(row, parameters) for row in q])
+        return JointStack(*self._parts(configuration_stack(self.name, self.coordinates, qs), parameters))
 
 
 @lru_cache(maxsize=16)
