@@ -60,10 +60,13 @@ def random_tree_urdf(seed: int, movable: int = 6) -> str:
     return f'<robot name="tree{seed}">' + "".join(links + joints) + "</robot>"
 
 
-def _pinocchio_differences(path: Path, poses: int = 100, seed: int = 0) -> dict:
+def _pinocchio_differences(path: Path, poses: int = 100, seed: int = 0, joints=None) -> dict:
     pin = pytest.importorskip("pinocchio")
-    ours = UrdfModel(path.read_text())
+    ours = UrdfModel(path.read_text(), joints)
     pm = pin.buildModelFromUrdf(str(path))
+    if joints is not None:              # the others frozen at 0, as the model freezes them
+        frozen = [pm.getJointId(name) for name in pm.names[1:] if name not in joints]
+        pm = pin.buildReducedModel(pm, frozen, pin.neutral(pm))
     pd = pm.createData()
     pm.gravity.linear = np.array([0.0, 0.0, -ours.parameters["g"]])
     rng = np.random.default_rng(seed)
@@ -232,3 +235,30 @@ def test_a_stack_of_poses_gives_each_pose_its_joint_space():
         j = m.joint_space(q)
         np.testing.assert_array_equal(stack.mass_matrix[k], j.mass_matrix)
         np.testing.assert_array_equal(stack.gravity[k], j.gravity)
+
+
+@pytest.mark.parametrize("name", ["ur3", "ur5", "ur10", "panda", "kinova", "xarm7", "z1", "double_pendulum"])
+def test_the_named_robots_match_pinocchio_at_100_poses(name):
+    from analogy.model.urdf_robots import URDF_ROBOTS, _robots_folder
+    relative, joints = URDF_ROBOTS[name]
+    rel = _pinocchio_differences(_robots_folder() / relative, joints=joints)
+    assert max(rel.values()) <= AGREEMENT, rel
+
+
+def test_a_named_robot_without_its_package_is_one_sentence(monkeypatch, capsys):
+    from importlib import metadata
+
+    def missing(name):
+        raise metadata.PackageNotFoundError(name)
+    monkeypatch.setattr(metadata, "distribution", missing)
+    assert main(["netlist", "--robot", "ur5"]) == 2
+    err = capsys.readouterr().err
+    assert "pip install 'analogy[robots]'" in err and err.count("\n") == 1
+
+
+@pytest.mark.ngspice
+def test_the_ur5_and_the_panda_keep_the_accurate_bound_on_every_joint(capsys):
+    """Without gravity (with it, a pose held by no torque is unstable and the linear motion grows)."""
+    for args in (["--robot", "ur5", "--q", "0, -1, 1, 0, 1, 0"],
+                 ["--robot", "panda", "--q", "0, 0.3, 0, -1.5, 0, 1.8, 0.7"]):
+        assert main(["compare", *args, "--param", "g=0", "--t-stop", "2", "--no-plot"]) == 0, capsys.readouterr()

@@ -20,6 +20,7 @@ from ..scenes.builtin import SCENES, scene
 from ..scenes.scene import Scene
 from ..scenes.spec import ModelSpec
 from ..model.urdf import read_urdf
+from ..model.urdf_robots import URDF_ROBOTS
 
 __all__ = ["CLI_KEYS", "PRESET_HELP", "scene_from_args", "scene_options"]
 
@@ -51,7 +52,8 @@ def scene_options(p: argparse.ArgumentParser, preset: str = "accurate") -> None:
                              "N, N·m; a number may carry a unit instead, e.g. '100 mm', '30 deg')")
     g.add_argument("--scene", default="default", help="built-in scene to start from (see 'analogy scenes')")
     g.add_argument("--robot", help=f"built-in robot: {', '.join(ROBOT_NAMES)}, serial<N> (a planar "
-                                   f"N-joint arm, e.g. serial4, N up to {MAX_SERIAL}) or random<N>")
+                                   f"N-joint arm, e.g. serial4, N up to {MAX_SERIAL}) or random<N>; or from "
+                                   f"example-robot-data (pip install 'analogy[robots]'): {', '.join(URDF_ROBOTS)}")
     g.add_argument("--urdf", metavar="FILE", help="a robot from its URDF file (revolute, continuous, prismatic "
                    "and fixed joints; gravity along -z, --param g=0 turns it off); q1..qn follow its movable "
                    "joints depth first, each link's joints by name (Pinocchio's order)")

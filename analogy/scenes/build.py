@@ -16,6 +16,7 @@ from ..model.catalog import family_builder, robot_family
 from ..model.compiled import compile_model, load_compiled
 from ..model.equilibrium import static_equilibrium
 from ..model.urdf import STANDARD_GRAVITY, urdf_model
+from ..model.urdf_robots import URDF_ROBOTS, urdf_robot
 from ..model.expressions import parse_expression, parse_number, reserved_name
 from ..model.joint import JointSpace
 from .spec import ModelSpec, SceneData
@@ -194,6 +195,10 @@ def scene_model(scene: SceneData) -> object:
     with _where(scene):
         if spec.urdf is not None:
             return _urdf(spec, params, scene.dynamics, keys)
+        if spec.robot in URDF_ROBOTS:
+            with keyed(keys["robot"]):
+                text, joints = urdf_robot(spec.robot)
+            return _urdf(ModelSpec(urdf=text, joints=joints), params, scene.dynamics, keys)
         if spec.robot is not None:
             for label in ("mass", "damping", "stiffness", "gravity"):
                 if getattr(spec, label) is not None:
