@@ -36,6 +36,8 @@ OUTPUTS = {
     "lab_flexible_arm.py": ["flexible_modes.png", "flexible_mass_matrix.png", "flexible_step.png",
                             "flexible_step.csv", "flexible_bode.png", "flexible_convergence.png",
                             "flex2_elements.png"],
+    "lab_your_robot.py": ["ur5_elbow_sweep.png", "ur5_elements.png", "ur5.png", "ur5.csv", "ur5_wrist.png",
+                          "ur5_singular.png", "ur5_singular.csv"],
 }
 
 LABS = sorted(p.name for p in EXAMPLES.glob("lab_*.py"))
