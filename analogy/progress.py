@@ -69,7 +69,8 @@ class Progress:
         left = (self.total - self.done) / rate if rate > 0 else float("nan")
         share = 100.0 * self.done / self.total if self.total else 100.0
         eta = f"{left / 60:.1f} min left" if left == left else "time left unknown"
-        return f"{self.done:,} of {self.total:,} {self.unit}s ({share:.1f}%), {rate:,.0f} {self.unit}s/s, {eta}"
+        speed = f"{rate:,.0f}" if rate >= 10 else f"{rate:.2g}"     # a slow unit is not "0 per second"
+        return f"{self.done:,} of {self.total:,} {self.unit}s ({share:.1f}%), {speed} {self.unit}s/s, {eta}"
 
     def close(self) -> None:
         """End the bar (a plain log gets a last line)."""

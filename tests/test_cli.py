@@ -160,3 +160,19 @@ def test_a_broken_accuracy_promise_exits_3_after_writing_its_results(tmp_path):
               "--t-stop", "1000", "--preset", "fast", "--csv", str(out))
     assert res.returncode == 3 and out.exists()
     assert "spice error" in res.stderr and "above the fast preset's bound 0.001" in res.stderr
+
+
+def test_a_slow_unit_is_counted_per_second_not_rounded_to_zero():
+    import io
+    from analogy.progress import Progress
+    p = Progress(12, unit="path run", bar=False, stream=io.StringIO())
+    p._start -= 10.0            # three path runs in ten seconds
+    p.done = 3
+    assert "0.3 path runs/s" in p.line()
+
+
+def test_batch_report_help_shows_the_report_form(capsys):
+    from analogy.cli import main
+    with pytest.raises(SystemExit):
+        main(["batch", "report", "--help"])
+    assert "analogy batch report DIR [-o FOLDER]" in capsys.readouterr().out

@@ -28,7 +28,11 @@ def batch_options(sub) -> None:
         The ``analogy`` command's subparsers.
     """
     p = sub.add_parser("batch", help="run a sweep file's scenes into a resumable Parquet store; "
-                                     "'analogy batch report DIR' summarises one")
+                                     "'analogy batch report DIR' summarises one",
+                       usage="analogy batch SWEEP.toml -o DIR [options]\n       analogy batch report DIR [-o FOLDER]",
+                       description="Run a sweep into its store (rerun the same command to resume), or summarise "
+                                   "a store: 'report DIR' writes report.md and its plots into DIR/_report "
+                                   "(or -o FOLDER) and prints the summary.")
     p.add_argument("sweep_file", metavar="SWEEP.toml", help="a scene file with a [sweep] table, or 'report'")
     p.add_argument("report_dir", nargs="?", metavar="DIR", help="with 'report': the store to summarise")
     p.add_argument("-o", "--output", metavar="DIR", help="the results store (required for a run; for a "
