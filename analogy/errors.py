@@ -3,7 +3,7 @@
 from contextlib import contextmanager
 from typing import Iterator, Literal
 
-__all__ = ["AnalogyError", "InputError", "SimulationError", "SpiceError", "AccuracyError", "InputField", "concerning",
+__all__ = ["AnalogyError", "InputError", "one_line", "SimulationError", "SpiceError", "AccuracyError", "InputField", "concerning",
            "EXIT_OK", "EXIT_FAILED", "EXIT_USAGE", "EXIT_ACCURACY", "EXIT_INTERRUPTED"]
 
 #: The parts of a job an input error can concern; each front end names them its own way
@@ -32,8 +32,20 @@ class InputError(AnalogyError, ValueError):
     """
 
     def __init__(self, message: str = "", field: InputField | None = None):
-        super().__init__(message)
+        super().__init__(one_line(message))
         self.field = field
+
+
+def one_line(text: str) -> str:
+    """*text* on one line: a control character (a user's string may bring one in) shown escaped.
+
+    Parameters
+    ----------
+    text : str
+        A message.
+    """
+    text = str(text)
+    return text if text.isprintable() else "".join(ch if ch.isprintable() else repr(ch)[1:-1] for ch in text)
 
 
 @contextmanager

@@ -17,7 +17,7 @@ from pathlib import Path
 
 from ..solvers.transient import netlist
 from ..errors import EXIT_ACCURACY, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE
-from ..errors import AccuracyError, AnalogyError, InputError, SimulationError
+from ..errors import AccuracyError, AnalogyError, InputError, SimulationError, one_line
 from ..model.expressions import (
     parse_number,
 )
@@ -383,16 +383,16 @@ def main(argv=None) -> int:
                   f"first {first!r}: check the result", file=sys.stderr)
         return code
     except InputError as exc:
-        print(f"analogy: error: {_one_line(exc)}{_HINTS.get(exc.field, '')}", file=sys.stderr)
+        print(f"analogy: error: {one_line(exc)}{_HINTS.get(exc.field, '')}", file=sys.stderr)
         return EXIT_USAGE
     except AccuracyError as exc:
-        print(f"analogy: accuracy: {_one_line(exc)}", file=sys.stderr)
+        print(f"analogy: accuracy: {one_line(exc)}", file=sys.stderr)
         return EXIT_ACCURACY
     except SimulationError as exc:
-        print(f"analogy: simulation failed: {_one_line(exc)}", file=sys.stderr)
+        print(f"analogy: simulation failed: {one_line(exc)}", file=sys.stderr)
         return EXIT_FAILED
     except AnalogyError as exc:
-        print(f"analogy: error: {_one_line(exc)}", file=sys.stderr)
+        print(f"analogy: error: {one_line(exc)}", file=sys.stderr)
         return EXIT_FAILED
     except KeyboardInterrupt:
         print("analogy: interrupted", file=sys.stderr)
@@ -407,12 +407,6 @@ def main(argv=None) -> int:
 
 def _terminate(signum, frame):
     raise KeyboardInterrupt
-
-
-def _one_line(exc: BaseException) -> str:
-    """The message on one line: a control character a user string brought in is shown escaped."""
-    text = str(exc)
-    return "".join(ch if ch.isprintable() else repr(ch)[1:-1] for ch in text)
 
 
 if __name__ == "__main__":  # pragma: no cover
