@@ -262,3 +262,25 @@ def test_the_ur5_and_the_panda_keep_the_accurate_bound_on_every_joint(capsys):
     for args in (["--robot", "ur5", "--q", "0, -1, 1, 0, 1, 0"],
                  ["--robot", "panda", "--q", "0, 0.3, 0, -1.5, 0, 1.8, 0.7"]):
         assert main(["compare", *args, "--param", "g=0", "--t-stop", "2", "--no-plot"]) == 0, capsys.readouterr()
+
+
+def test_a_urdf_read_before_comes_from_the_cache_without_its_parser(tmp_path, monkeypatch):
+    """Keyed by the file's text, the selection and the code; a damaged entry is rebuilt."""
+    import analogy.model.urdf as urdf
+    monkeypatch.setenv("ANALOGY_CACHE_DIR", str(tmp_path))
+    first = UrdfModel(_GOOD, ["turn", "tilt"])
+    (entry,) = tmp_path.glob("urdf-*.npz")
+
+    def no_parser(text):
+        raise AssertionError("parsed again")
+    monkeypatch.setattr(urdf, "_parse", no_parser)
+    again = UrdfModel(_GOOD, ["turn", "tilt"])
+    q = [0.4, -0.2]
+    assert again.joint_names == first.joint_names and again.name == "bench"
+    np.testing.assert_array_equal(again.tree.mass_matrix(q), first.tree.mass_matrix(q))
+    np.testing.assert_array_equal(again.joint_space(q).gravity, first.joint_space(q).gravity)
+    monkeypatch.undo()
+    monkeypatch.setenv("ANALOGY_CACHE_DIR", str(tmp_path))
+    entry.write_bytes(b"PK\x03\x04 not an archive")
+    rebuilt = UrdfModel(_GOOD, ["turn", "tilt"])
+    np.testing.assert_array_equal(rebuilt.tree.mass_matrix(q), first.tree.mass_matrix(q))

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import hashlib
 import io
+import os
 import warnings
 from functools import lru_cache
 from pathlib import Path
@@ -12,6 +14,8 @@ from xml.etree import ElementTree
 import numpy as np
 
 from ..errors import InputError
+from . import rigid_tree as rigid_tree_module
+from .compiled import cache_dir
 from .joint import JointSpace, JointStack, configuration_stack
 from .rigid_tree import RigidTree, plucker, spatial_inertia
 
@@ -268,6 +272,43 @@ def _joint_motion(joint, value: float) -> np.ndarray:
     return t
 
 
+def _cached_tree(text: str, g: float, joints, pose) -> tuple:
+    """(name, tree, joint names, kinds, dampers): from the cache when this file was read before.
+
+    Parsing needs yourdfpy, whose import alone takes a second; the tree is a few arrays,
+    kept under a key of the file's text, the selection and this code (``ANALOGY_CACHE_DIR=``
+    turns the cache off, as for the compiled models).
+    """
+    folder = cache_dir()
+    key = hashlib.sha256(repr((text, g, None if joints is None else tuple(joints),
+                               None if pose is None else sorted(pose.items()))).encode())
+    for source in (__file__, rigid_tree_module.__file__):
+        key.update(Path(source).read_bytes())
+    path = None if folder is None else folder / f"urdf-{key.hexdigest()[:24]}.npz"
+    if path is not None and path.is_file():
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                tree = RigidTree(tuple(int(p) for p in z["parents"]), tuple(str(k) for k in z["kinds"]), z["axes"],
+                                 z["placements"], z["inertias"], z["gravity"])
+                return str(z["name"]), tree, tuple(str(n) for n in z["names"]), tree.kinds, z["damping"]
+        except Exception:           # a damaged entry (not a zip, a missing array …) is rebuilt, never trusted
+            pass
+    robot = _parse(text)
+    tree, names, kinds, damping = _tree(robot, g, joints, pose)
+    name = str(robot.name or "urdf")
+    if path is not None:
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+            tmp = path.with_name(f"{path.stem}.{os.getpid()}.tmp.npz")
+            np.savez(tmp, name=name, parents=np.array(tree.parents), kinds=np.array(kinds), axes=tree.axes,
+                     placements=tree.placements, inertias=tree.inertias, gravity=tree.gravity,
+                     names=np.array(names), damping=damping)
+            os.replace(tmp, path)               # atomic: readers never see half a file
+        except OSError:
+            pass
+    return name, tree, names, kinds, damping
+
+
 class UrdfModel:
     """A URDF robot: M(q) and G(q) from its tree, numeric at every pose (no sympy).
 
@@ -293,10 +334,8 @@ class UrdfModel:
     def __init__(self, text: str, joints: Sequence[str] | None = None, pose: Mapping[str, float] | None = None,
                  g: float = STANDARD_GRAVITY):
         self.text = text
-        robot = _parse(text)
-        self.name = str(robot.name or "urdf")
-        self._robot, self._selection, self._pose = robot, joints, pose
-        self.tree, self.joint_names, kinds, self.joint_damping = _tree(robot, g, joints, pose)
+        self._selection, self._pose = joints, pose
+        self.name, self.tree, self.joint_names, kinds, self.joint_damping = _cached_tree(text, g, joints, pose)
         self.joints = kinds
         self.parameters = {"g": float(g)}
         self.coordinates = tuple(f"q{i + 1}" for i in range(len(kinds)))
