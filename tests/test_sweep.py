@@ -16,18 +16,9 @@ from analogy.batch.designs import design_points, index_permutation
 from analogy.cli import main
 from analogy.errors import InputError
 from analogy.scenes.builtin import scene
+from sweep_text import HEAD
 
-SWEEP = """
-name = "arm"
-[model]
-robot = "serial2"
-[inputs]
-forces = [1, 0]
-t_stop = 10
-[solvers]
-use = ["spice", "exact"]
-preset = "fast"
-[sweep]
+SWEEP = HEAD + """[sweep]
 method = "{method}"
 count = {count}
 seed = 3

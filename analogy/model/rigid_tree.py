@@ -7,7 +7,7 @@ from typing import Literal, Sequence
 
 import numpy as np
 
-__all__ = ["JointKind", "RigidTree", "spatial_inertia", "plucker"]
+__all__ = ["JointKind", "RigidTree", "axis_rotation", "spatial_inertia", "plucker"]
 
 #: The joints a tree moves by: a rotation about an axis, or a slide along it.
 JointKind = Literal["revolute", "prismatic"]
@@ -36,6 +36,22 @@ def plucker(rotation: np.ndarray, position: np.ndarray) -> np.ndarray:
     x[3:, 3:] = et
     x[3:, :3] = -et @ _skew(position)
     return x
+
+
+def axis_rotation(axis: np.ndarray, angles) -> np.ndarray:
+    """Rodrigues' rotations by each of *angles* about the unit *axis*, shape (len(angles), 3, 3).
+
+    Parameters
+    ----------
+    axis : ndarray, shape (3,)
+        Unit axis.
+    angles : array_like
+        Angles [rad] (complex ones too, for the complex step).
+    """
+    k = _skew(np.asarray(axis, dtype=float))
+    a = np.atleast_1d(angles)
+    c, s = np.cos(a)[:, None, None], np.sin(a)[:, None, None]
+    return np.eye(3) + s * k + (1.0 - c) * (k @ k)
 
 
 def spatial_inertia(mass: float, com: np.ndarray, inertia_at_com: np.ndarray) -> np.ndarray:
@@ -104,10 +120,8 @@ class RigidTree:
         p, n = qs.shape
         x = np.zeros((p, n, 6, 6), dtype=qs.dtype)
         for i, (kind, axis) in enumerate(zip(self.kinds, self.axes)):
-            if kind == "revolute":          # Rodrigues, batched: the child's axes turned by q about the axis
-                k = _skew(axis)
-                c, sn = np.cos(qs[:, i])[:, None, None], np.sin(qs[:, i])[:, None, None]
-                et = (np.eye(3) + sn * k + (1.0 - c) * (k @ k)).transpose(0, 2, 1)
+            if kind == "revolute":          # the child's axes turned by q about the axis
+                et = axis_rotation(axis, qs[:, i]).transpose(0, 2, 1)
                 x[:, i, :3, :3] = et
                 x[:, i, 3:, 3:] = et
             else:                           # a slide by q along the axis: [[1, 0], [−p×, 1]]

@@ -6,7 +6,7 @@ import hashlib
 import io
 import os
 import warnings
-from functools import lru_cache
+from functools import cached_property, lru_cache
 from pathlib import Path
 from typing import Mapping, Sequence
 from xml.etree import ElementTree
@@ -17,7 +17,7 @@ from ..errors import InputError
 from . import rigid_tree as rigid_tree_module
 from .compiled import cache_dir
 from .joint import JointSpace, JointStack, configuration_stack
-from .rigid_tree import RigidTree, plucker, spatial_inertia
+from .rigid_tree import RigidTree, axis_rotation, plucker, spatial_inertia
 
 __all__ = ["UrdfModel", "urdf_model", "read_urdf", "MAX_URDF_BYTES", "STANDARD_GRAVITY"]
 
@@ -265,8 +265,7 @@ def _joint_motion(joint, value: float) -> np.ndarray:
     axis = axis / np.linalg.norm(axis)
     t = np.eye(4)
     if _MOVING[joint.type] == "revolute":
-        k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
-        t[:3, :3] = np.eye(3) + np.sin(value) * k + (1 - np.cos(value)) * k @ k
+        t[:3, :3] = axis_rotation(axis, value)[0]
     else:
         t[:3, 3] = axis * value
     return t
@@ -397,7 +396,7 @@ class UrdfModel:
         g[np.abs(g) < floor] = 0.0
         return m, b, k, g
 
-    @property
+    @cached_property
     def gravity_scale(self) -> float:
         """g·Σm·reach [N·m]: how large a gravity load or stiffness of the tree can be."""
         t = self.tree
