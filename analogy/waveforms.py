@@ -81,6 +81,12 @@ class Waveform:
         """The waveform as the user writes it, e.g. ``step(1)`` or ``sine(0, 0.5, 2)``."""
         raise NotImplementedError
 
+    def key(self) -> tuple:
+        """The waveform's value as a hashable tuple: equal keys, equal waveforms (caches left out)."""
+        return (type(self).__name__,) + tuple(
+            (v.shape, v.tobytes()) if isinstance(v, np.ndarray) else v
+            for k, v in sorted(vars(self).items()) if not k.startswith("_"))
+
 
 def _call(name: str, values, keep: int) -> str:
     """``name(v1, v2, …)`` with trailing defaults beyond the first *keep* values dropped."""

@@ -136,7 +136,7 @@ def test_element_table_of_a_stack_lists_each_systems_elements():
 
 def test_batch_netlist_is_each_systems_own_circuit_under_a_prefix():
     """The stacked writer gives, line for line, what the one-system writer gives."""
-    systems = scene("serial2").systems(np.column_stack([np.zeros(5), np.linspace(-3, 3, 5)]))
+    systems = list(scene("serial2").systems(np.column_stack([np.zeros(5), np.linspace(-3, 3, 5)])))
     systems.append(scene("serial3").replace(t_stop=10.0).system())
     text = batch_netlist(systems)
     expected = []

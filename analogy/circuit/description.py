@@ -8,7 +8,7 @@ import numpy as np
 
 from ..errors import InputError
 from .elements import ZERO_TOL, Element, element_table, laplacian_split, spice_value
-from .node_system import stacked
+from .node_stack import NodeStack, inputs_key
 from .parts import (
     BehaviouralCurrent,
     ChargeCapacitor,
@@ -119,17 +119,17 @@ def circuits(systems: Sequence, zero_tol: float = ZERO_TOL) -> list[Circuit]:
         kinds.setdefault((s.dof, s.stiffness is None), []).append(k)
     sources: dict = {}
     for (_, no_springs), idx in kinds.items():
-        group = [systems[k] for k in idx]
-        table, dropped = element_table(stacked(group, "mass"), stacked(group, "damping"),
-                                       None if no_springs else stacked(group, "stiffness"), zero_tol,
-                                       report=True)
+        group = NodeStack.of(systems) if len(idx) == len(systems) else NodeStack([systems[k] for k in idx])
+        table, dropped = element_table(group.mass, group.damping, None if no_springs else group.stiffness,
+                                       zero_tol, report=True)
         columns = [(kind, a, b, spice_value(kind, c).tolist(), c.tolist()) for kind, a, b, c in table]
-        names = [f"n{i + 1}" for i in range(systems[idx[0]].dof)]
+        names = [f"n{i + 1}" for i in range(group.dof)]
+        shared = group.shares_inputs
         for j, k in enumerate(idx):
             s = systems[k]
             parts = tuple([Element(kind, a, b, values[j], coef[j])
                            for kind, a, b, values, coef in columns if coef[j] != 0.0])
-            key = (id(s.forces), id(s.topology))
+            key = (group.dof, no_springs) if shared else inputs_key(s)[:2]
             src = sources.get(key)
             if src is None:
                 src = sources[key] = current_sources(s, zero_tol)

@@ -108,11 +108,15 @@ def circuit_lines(c: Circuit, prefix: str = "", memo: dict | None = None) -> lis
         elif isinstance(p, BehaviouralCurrent):
             lines.append(f"B{prefix}{p.name} {b} {a} I={{{_prefixed(spice_expression(p.current), prefix)}}}")
     # 'I n+ n- value' drives current out of n+ and into n-: into a, out of b.
-    values = None if memo is None else memo.get(id(c.sources))
-    if values is None:
+    if memo is None:
         values = [s.waveform.spice(s.scale, c.t_stop) for s in c.sources]
-        if memo is not None:
-            memo[id(c.sources)] = values
+    else:                   # one waveform drives many circuits of a batch: its text is made once
+        values = []
+        for s in c.sources:
+            value = memo.setdefault(s.waveform, {}).get((s.scale, c.t_stop))
+            if value is None:
+                value = memo[s.waveform][s.scale, c.t_stop] = s.waveform.spice(s.scale, c.t_stop)
+            values.append(value)
     lines += [f"I{prefix}{s.name[1:]} {_node(s.b, prefix)} {_node(s.a, prefix)} {v}"
               for s, v in zip(c.sources, values)]
     return lines
@@ -249,7 +253,7 @@ def write_batch(described: Sequence[Circuit], settings) -> str:
         Their shared transient settings.
     """
     lines, ic, save = [f"* analogy batch of {len(described)} independent circuits"], [], []
-    memo: dict = {}         # circuits of one family share their sources, and t_stop
+    memo: dict = {}         # per waveform, its source text at each scale and t_stop
     for k, c in enumerate(described):
         prefix = f"x{k}_"
         lines += circuit_lines(c, prefix, memo)

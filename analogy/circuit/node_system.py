@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Iterator, Mapping, NamedTuple, Protocol, Sequence
+from typing import Iterator, Mapping, Protocol, Sequence
 
 import numpy as np
 
@@ -20,6 +20,7 @@ from ..model.joint import (
 )
 from ..waveforms import Step
 from .joint_forces import force_breakpoints, joint_forces, waveforms
+from .node_stack import NodeStack
 from .topology import Topology, symmetric_part
 from .topology import topology as make_topology
 
@@ -43,7 +44,7 @@ class Evaluable(Protocol):
             Parameter overrides.
         """
 
-__all__ = ["Evaluable", "NodeCoordinates", "NodeSystem", "Family", "stacked", "node_system", "node_systems",
+__all__ = ["Evaluable", "NodeCoordinates", "NodeSystem", "node_system", "node_systems",
            "output_times"]
 
 
@@ -174,19 +175,18 @@ class NodeSystem(NodeCoordinates):
         with concerning("forces"):
             self.breakpoints()      # checks every waveform against t_stop before any solver runs
 
-    def _store(self, joint, topology, forces, r0, t_stop, info, mass, damping, stiffness, family=None):
+    def _store(self, joint, topology, forces, r0, t_stop, info, mass, damping, stiffness):
         self.joint, self.topology, self.forces = joint, topology, forces
         self.dof = joint.dof                                # number of nodes (and joints) n
         self.initial_rates, self.t_stop, self.provenance = r0, t_stop, Provenance.of(info)
         self.initial_voltages = topology.matrix @ r0        # node velocities v(0) = T·R(0)
         self.mass, self.damping, self.stiffness = mass, damping, stiffness
         self.current_map = topology.current_map
-        self.family = family            # (Family, row) for systems built as one stack
 
     @classmethod
     def from_checked(cls, joint: JointSpace, topology: Topology, forces: tuple, initial_rates: np.ndarray,
                      t_stop: float, info: Mapping, mass: np.ndarray, damping: np.ndarray,
-                     stiffness: np.ndarray | None, family: tuple | None = None) -> "NodeSystem":
+                     stiffness: np.ndarray | None) -> "NodeSystem":
         """A system whose parts were checked as one row of a stack (see :func:`node_systems`).
 
         Parameters
@@ -209,11 +209,9 @@ class NodeSystem(NodeCoordinates):
             B'.
         stiffness : ndarray or None
             K'.
-        family : tuple of (Family, int), optional
-            The stack the system is a row of, and its row.
         """
         obj = cls.__new__(cls)
-        obj._store(joint, topology, forces, initial_rates, t_stop, info, mass, damping, stiffness, family)
+        obj._store(joint, topology, forces, initial_rates, t_stop, info, mass, damping, stiffness)
         return obj
 
     def __repr__(self) -> str:
@@ -244,36 +242,6 @@ class NodeSystem(NodeCoordinates):
             Time.
         """
         return np.zeros(self.dof)
-
-
-class Family(NamedTuple):
-    """The node matrices of systems built as one stack, which the systems are rows of, in order."""
-
-    mass: np.ndarray
-    damping: np.ndarray
-    stiffness: np.ndarray | None
-    initial_voltages: np.ndarray
-    size: int
-
-
-def stacked(systems: Sequence, attr: str) -> np.ndarray:
-    """``np.stack`` of attribute *attr* of *systems*, read from their family when they are all its rows.
-
-    Parameters
-    ----------
-    systems : sequence of NodeSystem
-        Systems of one size.
-    attr : str
-        ``mass``, ``damping``, ``stiffness`` or ``initial_voltages``.
-    """
-    first = systems[0].family
-    if first is not None and first[0].size == len(systems):
-        fam = first[0]
-        if all(s.family is not None and s.family[0] is fam and s.family[1] == k for k, s in enumerate(systems)):
-            value = getattr(fam, attr)
-            if value is not None:
-                return value
-    return np.stack([getattr(s, attr) for s in systems])
 
 
 def output_times(t_stop: float, times=None, default: int = 1001) -> np.ndarray:
@@ -360,8 +328,8 @@ def _mapped(joint, top_spec, base_info, forces, initial_rates, t_stop, info) -> 
 
 def node_systems(model, qs, *, parameters: Mapping[str, float] | None = None,
                  topology=None, forces=None, initial_rates=None, t_stop: float = DEFAULT_T_STOP,
-                 info: Mapping | None = None) -> list[NodeSystem]:
-    """:func:`node_system` at every row of *qs*, evaluated and checked as one stack.
+                 info: Mapping | None = None) -> NodeStack:
+    """:func:`node_system` at every row of *qs*, evaluated and checked as one :class:`NodeStack`.
 
     The configurations share everything else (topology, forces, initial rates, t_stop,
     and the parameters that are not given per row), so those are checked once, and M(q), B(q), K(q), G(q) are evaluated
@@ -425,7 +393,7 @@ def node_systems(model, qs, *, parameters: Mapping[str, float] | None = None,
                 out.append(node_system(model, qk.tolist(), parameters=row(k), **kw))
             except InputError as exc:
                 raise InputError(f"configuration {k + 1}: {exc}") from None
-        return out
+        return NodeStack(out)
     for x in (m, b, kk, node_mass, node_damping, node_stiffness):
         if x is not None:
             x.setflags(write=False)     # rows are views: no system may change another
@@ -434,7 +402,9 @@ def node_systems(model, qs, *, parameters: Mapping[str, float] | None = None,
     r0, t_end = first.initial_rates, first.t_stop
     all_stiff = kk is not None and all(np.any(r) for r in kk)
     v0 = np.broadcast_to(first.initial_voltages, (len(q), first.dof))
-    family = Family(node_mass, node_damping, node_stiffness if all_stiff else None, v0, len(q))
+    arrays = {"mass": node_mass, "damping": node_damping, "initial_voltages": v0}
+    if all_stiff:
+        arrays["stiffness"] = node_stiffness
     out = []
     for k, qk in enumerate(q):
         stiff = None if kk is None or not np.any(kk[k]) else kk[k]
@@ -444,6 +414,5 @@ def node_systems(model, qs, *, parameters: Mapping[str, float] | None = None,
         joint = JointSpace.from_checked(m[k], b[k], stiff, grav)
         item_info = first.provenance.at(dict(zip(coords, qk.tolist())), row(k) if varying else None)
         out.append(NodeSystem.from_checked(joint, top, ws, r0.copy(), t_end, item_info, node_mass[k],
-                                           node_damping[k], None if stiff is None else node_stiffness[k],
-                                           (family, k)))
-    return out
+                                           node_damping[k], None if stiff is None else node_stiffness[k]))
+    return NodeStack(out, arrays, shared_inputs=stack.gravity is None)

@@ -10,7 +10,7 @@ import numpy as np
 
 from ..errors import InputError
 from .joint_forces import joint_forces
-from .node_system import stacked
+from .node_stack import NodeStack
 from .topology import symmetric_part
 
 __all__ = ["Scales", "system_scales", "stack_scales", "combined_scales"]
@@ -182,17 +182,19 @@ def stack_scales(systems: Sequence) -> list[Scales]:
         Linear systems.
     """
     out: list = [getattr(s, "_scales", None) for s in systems]
-    groups: dict = {}
-    for i, s in enumerate(systems):
-        if out[i] is None:
-            groups.setdefault((s.dof, s.stiffness is None, id(s.forces), id(s.topology), s.t_stop), []).append(i)
-    for (_, springless, _, _, _), idx in groups.items():
-        group = [systems[i] for i in idx]
-        k = None if springless else stacked(group, "stiffness")
-        for i, sc in zip(idx, _stack_scales(group[0], stacked(group, "mass"), stacked(group, "damping"), k,
-                                            stacked(group, "initial_voltages"))):
-            out[i] = sc
-            _keep(systems[i], sc)
+    todo = [i for i, s in enumerate(systems) if out[i] is None]
+    if not todo:
+        return out
+    by_size: dict = {}
+    for i in todo:
+        by_size.setdefault(systems[i].dof, []).append(i)
+    for idx in by_size.values():
+        stack = NodeStack.of(systems) if len(idx) == len(systems) else NodeStack([systems[i] for i in idx])
+        for rows, part in stack.partition():
+            for i, sc in zip((idx[r] for r in rows), _stack_scales(part[0], part.mass, part.damping, part.stiffness,
+                                                                  part.initial_voltages)):
+                out[i] = sc
+                _keep(systems[i], sc)
     return out
 
 

@@ -43,6 +43,11 @@ class Topology:
         return self.matrix.shape[0]
 
     @cached_property
+    def key(self) -> tuple:
+        """The map's value as a hashable tuple, for grouping systems that share it."""
+        return (self.name, self.matrix.shape, self.matrix.tobytes())
+
+    @cached_property
     def inverse(self) -> np.ndarray:
         """T⁻¹, mapping node velocities back to joint rates."""
         inv = np.linalg.inv(self.matrix)

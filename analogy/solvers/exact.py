@@ -7,7 +7,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ..circuit.node_system import stacked
+from ..circuit.node_stack import NodeStack, inputs_key
 from ..circuit.topology import symmetric_part
 from ..errors import SimulationError
 from ..presets import Preset
@@ -84,12 +84,7 @@ def _modes(systems, n: int, springs: bool):
     and M'-orthonormal modes, so the transform is perfectly conditioned. With springs
     the first-order system on y = [x, v] is decomposed by ``eig``.
     """
-    m = stacked(systems, "mass")
-    b = stacked(systems, "damping")
-    top = systems[0].topology
-    cmap = np.broadcast_to(top.current_map, m.shape) if all(s.topology is top for s in systems) \
-        else np.stack([s.current_map for s in systems])
-    v0 = stacked(systems, "initial_voltages")
+    m, b, cmap, v0 = systems.mass, systems.damping, systems.current_map, systems.initial_voltages
     if not springs:
         chol = np.linalg.cholesky(m)
         half = np.linalg.solve(chol, b)
@@ -99,7 +94,7 @@ def _modes(systems, n: int, springs: bool):
         z = np.einsum("sji,sjk,sk->si", vec, m, v0)
         beta = np.einsum("sji,sjk->sik", vec, cmap)
         return -mu, vec, z, beta          # real: real arithmetic unless a sine forces
-    k = stacked(systems, "stiffness")
+    k = systems.stiffness
     mk, mb, mc = (np.linalg.solve(m, x) for x in (k, b, cmap))
     eye, zero = np.broadcast_to(np.eye(n), mk.shape), np.zeros_like(mk)
     a = np.concatenate([np.concatenate([zero, eye], 2), np.concatenate([-mk, -mb], 2)], 1)
@@ -180,16 +175,19 @@ def _spring_state(m, k, mb):
     return a[None], lam[None], vec[None]
 
 
-def _states(systems, t, n: int, springs: bool) -> np.ndarray:
-    """States y(t) (x and v with springs, else v) of systems sharing size and breakpoints."""
+def _states(systems: NodeStack, t, n: int, springs: bool) -> np.ndarray:
+    """States y(t) (x and v with springs, else v) of a stack sharing springs and breakpoints."""
     lam, vec, z, beta = _modes(systems, n, springs)
     count, joints = len(systems), beta.shape[2]
     states = np.empty((count, t.size, vec.shape[1]))
     first = systems[0]
     lam_ = lam[:, :, None]          # time runs along the last axis: long inner loops
-    shared: dict = {}               # systems of one family share their forces
-    for i, s in enumerate(systems):
-        shared.setdefault(id(s.forces), (s.forces, []))[1].append(i)
+    shared: dict = {}               # the pieces of equal forces are derived once
+    if systems.shares_inputs:
+        shared[None] = (first.forces, list(range(count)))
+    else:
+        for i, s in enumerate(systems):
+            shared.setdefault(inputs_key(s)[1], (s.forces, []))[1].append(i)
     for t0, t1 in first.segments():
         last = t1 >= first.t_stop
         mask = (t >= t0) & ((t <= t1) if last else (t < t1))
@@ -227,20 +225,21 @@ def _solve(systems, t) -> np.ndarray | list[np.ndarray]:
 
 
 def _solve_parts(systems, t) -> np.ndarray | list[np.ndarray]:
-    parts: dict = {}
+    if isinstance(systems, NodeStack) and len(systems.partition()) == 1:     # one stack: returned whole
+        return _finite(_states(systems, t, systems.dof, not systems.springless))
+    groups: dict = {}
     breaks: dict = {}
     for k, s in enumerate(systems):
-        b = breaks.get((id(s.forces), s.t_stop))
+        b = breaks.get(inputs_key(s))
         if b is None:
-            b = breaks[id(s.forces), s.t_stop] = tuple(s.breakpoints().tolist())
-        key = (s.dof, s.stiffness is not None, b)
-        parts.setdefault(key, []).append(k)
-    if len(parts) == 1:                 # one stack: returned whole
-        (n, springs, _), = parts
-        return _finite(_states(systems, t, n, springs))
+            b = breaks[inputs_key(s)] = tuple(s.breakpoints().tolist())
+        groups.setdefault((s.dof, s.stiffness is not None, b), []).append(k)
+    if len(groups) == 1:
+        (n, springs, _), = groups
+        return _finite(_states(NodeStack.of(systems), t, n, springs))
     out: list = [None] * len(systems)
-    for (n, springs, _), idx in parts.items():
-        for k, y in zip(idx, _finite(_states([systems[k] for k in idx], t, n, springs))):
+    for (n, springs, _), idx in groups.items():
+        for k, y in zip(idx, _finite(_states(NodeStack([systems[k] for k in idx]), t, n, springs))):
             out[k] = y
     return out
 

@@ -42,6 +42,7 @@ from ..errors import InputError, SimulationError
 from ..presets import Preset
 from ..presets import preset as get_preset
 from ..results.trajectory import SolverStats, Trajectory
+from ..results.trajectory_stack import TrajectoryStack
 
 __all__ = ["Solver", "SolverName", "SOLVER_NAMES", "solver", "solve", "run", "run_many", "stacked_trajectories"]
 
@@ -200,8 +201,8 @@ class Solver:
 
 
 def stacked_trajectories(name: str, systems: Sequence, time: np.ndarray, voltages: np.ndarray,
-                         stats: SolverStats) -> list[Trajectory]:
-    """Trajectories of systems solved together on one time grid, joint rates mapped per topology.
+                         stats: SolverStats) -> TrajectoryStack:
+    """The stack of systems solved together on one time grid, joint rates mapped per topology.
 
     Parameters
     ----------
@@ -218,14 +219,14 @@ def stacked_trajectories(name: str, systems: Sequence, time: np.ndarray, voltage
     """
     groups: dict = {}
     for k, s in enumerate(systems):
-        groups.setdefault(id(s.topology), []).append(k)
+        groups.setdefault(s.topology.key, []).append(k)
     if len(groups) == 1:
         rates = systems[0].joint_rates(voltages)
     else:
         rates = np.empty_like(voltages)
         for idx in groups.values():
             rates[idx] = systems[idx[0]].joint_rates(voltages[idx])
-    return [Trajectory(name, time, voltages[k], rates[k], stats=stats) for k in range(len(systems))]
+    return TrajectoryStack.solved_as_one(name, time, voltages, rates, stats)
 
 
 def solver(name: str) -> Solver:
@@ -273,7 +274,7 @@ def run(name: str, system, times, preset: Preset, *, save: Sequence[str] = (),
 
 
 def run_many(name: str, systems: Sequence, times, preset: Preset, *, save: Sequence[str] = (),
-             positions: bool = False) -> list[Trajectory]:
+             positions: bool = False) -> TrajectoryStack:
     """Run solver *name* on many systems at shared *times* (see :meth:`Solver.solve_many`).
 
     Parameters
@@ -291,7 +292,7 @@ def run_many(name: str, systems: Sequence, times, preset: Preset, *, save: Seque
     positions : bool
         Also return node positions where the systems have springs.
     """
-    return solver(name).solve_many(systems, times, preset, save=save, positions=positions)
+    return TrajectoryStack.of(solver(name).solve_many(systems, times, preset, save=save, positions=positions))
 
 
 def solve(system, method: str = "spice", t_eval=None, preset: str | Preset = "accurate", *,

@@ -11,7 +11,7 @@ import numpy as np
 from ..circuit.currents import element_currents
 from ..circuit.description import circuit
 from ..circuit.netlist import save_vectors, write_netlist
-from ..circuit.node_system import stacked
+from ..circuit.node_stack import NodeStack
 from ..circuit.scales import combined_scales, stack_scales, system_scales
 from ..errors import SimulationError
 from ..presets import Preset
@@ -186,7 +186,7 @@ class SpiceSolver(Solver):
         volts = np.stack([data[f"x{k}_{node}"] for k in range(count) for node in nodes])
         volts = volts.reshape(count, n, -1).transpose(0, 2, 1)
         if prepended:
-            v0 = stacked(systems, "initial_voltages")[:, None, :]
+            v0 = NodeStack.of(systems).initial_voltages[:, None, :]
             volts = np.concatenate([v0, volts], axis=1)
         info = SolverStats(elapsed, time.size - 1, stats.get("rejected"), stats.get("iterations"))
         return stacked_trajectories(self.name, systems, time, volts, info)

@@ -18,6 +18,8 @@ from .work import check_works
 from ..results.metrics import OutputErrors, errors, output_errors, peak
 from ..results.output import Tabular, html_table
 from ..results.trajectory import Trajectory
+from ..results.trajectory_stack import TrajectoryStack
+from ..circuit.node_stack import NodeStack
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -222,11 +224,17 @@ def _reference(system, names: list[str], reference: str | None) -> str | None:
     return None
 
 
-def _by_grid(trajectories: Sequence[Trajectory | None]) -> dict[int, list[int]]:
+def _subset(systems: Sequence, rows: list[int]) -> Sequence:
+    """The systems of *rows*: a sub-stack of a node stack, else a list."""
+    return systems.take(rows) if isinstance(systems, NodeStack) else [systems[k] for k in rows]
+
+
+def _by_grid(grids: Sequence[np.ndarray]) -> list[list[int]]:
+    """Indices grouped by equal time grids (by value)."""
     groups: dict = {}
-    for k, tr in enumerate(trajectories):
-        groups.setdefault(id(tr.time) if tr is not None else None, []).append(k)
-    return groups
+    for k, g in enumerate(grids):
+        groups.setdefault(g.tobytes(), []).append(k)
+    return list(groups.values())
 
 
 def compare_many(systems: Sequence, preset: str | Preset = "accurate",
@@ -293,23 +301,28 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
                 grids = [tr.time if tr.success and grids[k] is None else grids[k]
                          for k, tr in enumerate(trs)]
             else:
-                trs = [tr.resampled(base, sys_.joint_rates) if tr.success else tr
-                       for tr, sys_ in zip(trs, systems)]
+                trs = TrajectoryStack([tr.resampled(base, sys_.joint_rates) if tr.success else tr
+                                       for tr, sys_ in zip(trs, systems)])
         else:
             default = np.linspace(0.0, systems[0].t_stop, p.steps + 1)
             grids = [default if g is None else g for g in grids]
-            trs: list = [None] * count
-            for idx in _group_indices(grids).values():
-                for k, tr in zip(idx, run_many(name, [systems[k] for k in idx], grids[idx[0]], p,
-                                               save=save, positions=want_x)):
-                    trs[k] = tr
+            groups = _by_grid(grids)
+            if len(groups) == 1:
+                trs = run_many(name, systems, grids[0], p, save=save, positions=want_x)
+            else:
+                rows: list = [None] * count
+                for idx in groups:
+                    for k, tr in zip(idx, run_many(name, _subset(systems, idx), grids[idx[0]], p,
+                                                   save=save, positions=want_x)):
+                        rows[k] = tr
+                trs = TrajectoryStack(rows)
         if save:
             for tr, sys_ in zip(trs, systems):
                 if tr.success and not tr.currents:
                     tr.currents = trajectory_currents(sys_, tr, save)
         runs[name] = trs
     out = []
-    measured = _measure(systems, runs, native, ref_name, p, tuple(save))
+    measured = _measure(systems, runs, native, ref_name, p, tuple(save), set(native) if base is not None else set())
     columns = [(n, runs[n]) for n in order]
     for k, system in enumerate(systems):
         results, failures = {}, {}
@@ -333,39 +346,17 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
     return out
 
 
-def _group_indices(grids: list) -> dict[int, list[int]]:
-    groups: dict = {}
-    for k, g in enumerate(grids):
-        groups.setdefault(id(g), []).append(k)
-    return groups
-
-
-def _start(a: np.ndarray) -> int:
-    return a.__array_interface__["data"][0]
-
-
-def _rows(arrays: list) -> np.ndarray:
-    """The stack *arrays* are the rows of, when a solver produced them as one (see
-    :func:`~analogy.solvers.registry.stacked_trajectories`), else a new stack."""
-    base = arrays[0].base
-    if base is not None and base.ndim == 3 and base.shape[0] == len(arrays) \
-            and all(a.base is base for a in arrays) and _start(arrays[0]) == _start(base) \
-            and _start(arrays[-1]) == _start(base) + (len(arrays) - 1) * base.strides[0]:
-        return base
-    return np.stack(arrays)
-
-
-def _outputs(trs: list, names: Sequence[str]) -> np.ndarray:
+def _outputs(stack: TrajectoryStack, names: Sequence[str]) -> np.ndarray:
     """Joint rates, then the element currents *names*, as one (count, N, outputs) stack."""
-    rates = _rows([tr.rates for tr in trs])
     if not names:
-        return rates
-    currents = np.stack([np.column_stack([tr.currents[c] for c in names]) for tr in trs])
-    return np.concatenate([rates, currents], axis=2)
+        return stack.rates
+    currents = np.stack([np.column_stack([tr.currents[c] for c in names]) for tr in stack])
+    return np.concatenate([stack.rates, currents], axis=2)
 
 
-def _measure(systems, runs, native, ref_name, p, save=()) -> list[dict]:
-    """Per system and solver, its :class:`OutputErrors`: on each solver's own points."""
+def _measure(systems, runs, native, ref_name, p, save=(), resampled=frozenset()) -> list[dict]:
+    """Per system and solver, its :class:`OutputErrors`: on each solver's own points (*resampled*
+    names the solvers whose reported points are not their own)."""
     out: list[dict] = [{} for _ in systems]
     if ref_name is None:
         return out
@@ -374,30 +365,31 @@ def _measure(systems, runs, native, ref_name, p, save=()) -> list[dict]:
     names = tuple(f"r{j + 1}" for j in range(n)) + tuple(f"i_{c}" for c in save)
     for name, trs in runs.items():
         own = native.get(name, trs)
-        for idx in _by_grid(own).values():
-            ok = [k for k in idx if own[k].success and (name == ref_name or ref[k].success)]
+        for idx in own.by_grid():
+            ok = [k for k in idx if name == ref_name or ref[k].success]
             if not ok:
                 continue
             if name == ref_name:
                 for k in ok:
                     out[k][name] = OutputErrors.zero(names)
                 continue
-            if own[ok[0]] is not trs[ok[0]]:      # resampled: measure on its own points
-                refs = dict(zip(ok, run_many(ref_name, [systems[k] for k in ok], own[ok[0]].time, p)))
+            if name in resampled:      # measured on its own points, with the reference there
+                refs = run_many(ref_name, _subset(systems, ok), own[ok[0]].time, p)
                 if save:
-                    for k in ok:
-                        if refs[k].success and not refs[k].currents:
-                            refs[k].currents = trajectory_currents(systems[k], refs[k], save)
+                    for j, k in enumerate(ok):
+                        if refs[j].success and not refs[j].currents:
+                            refs[j].currents = trajectory_currents(systems[k], refs[j], save)
                         if not own[k].currents:
                             own[k].currents = trajectory_currents(systems[k], own[k], save)
             else:
-                refs = {k: ref[k] for k in ok}
-            ok = [k for k in ok if refs[k].success]
-            groups: dict = {}
-            for k in ok:
-                groups.setdefault(own[k].rates.shape, []).append(k)
-            for group in groups.values():
-                a, b = _outputs([own[k] for k in group], save), _outputs([refs[k] for k in group], save)
+                refs = ref.take(ok)
+            shapes: dict = {}
+            for j, k in enumerate(ok):
+                if refs[j].success:
+                    shapes.setdefault(own[k].rates.shape, []).append(j)
+            for at in shapes.values():
+                group = [ok[j] for j in at]
+                a, b = _outputs(own.take(group), save), _outputs(refs.take(at), save)
                 err, rel = output_errors(a, b)
                 whole = np.atleast_1d(errors(a, b, axis=(1, 2))[1]).tolist()
                 worst = np.argmax(np.where(np.isnan(rel), -np.inf, rel), axis=1)

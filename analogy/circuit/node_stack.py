@@ -1,0 +1,180 @@
+"""Node systems of one size as one batch axis: M', B', K' and v(0) stacked, each row one system."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Iterator, Sequence, overload
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from .node_system import NodeSystem
+
+__all__ = ["NodeStack", "inputs_key"]
+
+
+def inputs_key(system) -> tuple:
+    """What a system is driven by, as a hashable value: topology, forces and t_stop.
+
+    Systems with equal keys share their current sources and time segments, so a solver
+    derives those once for all of them.
+
+    Parameters
+    ----------
+    system : NodeSystem
+        A linear node system.
+    """
+    key = getattr(system, "_inputs_key", None)
+    if key is None:
+        key = (system.topology.key, tuple(tuple(w.key() for w in ws) for ws in system.forces), system.t_stop)
+        try:
+            system._inputs_key = key
+        except AttributeError:      # a system type without room for it: computed again next time
+            pass
+    return key
+
+
+class NodeStack(Sequence):
+    """Linear node systems of one size, their matrices stacked along a leading batch axis.
+
+    A stack is a sequence of its systems; :attr:`mass`, :attr:`damping`,
+    :attr:`stiffness` and :attr:`initial_voltages` are the (count, n, n) and (count, n)
+    arrays, given when the stack was built as one (:func:`~analogy.circuit.node_system.node_systems`)
+    and stacked on first use otherwise.
+
+    Parameters
+    ----------
+    systems : sequence of NodeSystem
+        The rows, all with the same number of nodes.
+    arrays : mapping of str to ndarray, optional
+        Stacked ``mass``, ``damping``, ``stiffness``, ``initial_voltages`` already at hand.
+    shared_inputs : bool
+        The caller knows that every row has the same topology, forces and t_stop.
+    """
+
+    __slots__ = ("systems", "_arrays", "_shared")
+
+    def __init__(self, systems: Sequence["NodeSystem"], arrays: dict | None = None, shared_inputs: bool = False):
+        self.systems = tuple(systems)
+        if not self.systems:
+            raise ValueError("a node stack needs at least one system")
+        if any(s.dof != self.systems[0].dof for s in self.systems):
+            raise ValueError("the systems of a node stack must have one size")
+        self._arrays = dict(arrays or {})
+        self._shared = shared_inputs or len(self.systems) == 1
+
+    @classmethod
+    def of(cls, systems: Sequence["NodeSystem"]) -> "NodeStack":
+        """*systems* as a stack: itself when it is one.
+
+        Parameters
+        ----------
+        systems : sequence of NodeSystem
+            Systems of one size.
+        """
+        return systems if isinstance(systems, NodeStack) else cls(systems)
+
+    def __len__(self) -> int:
+        return len(self.systems)
+
+    @overload
+    def __getitem__(self, index: int) -> "NodeSystem": ...
+
+    @overload
+    def __getitem__(self, index: slice) -> "NodeStack": ...
+
+    def __getitem__(self, index):
+        if isinstance(index, slice):
+            return self.take(range(len(self))[index])
+        return self.systems[index]
+
+    def __iter__(self) -> Iterator["NodeSystem"]:
+        return iter(self.systems)
+
+    def __repr__(self) -> str:
+        return f"NodeStack({len(self)} systems, {self.dof} nodes)"
+
+    @property
+    def dof(self) -> int:
+        """Nodes per system."""
+        return self.systems[0].dof
+
+    @property
+    def springless(self) -> bool:
+        """True when some row has no springs (then :attr:`stiffness` is None)."""
+        return any(s.stiffness is None for s in self.systems)
+
+    @property
+    def shares_inputs(self) -> bool:
+        """True when every row has the same topology, forces and t_stop."""
+        if not self._shared:
+            first = inputs_key(self.systems[0])
+            self._shared = all(inputs_key(s) == first for s in self.systems[1:])
+        return self._shared
+
+    def _stacked(self, attr: str) -> np.ndarray:
+        value = self._arrays.get(attr)
+        if value is None:
+            value = self._arrays[attr] = np.stack([getattr(s, attr) for s in self.systems])
+        return value
+
+    @property
+    def mass(self) -> np.ndarray:
+        """M' of every row, shape (count, n, n)."""
+        return self._stacked("mass")
+
+    @property
+    def damping(self) -> np.ndarray:
+        """B' of every row, shape (count, n, n)."""
+        return self._stacked("damping")
+
+    @property
+    def stiffness(self) -> np.ndarray | None:
+        """K' of every row, shape (count, n, n); None when some row has no springs."""
+        return None if self.springless else self._stacked("stiffness")
+
+    @property
+    def initial_voltages(self) -> np.ndarray:
+        """v(0) = T·R(0) of every row, shape (count, n)."""
+        return self._stacked("initial_voltages")
+
+    @property
+    def current_map(self) -> np.ndarray:
+        """T⁻ᵀ of every row, shape (count, n, n) (a broadcast view when the rows share T)."""
+        first = self.systems[0].topology
+        if all(s.topology.key == first.key for s in self.systems[1:]):
+            return np.broadcast_to(first.current_map, (len(self), self.dof, self.dof))
+        return self._stacked("current_map")
+
+    def take(self, rows: Sequence[int]) -> "NodeStack":
+        """The stack of *rows*, in that order (this stack when they are all of it, in order).
+
+        Parameters
+        ----------
+        rows : sequence of int
+            Row indices.
+        """
+        return self._take(list(rows), self._shared)
+
+    def _take(self, rows: list[int], shared: bool) -> "NodeStack":
+        if rows == list(range(len(self))):
+            return self
+        index = np.asarray(rows, dtype=int)
+        arrays = {k: v[index] for k, v in self._arrays.items()}
+        return NodeStack([self.systems[k] for k in rows], arrays, shared)
+
+    def partition(self, by_inputs: bool = True) -> list[tuple[list[int], "NodeStack"]]:
+        """Rows grouped into sub-stacks that share springs (all or none) and, with *by_inputs*, inputs.
+
+        Parameters
+        ----------
+        by_inputs : bool
+            Also split by topology, forces and t_stop (:func:`inputs_key`).
+        """
+        springs = [s.stiffness is not None for s in self.systems]
+        if all(springs) or not any(springs):
+            if not by_inputs or self.shares_inputs:
+                return [(list(range(len(self))), self)]
+        groups: dict = {}
+        for k, s in enumerate(self.systems):
+            groups.setdefault((springs[k], inputs_key(s) if by_inputs else None), []).append(k)
+        return [(rows, self._take(rows, by_inputs)) for rows in groups.values()]
