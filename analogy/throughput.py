@@ -9,7 +9,8 @@ import time as _time
 
 import numpy as np
 
-from .batch.run import _system, run_batch
+from .batch.plan import as_system
+from .batch.run import run_batch
 from .circuit.description import circuit
 from .errors import InputError
 from .processes import worker_pool
@@ -36,7 +37,7 @@ def _pyspice_loop(payload):
     for k, item in enumerate([items[0]] + list(items)):
         if k == 1:      # the first pass is a warm-up: model, library and imports are ready
             start = _time.perf_counter()
-        s = _system(item)
+        s = as_system(item)
         c = Circuit("scene")
         desc = circuit(s)
         for e in desc.elements:
@@ -65,7 +66,7 @@ def _solo_loop(payload):
         if k == 1:      # the first pass is a warm-up, as in the PySpice loop
             start = _time.perf_counter()
             solves = []
-        s = _system(item)
+        s = as_system(item)
         tr = solve_spice(s, preset=preset_name)
         solves.append(tr.run_time)
         ex = solve_exact(s, tr.time).rates

@@ -96,18 +96,19 @@ def test_a_scene_past_the_work_budget_is_refused_alone_and_the_rest_run(workers)
 
 def test_a_scene_whose_build_raises_anything_fails_alone(monkeypatch):
     """An unexpected exception in one scene (a bug) is that scene's failure, not the batch's."""
-    import analogy.batch.run as run
+    import analogy.batch.plan as plan
     base = scene("default")
     items = [base.replace(q=(0.0, 0.01 * k)) for k in range(30)]
-    build = run._system
+    build = plan.as_system
 
     def faulty(item):
         if tuple(item.q) == items[7].q:
             raise RuntimeError("a bug in one scene")
         return build(item)
-    monkeypatch.setattr(run, "_system", faulty)
+    monkeypatch.setattr(plan, "as_system", faulty)
     monkeypatch.setattr(type(base), "systems", lambda self, *a, **k: (_ for _ in ()).throw(
         analogy.InputError("built one by one")))
     res = run_batch(items, "fast", workers=1, group_size=10)
     assert list(res.failures) == [7] and "RuntimeError: a bug in one scene" in res.failures[7]
     assert np.isfinite(np.delete(res.errors, 7)).all()
+

@@ -186,7 +186,7 @@ def test_public_functions_document_exactly_their_parameters():
     """Each public function's numpydoc Parameters section names exactly its parameters."""
     bad = []
     for qualname, func, doc in public_callables():
-        params = [p.name if p.kind is not p.VAR_KEYWORD else f"**{p.name}"
+        params = [f"**{p.name}" if p.kind is p.VAR_KEYWORD else f"*{p.name}" if p.kind is p.VAR_POSITIONAL else p.name
                   for p in inspect.signature(func).parameters.values() if p.name not in ("self", "cls")]
         doc = doc or ""     # an override without a docstring inherits its base method's
         documented = documented_parameters(doc)

@@ -10,14 +10,13 @@ from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
-from ..errors import AnalogyError, InputError
+from ..errors import InputError
 from ..presets import preset as get_preset
-from ..processes import worker_pool
-from ..study.comparison import compare_many
-from ..study.work import check_work, check_works
+from ..progress import Progress
 from ..results.output import html_table, write_rows
-from ..scenes.scene import Scene
 from ..solvers.registry import solver
+from .executor import ATTEMPTS, execute
+from .plan import GroupResult, plan_groups, solve_group_isolated
 
 if TYPE_CHECKING:
     import pandas
@@ -46,6 +45,8 @@ class BatchResult:
         Per solver, the error of every scene.
     solver_seconds : dict of str to float
         Per solver, seconds over all scenes.
+    interrupted : bool
+        Stopped by SIGTERM under a caller's handler that returned: the scenes not reached have NaN errors.
     """
 
     errors: np.ndarray
@@ -56,6 +57,7 @@ class BatchResult:
     rates: list | None = None
     solver_errors: dict = field(default_factory=dict)
     solver_seconds: dict = field(default_factory=dict)
+    interrupted: bool = False
 
     @property
     def throughput(self) -> float:
@@ -66,7 +68,8 @@ class BatchResult:
         """One line: scenes, seconds, throughput, worst error, failures."""
         ok = self.errors[np.isfinite(self.errors)]
         worst = f"{ok.max():.3e}" if ok.size else "n/a"
-        return (f"{len(self.errors)} scenes in {self.wall_time:.3f} s ({self.throughput:.0f} scenes/s), "
+        stop = "interrupted: " if self.interrupted else ""
+        return (f"{stop}{len(self.errors)} scenes in {self.wall_time:.3f} s ({self.throughput:.0f} scenes/s), "
                 f"ngspice {self.spice_time:.3f} s, worst error/peak {worst}, {len(self.failures)} failed")
 
     def __str__(self) -> str:
@@ -128,145 +131,9 @@ class BatchResult:
         return fig
 
 
-def _system(item):
-    """A node system from a NodeSystem or a Scene."""
-    return item.system() if isinstance(item, Scene) else item
-
-
-def _systems(task) -> tuple[list, dict]:
-    """Build a task's systems; return them (None where a build failed) and the failures.
-
-    A task is ("family", scene, configurations, parameters per row), scenes that differ
-    only in q and a robot's parameter values and are built as one stack, or
-    ("items", [Scene or NodeSystem, ...]).
-    """
-    kind, *rest = task
-    if kind == "family":
-        base, qs, params = rest
-        try:
-            return base.systems(qs, parameters=params), {}
-        except AnalogyError:            # one row is bad: build row by row to keep the others
-            pass
-    items = _items(task)
-    systems, failures = [], {}
-    for k, item in enumerate(items):
-        try:
-            systems.append(_system(item))
-        except AnalogyError as exc:
-            systems.append(None)
-            failures[k] = str(exc)
-    return systems, failures
-
-
-def _group(payload):
-    """Worker: a group's systems, compared through the orchestrator in one go.
-
-    SPICE runs the group as one circuit; if that run fails, each scene runs alone, so
-    that one scene's failure is its own. Errors are against the exact solution. Returns
-    per scene: errors and seconds per solver, failures (index to reason), the indices
-    that could not be built and those refused by the work guard, and the kept trajectories.
-    """
-    task, preset, solvers, reference, keep = payload
-    built, failures = _systems(task)
-    invalid = set(failures)
-    refused = set()
-    try:
-        check_works([s for s in built if s is not None], preset, spice="spice" in solvers)
-    except InputError:                  # some scene is past the work budget: find which, and refuse it alone
-        for k, s in enumerate(built):
-            if s is not None:
-                try:
-                    check_work(s, preset, spice="spice" in solvers)
-                except InputError as exc:
-                    built[k], failures[k] = None, str(exc)
-                    refused.add(k)
-    ok = [k for k, s in enumerate(built) if s is not None]
-    errors = {name: np.full(len(built), np.nan) for name in solvers}
-    seconds = {name: np.zeros(len(built)) for name in solvers}
-    rates: list = [None] * len(built)
-    comparisons = compare_many([built[k] for k in ok], preset, solvers, reference=reference) if ok else []
-    for k, c in zip(ok, comparisons):
-        for name, why in c.failures.items():
-            failures[k] = f"{name}: {why}" if name != "spice" else why
-        measured = c.measured
-        for name in solvers:
-            tr = c.results.get(name)
-            if tr is not None:
-                seconds[name][k] = tr.run_time
-                if name in measured and name != c.reference:     # the yardstick has no error
-                    errors[name][k] = measured[name][1]
-        if keep:
-            rates[k] = {s: (c.results[s].time, c.results[s].rates) for s in solvers
-                        if s in c.results and c.results[s].success}
-    return errors, seconds, failures, (invalid, refused), (rates if keep else None)
-
-
-def _isolated_group(payload):
-    """Worker: :func:`_group`, and when it raises, each scene alone, so a bug in one scene fails only it."""
-    try:
-        return _group(payload)
-    except Exception:       # noqa: BLE001 - one scene's bug must not lose the group's other scenes
-        pass
-    task, preset, solvers, reference, keep = payload
-    items = _items(task)
-    count = len(items)
-    errors = {name: np.full(count, np.nan) for name in solvers}
-    seconds = {name: np.zeros(count) for name in solvers}
-    failures, invalid, refused, rates = {}, set(), set(), [None] * count
-    for k, item in enumerate(items):
-        try:
-            errs, secs, failed, (bad, late), kept = _group((("items", [item]), preset, solvers, reference, keep))
-        except Exception as exc:        # noqa: BLE001
-            failures[k] = f"internal error: {type(exc).__name__}: {' '.join(str(exc).split())[:300]}"
-            continue
-        for name in solvers:
-            errors[name][k], seconds[name][k] = errs[name][0], secs[name][0]
-        if 0 in failed:
-            failures[k] = failed[0]
-        invalid |= {k} if bad else set()
-        refused |= {k} if late else set()
-        if kept is not None:
-            rates[k] = kept[0]
-    return errors, seconds, failures, (invalid, refused), (rates if keep else None)
-
-
-def _items(task) -> list:
-    """The scenes or systems of a task, one by one."""
-    kind, *rest = task
-    if kind != "family":
-        return list(rest[0])
-    base, qs, params = rest
-    return [base.replace(q=tuple(row), parameters={**dict(base.parameters), **{k: float(v[i]) for k, v in params.items()}})
-            for i, row in enumerate(np.asarray(qs).tolist())]
-
-
-def _tasks(systems, group_size: int) -> list[tuple[list[int], tuple]]:
-    """Split *systems* into (indices, task) groups of at most *group_size* with one time grid.
-
-    Scenes that differ only in their configuration and a robot's parameter values form
-    one family, built as a stack.
-    """
-    kinds: dict = {}
-    for k, item in enumerate(systems):
-        family = item.family() if isinstance(item, Scene) else None
-        key = ("family", family) if family is not None else ("grid", item.t_stop)
-        kinds.setdefault(key, []).append(k)
-    tasks = []
-    for (kind, _), idx in kinds.items():
-        for i in range(0, len(idx), group_size):
-            chunk = idx[i:i + group_size]
-            if kind == "family":
-                first = systems[chunk[0]]
-                qs = np.array([systems[k].q for k in chunk], dtype=float).reshape(len(chunk), -1)
-                params = {}
-                if first.model.robot is not None and first.parameters:
-                    values = np.array([[v for _, v in systems[k].parameters] for k in chunk], dtype=float)
-                    params = {name: values[:, j] for j, (name, _) in enumerate(first.parameters)
-                              if np.any(values[:, j] != values[0, j])}
-                tasks.append((chunk, ("family", first, qs, params)))
-            else:
-                tasks.append((chunk, ("items", [systems[k] for k in chunk])))
-    return tasks
+def _solve(payload) -> GroupResult:
+    """Worker entry: one group (a module-level function, so that it pickles by name)."""
+    return solve_group_isolated(*payload)
 
 
 def run_batch(systems: Sequence, preset="fast", *, solvers: Sequence[str] = ("spice",),
@@ -278,7 +145,10 @@ def run_batch(systems: Sequence, preset="fast", *, solvers: Sequence[str] = ("sp
     differ only in q are built as one stack (:func:`analogy.circuit.node_system.node_systems`),
     and a built-in model is derived and compiled once per worker process. Groups share
     one time grid (t_stop) and are spread over *workers* processes (or any
-    ``concurrent.futures.Executor``, e.g. a Dask client's ``get_executor()``).
+    ``concurrent.futures.Executor``, e.g. a Dask client's ``get_executor()``) by the
+    same loop as :func:`~analogy.batch.runner.run_sweep`: a group whose worker died is
+    retried. SIGINT and SIGTERM end the workers cleanly, then reach the caller as
+    they would without the batch (KeyboardInterrupt, or the caller's SIGTERM handler).
 
     Parameters
     ----------
@@ -308,33 +178,44 @@ def run_batch(systems: Sequence, preset="fast", *, solvers: Sequence[str] = ("sp
     if not names:
         raise InputError("a batch needs at least one solver")
     start = _time.perf_counter()
-    tasks = _tasks(systems, group_size)
+    groups = plan_groups(systems, group_size)
     reference = "auto" if compare_exact else None
-    payloads = [(task, p, names, reference, keep_rates) for _, task in tasks]
-    own = None
-    if executor is None and workers > 1 and len(tasks) > 1:
+    errors = {name: np.full(len(systems), np.nan) for name in names}
+    seconds = {name: 0.0 for name in names}
+    failures: dict = {}
+    times: list = [None] * len(systems)
+    rates: list = [None] * len(systems)
+    bar = Progress(len(systems), bar=True) if progress else None
+
+    def done(group, result: GroupResult) -> None:
+        idx = list(group.rows)
+        for name in names:
+            errors[name][idx] = result.errors[name]
+            seconds[name] += float(result.seconds[name].sum())
+        failures.update((idx[j], why) for j, why in result.failures.items())
+        for j, k in enumerate(idx):
+            kept = result.rates[j] if result.rates is not None else None
+            if kept:
+                times[k], rates[k] = kept[names[0]] if names[0] in kept else next(iter(kept.values()))
+        if bar is not None:
+            bar.update(len(idx))
+
+    def died(group) -> None:
+        failures.update((k, f"the worker process died while solving this group ({ATTEMPTS} attempts)")
+                        for k in group.rows)
+
+    spread = executor is None and workers > 1 and len(groups) > 1
+    if spread:
         for name in names + ["exact"]:
             solver(name)            # imported once here, so that forked workers start with it
-        executor = own = worker_pool(workers)
     try:
-        outputs = executor.map(_isolated_group, payloads) if executor is not None else map(_isolated_group, payloads)
-        if progress:
-            from tqdm import tqdm
-            outputs = tqdm(outputs, total=len(payloads), unit="group")
-        errors = {name: np.full(len(systems), np.nan) for name in names}
-        seconds = {name: 0.0 for name in names}
-        failures, times, rates = {}, [None] * len(systems), [None] * len(systems)
-        for (idx, _), (errs, sec, failed, _invalid, kept) in zip(tasks, outputs):
-            for name in names:
-                errors[name][idx] = errs[name]
-                seconds[name] += float(sec[name].sum())
-            failures.update((idx[j], why) for j, why in failed.items())
-            for j, k in enumerate(idx):
-                if kept is not None and kept[j]:
-                    times[k], rates[k] = kept[j][names[0]] if names[0] in kept[j] else next(iter(kept[j].values()))
+        interrupted = execute(groups, lambda g: (g, p, names, reference, keep_rates), _solve, done, died,
+                              workers=workers if spread else 1, executor=executor, in_process=True,
+                              pass_signals=True)
     finally:
-        if own is not None:
-            own.shutdown()
+        if bar is not None:
+            bar.close()
     wall = _time.perf_counter() - start
     return BatchResult(errors[names[0]], wall, seconds.get("spice", 0.0), dict(sorted(failures.items())),
-                       times if keep_rates else None, rates if keep_rates else None, errors, seconds)
+                       times if keep_rates else None, rates if keep_rates else None, errors, seconds,
+                       interrupted)

@@ -2,24 +2,21 @@
 
 from __future__ import annotations
 
-import signal
 import sys
-import threading
 import time as _time
-from concurrent.futures import FIRST_COMPLETED, CancelledError, Executor, wait
-from concurrent.futures.process import BrokenProcessPool
+from concurrent.futures import Executor
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
-from ..errors import AnalogyError, InputError, SimulationError
+from ..errors import InputError
 from ..presets import PRESETS
 from ..presets import preset as get_preset
 from ..solvers.registry import SOLVER_NAMES
 from ..progress import Progress
-from ..processes import worker_pool
-from .run import _group, _tasks
+from .executor import ATTEMPTS, execute
+from .plan import Group, plan_groups, solve_group as solve_members
 from .store import ResultStore
 from .sweep import Sweep
 
@@ -27,9 +24,8 @@ if TYPE_CHECKING:
     import pandas
     import pyarrow
 
-__all__ = ["SweepRun", "row_schema", "run_sweep", "solve_group", "with_overrides"]
+__all__ = ["SweepRun", "row_schema", "run_sweep", "solve_points", "with_overrides"]
 
-_ATTEMPTS = 2           # a group whose worker died is retried once
 
 
 @dataclass
@@ -113,7 +109,7 @@ def _solvers(sweep: Sweep) -> list[str]:
     return list(dict.fromkeys(sweep.base.solvers))
 
 
-def solve_group(sweep: Sweep, start: int, points: np.ndarray, todo: np.ndarray,
+def solve_points(sweep: Sweep, start: int, points: np.ndarray, todo: np.ndarray,
                 isolated: bool = False, trajectories: int = 0) -> tuple[dict, object]:
     """Solve the scenes of one group that are still to do; return their columns and trajectories.
 
@@ -164,11 +160,11 @@ def solve_group(sweep: Sweep, start: int, points: np.ndarray, todo: np.ndarray,
             by_preset.setdefault(sc.preset, []).append(j)
     for preset_name, members in by_preset.items():
         group = [scenes[j] for j in members]
-        tasks = [([k], ("items", [s])) for k, s in enumerate(group)] if isolated else \
-            _tasks(group, len(group))
-        for idx, task in tasks:
-            errs, secs, failed, (invalid, refused), rates = _group((task, PRESETS[preset_name], solvers, reference,
-                                                         trajectories > 0))
+        tasks = [Group((k,), (s,)) for k, s in enumerate(group)] if isolated else plan_groups(group, len(group))
+        for task in tasks:
+            idx = task.rows
+            errs, secs, failed, invalid, refused, rates = solve_members(task, PRESETS[preset_name], solvers,
+                                                                        reference, trajectories > 0)
             bound = PRESETS[preset_name].bound
             for local, k in enumerate(idx):
                 j = members[k]
@@ -216,7 +212,7 @@ def _remote(payload):
     """
     sweep, start, points, todo, isolated, trajectories = payload
     try:
-        return solve_group(sweep, start, points, todo, isolated, trajectories)
+        return solve_points(sweep, start, points, todo, isolated, trajectories)
     except Exception:       # noqa: BLE001 - any bug in one scene must not lose the group
         pass
     parts, trajs = [], []
@@ -224,7 +220,7 @@ def _remote(payload):
         one = np.zeros_like(todo)
         one[j] = True
         try:
-            cols, traj = solve_group(sweep, start, points, one, True, trajectories)
+            cols, traj = solve_points(sweep, start, points, one, True, trajectories)
         except InputError as exc:       # the scene itself could not be built
             cols, traj = _died(sweep, start, points, one, _solvers(sweep)), None
             cols["status"] = ["invalid"]
@@ -243,21 +239,6 @@ def _remote(payload):
         import pyarrow as pa
         return merged, pa.concat_tables(trajs)
     return merged, None
-
-
-def _end_pool(pool) -> None:
-    """Stop a process pool now: pending groups cancelled, workers killed."""
-    procs = list(getattr(pool, "_processes", {}).values())
-    pool.shutdown(wait=False, cancel_futures=True)
-    for p in procs:
-        if p.is_alive():
-            p.kill()
-    for p in procs:
-        p.join(timeout=5)
-
-
-class _Stop(Exception):
-    """SIGTERM, turned into a clean stop like Ctrl-C."""
 
 
 def run_sweep(sweep: Sweep, directory, *, workers: int = 2, executor: Executor | None = None,
@@ -306,95 +287,32 @@ def run_sweep(sweep: Sweep, directory, *, workers: int = 2, executor: Executor |
     done[stored[(stored >= 0) & (stored < sweep.size)]] = True
     result = SweepRun(str(directory), sweep.size, int(done.sum()), replaced=store.replaced)
     bar = Progress(sweep.size, initial=result.skipped, bar=progress, stream=log or sys.stderr)
-    own = executor is None
-    pool = worker_pool(workers) if own else executor
-    limit = 4 * workers if own else 64
     chunks = ((a, b, pts) for a, b, pts in sweep.chunks() if not done[a:b].all())
-    inflight: dict = {}
-    attempts: dict = {}
-    retry: list = []
-    deaths = (BrokenProcessPool,) + _worker_death_types()
-    old_term = None
-    if threading.current_thread() is threading.main_thread():
-        def _term(signum, frame):
-            raise _Stop()
-        old_term = signal.signal(signal.SIGTERM, _term)
+
+    def stored(cols, traj=None) -> None:
+        store.add(cols, traj)
+        for st in cols["status"]:
+            result.statuses[st] = result.statuses.get(st, 0) + 1
+        result.solved += len(cols["status"])
+        bar.update(len(cols["status"]))
+
+    def finished(chunk, out) -> None:
+        a, b, _ = chunk
+        stored(*out)
+        done[a:b] = True
+
+    def died(chunk) -> None:
+        a, b, pts = chunk
+        stored(_died(sweep, a, pts, ~done[a:b], solvers))
+        done[a:b] = True
+
+    def kept() -> str:
+        return (f": {int(done.sum()):,} of {sweep.size:,} scenes are stored in {directory}; "
+                "run the same command to resume")
     try:
-        while True:
-            while len(inflight) < limit:
-                item = retry.pop() if retry else next(chunks, None)
-                if item is None:
-                    break
-                a, b, pts = item
-                try:
-                    fut = pool.submit(_remote, (sweep, a, pts, ~done[a:b], isolated, trajectories))
-                except BrokenProcessPool:
-                    # a worker died since the last wait: the group was never run, so it waits
-                    # for the new pool (made below when the dead futures come back, or here)
-                    if not own:
-                        raise
-                    retry.append(item)
-                    if not inflight:
-                        _end_pool(pool)
-                        pool = worker_pool(workers)
-                        continue
-                    break
-                inflight[fut] = item
-            if not inflight:
-                break
-            finished, _ = wait(list(inflight), return_when=FIRST_COMPLETED)
-            broken = False
-            for fut in finished:
-                item = inflight.pop(fut)
-                a, b, pts = item
-                try:
-                    cols, traj = fut.result()
-                except CancelledError:
-                    # only an outside executor cancels: a Dask scheduler that stopped, say
-                    raise SimulationError(
-                        f"the executor cancelled the work (did the Dask scheduler stop?): "
-                        f"{int(done.sum()):,} of {sweep.size:,} scenes are stored in {directory}; "
-                        "run the same command to resume") from None
-                except deaths as exc:
-                    broken = broken or isinstance(exc, BrokenProcessPool)
-                    attempts[a] = attempts.get(a, 0) + 1
-                    if attempts[a] < _ATTEMPTS:
-                        retry.append(item)
-                        continue
-                    cols, traj = _died(sweep, a, pts, ~done[a:b], solvers), None
-                store.add(cols, traj)
-                done[a:b] = True
-                for st in cols["status"]:
-                    result.statuses[st] = result.statuses.get(st, 0) + 1
-                result.solved += len(cols["status"])
-                bar.update(len(cols["status"]))
-            if broken and own:          # every other group in flight died with the pool
-                for fut, item in inflight.items():
-                    attempts[item[0]] = attempts.get(item[0], 0) + 1
-                    if attempts[item[0]] < _ATTEMPTS:
-                        retry.append(item)
-                    else:
-                        a, b, pts = item
-                        store.add(_died(sweep, a, pts, ~done[a:b], solvers))
-                        done[a:b] = True
-                inflight.clear()
-                _end_pool(pool)
-                pool = worker_pool(workers)
-    except (KeyboardInterrupt, _Stop):
-        result.interrupted = True
-    except Exception as exc:
-        # a scene's own failure is stored by _remote: what reaches here is the outside executor's
-        if own or isinstance(exc, AnalogyError):
-            raise
-        detail = " ".join(str(exc).split())[:160] or type(exc).__name__
-        raise SimulationError(f"the executor failed ({type(exc).__name__}: {detail}; did the Dask scheduler "
-                              f"stop?): {int(done.sum()):,} of {sweep.size:,} scenes are stored in {directory}; "
-                              "run the same command to resume") from None
+        result.interrupted = execute(chunks, lambda c: (sweep, c[0], c[2], ~done[c[0]:c[1]], isolated, trajectories),
+                                     _remote, finished, died, workers=workers, executor=executor, stored=kept)
     finally:
-        if old_term is not None:
-            signal.signal(signal.SIGTERM, old_term)
-        if own:
-            _end_pool(pool)
         try:
             store.compact()
         finally:
@@ -402,14 +320,6 @@ def run_sweep(sweep: Sweep, directory, *, workers: int = 2, executor: Executor |
             bar.close()
     result.wall_time = _time.perf_counter() - start_time
     return result
-
-
-def _worker_death_types() -> tuple:
-    try:
-        from distributed.scheduler import KilledWorker
-    except ImportError:
-        return ()
-    return (KilledWorker,)
 
 
 def _died(sweep: Sweep, start: int, points: np.ndarray, todo: np.ndarray, solvers) -> dict:
@@ -425,7 +335,7 @@ def _died(sweep: Sweep, start: int, points: np.ndarray, todo: np.ndarray, solver
             keys.append("")
     cols = {"key": keys, "index": (start + rows).astype(np.int64), **values,
             "status": ["worker-died"] * count,
-            "message": [f"the worker process died while solving this group ({_ATTEMPTS} attempts)"] * count}
+            "message": [f"the worker process died while solving this group ({ATTEMPTS} attempts)"] * count}
     for name in solvers:
         cols[f"error_{name}"], cols[f"seconds_{name}"] = np.full(count, np.nan), np.full(count, np.nan)
     return cols

@@ -1,0 +1,212 @@
+"""The one loop that runs a batch's groups: local processes, in this process or any Executor; retries and clean stops."""
+
+from __future__ import annotations
+
+import signal
+import threading
+from concurrent.futures import FIRST_COMPLETED, CancelledError, Executor, Future, wait
+from concurrent.futures.process import BrokenProcessPool
+from typing import Callable, Iterable
+
+from ..errors import AnalogyError, SimulationError
+from ..processes import worker_pool
+
+__all__ = ["InlineExecutor", "execute", "ATTEMPTS"]
+
+#: A group whose worker died is run this many times in all before it is given up.
+ATTEMPTS = 2
+
+
+class InlineExecutor(Executor):
+    """Runs each submitted call at once, in this process: a batch with nothing to spread."""
+
+    def submit(self, fn, /, *args, **kwargs) -> Future:
+        """Call ``fn(*args, **kwargs)`` now; its result or exception is the returned future's.
+
+        Parameters
+        ----------
+        fn : callable
+            The work.
+        *args
+            Its positional arguments.
+        **kwargs
+            Its keyword arguments.
+        """
+        future: Future = Future()
+        try:
+            future.set_result(fn(*args, **kwargs))
+        except Exception as exc:        # noqa: BLE001 - the caller reads it from the future
+            future.set_exception(exc)
+        return future
+
+
+class _Stop(BaseException):
+    """SIGTERM, turned into a clean stop like Ctrl-C (past every ``except Exception``)."""
+
+
+def _end_pool(pool) -> None:
+    """Stop a process pool now: pending groups cancelled, workers killed."""
+    procs = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for p in procs:
+        if p.is_alive():
+            p.kill()
+    for p in procs:
+        p.join(timeout=5)
+
+
+def _death_types() -> tuple:
+    try:
+        from distributed.scheduler import KilledWorker
+    except ImportError:
+        return ()
+    return (KilledWorker,)
+
+
+def _again(item: tuple, attempts: dict, retry: list, solo: list, died: Callable, alone: bool) -> None:
+    """A numbered group whose worker died: retried; after :data:`ATTEMPTS` runs, run alone
+    (a pool dies whole, so a group beside the culprit is not blamed), then given up."""
+    attempts[item[0]] = attempts.get(item[0], 0) + 1
+    if attempts[item[0]] < ATTEMPTS:
+        retry.append(item)
+    elif not alone:
+        solo.append(item)
+    else:
+        died(item[1])
+
+
+def execute(groups: Iterable, payload: Callable, work: Callable, done: Callable, died: Callable, *,
+            workers: int = 2, executor: Executor | None = None, in_process: bool = False,
+            stored: Callable[[], str] = lambda: "", pass_signals: bool = False) -> bool:
+    """Run ``work(payload(group))`` for every group and hand each result to ``done(group, result)``.
+
+    Groups are submitted lazily, a few per worker, and each result is handed over as it
+    arrives. Without *executor*, *workers* local processes run them (one: this process).
+    With *in_process*, one worker is this process itself; otherwise every group runs in a
+    worker process, so that a crash in one is that group's own. A group whose worker
+    died is retried, then given to ``died(group)``. SIGINT and
+    SIGTERM stop the loop cleanly: what was handed over stays, workers are ended; with
+    *pass_signals* the signal then goes on to the caller (KeyboardInterrupt, or SIGTERM
+    raised again under the caller's own handler).
+
+    Parameters
+    ----------
+    groups : iterable
+        What to run, in order.
+    payload : callable
+        A group's argument for *work*, made when it is submitted.
+    work : callable
+        A module-level function (it is pickled by name for worker processes).
+    done : callable
+        Receives each group and its result.
+    died : callable
+        Receives a group whose worker died on every attempt.
+    workers : int
+        Local worker processes when no *executor* is given.
+    executor : Executor, optional
+        Runs the groups instead (a Dask client's ``get_executor()``, say).
+    in_process : bool
+        Run in this process when *workers* is 1.
+    stored : callable
+        What is kept so far and how to resume, for the message of an executor that failed.
+    pass_signals : bool
+        After the clean stop, pass SIGINT or SIGTERM on instead of returning True.
+
+    Returns
+    -------
+    bool
+        True when SIGINT or SIGTERM stopped the loop before the end.
+    """
+    own = executor is None
+    local = own and (workers > 1 or not in_process)
+
+    def new_pool():
+        return worker_pool(workers) if local else InlineExecutor()
+    pool = new_pool() if own else executor
+    limit = 4 * workers if local else 1 if own else 64     # in this process: each handed over at once
+    pending = enumerate(groups)         # numbered: a retried group keeps its number
+    inflight: dict = {}
+    attempts: dict = {}
+    retry: list = []
+    solo: list = []
+    deaths = (BrokenProcessPool,) + _death_types()
+    old_term = None
+    if threading.current_thread() is threading.main_thread():
+        stopping: list = []
+
+        def _term(signum, frame):
+            if not stopping:            # once: a second SIGTERM must not break the clean-up
+                stopping.append(signum)
+                raise _Stop()
+        old_term = signal.signal(signal.SIGTERM, _term)
+    try:
+        while True:
+            while len(inflight) < limit:
+                if solo and inflight:
+                    break
+                item = solo.pop() if solo else retry.pop() if retry else next(pending, None)
+                if item is None:
+                    break
+                try:
+                    future = pool.submit(work, payload(item[1]))
+                except BrokenProcessPool:
+                    # a worker died since the last wait: the group never ran, so it waits for
+                    # the new pool (made below when the dead futures come back, or here)
+                    if not local:
+                        raise
+                    retry.append(item)
+                    if not inflight:
+                        _end_pool(pool)
+                        pool = new_pool()
+                        continue
+                    break
+                inflight[future] = item
+                if attempts.get(item[0], 0) >= ATTEMPTS:
+                    break               # a suspect runs with nothing beside it
+            if not inflight:
+                break
+            alone = len(inflight) == 1 or not local     # an outside executor reports each task's own death
+            finished, _ = wait(list(inflight), return_when=FIRST_COMPLETED)
+            broken = False
+            for future in finished:
+                item = inflight.pop(future)
+                try:
+                    result = future.result()
+                except CancelledError:
+                    # only an outside executor cancels: a Dask scheduler that stopped, say
+                    raise SimulationError("the executor cancelled the work (did the Dask scheduler stop?)"
+                                          + stored()) from None
+                except deaths as exc:
+                    broken = broken or isinstance(exc, BrokenProcessPool)
+                    _again(item, attempts, retry, solo, died, alone)
+                    continue
+                done(item[1], result)
+            if broken and local:        # every other group in flight died with the pool
+                for item in inflight.values():
+                    _again(item, attempts, retry, solo, died, alone)
+                inflight.clear()
+                _end_pool(pool)
+                pool = new_pool()
+    except KeyboardInterrupt:
+        stopped = signal.SIGINT
+    except _Stop:
+        stopped = signal.SIGTERM
+    except Exception as exc:
+        # a group's own failure is its work's to report: what reaches here is the outside executor's
+        if own or isinstance(exc, AnalogyError):
+            raise
+        detail = " ".join(str(exc).split())[:160] or type(exc).__name__
+        raise SimulationError(f"the executor failed ({type(exc).__name__}: {detail}; did the Dask scheduler "
+                              f"stop?){stored()}") from None
+    else:
+        return False
+    finally:
+        if old_term is not None:
+            signal.signal(signal.SIGTERM, old_term)
+        if local:
+            _end_pool(pool)
+    if pass_signals:
+        if stopped == signal.SIGINT:
+            raise KeyboardInterrupt
+        signal.raise_signal(stopped)        # the caller's handler, or the default end of the process
+    return True

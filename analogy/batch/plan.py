@@ -1,0 +1,246 @@
+"""The batch planner: scenes split into groups solved together, and one group's solve through the orchestrator."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, NamedTuple, Sequence
+
+import numpy as np
+
+from ..circuit.node_stack import NodeStack
+from ..errors import AnalogyError, InputError
+from ..presets import Preset
+from ..scenes.scene import Scene
+from ..study.comparison import compare_many
+from ..study.work import check_work, check_works
+
+if TYPE_CHECKING:
+    from ..model.dynamics import NodeDynamics
+
+__all__ = ["as_system", "Group", "GroupResult", "plan_groups", "solve_group", "solve_group_isolated"]
+
+
+def as_system(item) -> "NodeDynamics":
+    """The node system of a batch item: a NodeSystem as it is, a Scene built.
+
+    Parameters
+    ----------
+    item : Scene or NodeSystem
+        A batch member.
+    """
+    return item.system() if isinstance(item, Scene) else item
+
+
+@dataclass(frozen=True, eq=False)
+class Group:
+    """Scenes or systems solved together: a family built as one stack, or items built one by one.
+
+    Attributes
+    ----------
+    rows : tuple of int
+        Indices of the group's members in the batch.
+    items : tuple
+        The members (Scenes or NodeSystems), when not a family.
+    base : Scene or None
+        A family's first scene; its members differ from it only in q and parameter values.
+    configurations : ndarray or None
+        A family's q per member, shape (count, n).
+    parameters : dict of str to ndarray
+        A family's parameter values per member, where they vary.
+    """
+
+    rows: tuple
+    items: tuple = ()
+    base: Scene | None = None
+    configurations: np.ndarray | None = None
+    parameters: dict = field(default_factory=dict)
+
+    def members(self) -> list:
+        """The scenes or systems of the group, one by one."""
+        if self.base is None:
+            return list(self.items)
+        base = self.base
+        return [base.replace(q=tuple(row), parameters={**dict(base.parameters),
+                                                       **{k: float(v[i]) for k, v in self.parameters.items()}})
+                for i, row in enumerate(np.asarray(self.configurations).tolist())]
+
+    def build(self) -> tuple[list, dict]:
+        """The members' node systems (None where a build failed) and the failures (position to reason).
+
+        A family is built as one stack; if a row is bad, row by row, so that the others are kept.
+        """
+        if self.base is not None:
+            try:
+                return self.base.systems(self.configurations, parameters=self.parameters), {}
+            except AnalogyError:
+                pass
+        systems, failures = [], {}
+        for k, item in enumerate(self.members()):
+            try:
+                systems.append(as_system(item))
+            except AnalogyError as exc:
+                systems.append(None)
+                failures[k] = str(exc)
+        return systems, failures
+
+
+class GroupResult(NamedTuple):
+    """Per member of a group (by position): errors and seconds per solver, and what went wrong.
+
+    Attributes
+    ----------
+    errors : dict of str to ndarray
+        Worst error of each output relative to its own peak, per solver (NaN where not measured).
+    seconds : dict of str to ndarray
+        Solver time per member.
+    failures : dict of int to str
+        Members that could not be built or solved, with the reason.
+    invalid : set of int
+        Members that could not be built.
+    refused : set of int
+        Members the work guard refused.
+    rates : list or None
+        Per member and solver, (time, joint rates), when kept.
+    """
+
+    errors: dict
+    seconds: dict
+    failures: dict
+    invalid: set
+    refused: set
+    rates: list | None
+
+
+def plan_groups(items: Sequence, group_size: int) -> list[Group]:
+    """Split *items* (Scenes or NodeSystems) into groups of at most *group_size* with one time grid.
+
+    Scenes that differ only in their configuration and a robot's parameter values form
+    one family, built as a stack.
+
+    Parameters
+    ----------
+    items : sequence of Scene or NodeSystem
+        The batch.
+    group_size : int
+        Most members per group.
+    """
+    kinds: dict = {}
+    for k, item in enumerate(items):
+        family = item.family() if isinstance(item, Scene) else None
+        key = ("family", family) if family is not None else ("grid", item.t_stop)
+        kinds.setdefault(key, []).append(k)
+    groups = []
+    for (kind, _), idx in kinds.items():
+        for i in range(0, len(idx), group_size):
+            chunk = tuple(idx[i:i + group_size])
+            if kind != "family":
+                groups.append(Group(chunk, tuple(items[k] for k in chunk)))
+                continue
+            first = items[chunk[0]]
+            qs = np.array([items[k].q for k in chunk], dtype=float).reshape(len(chunk), -1)
+            params = {}
+            if first.model.robot is not None and first.parameters:
+                values = np.array([[v for _, v in items[k].parameters] for k in chunk], dtype=float)
+                params = {name: values[:, j] for j, (name, _) in enumerate(first.parameters)
+                          if np.any(values[:, j] != values[0, j])}
+            groups.append(Group(chunk, base=first, configurations=qs, parameters=params))
+    return groups
+
+
+def solve_group(group: Group, preset: Preset, solvers: Sequence[str], reference: str | None,
+                keep: bool = False) -> GroupResult:
+    """Build a group's systems and compare them through :func:`compare_many` in one go.
+
+    SPICE runs the group as one circuit; if that run fails, each member runs alone, so
+    that one member's failure is its own. A member past the work budget is refused alone.
+
+    Parameters
+    ----------
+    group : Group
+        What to solve.
+    preset : Preset
+        Accuracy preset.
+    solvers : sequence of str
+        Solvers to run.
+    reference : str or None
+        The yardstick (``"auto"``: exact where it applies; None: no errors).
+    keep : bool
+        Keep every member's time points and joint rates.
+    """
+    built, failures = group.build()
+    members = list(built)
+    invalid, refused = set(failures), set()
+    spice = "spice" in solvers
+    try:
+        check_works([s for s in members if s is not None], preset, spice=spice)
+    except InputError:                  # some member is past the work budget: find which, and refuse it alone
+        for k, s in enumerate(members):
+            if s is not None:
+                try:
+                    check_work(s, preset, spice=spice)
+                except InputError as exc:
+                    members[k], failures[k] = None, str(exc)
+                    refused.add(k)
+    ok = [k for k, s in enumerate(members) if s is not None]
+    systems = built if len(ok) == len(members) else \
+        built.take(ok) if isinstance(built, NodeStack) else [members[k] for k in ok]
+    built = members
+    errors = {name: np.full(len(built), np.nan) for name in solvers}
+    seconds = {name: np.zeros(len(built)) for name in solvers}
+    rates: list = [None] * len(built)
+    for k, c in zip(ok, compare_many(systems, preset, solvers, reference=reference) if ok else []):
+        for name, why in c.failures.items():
+            failures[k] = f"{name}: {why}" if name != "spice" else why
+        for name in solvers:
+            tr = c.results.get(name)
+            if tr is not None:
+                seconds[name][k] = tr.run_time
+                if name in c.measured and name != c.reference:     # the yardstick has no error
+                    errors[name][k] = c.measured[name][1]
+        if keep:
+            rates[k] = {s: (c.results[s].time, c.results[s].rates) for s in solvers
+                        if s in c.results and c.results[s].success}
+    return GroupResult(errors, seconds, failures, invalid, refused, rates if keep else None)
+
+
+def solve_group_isolated(group: Group, preset: Preset, solvers: Sequence[str], reference: str | None,
+                         keep: bool = False) -> GroupResult:
+    """:func:`solve_group`, and when it raises, each member alone, so that a bug in one member fails only it.
+
+    Parameters
+    ----------
+    group : Group
+        What to solve.
+    preset : Preset
+        Accuracy preset.
+    solvers : sequence of str
+        Solvers to run.
+    reference : str or None
+        The yardstick.
+    keep : bool
+        Keep every member's time points and joint rates.
+    """
+    try:
+        return solve_group(group, preset, solvers, reference, keep)
+    except Exception:       # noqa: BLE001 - one member's bug must not lose the group's others
+        pass
+    items = group.members()
+    count = len(items)
+    errors = {name: np.full(count, np.nan) for name in solvers}
+    seconds = {name: np.zeros(count) for name in solvers}
+    failures, invalid, refused, rates = {}, set(), set(), [None] * count
+    for k, item in enumerate(items):
+        try:
+            one = solve_group(Group((group.rows[k],), (item,)), preset, solvers, reference, keep)
+        except Exception as exc:        # noqa: BLE001
+            failures[k] = f"internal error: {type(exc).__name__}: {' '.join(str(exc).split())[:300]}"
+            continue
+        for name in solvers:
+            errors[name][k], seconds[name][k] = one.errors[name][0], one.seconds[name][0]
+        if 0 in one.failures:
+            failures[k] = one.failures[0]
+        invalid |= {k} if one.invalid else set()
+        refused |= {k} if one.refused else set()
+        if one.rates is not None:
+            rates[k] = one.rates[0]
+    return GroupResult(errors, seconds, failures, invalid, refused, rates if keep else None)

@@ -1,0 +1,47 @@
+"""The batch loop shared by run_batch and run_sweep: every group handed over once, deaths retried, clean stops."""
+
+import os
+import signal
+from pathlib import Path
+
+from analogy.batch.executor import ATTEMPTS, execute
+
+
+def square_or_die(payload):
+    """Work for the tests (module level, so that worker processes import it by name)."""
+    n, folder, parent = payload
+    marker = Path(folder) / f"died-{n}"
+    if os.getpid() == parent:
+        if n == 5:
+            os.kill(parent, signal.SIGTERM)     # run in this process: its own SIGTERM stops the loop
+        return n * n
+    if n == 3 and not marker.exists():
+        marker.touch()
+        os._exit(1)                 # dies on its first run only
+    if n == 7:
+        os._exit(1)                 # dies on every run
+    return n * n
+
+
+def _run(tmp_path, count, **kw):
+    results, died = {}, []
+    interrupted = execute(range(count), lambda n: (n, str(tmp_path), os.getpid()), square_or_die,
+                          lambda n, r: results.__setitem__(n, r), died.append, **kw)
+    return results, died, interrupted
+
+
+def test_a_dead_worker_s_group_is_run_again_and_one_that_always_kills_it_fails_alone(tmp_path):
+    """A pool dies whole, so the groups beside the culprit are retried, and a group that kills
+    its worker on every attempt is run alone before it is given up: only it is lost."""
+    results, died, interrupted = _run(tmp_path, 12, workers=2)
+    assert not interrupted and died == [7]
+    assert results == {n: n * n for n in range(12) if n != 7}       # each handed over once (a dict)
+    assert (tmp_path / "died-3").exists()
+    assert ATTEMPTS >= 2
+
+
+def test_sigterm_in_this_process_stops_the_loop_and_keeps_what_was_handed_over(tmp_path):
+    before = signal.getsignal(signal.SIGTERM)
+    results, died, interrupted = _run(tmp_path, 5 + 3, workers=1, in_process=True)
+    assert interrupted and results == {n: n * n for n in range(5)} and died == []
+    assert signal.getsignal(signal.SIGTERM) is before       # the caller's handler is back
