@@ -114,3 +114,43 @@ def test_gravity_enters_as_a_constant_force():
     m = random_spd(2)
     s = node_system(JointSpace(m, np.eye(2), gravity=[0.5, -0.25]), forces=[1.0, 0.0])
     np.testing.assert_allclose(s.force([0.0, 3.0]), [[0.5, 0.25], [0.5, 0.25]])
+
+
+def test_the_horizon_and_forces_are_the_solves_own_inputs_and_gravity_stays():
+    """solve(system, t_stop=T, forces=F) is the solve of the system built with T and F: the
+    same matrices, gravity's constant −G still on the forces, and the system itself untouched."""
+    from analogy import solve
+    model = robot("serial2")
+    q, params = [0.3, -0.7], {"g": 9.81}
+    system = node_system(model, q, parameters=params, forces=["step(1)", 0], t_stop=2.0)
+    built = node_system(model, q, parameters=params, forces=["sine(0, 2, 1.5)", "pulse(0, 1, 0.5)"], t_stop=3.0)
+    t = np.linspace(0.0, 3.0, 301)
+    given = solve(system, "exact", t, t_stop=3.0, forces=["sine(0, 2, 1.5)", "pulse(0, 1, 0.5)"])
+    assert np.array_equal(given.rates, solve(built, "exact", t).rates)      # one computation, the same inputs
+    assert system.t_stop == 2.0 and system.forces[0][0].label() == "step(1)"
+    assert len(system.driven(t_stop=5.0).forces[1]) == len(system.forces[1])     # −G is kept once, not again
+
+
+def test_a_driven_stack_responds_linearly_to_its_forces():
+    """Superposition: from rest and without gravity, twice the forces give twice the rates on
+    every row of a stack, to rounding: each exact solve is within n·ε·cond(M')·peak, so
+    |R₂ − 2R₁| ≤ (1 + 2)·n·ε·cond(M')·peak."""
+    from analogy import compare_many, node_systems
+    model = robot("serial2")
+    qs = np.column_stack([np.zeros(4), np.linspace(-2.0, 2.0, 4)])
+    stack = node_systems(model, qs, forces=["step(1)", "sine(0, 1, 2)"], t_stop=2.0)
+    one = compare_many(stack, "fast", ("exact",), reference=None)
+    two = compare_many(stack, "fast", ("exact",), reference=None, t_stop=2.0,
+                       forces=["step(2)", "sine(0, 2, 2)"])
+    for a, b, s in zip(one, two, stack):
+        bound = 3 * s.dof * np.finfo(float).eps * np.linalg.cond(s.mass) * np.max(np.abs(b.results["exact"].rates))
+        assert np.max(np.abs(b.results["exact"].rates - 2 * a.results["exact"].rates)) <= bound
+        assert b.system.forces[0][0].label() == "step(2)"
+
+
+@pytest.mark.parametrize("t_stop", [0.0, -1.0, float("nan"), 1e12, "soon"])
+def test_a_horizon_out_of_range_is_one_sentence_about_t_stop(t_stop):
+    from analogy import InputError
+    with pytest.raises(InputError, match="^t_stop must be a time between") as info:
+        node_system(robot("serial2"), [0.0, 0.0]).driven(t_stop=t_stop)
+    assert info.value.field == "t_stop"

@@ -145,6 +145,18 @@ class NodeStack(Sequence):
             return np.broadcast_to(first.current_map, (len(self), self.dof, self.dof))
         return self._stacked("current_map")
 
+    def driven(self, forces=None, t_stop: float | None = None) -> "NodeStack":
+        """Every row under other joint forces or over another horizon (see ``NodeSystem.driven``).
+
+        Parameters
+        ----------
+        forces : sequence, optional
+            One entry per joint, the same for every row.
+        t_stop : float, optional
+            End of the simulated interval [s].
+        """
+        return NodeStack([s.driven(forces, t_stop) for s in self.systems], self._arrays, self._shared)
+
     def take(self, rows: Sequence[int]) -> "NodeStack":
         """The stack of *rows*, in that order (this stack when they are all of it, in order).
 

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from typing import Iterator, Mapping, Protocol, Sequence
+import copy
+from typing import Iterator, Mapping, Protocol, Sequence, TypeVar
 
 import numpy as np
 
@@ -44,8 +45,28 @@ class Evaluable(Protocol):
             Parameter overrides.
         """
 
-__all__ = ["Evaluable", "NodeCoordinates", "NodeSystem", "node_system", "node_systems",
+__all__ = ["Evaluable", "NodeCoordinates", "NodeSystem", "check_t_stop", "node_system", "node_systems",
            "output_times"]
+
+
+_System = TypeVar("_System", bound="NodeCoordinates")
+
+
+def check_t_stop(t_stop) -> float:
+    """*t_stop* as a float, refused in one sentence outside 1 ns to 1e9 s.
+
+    Parameters
+    ----------
+    t_stop : float
+        End of the simulated interval [s].
+    """
+    try:
+        t = float(t_stop)
+    except (TypeError, ValueError):
+        t = float("nan")
+    if not (np.isfinite(t) and 1e-9 <= t <= 1e9):
+        raise InputError("t_stop must be a time between 1e-9 s and 1e9 s", field="t_stop")
+    return t
 
 
 class NodeCoordinates:
@@ -111,6 +132,36 @@ class NodeCoordinates:
             kept = self.__dict__["_breakpoints"] = (self.forces, self.t_stop, points)
         return kept[2]
 
+    def driven(self: _System, forces=None, t_stop: float | None = None) -> _System:
+        """This system under other joint forces, or over another horizon: the solve's own inputs.
+
+        The new system shares every matrix and the configuration; only what is given
+        changes, checked as :func:`node_system` checks it. Gravity stays where the
+        system holds it (a constant force in a linear system, G(q) in a nonlinear one).
+
+        Parameters
+        ----------
+        forces : sequence, optional
+            One entry per joint, as :func:`node_system` takes them.
+        t_stop : float, optional
+            End of the simulated interval [s].
+        """
+        out = copy.copy(self)
+        for cache in ("_breakpoints", "_scales", "_inputs_key"):
+            out.__dict__.pop(cache, None)
+        if t_stop is not None:
+            out.t_stop = check_t_stop(t_stop)
+        if forces is not None:
+            with concerning("forces"):
+                out.forces = self._with_gravity(waveforms(forces, self.dof))
+        with concerning("forces"):
+            out.breakpoints()       # every waveform checked against the horizon before any solver runs
+        return out
+
+    def _with_gravity(self, ws: tuple) -> tuple:
+        """Joint waveforms *ws* with the system's constant loads added (none here)."""
+        return ws
+
     def segments(self) -> Iterator[tuple[float, float]]:
         """Yield (t0, t1) intervals on which all forces are given by one closed form."""
         t0 = 0.0
@@ -151,8 +202,7 @@ class NodeSystem(NodeCoordinates):
         if topology.dof != n:
             raise InputError(f"topology is {topology.dof}x{topology.dof} but the robot has {n} joints",
                              field="topology")
-        if not (np.isfinite(t_stop) and 1e-9 <= t_stop <= 1e9):
-            raise InputError("t_stop must be a time between 1e-9 s and 1e9 s", field="t_stop")
+        t_stop = check_t_stop(t_stop)
         if len(forces) != n:
             raise InputError(f"forces must have {n} entries (one per joint), got {len(forces)}", field="forces")
         with concerning("initial_rates"):
@@ -213,6 +263,11 @@ class NodeSystem(NodeCoordinates):
         obj = cls.__new__(cls)
         obj._store(joint, topology, forces, initial_rates, t_stop, info, mass, damping, stiffness)
         return obj
+
+    def _with_gravity(self, ws: tuple) -> tuple:
+        """Joint waveforms *ws* with gravity's constant −G added, as :func:`node_system` adds it."""
+        gravity = self.joint.gravity
+        return ws if gravity is None else tuple(w + (Step(-g),) if g else w for w, g in zip(ws, gravity))
 
     def __repr__(self) -> str:
         springs = ", springs" if self.stiffness is not None else ""
@@ -323,7 +378,7 @@ def _mapped(joint, top_spec, base_info, forces, initial_rates, t_stop, info) -> 
     if joint.gravity is not None:
         ws = tuple(w + (Step(-g),) if g else w for w, g in zip(ws, joint.gravity))
     r0 = np.zeros(n) if initial_rates is None else initial_rates
-    return NodeSystem(joint, top, ws, r0, float(t_stop), Provenance.of(info, **base_info))
+    return NodeSystem(joint, top, ws, r0, check_t_stop(t_stop), Provenance.of(info, **base_info))
 
 
 def node_systems(model, qs, *, parameters: Mapping[str, float] | None = None,

@@ -12,7 +12,7 @@ from ..presets import DEFAULT_T_STOP
 from ..model.dynamics import DynamicsKind, MechanicalFunctions
 from ..model.joint import check_square_symmetric, check_vector
 from .joint_forces import force_breakpoints, waveforms
-from .node_system import NodeCoordinates
+from .node_system import NodeCoordinates, check_t_stop
 from .topology import Topology
 from .topology import topology as make_topology
 
@@ -59,9 +59,7 @@ class NonlinearNodeSystem(NodeCoordinates):
         self.functions, self.model = functions, model
         self.parameters = dict(parameters or {})
         self.q0 = check_vector("configuration q", q0, n)
-        self.topology, self.forces, self.t_stop = topology, tuple(forces), float(t_stop)
-        if not (np.isfinite(self.t_stop) and 1e-9 <= self.t_stop <= 1e9):
-            raise InputError("t_stop must be a time between 1e-9 s and 1e9 s")
+        self.topology, self.forces, self.t_stop = topology, tuple(forces), check_t_stop(t_stop)
         if len(self.forces) != n:
             raise InputError(f"forces must have {n} entries (one per joint), got {len(self.forces)}")
         self.initial_rates = check_vector("initial rates r0", initial_rates, n)

@@ -296,11 +296,13 @@ def run_many(name: str, systems: Sequence, times, preset: Preset, *, save: Seque
 
 
 def solve(system, method: str = "spice", t_eval=None, preset: str | Preset = "accurate", *,
-          save: Sequence[str] = (), positions: bool = False) -> Trajectory:
+          t_stop: float | None = None, forces=None, save: Sequence[str] = (),
+          positions: bool = False) -> Trajectory:
     """Solve *system* with the registered solver *method*, as ``scipy.integrate.solve_ivp`` does.
 
-    The system holds what ``solve_ivp`` takes as ``fun``, ``t_span`` and ``y0`` (its node
-    dynamics, t_stop and initial rates). Like ``solve_ivp``, a solver that cannot finish
+    The system holds what ``solve_ivp`` takes as ``fun`` and ``y0`` (its node dynamics
+    and initial rates); the horizon and the forces are the system's own unless *t_stop*
+    or *forces* are given here (:meth:`~analogy.circuit.node_system.NodeCoordinates.driven`). Like ``solve_ivp``, a solver that cannot finish
     returns its result with ``success`` False and the reason in ``message``; only bad input
     raises.
 
@@ -315,9 +317,15 @@ def solve(system, method: str = "spice", t_eval=None, preset: str | Preset = "ac
         preset's uniform grid.
     preset : str or Preset
         Accuracy preset.
+    t_stop : float, optional
+        End of the simulated interval [s], instead of the system's.
+    forces : sequence, optional
+        Joint forces, one entry per joint, instead of the system's (gravity is kept).
     save : sequence of str
         Element currents wanted from a solver that simulates them.
     positions : bool
         Also return node positions where the system has springs.
     """
+    if t_stop is not None or forces is not None:
+        system = system.driven(forces, t_stop)
     return run(method, system, t_eval, get_preset(preset), save=save, positions=positions)

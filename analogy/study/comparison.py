@@ -240,7 +240,8 @@ def _by_grid(grids: Sequence[np.ndarray]) -> list[list[int]]:
 def compare_many(systems: Sequence, preset: str | Preset = "accurate",
                  solvers: Sequence[str] = DEFAULT_SOLVERS, times=None, *,
                  reference: str | None = "auto", step: float | None = None,
-                 save: Sequence[str] = (), positions: bool = False) -> list[Comparison]:
+                 save: Sequence[str] = (), positions: bool = False,
+                 t_stop: float | None = None, forces=None) -> list[Comparison]:
     """:func:`compare` for many systems, each solver running them together where it can.
 
     SPICE runs the systems as one circuit (they must share t_stop), the exact solver
@@ -266,9 +267,16 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
         Element currents to report in each :attr:`Trajectory.currents`.
     positions : bool
         Also keep node positions where the systems have springs.
+    t_stop : float, optional
+        End of the simulated interval [s] for every system, instead of their own.
+    forces : sequence, optional
+        Joint forces for every system, one entry per joint, instead of their own.
     """
     if not systems:
         return []
+    if t_stop is not None or forces is not None:
+        systems = systems.driven(forces, t_stop) if isinstance(systems, NodeStack) else \
+            [s.driven(forces, t_stop) for s in systems]
     p = get_preset(preset)
     names = _names(solvers)
     check_works(systems, p, spice="spice" in names)     # a run past the budget is refused before any starts
@@ -402,7 +410,8 @@ def _measure(systems, runs, native, ref_name, p, save=(), resampled=frozenset())
 
 def compare(system, preset: str | Preset = "accurate", solvers: Sequence[str] = DEFAULT_SOLVERS,
             times=None, *, reference: str | None = "auto", step: float | None = None,
-            save: Sequence[str] = (), positions: bool = False) -> Comparison:
+            save: Sequence[str] = (), positions: bool = False,
+            t_stop: float | None = None, forces=None) -> Comparison:
     """Run the requested solvers on *system* and compare them on shared time points.
 
     A failing solver, or one that does not apply, is recorded in
@@ -426,6 +435,10 @@ def compare(system, preset: str | Preset = "accurate", solvers: Sequence[str] = 
         Element currents to report in each :attr:`Trajectory.currents`.
     positions : bool
         Also keep node positions where the system has springs.
+    t_stop : float, optional
+        End of the simulated interval [s], instead of the system's.
+    forces : sequence, optional
+        Joint forces, one entry per joint, instead of the system's (gravity is kept).
     """
     return compare_many([system], preset, solvers, times, reference=reference, step=step,
-                        save=save, positions=positions)[0]
+                        save=save, positions=positions, t_stop=t_stop, forces=forces)[0]
