@@ -27,8 +27,43 @@ def test_batch_netlist_keeps_circuits_independent():
     text = batch_netlist(systems)
     assert "Cx0_1_2 x0_n1 x0_n2" in text and "Cx1_1_2 x1_n1 x1_n2" in text
     assert text.count(".tran") == 1
-    with pytest.raises(analogy.InputError, match="share t_stop"):
-        batch_netlist([scene("default").system(), scene("redundant").system()])
+
+
+def test_a_batch_of_horizons_runs_to_the_longest_and_steps_onto_each():
+    """One .tran to the longest horizon; each shorter one is a corner of a zero current source."""
+    text = batch_netlist([scene("default").system(), scene("redundant").system()])       # 10 s and 8 s
+    tran = next(ln for ln in text.splitlines() if ln.startswith(".tran")).split()
+    assert float(tran[2]) == 10.0
+    corners = next(ln for ln in text.splitlines() if ln.startswith("Ifirst_step"))
+    assert " 8 0" in corners or " 8.0 0" in corners
+
+
+@pytest.mark.ngspice
+def test_systems_of_different_horizons_share_one_run_each_ending_at_its_own(monkeypatch):
+    """Horizons in [1, 2] s in one ngspice run: every output ends at its system's own t_stop and
+    keeps the preset's bound against the exact solution, per joint against its own peak."""
+    from analogy.solvers import spice
+    runs = []
+    real = spice.session()
+
+    class Counting:
+        def run(self, text, vectors=None, stats=None, timeout=None):
+            runs.append(text)
+            return real.run(text, vectors, stats, timeout=timeout)
+
+    monkeypatch.setattr(spice, "session", Counting)
+    rng = np.random.default_rng(5)
+    stack = analogy.node_systems(analogy.robot("serial2"), rng.uniform(-2, 2, (8, 2)),
+                                 forces=["step(1)", "sine(0, 1, 2)"])
+    ends = rng.uniform(1.0, 2.0, len(stack))
+    systems = stack.driven(None, ends)
+    trajectories = SPICE.solve_many(systems, None, preset("accurate"))
+    assert len(runs) == 1
+    for s, tr in zip(systems, trajectories):
+        assert abs(tr.time[-1] - s.t_stop) <= 4 * np.finfo(float).eps * s.t_stop    # a breakpoint: landed on
+        exact = solve_exact(s, tr.time).rates
+        per_joint = np.max(np.abs(tr.rates - exact), axis=0) / np.max(np.abs(exact), axis=0)
+        assert np.all(per_joint <= preset("accurate").bound)
 
 
 @pytest.mark.ngspice
@@ -112,3 +147,26 @@ def test_a_scene_whose_build_raises_anything_fails_alone(monkeypatch):
     assert list(res.failures) == [7] and "RuntimeError: a bug in one scene" in res.failures[7]
     assert np.isfinite(np.delete(res.errors, 7)).all()
 
+
+
+def test_groups_hold_horizons_within_the_spread_and_families_span_them():
+    """The planner sorts horizons into runs whose longest is at most HORIZON_SPREAD times the shortest."""
+    from analogy.batch.plan import HORIZON_SPREAD, plan_groups
+    base = scene("default")
+    ends = [10.0, 1.0, 2.5, 1.5, 4.1, 1.9]
+    groups = plan_groups([base.replace(t_stop=t, q=(0.0, 0.1 * k)) for k, t in enumerate(ends)], 100)
+    assert sorted(g.rows for g in groups) == [(0,), (1, 3, 5), (2, 4)]
+    for g in groups:
+        spans = [m.t_stop for m in g.members()]
+        assert max(spans) <= HORIZON_SPREAD * min(spans)
+        assert spans == [ends[k] for k in g.rows]           # each member keeps its own horizon
+        assert [s.t_stop for s in g.build()[0]] == spans
+
+
+@pytest.mark.ngspice
+def test_a_sweep_over_horizons_keeps_each_scenes_bound():
+    """Scenes of one family with different t_stop run together, each judged over its own horizon."""
+    base = scene("default")
+    items = [base.replace(q=(0.0, q), t_stop=t) for q, t in zip(np.linspace(-2, 2, 6), np.linspace(3, 5, 6))]
+    res = run_batch(items, "fast", workers=1)
+    assert not res.failures and np.all(res.errors <= preset("fast").bound)

@@ -142,9 +142,11 @@ def run_batch(systems: Sequence, preset="fast", *, solvers: Sequence[str] = ("sp
     """Simulate many systems: groups of *group_size* run together through :func:`compare_many`.
 
     *systems* holds NodeSystems or Scenes. Scenes are built in the workers; those that
-    differ only in q are built as one stack (:func:`analogy.circuit.node_system.node_systems`),
-    and a built-in model is derived and compiled once per worker process. Groups share
-    one time grid (t_stop) and are spread over *workers* processes (or any
+    differ only in q, parameters and t_stop are built as one stack
+    (:func:`analogy.circuit.node_system.node_systems`), and a built-in model is derived and
+    compiled once per worker process. A group's horizons lie within
+    :data:`~analogy.batch.plan.HORIZON_SPREAD` of each other, so that one ngspice run to the
+    longest serves them all. Groups are spread over *workers* processes (or any
     ``concurrent.futures.Executor``, e.g. a Dask client's ``get_executor()``) by the
     same loop as :func:`~analogy.batch.runner.run_sweep`: a group whose worker died is
     retried. SIGINT and SIGTERM end the workers cleanly, then reach the caller as

@@ -155,8 +155,9 @@ def analysis_lines(settings, ic: Iterable[tuple[str, float]], save: Iterable[str
 
 
 def first_step_lines(settings, node: str) -> list[str]:
-    """A zero current source with a corner at ``settings.breakpoint``, which makes ngspice's first
-    (unchecked, backward Euler) step a hundredth of it; nothing when its own is short enough.
+    """A zero current source with corners at ``settings.breakpoint``, which makes ngspice's first
+    (unchecked, backward Euler) step a hundredth of it, and at ``settings.horizons``, where
+    shorter systems of a batch end; nothing when neither is needed.
 
     Parameters
     ----------
@@ -165,10 +166,15 @@ def first_step_lines(settings, node: str) -> list[str]:
     node : str
         A node of the circuit to hang the source on (it carries no current).
     """
-    if settings.breakpoint is None:
+    horizons = tuple(getattr(settings, "horizons", ()))
+    if settings.breakpoint is None and not horizons:
         return []
-    return ["* zero current; its corner sets ngspice's first step to a hundredth of its time",
-            f"Ifirst_step 0 {node} PWL(0 0 {_num(settings.breakpoint)} 0)"]
+    corners = ([settings.breakpoint] if settings.breakpoint is not None else []) + list(horizons)
+    first = settings.breakpoint is not None
+    why = "; ".join(([f"its {'first ' if horizons else ''}corner sets ngspice's first step to a hundredth of its time"]
+                     if first else []) + (["ngspice steps onto the ends of the shorter systems"] if horizons else []))
+    return [f"* zero current; {why}",
+            f"Ifirst_step 0 {node} PWL(0 0 " + " ".join(f"{_num(t)} 0" for t in corners) + ")"]
 
 
 def save_vectors(c: Circuit, save: Iterable[str] | None = None) -> list[str]:

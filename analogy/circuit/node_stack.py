@@ -145,17 +145,23 @@ class NodeStack(Sequence):
             return np.broadcast_to(first.current_map, (len(self), self.dof, self.dof))
         return self._stacked("current_map")
 
-    def driven(self, forces=None, t_stop: float | None = None) -> "NodeStack":
+    def driven(self, forces=None, t_stop: "float | Sequence[float] | None" = None) -> "NodeStack":
         """Every row under other joint forces or over another horizon (see ``NodeSystem.driven``).
 
         Parameters
         ----------
         forces : sequence, optional
             One entry per joint, the same for every row.
-        t_stop : float, optional
-            End of the simulated interval [s].
+        t_stop : float or sequence of float, optional
+            End of the simulated interval [s]: one for every row, or one per row.
         """
-        return NodeStack([s.driven(forces, t_stop) for s in self.systems], self._arrays, self._shared)
+        if t_stop is None or np.ndim(t_stop) == 0:
+            return NodeStack([s.driven(forces, t_stop) for s in self.systems], self._arrays, self._shared)
+        ends = [float(t) for t in t_stop]
+        if len(ends) != len(self.systems):
+            raise ValueError(f"{len(ends)} horizons for a stack of {len(self.systems)} systems")
+        return NodeStack([s.driven(forces, t) for s, t in zip(self.systems, ends)], self._arrays,
+                         self._shared and len(set(ends)) == 1)
 
     def take(self, rows: Sequence[int]) -> "NodeStack":
         """The stack of *rows*, in that order (this stack when they are all of it, in order).

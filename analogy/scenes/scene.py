@@ -226,9 +226,9 @@ class Scene:
         return scene_systems(self, qs, model, parameters)
 
     def family(self) -> tuple | None:
-        """What the scene shares with scenes that differ only in q and parameter values, as a hashable key.
+        """What the scene shares with scenes that differ only in q, parameter values and t_stop, as a hashable key.
 
-        Such scenes are built as one stack (:meth:`systems`); only a built-in robot's
+        Such scenes are built as one stack (:meth:`systems`), each over its own horizon; only a built-in robot's
         parameters vary along a stack, since other models are derived with theirs. None
         when the scene is not built that way: nonlinear dynamics, a static equilibrium
         first, or a q that is not a flat tuple of real numbers.
@@ -237,7 +237,7 @@ class Scene:
                 isinstance(x, (int, float)) and not isinstance(x, bool) for x in self.q):
             return None
         shared = tuple(k for k, _ in self.parameters) if self.model.robot is not None else self.parameters
-        return (self.model, shared, self.topology, self.forces, self.initial_rates, self.t_stop, len(self.q))
+        return (self.model, shared, self.topology, self.forces, self.initial_rates, len(self.q))
 
 
 def _canonical(value):

@@ -17,6 +17,7 @@ from ..errors import SimulationError
 from ..presets import Preset
 from ..presets import preset as get_preset
 from ..results.trajectory import SolverStats, Trajectory
+from ..results.trajectory_stack import TrajectoryStack
 from .ngspice import NgspiceSession, library_path, run_netlist, session, vector_key
 from .registry import Solver, stacked_trajectories
 from .transient import batch_netlist, transient_settings
@@ -150,12 +151,15 @@ class SpiceSolver(Solver):
         return solve_spice(system, preset=preset, save=save)
 
     def solve_many(self, systems, times, preset: Preset, *, save=(), positions=False) -> list[Trajectory]:
-        """One ngspice run for all systems (sharing t_stop); if it fails, one run each.
+        """One ngspice run for all systems, to the longest horizon; if it fails, one run each.
+
+        Each system's output ends at its own t_stop, a breakpoint of the run (see
+        :func:`~analogy.solvers.transient.batch_netlist`).
 
         Parameters
         ----------
         systems : sequence of NodeSystem
-            Linear systems sharing t_stop.
+            Linear systems.
         times : array_like or None
             Must be None: a shared run has SPICE's own points.
         preset : Preset
@@ -170,17 +174,27 @@ class SpiceSolver(Solver):
         scales = combined_scales(stack_scales(systems))
         text = batch_netlist(systems, preset, scales)
         stats: dict = {}
+        ends = np.array([s.t_stop for s in systems])
         start = _time.perf_counter()
         try:
-            data = session().run(text, None, stats, timeout=_limit(scales, systems[0].t_stop, preset, sum(x.dof for x in systems)))
+            data = session().run(text, None, stats, timeout=_limit(scales, float(ends.max()), preset,
+                                                                   sum(x.dof for x in systems)))
         except SimulationError:
             return super().solve_many(systems, times, preset)
         elapsed = (_time.perf_counter() - start) / len(systems)
         time, prepended = _from_start(data["time"])
         n = systems[0].dof
+        try:
+            cut = {float(end): _until(time, float(end)) for end in np.unique(ends[ends < ends.max()])}
+        except SimulationError:
+            return super().solve_many(systems, times, preset)
         if any(s.dof != n for s in systems):
-            return [_trajectory(s, time, prepended, np.column_stack([data[f"x{k}_{m}"] for m in s.nodes]),
-                                {}, stats, elapsed) for k, s in enumerate(systems)]
+            out = []
+            for k, s in enumerate(systems):
+                t, last = cut.get(s.t_stop, (time, time.size))
+                v = np.column_stack([data[f"x{k}_{m}"] for m in s.nodes])[:last - prepended]
+                out.append(_trajectory(s, t, prepended, v, {}, stats, elapsed))
+            return out
         nodes = systems[0].nodes
         count = len(systems)
         volts = np.stack([data[f"x{k}_{node}"] for k in range(count) for node in nodes])
@@ -188,8 +202,29 @@ class SpiceSolver(Solver):
         if prepended:
             v0 = NodeStack.of(systems).initial_voltages[:, None, :]
             volts = np.concatenate([v0, volts], axis=1)
-        info = SolverStats(elapsed, time.size - 1, stats.get("rejected"), stats.get("iterations"))
-        return stacked_trajectories(self.name, systems, time, volts, info)
+        if not cut:
+            info = SolverStats(elapsed, time.size - 1, stats.get("rejected"), stats.get("iterations"))
+            return stacked_trajectories(self.name, systems, time, volts, info)
+        stack, rows = NodeStack.of(systems), [None] * count
+        for end in np.unique(ends):
+            idx = np.flatnonzero(ends == end).tolist()
+            t, last = cut.get(float(end), (time, time.size))
+            info = SolverStats(elapsed, t.size - 1, stats.get("rejected"), stats.get("iterations"))
+            for k, tr in zip(idx, stacked_trajectories(self.name, stack.take(idx), t, volts[idx, :last], info)):
+                rows[k] = tr
+        return TrajectoryStack(rows)
+
+
+def _until(time: np.ndarray, t_stop: float) -> tuple[np.ndarray, int]:
+    """SPICE's points up to *t_stop*, a breakpoint of the run, and how many of them there are.
+
+    ngspice lands on a breakpoint to within its own time rounding; that point is taken
+    as t_stop itself.
+    """
+    last = int(np.searchsorted(time, t_stop * (1 + 1e-9), side="right"))
+    if last == 0 or abs(time[last - 1] - t_stop) > 1e-9 * t_stop:
+        raise SimulationError(f"ngspice did not step onto t = {t_stop:.6g} s, where a system of its run ends")
+    return np.concatenate([time[:last - 1], [t_stop]]), last
 
 
 SOLVER = SpiceSolver()

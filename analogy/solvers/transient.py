@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Iterable, Sequence
 
 import numpy as np
@@ -55,6 +55,9 @@ class TransientSettings:
         :data:`NGSPICE_FIRST_STEP` of the print step, is longer, :attr:`breakpoint` makes it shorter.
     loosen : float
         Factor on abstol and vntol (1 on the first run; a retry after a collapsed step raises it).
+    horizons : tuple of float
+        Ends of shorter systems in the same run, before :attr:`stop`: each is a breakpoint,
+        so that ngspice steps onto it and each system's output ends at its own horizon.
     """
 
     options: tuple
@@ -63,6 +66,7 @@ class TransientSettings:
     max_step: float
     first_step: float
     loosen: float = 1.0
+    horizons: tuple = ()
 
     @property
     def breakpoint(self) -> float | None:
@@ -84,7 +88,7 @@ class TransientSettings:
             if k in ("abstol", "vntol") and self.loosen != factor:
                 v = f"{float(v) / self.loosen * factor:.3g}"
             opts.append((k, v))
-        return TransientSettings(tuple(opts), self.print_step, self.stop, self.max_step, self.first_step, factor)
+        return replace(self, options=tuple(opts), loosen=factor)
 
 
 def _shortest_gap(breakpoints: np.ndarray, t_stop: float) -> float:
@@ -199,12 +203,14 @@ def netlist(system, preset: str | Preset = "accurate", save: Iterable[str] | Non
 def batch_netlist(systems: Sequence, preset: str | Preset = "fast", scales: Scales | None = None) -> str:
     """One netlist holding every system as an independent sub-circuit (prefix ``x<k>_``).
 
-    All systems must share t_stop, so that one ``.tran`` serves them all.
+    One ``.tran`` runs to the longest horizon; each shorter one is a breakpoint
+    (:attr:`TransientSettings.horizons`), and the step cap and print step are those of the
+    shortest, so that no system is stepped more coarsely than in a run of its own.
 
     Parameters
     ----------
     systems : sequence of NodeSystem
-        The systems, sharing t_stop.
+        The systems.
     preset : str or Preset
         Accuracy preset.
     scales : Scales, optional
@@ -212,10 +218,10 @@ def batch_netlist(systems: Sequence, preset: str | Preset = "fast", scales: Scal
     """
     if not systems:
         raise InputError("a batch needs at least one system")
-    t_stop = systems[0].t_stop
-    if any(s.t_stop != t_stop for s in systems):
-        raise InputError("systems in one ngspice run must share t_stop")
+    ends = sorted({s.t_stop for s in systems})
     scales = scales or combined_scales(stack_scales(systems))
     points = [s.breakpoints() for s in systems if s.forces is not systems[0].forces] + [systems[0].breakpoints()]
-    settings = transient_settings(preset, t_stop, scales, breakpoints=np.concatenate(points))
+    settings = transient_settings(preset, ends[0], scales, breakpoints=np.concatenate(points))
+    if len(ends) > 1:
+        settings = replace(settings, stop=ends[-1], horizons=tuple(ends[:-1]))
     return write_batch(circuits(systems), settings)

@@ -244,8 +244,8 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
                  t_stop: float | None = None, forces=None) -> list[Comparison]:
     """:func:`compare` for many systems, each solver running them together where it can.
 
-    SPICE runs the systems as one circuit (they must share t_stop), the exact solver
-    stacks them; errors are measured stacked on shared grids.
+    SPICE runs the systems as one circuit to the longest horizon, each system's output
+    ending at its own; the exact solver stacks them; errors are measured stacked on shared grids.
 
     Parameters
     ----------
@@ -287,11 +287,13 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
         order.append(ref_name)
     order.sort(key=lambda s: not solver(s).own_grid)         # own time points first
     count = len(systems)
-    base = None if step is None and times is None else (
-        output_grid(systems[0].t_stop, step, p.steps) if times is None else np.asarray(times, float))
+    ends = [s.t_stop for s in systems]
+    # A given grid per horizon: systems of one horizon share it (and run stacked).
+    given = None if step is None and times is None else {
+        t: output_grid(t, step, p.steps) if times is None else np.asarray(times, float) for t in dict.fromkeys(ends)}
     runs: dict[str, list[Trajectory]] = {}
     native: dict[str, list[Trajectory]] = {}
-    grids: list = [base] * count
+    grids: list = [None if given is None else given[t] for t in ends]
     nonlinear = systems[0].kind != "linear"
     want_x = positions or bool(save) or nonlinear       # the energy balance needs positions
     skipped = {}
@@ -305,15 +307,15 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
         if s.own_grid:
             trs = run_many(name, systems, None, p, save=save, positions=want_x)
             native[name] = trs
-            if base is None:
+            if given is None:
                 grids = [tr.time if tr.success and grids[k] is None else grids[k]
                          for k, tr in enumerate(trs)]
             else:
-                trs = TrajectoryStack([tr.resampled(base, sys_.joint_rates) if tr.success else tr
-                                       for tr, sys_ in zip(trs, systems)])
+                trs = TrajectoryStack([tr.resampled(grids[k], sys_.joint_rates) if tr.success else tr
+                                       for k, (tr, sys_) in enumerate(zip(trs, systems))])
         else:
-            default = np.linspace(0.0, systems[0].t_stop, p.steps + 1)
-            grids = [default if g is None else g for g in grids]
+            default = {t: np.linspace(0.0, t, p.steps + 1) for t in dict.fromkeys(ends)}
+            grids = [default[t] if g is None else g for g, t in zip(grids, ends)]
             groups = _by_grid(grids)
             if len(groups) == 1:
                 trs = run_many(name, systems, grids[0], p, save=save, positions=want_x)
@@ -330,7 +332,7 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
                     tr.currents = trajectory_currents(sys_, tr, save)
         runs[name] = trs
     out = []
-    measured = _measure(systems, runs, native, ref_name, p, tuple(save), set(native) if base is not None else set())
+    measured = _measure(systems, runs, native, ref_name, p, tuple(save), set(native) if given is not None else set())
     columns = [(n, runs[n]) for n in order]
     for k, system in enumerate(systems):
         results, failures = {}, {}
