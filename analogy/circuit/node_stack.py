@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING, Iterator, Sequence, overload
 import numpy as np
 
 if TYPE_CHECKING:
-    from .node_system import NodeSystem
+    from ..model.dynamics import NodeDynamics
 
 __all__ = ["NodeStack", "inputs_key"]
 
@@ -20,7 +20,7 @@ def inputs_key(system) -> tuple:
 
     Parameters
     ----------
-    system : NodeSystem
+    system : linear NodeDynamics
         A linear node system.
     """
     key = getattr(system, "_inputs_key", None)
@@ -38,12 +38,12 @@ class NodeStack(Sequence):
 
     A stack is a sequence of its systems; :attr:`mass`, :attr:`damping`,
     :attr:`stiffness` and :attr:`initial_voltages` are the (count, n, n) and (count, n)
-    arrays, given when the stack was built as one (:func:`~analogy.circuit.node_system.node_systems`)
+    arrays, given when the stack was built as one (``analogy.node_systems``)
     and stacked on first use otherwise.
 
     Parameters
     ----------
-    systems : sequence of NodeSystem
+    systems : sequence of linear NodeDynamics
         The rows, all with the same number of nodes.
     arrays : mapping of str to ndarray, optional
         Stacked ``mass``, ``damping``, ``stiffness``, ``initial_voltages`` already at hand.
@@ -53,7 +53,7 @@ class NodeStack(Sequence):
 
     __slots__ = ("systems", "_arrays", "_shared")
 
-    def __init__(self, systems: Sequence["NodeSystem"], arrays: dict | None = None, shared_inputs: bool = False):
+    def __init__(self, systems: Sequence["NodeDynamics"], arrays: dict | None = None, shared_inputs: bool = False):
         self.systems = tuple(systems)
         if not self.systems:
             raise ValueError("a node stack needs at least one system")
@@ -63,12 +63,12 @@ class NodeStack(Sequence):
         self._shared = shared_inputs or len(self.systems) == 1
 
     @classmethod
-    def of(cls, systems: Sequence["NodeSystem"]) -> "NodeStack":
+    def of(cls, systems: Sequence["NodeDynamics"]) -> "NodeStack":
         """*systems* as a stack: itself when it is one.
 
         Parameters
         ----------
-        systems : sequence of NodeSystem
+        systems : sequence of linear NodeDynamics
             Systems of one size.
         """
         return systems if isinstance(systems, NodeStack) else cls(systems)
@@ -77,7 +77,7 @@ class NodeStack(Sequence):
         return len(self.systems)
 
     @overload
-    def __getitem__(self, index: int) -> "NodeSystem": ...
+    def __getitem__(self, index: int) -> "NodeDynamics": ...
 
     @overload
     def __getitem__(self, index: slice) -> "NodeStack": ...
@@ -87,7 +87,7 @@ class NodeStack(Sequence):
             return self.take(range(len(self))[index])
         return self.systems[index]
 
-    def __iter__(self) -> Iterator["NodeSystem"]:
+    def __iter__(self) -> Iterator["NodeDynamics"]:
         return iter(self.systems)
 
     def __repr__(self) -> str:
@@ -146,7 +146,7 @@ class NodeStack(Sequence):
         return self._stacked("current_map")
 
     def driven(self, forces=None, t_stop: "float | Sequence[float] | None" = None) -> "NodeStack":
-        """Every row under other joint forces or over another horizon (see ``NodeSystem.driven``).
+        """Every row under other joint forces or over another horizon (see ``the system's ``driven````).
 
         Parameters
         ----------
