@@ -142,3 +142,30 @@ def test_the_command_line_names_the_option_whose_unit_is_wrong(argv, flag, capsy
     assert main(["netlist", *argv]) == 2
     err = capsys.readouterr().err
     assert flag in err and err.count("\n") == 1
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--q=0, 100 mm"], "--q: q2 is an angle (a revolute joint), got a length ('mm')"),
+    (["--r0=1 m/s, 0"], "--r0: r1 is an angular rate (a revolute joint), got a velocity ('m/s')"),
+    (["--robot", "redundant", "--q=30 deg, 0"], "--q: q1 is a length (a prismatic joint), got an angle ('deg')"),
+])
+def test_a_coordinate_s_unit_is_judged_by_its_joint_kind(argv, message, capsys):
+    """An angle where the joint turns, a length where it slides: the model decides, once it is known."""
+    assert main(["netlist", *argv]) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1
+
+
+def test_a_coordinate_of_its_joint_s_dimension_is_its_si_value(capsys):
+    assert main(["netlist", "--q=0, 30 deg"]) == 0
+    assert f"q2={math.pi / 6!r}" in capsys.readouterr().out
+    assert main(["netlist", "--robot", "redundant", "--q=100 mm, 0.2 m"]) == 0
+    assert "q1=0.1, q2=0.2" in capsys.readouterr().out
+
+
+def test_a_scene_file_s_coordinate_is_judged_by_its_joint_kind(tmp_path, capsys):
+    path = tmp_path / "u.toml"
+    path.write_text('name = "u"\n[model]\nrobot = "serial2"\n[configuration]\nq = [0, "100 mm"]\n'
+                    '[inputs]\nforces = [1, 0]\n')
+    assert main(["run", str(path)]) == 2
+    assert "[configuration] q: q2 is an angle (a revolute joint), got a length ('mm')" in capsys.readouterr().err

@@ -14,7 +14,7 @@ from typing import Iterable, Mapping
 import numpy
 
 from ..errors import InputError
-from .quantities import Dimension, check_dimension, split_unit, unit_factor
+from .quantities import Dimension, Measured, check_dimension, split_unit, unit_dimension, unit_factor
 
 __all__ = ["parse_expression", "parse_matrix", "parse_vector", "parse_number",
            "parse_call", "split_entries", "reserved_name", "FUNCTION_NAMES", "MAX_LENGTH", "MAX_DEPTH",
@@ -337,7 +337,9 @@ def parse_number(text: str, dimension: Dimension | tuple[Dimension, ...] | None 
     number, unit = split        # a number with a unit, e.g. "100 mm": converted to SI
     if dimension is not None:
         check_dimension(unit, dimension)
-    return _finite(parse_number(number) * unit_factor(unit), text)
+    value = _finite(parse_number(number) * unit_factor(unit), text)
+    # Of several dimensions (an angle or a length), which one is for the model to judge.
+    return Measured(value, unit_dimension(unit), unit) if isinstance(dimension, tuple) else value
 
 
 def _depth(v) -> int:

@@ -9,7 +9,7 @@ from typing import Literal
 from ..errors import InputError
 
 __all__ = ["split_unit", "unit_factor", "unit_dimension", "check_dimension", "Dimension", "DIMENSIONS", "COORDINATE", "RATE",
-           "MAX_UNIT_LENGTH", "MAX_UNIT_EXPONENT"]
+           "MAX_UNIT_LENGTH", "MAX_UNIT_EXPONENT", "Measured", "check_joint_dimensions"]
 
 #: Longest unit text accepted.
 MAX_UNIT_LENGTH = 40
@@ -33,6 +33,59 @@ DIMENSIONS: dict[str, str] = {"time": "[time]", "length": "[length]", "angle": "
 #: A joint coordinate (an angle or a travel) and its rate, before the model says which joint is which.
 COORDINATE: tuple[Dimension, ...] = ("angle", "length")
 RATE: tuple[Dimension, ...] = ("angular rate", "velocity")
+
+
+class Measured(float):
+    """A number read with a unit: its SI value, and the pint dimensionality the unit had.
+
+    A joint coordinate is read before the model says whether its joint turns or slides;
+    the dimension is kept so that :func:`check_joint_dimensions` can judge it then. It is a
+    float in every other respect (and in a scene's key).
+    """
+
+    dimension: str
+    unit: str
+
+    def __new__(cls, value: float, dimension: str, unit: str = "") -> "Measured":
+        number = super().__new__(cls, value)
+        number.dimension, number.unit = dimension, unit
+        return number
+
+    def __reduce__(self):
+        return (Measured, (float(self), self.dimension, self.unit))
+
+
+#: What a coordinate and its rate measure, per joint kind.
+_JOINT_DIMENSIONS: dict[str, tuple[Dimension, Dimension]] = {
+    "revolute": ("angle", "angular rate"), "prismatic": ("length", "velocity"), "modal": ("length", "velocity")}
+_JOINT_NOUNS = {"revolute": "a revolute joint", "prismatic": "a prismatic joint", "modal": "a modal amplitude"}
+
+
+def check_joint_dimensions(values, joints, rates: bool = False, name: str = "q") -> None:
+    """One sentence if a value read with a unit does not measure what its joint's coordinate is.
+
+    Parameters
+    ----------
+    values : sequence of float
+        Coordinates (or, with *rates*, their rates); :class:`Measured` entries are checked.
+    joints : sequence of str or None
+        The model's joint kinds (``"revolute"``, ``"prismatic"``, ``"modal"``); None checks nothing.
+    rates : bool
+        The values are rates.
+    name : str
+        The values' symbol in the sentence (``q1``, ``r1`` …).
+    """
+    if joints is None:
+        return
+    for k, (x, kind) in enumerate(zip(values, joints)):
+        if not isinstance(x, Measured) or kind not in _JOINT_DIMENSIONS:
+            continue
+        wanted = _JOINT_DIMENSIONS[kind][1 if rates else 0]
+        if x.dimension != DIMENSIONS[wanted]:
+            article = "an" if wanted[0] in "aeiou" else "a"
+            found = next((d for d in ("angle", "length", "angular rate", "velocity") if DIMENSIONS[d] == x.dimension), None)
+            got = f"a unit of {x.dimension}" if found is None else f"{'an' if found[0] in 'aeiou' else 'a'} {found}"
+            raise InputError(f"{name}{k + 1} is {article} {wanted} ({_JOINT_NOUNS[kind]}), got {got} ({x.unit!r})")
 
 
 def split_unit(text: str) -> tuple[str, str] | None:

@@ -19,6 +19,7 @@ from ..model.urdf import STANDARD_GRAVITY, urdf_model
 from ..model.urdf_robots import URDF_ROBOTS, urdf_robot
 from ..model.expressions import parse_expression, parse_number, reserved_name
 from ..model.joint import JointSpace
+from ..model.quantities import check_joint_dimensions
 from .spec import ModelSpec, SceneData
 
 __all__ = ["scene_model", "symbolic_model", "scene_system", "scene_systems", "entry_value", "TOML_KEYS",
@@ -302,6 +303,7 @@ def _configuration(scene: SceneData, model, keys: dict) -> list[float] | None:
                              f"{len(coords)} joint coordinates ({', '.join(coords)})")
         if not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in scene.q):
             raise InputError("configuration q must be a list of numbers")
+        check_joint_dimensions(scene.q, getattr(model, "joints", None))
         return [float(x) for x in scene.q]
 
 
@@ -312,7 +314,7 @@ def _topology(scene: SceneData):
     return t
 
 
-def _inputs(scene: SceneData, n: int, keys: dict) -> dict:
+def _inputs(scene: SceneData, n: int, keys: dict, joints=None) -> dict:
     forces = scene.forces
     with keyed(keys["forces"]):
         if not forces:
@@ -331,6 +333,7 @@ def _inputs(scene: SceneData, n: int, keys: dict) -> dict:
             r0 = [entry_value(x) for x in scene.initial_rates]
             if len(r0) != n or any(isinstance(x, str) for x in r0):
                 raise InputError(f"expected {n} numbers, got {len(r0)}")
+            check_joint_dimensions(scene.initial_rates, joints, rates=True, name="r")
     return {"forces": out, "initial_rates": r0}
 
 
@@ -349,7 +352,7 @@ def scene_system(scene: SceneData, model=None) -> object:
     with _where(scene):
         q = _configuration(scene, m, keys)
         n = m.dof
-        inputs = _inputs(scene, n, keys)
+        inputs = _inputs(scene, n, keys, getattr(m, "joints", None))
         info = {"scene": scene.name}
         top = _topology(scene)
         params = scene.parameter_values if scene.model.robot is not None else None
@@ -396,7 +399,7 @@ def scene_systems(scene: SceneData, qs, model=None, parameters=None) -> list:
     m = scene_model(scene) if model is None else model
     keys = _keys(scene)
     with _where(scene):
-        inputs = _inputs(scene, m.dof, keys)
+        inputs = _inputs(scene, m.dof, keys, getattr(m, "joints", None))
         params = scene.parameter_values if scene.model.robot is not None else None
         if parameters:
             if params is None:
