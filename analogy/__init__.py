@@ -30,7 +30,7 @@ _EXPORTS = {
     "NonlinearNodeSystem": "circuit.nonlinear", "nonlinear_system": "circuit.nonlinear",
     "Topology": "circuit.topology", "parallel": "circuit.topology", "serial": "circuit.topology",
     "PWL": "waveforms", "Pulse": "waveforms", "Sine": "waveforms", "Step": "waveforms",
-    "run_batch": "batch.run",
+    "run_batch": "batch.run", "draw_circuit": "circuit.diagram",
 }
 
 __all__ = sorted(_EXPORTS)

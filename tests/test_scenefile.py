@@ -569,3 +569,18 @@ def test_a_scene_file_can_settle_the_flexible_arm_at_its_static_equilibrium():
     assert np.max(np.abs(plain.system().joint.gravity[2:])) > 1.0
     with pytest.raises(InputError, match="expected true or false"):
         parse_scene(text.replace("equilibrium = true", "equilibrium = 1"))
+
+
+def test_a_scene_s_repr_is_one_short_line_naming_the_job_and_its_key():
+    import analogy
+    s = analogy.scene("default")
+    text = repr(s)
+    assert "\n" not in text and len(text) < 160
+    assert text.startswith("<Scene default: serial2 at q=(0.0, 0.3)") and s.key[:12] in text
+    assert repr(s.replace(plot_file="x.png")) == text       # output names are not the job
+
+
+def test_draw_circuit_is_part_of_the_package_namespace():
+    import analogy
+    from analogy.circuit.diagram import draw_circuit
+    assert analogy.draw_circuit is draw_circuit and "draw_circuit" in analogy.__all__

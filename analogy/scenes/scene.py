@@ -109,6 +109,14 @@ class Scene:
     description: str = ""
     source: str | None = None
 
+    def __repr__(self) -> str:
+        m = self.model
+        what = m.robot or ("a URDF model" if m.urdf is not None else "a model given by its matrices")
+        q = f" at q={tuple(float(x) for x in self.q)!r}" if self.q and all(
+            isinstance(x, (int, float)) for x in self.q) else ""
+        return (f"<Scene {self.name}: {what}{q}, {self.dynamics}, t_stop={self.t_stop:g} s, "
+                f"{'+'.join(self.solvers) or 'no solver'} at {self.preset}, key {self.key[:12]}>")
+
     def __post_init__(self):
         if not isinstance(self.model, ModelSpec):
             raise InputError(f"scene {self.name!r}: model must be a ModelSpec")
