@@ -3,7 +3,8 @@
 #   bash setup.sh run   - the built-in default scene: SPICE, ODE and exact solutions compared
 #   bash setup.sh test  - the test suite
 # Missing pieces: the ngspice shared library and executable (Debian libngspice0, ngspice),
-# Python's venv module, and a virtual environment .venv with analogy and its dependencies.
+# Python's venv module, and a virtual environment .venv with analogy and its dependencies;
+# for the tests also Chromium (Debian chromium) and a font, for the browser check of the report.
 set -euo pipefail
 cd "$(dirname "$0")"
 task="${1:-run}"
@@ -16,6 +17,11 @@ packages=()
     || packages+=(libngspice0)
 command -v ngspice >/dev/null 2>&1 || packages+=(ngspice)
 "$PYTHON" -c 'import venv, ensurepip' >/dev/null 2>&1 || packages+=(python3-venv)
+# the test suite opens the HTML report in a real browser
+if [ "$task" = test ]; then
+    command -v chromium >/dev/null 2>&1 || packages+=(chromium)
+    [ -d /usr/share/fonts/truetype/dejavu ] || packages+=(fonts-dejavu-core)
+fi
 
 if [ "${#packages[@]}" -gt 0 ]; then
     echo "setup: installing Debian packages: ${packages[*]}"

@@ -228,8 +228,12 @@ def test_batch_report_summarises_quantiles_axes_and_worst_scenes(tmp_path, capsy
     assert main(["batch", "report", str(tmp_path / "s")]) == 0
     out = capsys.readouterr().out
     assert "| spice |" in out and "## Error against q2" in out and "worst scenes" in out
-    for name in ("report.md", "errors_by_axis.png", "error_histogram.png", "error_map.png"):
+    for name in ("report.md", "report.html", "errors_by_axis.png", "error_histogram.png", "error_map.png"):
         assert (tmp_path / "s" / "_report" / name).stat().st_size > 0
+    page = (tmp_path / "s" / "_report" / "report.html").read_text()
+    # the page holds the markdown's tables, and the plots inline
+    assert "<th>spice median</th>" in page and "<h2>Error against q2</h2>" in page
+    assert page.count("data:image/png;base64,") == 3 and "https://" not in page
     assert len(pd.read_parquet(tmp_path / "s")) == 200       # the report leaves the dataset readable
 
 

@@ -2,13 +2,17 @@
 
 from __future__ import annotations
 
+import base64
+import io
 from dataclasses import dataclass
+from html import escape
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..errors import InputError
+from ..presets import PRESETS
 from ..scenes.paths import inside_folder
 from ..units import force_unit, rate_unit
 from .store import manifest, read
@@ -55,8 +59,8 @@ class BatchReport:
     def __repr__(self) -> str:
         return f"<BatchReport {len(self.frame)} of {self.info.get('count', '?')} scenes, solvers {self.solvers}>"
 
-    def summary(self, worst: int = 10) -> str:
-        """The report as markdown: quantiles, errors by axis, worst scenes, failures.
+    def sections(self, worst: int = 10) -> list[tuple[str | None, list[str], list[str], list[list]]]:
+        """The report's content: per section a heading, its paragraphs, a table's header and rows.
 
         Parameters
         ----------
@@ -64,23 +68,22 @@ class BatchReport:
             How many of the worst scenes to list.
         """
         f, info = self.frame, self.info
-        lines = [f"# Sweep {info.get('scene', '')}: {len(f):,} of {info.get('count', 0):,} scenes stored", "",
-                 f"Design {info.get('method')} (seed {info.get('seed')}), {info.get('group_size')} scenes per "
+        intro = [f"Design {info.get('method')} (seed {info.get('seed')}), {info.get('group_size')} scenes per "
                  f"group{', each scene in its own ngspice run' if info.get('isolated') else ''}; errors are "
-                 "max |R − R_ref| / peak |R_ref| against the exact solution.", ""]
-        counts = f["status"].value_counts() if len(f) else {}
-        lines += ["Status: " + ", ".join(f"{n:,} {s}" for s, n in counts.items()), ""]
+                 "max |R − R_ref| / peak |R_ref| against the exact solution.",
+                 "Status: " + ", ".join(f"{n:,} {s}" for s, n in (f["status"].value_counts().items()
+                                                                if len(f) else ()))]
         if not self.info.get("isolated"):
-            lines += ["Scenes of a group share one ngspice run, so its step control follows the fastest of "
-                      "them: a scene's error can differ from its error alone (run with --isolated for that).", ""]
-        if self.solvers:
-            lines += ["| solver | median | 90 % | 99 % | max | median seconds |", "|---|---|---|---|---|---|"]
-            for s in self.solvers:
-                e = f[f"error_{s}"].dropna()
-                q = [e.quantile(p) if len(e) else np.nan for p in _QUANTILES]
-                sec = f[f"seconds_{s}"].median()
-                lines.append(f"| {s} | " + " | ".join(_fmt(x) for x in q) + f" | {sec:.2e} |")
-            lines.append("")
+            intro.append("Scenes of a group share one ngspice run, so its step control follows the fastest of "
+                         "them: a scene's error can differ from its error alone (run with --isolated for that).")
+        out: list = []
+        rows = []
+        for s in self.solvers:
+            e = f[f"error_{s}"].dropna()
+            rows.append([s, *(_fmt(e.quantile(p) if len(e) else np.nan) for p in _QUANTILES),
+                         f"{f[f'seconds_{s}'].median():.2e}"])
+        out.append((None, intro, ["solver", "median", "90 %", "99 %", "max", "median seconds"] if rows else [],
+                    rows))
         for axis in self.axes:
             if axis not in f or not self.solvers:
                 continue
@@ -90,33 +93,85 @@ class BatchReport:
                 bins = pd.qcut(col, 5, duplicates="drop")
             else:
                 bins = col
-            lines += [f"## Error against {axis}", "",
-                      "| " + axis + " | scenes | " + " | ".join(f"{s} median | {s} max" for s in self.solvers) + " |",
-                      "|---|---|" + "---|---|" * len(self.solvers)]
+            rows = []
             for label, part in f.groupby(bins, observed=True):
                 cells = []
                 for s in self.solvers:
                     e = part[f"error_{s}"].dropna()
                     cells += [_fmt(e.median() if len(e) else np.nan), _fmt(e.max() if len(e) else np.nan)]
-                lines.append(f"| {label} | {len(part):,} | " + " | ".join(cells) + " |")
-            lines.append("")
+                rows.append([str(label), f"{len(part):,}", *cells])
+            out.append((f"Error against {axis}", [],
+                        [axis, "scenes", *(f"{s} {w}" for s in self.solvers for w in ("median", "max"))], rows))
         if self.solvers:
             first = f"error_{self.solvers[0]}"
             top = f.dropna(subset=[first]).nlargest(worst, first)
-            lines += [f"## The {len(top)} worst scenes ({self.solvers[0]})", "",
-                      "| index | " + " | ".join(self.axes) + " | error | key |",
-                      "|---|" + "---|" * len(self.axes) + "---|---|"]
-            for _, row in top.iterrows():
-                vals = " | ".join(f"{row[a]:.6g}" if isinstance(row[a], float) else str(row[a]) for a in self.axes)
-                lines.append(f"| {row['index']} | {vals} | {_fmt(row[first])} | {row['key'][:12]} |")
-            lines.append("")
+            rows = [[str(row["index"]),
+                     *(f"{row[a]:.6g}" if isinstance(row[a], float) else str(row[a]) for a in self.axes),
+                     _fmt(row[first]), row["key"][:12]] for _, row in top.iterrows()]
+            out.append((f"The {len(top)} worst scenes ({self.solvers[0]})", [],
+                        ["index", *self.axes, "error", "key"], rows))
         bad = f[f["status"] != "ok"]
         if len(bad):
-            lines += ["## Not ok, by reason", "", "| status | scenes | reason (first seen) |", "|---|---|---|"]
-            for (status, message), part in bad.groupby(["status", "message"]):
-                lines.append(f"| {status} | {len(part):,} | {' '.join(str(message).split())[:200]} |")
-            lines.append("")
+            rows = [[status, f"{len(part):,}", " ".join(str(message).split())[:200]]
+                    for (status, message), part in bad.groupby(["status", "message"])]
+            out.append(("Not ok, by reason", [], ["status", "scenes", "reason (first seen)"], rows))
+        return out
+
+    @property
+    def title(self) -> str:
+        """What the report is of: the sweep's scene and how many of its scenes are stored."""
+        return f"Sweep {self.info.get('scene', '')}: {len(self.frame):,} of {self.info.get('count', 0):,} " \
+               "scenes stored"
+
+    def summary(self, worst: int = 10) -> str:
+        """The report as markdown: quantiles, errors by axis, worst scenes, failures.
+
+        Parameters
+        ----------
+        worst : int
+            How many of the worst scenes to list.
+        """
+        lines = [f"# {self.title}", ""]
+        for heading, paragraphs, header, rows in self.sections(worst):
+            if heading:
+                lines += [f"## {heading}", ""]
+            for text in paragraphs:
+                lines += [text, ""]
+            if header:
+                lines += ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+                lines += ["| " + " | ".join(str(c) for c in row) + " |" for row in rows]
+                lines.append("")
         return "\n".join(lines)
+
+    def html(self, worst: int = 10, plots: bool = True) -> str:
+        """The report as one self-contained HTML page: the tables, and the plots inline.
+
+        Parameters
+        ----------
+        worst : int
+            How many of the worst scenes to list.
+        plots : bool
+            Include the plots (PNG, embedded).
+        """
+        from ..results.output import html_table
+        from ..scenes.report import html_page
+        parts = []
+        for heading, paragraphs, header, rows in self.sections(worst):
+            body = "".join(f"<p>{escape(t)}</p>" for t in paragraphs) + (html_table(header, rows) if header else "")
+            parts.append((heading or "Summary", body))
+        if plots and len(self.frame) and self.solvers:
+            figures = [("Error against each axis", self.plot_axes()), ("Error histogram", self.plot_histogram())]
+            if (shown := self.plot_map()) is not None:
+                figures.append(("Error map", shown))
+            for heading, fig in figures:
+                buffer = io.BytesIO()
+                fig.savefig(buffer, format="png", dpi=100)
+                uri = "data:image/png;base64," + base64.b64encode(buffer.getvalue()).decode("ascii")
+                parts.append((heading, f"<img src='{uri}' alt='{escape(heading)}'>"))
+        return html_page(self.title, parts)
+
+    def _repr_html_(self) -> str:
+        return self.html(plots=False)
 
     def plot_axes(self, path=None) -> "Figure":
         """Error against each swept axis (one panel per axis, every solver), log scale.
@@ -131,25 +186,41 @@ class BatchReport:
         fig = Figure(figsize=(4.2 * len(axes), 3.6), layout="constrained")
         panels = np.atleast_1d(fig.subplots(1, len(axes), sharey=True))
         f = self.frame.sample(min(len(self.frame), 20_000), random_state=0) if len(self.frame) else self.frame
+        logs = {a["name"] for a in self.info.get("axes", []) if a.get("log")}
         for ax, axis in zip(panels, axes):
+            x_all = f[axis]
+            categories = None if x_all.dtype.kind in "fiu" else sorted(map(str, x_all.unique()))
             for s, marker in zip(self.solvers, "o^sv"):
                 e = f[f"error_{s}"]
                 ok = e > 0
-                x = f[axis][ok]
-                ax.scatter(x if x.dtype.kind in "fi" else x.astype(str), e[ok], s=4, alpha=0.4,
-                           marker=marker, label=s, rasterized=True)
+                x = x_all[ok]
+                if categories is not None:      # one column per value, spread so that its points show
+                    at = np.array([categories.index(str(v)) for v in x], dtype=float)
+                    x = at + np.random.default_rng(0).uniform(-0.3, 0.3, at.size)
+                ax.scatter(x, e[ok], s=4, alpha=0.4, marker=marker, label=s, rasterized=True)
+            if categories is not None:
+                ax.set_xticks(range(len(categories)), categories)
+            if axis in logs:
+                ax.set_xscale("log")
+            for name, bound in self._bounds().items():
+                ax.axhline(bound, color="red", ls=":", lw=1.0, label=f"{name} bound {bound:g}")
             ax.set_yscale("log")
             ax.set_xlabel(_label(axis, self.info.get("joint_units")))
             ax.grid(alpha=0.3)
         panels[0].set_ylabel("max error / peak rate [1]")
         if self.solvers:
-            fig.legend(*panels[0].get_legend_handles_labels(), loc="outside upper right", ncols=len(self.solvers),
-                       markerscale=3)
+            fig.legend(*panels[0].get_legend_handles_labels(), loc="outside lower center",
+                       ncols=len(self.solvers) + len(self._bounds()), markerscale=3)
         fig.suptitle(f"{self.info.get('scene', '')}: error against each swept axis "
                      f"({len(f):,} scenes shown)", fontsize="medium")
         if path is not None:
             fig.savefig(path, dpi=110)
         return fig
+
+    def _bounds(self) -> dict[str, float]:
+        """Each preset the sweep ran at, and its bound."""
+        names = self.frame["preset"].unique() if "preset" in self.frame else [self.info.get("preset")]
+        return {str(n): PRESETS[n].bound for n in names if n in PRESETS}
 
     def plot_histogram(self, path=None) -> "Figure":
         """Histograms of each solver's error (log10).
@@ -213,7 +284,7 @@ class BatchReport:
         return fig
 
     def write(self, folder) -> list[Path]:
-        """Write ``report.md``, ``errors_by_axis.png``, ``error_histogram.png`` and ``error_map.png``.
+        """Write ``report.md``, ``report.html``, ``errors_by_axis.png``, ``error_histogram.png`` and ``error_map.png``.
 
         Parameters
         ----------
@@ -223,9 +294,10 @@ class BatchReport:
         out = Path(folder)
         out.mkdir(parents=True, exist_ok=True)
         # each file inside the folder, reached through no symlink (as every output of the package)
-        md, by_axis, histogram, error_map = (inside_folder(out, name) for name in REPORT_FILES)
-        written = [md]
+        md, page, by_axis, histogram, error_map = (inside_folder(out, name) for name in REPORT_FILES)
+        written = [md, page]
         md.write_text(self.summary() + "\n")
+        page.write_text(self.html())
         if len(self.frame) and self.solvers:
             self.plot_axes(by_axis)
             self.plot_histogram(histogram)
@@ -236,7 +308,7 @@ class BatchReport:
 
 
 #: The files :meth:`BatchReport.write` writes, in its folder.
-REPORT_FILES = ("report.md", "errors_by_axis.png", "error_histogram.png", "error_map.png")
+REPORT_FILES = ("report.md", "report.html", "errors_by_axis.png", "error_histogram.png", "error_map.png")
 
 
 def _label(axis: str, joint_units=None) -> str:

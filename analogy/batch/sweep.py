@@ -311,7 +311,7 @@ class Sweep:
                 "method": self.method, "count": self.size, "seed": self.seed, "group_size": self.group_size,
                 "axes": [{"name": a.name, "values": None if a.values is None else list(a.values),
                           "low": a.low, "high": a.high, "log": a.log} for a in self.axes],
-                "solvers": list(self.base.solvers), "source": self.base.source,
+                "solvers": list(self.base.solvers), "preset": self.base.preset, "source": self.base.source,
                 "joint_units": list(self.base.system().provenance.units or ())}
 
 

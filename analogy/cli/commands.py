@@ -6,7 +6,6 @@ starts without the solvers, the batch machinery or the benchmarks.
 
 from __future__ import annotations
 
-import os
 import signal
 import sys
 import threading
@@ -24,8 +23,9 @@ from ..model.expressions import (
 from ..presets import PRESETS
 from ..presets import preset as get_preset
 from ..results.output import check_plot_path
+from .outputs import accuracy_exit, check_writable
 from .parser import build_parser
-from .scene_options import scene_from_args
+from .scene_options import scene_from_args, solver_list
 from ..scenes.builtin import SCENES, scene
 from ..scenes.scene import Scene
 
@@ -36,23 +36,11 @@ def _title(sc: Scene) -> str:
     return f"analogy {sc.name}: {sc.description}" if sc.description else f"analogy {sc.name}"
 
 
-def _check_writable(path):
-    if path is None:
-        return
-    if Path(path).is_dir():
-        raise InputError(f"cannot write {path}: it is a folder")
-    folder = Path(path).resolve().parent
-    if not folder.is_dir():
-        raise InputError(f"cannot write {path}: folder {folder} does not exist")
-    if not os.access(folder, os.W_OK) or (Path(path).exists() and not os.access(path, os.W_OK)):
-        raise InputError(f"cannot write {path}: permission denied")
-
-
 def _cmd_netlist(args) -> int:
     sc = scene_from_args(args)
     if args.realizable and sc.dynamics != "linear":
         raise InputError("--realizable applies to the linear circuit, not to --dynamics nonlinear")
-    _check_writable(args.output)
+    check_writable(args.output)
     save = None if args.save is None else [s.strip() for s in args.save.split(",") if s.strip()]
     text = netlist(sc.system(), args.preset, save=save, realizable=args.realizable, title=_title(sc))
     if args.output:
@@ -63,15 +51,6 @@ def _cmd_netlist(args) -> int:
     else:
         sys.stdout.write(text)
     return EXIT_OK
-
-
-def _accuracy_exit(flags: dict, preset: str, bound: float, result=None) -> int:
-    for solver, err in flags.items():
-        worst = getattr(result, "worst_output", None)
-        which = f" on {worst(solver)[0]}" if worst is not None and solver in result.results else ""
-        print(f"analogy: accuracy: {solver} error{which} {err:.3g} of its own peak is above the {preset} "
-              f"preset's bound {bound:g}", file=sys.stderr)
-    return EXIT_ACCURACY if flags else EXIT_OK
 
 
 def _cmd_compare(args) -> int:
@@ -86,7 +65,7 @@ def _cmd_compare(args) -> int:
     if args.plot:
         check_plot_path(args.plot)
     for path in (args.csv, args.plot):
-        _check_writable(path)
+        check_writable(path)
     step = None if args.step is None else parse_number(args.step, "time")
     preset = get_preset(args.preset)
     if args.timeout is not None:
@@ -129,14 +108,14 @@ def _written_and_judged(output, result, args) -> int:
             print(f"wrote {args.plot}")
     except OSError as exc:
         raise InputError(f"cannot write output: {exc}") from None
-    return EXIT_FAILED if result.failures else _accuracy_exit(result.outside_bound(), result.preset, result.bound,
+    return EXIT_FAILED if result.failures else accuracy_exit(result.outside_bound(), result.preset, result.bound,
                                                                  result)
 
 
 def _cmd_modes(args) -> int:
     from ..results.modes import natural_modes
     sc = scene_from_args(args)
-    _check_writable(args.csv)
+    check_writable(args.csv)
     locked = [item.strip() for item in (args.locked or "").split(",") if item.strip()]
     if bad := [item for item in locked if not item.isdigit()]:
         raise InputError(f"--locked needs joint numbers like 1,2, got {bad[0]!r}")
@@ -183,7 +162,7 @@ def _cmd_verify(args) -> int:
         flags.update({f"{name} {k}": v for k, v in c.outside_bound().items()})
     if code:
         return code
-    return _accuracy_exit(flags, args.preset, PRESETS[args.preset].bound)
+    return accuracy_exit(flags, args.preset, PRESETS[args.preset].bound)
 
 
 def _cmd_draw(args) -> int:
@@ -200,7 +179,7 @@ def _cmd_draw(args) -> int:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise InputError(f"cannot create {out}: {exc.strerror}") from None
-    _check_writable(out / stem)
+    check_writable(out / stem)
     from ..circuit.description import circuit
     from ..circuit.diagram import MAX_SCHEMATIC_FLOATING, MAX_SCHEMATIC_NODES, schematic_fits
     if not args.schematic and not schematic_fits(system):
@@ -213,20 +192,10 @@ def _cmd_draw(args) -> int:
     return EXIT_OK
 
 
-def _solver_list(text: str | None) -> tuple[str, ...] | None:
-    if text is None:
-        return None
-    from ..solvers.registry import SOLVER_NAMES
-    names = tuple(dict.fromkeys(s.strip() for s in text.split(",") if s.strip()))
-    if not names or (bad := [s for s in names if s not in SOLVER_NAMES]):
-        raise InputError(f"--solvers: unknown solver {bad[0]!r}" if names else "--solvers names no solver")
-    return names
-
-
 def _cmd_run(args) -> int:
     from ..scenes.run import run_scene
     from ..scenes.toml import load_scene, validated
-    solvers = _solver_list(args.solvers)
+    solvers = solver_list(args.solvers)
     jobs = []
     for path in args.scene_files:           # every file is read and checked before any work
         job = load_scene(path)
@@ -248,9 +217,19 @@ def _cmd_run(args) -> int:
         if result.failures:
             codes.append(EXIT_FAILED)
         elif result.comparison is not None:
-            codes.append(_accuracy_exit(result.comparison.outside_bound(), job.preset,
+            codes.append(accuracy_exit(result.comparison.outside_bound(), job.preset,
                                         PRESETS[job.preset].bound))
     return EXIT_FAILED if EXIT_FAILED in codes else max(codes, default=EXIT_OK)
+
+
+def _cmd_animate(args) -> int:
+    from .show import animate_command
+    return animate_command(args)
+
+
+def _cmd_report(args) -> int:
+    from .show import report_command
+    return report_command(args)
 
 
 def _cmd_batch(args) -> int:
@@ -267,8 +246,8 @@ def _positive(value: int, what: str) -> int:
 def _cmd_bench(args) -> int:
     from ..bench import bench
     check_plot_path(args.plot)
-    _check_writable(args.csv)
-    _check_writable(args.plot)
+    check_writable(args.csv)
+    check_writable(args.plot)
     result = bench(repeats=_positive(args.repeats, "--repeats"), full=args.full,
                    progress=not args.no_progress, quick=args.quick)
     print(result.table())
@@ -326,7 +305,7 @@ def _cmd_memory(args) -> int:
 def _cmd_ac(args) -> int:
     from ..study.mobility import mobility_check
     sc = scene_from_args(args)
-    _check_writable(args.csv)
+    check_writable(args.csv)
     plot = check_plot_path(args.plot) if args.plot else None
     check = mobility_check(sc.system(), args.f_start, args.f_stop, args.points)
     print(check.report)
@@ -336,7 +315,7 @@ def _cmd_ac(args) -> int:
         check.spice.plot(plot, check.exact)
         print(f"wrote {plot}")
     bound = PRESETS[args.preset].bound
-    return _accuracy_exit({"spice mobility": check.error} if check.error > bound else {}, args.preset, bound)
+    return accuracy_exit({"spice mobility": check.error} if check.error > bound else {}, args.preset, bound)
 
 
 def _cmd_scenes(args) -> int:
@@ -347,7 +326,8 @@ def _cmd_scenes(args) -> int:
 
 _COMMANDS = {"netlist": _cmd_netlist, "compare": _cmd_compare, "verify": _cmd_verify, "modes": _cmd_modes, "ac": _cmd_ac,
              "scenes": _cmd_scenes, "draw": _cmd_draw, "run": _cmd_run, "bench": _cmd_bench,
-             "throughput": _cmd_throughput, "stress": _cmd_stress, "batch": _cmd_batch, "memory": _cmd_memory}
+             "throughput": _cmd_throughput, "stress": _cmd_stress, "batch": _cmd_batch, "memory": _cmd_memory,
+             "animate": _cmd_animate, "report": _cmd_report}
 
 
 #: How the command line changes what an input error concerns, where a flag does.

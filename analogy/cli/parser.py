@@ -75,6 +75,30 @@ def build_parser() -> argparse.ArgumentParser:
                                   "key when changed from a built-in scene)")
     p.add_argument("--schematic", action="store_true", help="draw schematics even past 6 nodes "
                    "(default there: a map of the element values by node pair)")
+    p = sub.add_parser("animate", help="the mechanism moving beside its node voltages (and, nonlinear, its "
+                                       "MP capacitances): GIF, MP4 or an HTML page")
+    scene_options(p)
+    p.add_argument("-o", "--output", required=True, metavar="FILE",
+                   help="FILE.gif (pillow), FILE.mp4 (needs ffmpeg) or FILE.html (its own player)")
+    p.add_argument("--dynamics", default="linear", choices=["linear", "nonlinear"],
+                   help="the circuit linearised at q (default) or the full nonlinear one, whose "
+                        "capacitances change with the pose")
+    p.add_argument("--solver", default="spice", choices=("spice", "ode", "exact", "reference"),
+                   help="whose run is drawn (default spice: the circuit's own)")
+    p.add_argument("--frames", type=int, default=60, help="frames, evenly spread over the run (default 60)")
+    p.add_argument("--fps", type=float, default=15.0, help="frames per second (default 15)")
+    p.add_argument("--sheet", metavar="FILE.png", help="also write a contact sheet of three frames")
+    p = sub.add_parser("report", help="one scene's run on one self-contained HTML page: verdict, table, "
+                                      "circuit, plots, motion, netlist and provenance")
+    p.add_argument("scene_file", nargs="?", metavar="SCENE.toml",
+                   help="a scene file (default: the scene the flags below describe)")
+    scene_options(p, preset=None)
+    p.add_argument("-o", "--output-dir", required=True, metavar="DIR", help="folder for index.html")
+    p.add_argument("--dynamics", choices=["linear", "nonlinear"], help="the circuit at q (linear, the "
+                   "default) or the full nonlinear one")
+    p.add_argument("--solvers", help="comma-separated solvers (default spice,ode,exact)")
+    p.add_argument("--frames", type=int, default=48, help="frames of the animation (default 48)")
+    p.add_argument("--no-animation", action="store_true", help="leave the animation out (a smaller page)")
     p = sub.add_parser("run", help="run scene files (TOML): exactly what each asks for")
     p.add_argument("scene_files", nargs="+", metavar="SCENE.toml", help="one or more .toml scenes")
     p.add_argument("--preset", choices=list(PRESETS), help="override each scene's accuracy preset")

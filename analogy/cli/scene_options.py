@@ -22,7 +22,7 @@ from ..scenes.spec import ModelSpec
 from ..model.urdf import read_urdf
 from ..model.urdf_robots import URDF_ROBOTS
 
-__all__ = ["CLI_KEYS", "PRESET_HELP", "scene_from_args", "scene_options"]
+__all__ = ["CLI_KEYS", "PRESET_HELP", "scene_from_args", "scene_options", "solver_list"]
 
 #: The flag that sets each part of a scene, for input errors (forces are one repeated flag,
 #: so they are not numbered).
@@ -206,3 +206,20 @@ def scene_from_args(args) -> Scene:
                           description=f"{label}, changed from the built-in scene {sc.name!r} on the "
                                       "command line")
     return new
+
+
+def solver_list(text: str | None) -> tuple[str, ...] | None:
+    """The registered solvers *text* names, comma-separated, each once (None stays None).
+
+    Parameters
+    ----------
+    text : str or None
+        ``--solvers``, e.g. ``"spice,exact"``.
+    """
+    if text is None:
+        return None
+    from ..solvers.registry import SOLVER_NAMES
+    names = tuple(dict.fromkeys(s.strip() for s in text.split(",") if s.strip()))
+    if not names or (bad := [s for s in names if s not in SOLVER_NAMES]):
+        raise InputError(f"--solvers: unknown solver {bad[0]!r}" if names else "--solvers names no solver")
+    return names

@@ -41,6 +41,9 @@ class RobotFamily:
         Its numeric builder takes the scene's seed.
     args : tuple
         Fixed arguments of the symbolic builder.
+    outline : str or None
+        ``"module:function"`` that draws the links at each configuration
+        (:mod:`analogy.model.mechanism`); None: drawn as its circuit's nodes.
     description : str
         A few words for listings.
     """
@@ -53,23 +56,32 @@ class RobotFamily:
     flexible: bool = False
     seeded: bool = False
     args: tuple = ()
+    outline: str | None = None
     description: str = ""
 
+
+_DRAWN = "analogy.model.mechanism:"
 
 #: Every built-in robot: a fixed name resolves before a sized family of the same prefix.
 FAMILIES: tuple[RobotFamily, ...] = (
     RobotFamily("redundant", "analogy.model.robots:redundant_actuators",
                 description="redundant rotary and prismatic actuators on one axis"),
-    RobotFamily("serial2", "analogy.model.robots:serial_2dof", description="the papers' 2-DOF serial arm"),
-    RobotFamily("parallel2", "analogy.model.robots:five_bar", description="the five-bar parallel robot"),
-    RobotFamily("serial3", "analogy.model.robots:serial_3dof", description="the papers' 3-DOF serial arm"),
+    RobotFamily("serial2", "analogy.model.robots:serial_2dof", outline=_DRAWN + "planar_chain_outline",
+                description="the papers' 2-DOF serial arm"),
+    RobotFamily("parallel2", "analogy.model.robots:five_bar", outline=_DRAWN + "five_bar_outline",
+                description="the five-bar parallel robot"),
+    RobotFamily("serial3", "analogy.model.robots:serial_3dof", outline=_DRAWN + "planar_chain_outline",
+                description="the papers' 3-DOF serial arm"),
     RobotFamily("parallel3", "analogy.model.robots:parallel_3dof", description="the 3-RRR parallel robot"),
     RobotFamily("flex1", "analogy.model.flexible:flexible_arm", flexible=True, args=(1,),
+                outline=_DRAWN + "flexible_arm_outline",
                 description="one flexible link on a hub"),
     RobotFamily("flex2", "analogy.model.flexible:flexible_arm", flexible=True, args=(2,),
+                outline=_DRAWN + "flexible_arm_outline",
                 description="two flexible links, serial"),
     RobotFamily("serial", "analogy.model.robots:planar_serial", "analogy.model.serial_chain:SerialChain",
-                sizes=MAX_SERIAL, symbolic_sizes=MAX_SYMBOLIC_SERIAL, description="a planar N-joint arm"),
+                sizes=MAX_SERIAL, symbolic_sizes=MAX_SYMBOLIC_SERIAL,
+                outline=_DRAWN + "planar_chain_outline", description="a planar N-joint arm"),
     RobotFamily("random", None, "analogy.model.robots:random_spd_model", sizes=MAX_RANDOM, seeded=True,
                 description="a random SPD N-joint system"),
 )

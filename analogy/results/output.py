@@ -65,7 +65,7 @@ def _escape(text: str) -> str:
     return text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;").replace('"', "&quot;")
 
 
-def html_table(header: list[str], rows: list[list]) -> str:
+def html_table(header: list[str], rows: list[list], caption: str | None = None) -> str:
     """A small HTML table for notebooks (``_repr_html_``).
 
     Parameters
@@ -74,12 +74,15 @@ def html_table(header: list[str], rows: list[list]) -> str:
         Column titles.
     rows : list of list
         Cell values; floats are shown with four significant digits.
+    caption : str, optional
+        What the table is of (robot, preset, reference).
     """
     def cell(x):
         return f"{x:.4g}" if isinstance(x, float) else _escape(str(x))
     head = "".join(f"<th>{_escape(h)}</th>" for h in header)
     body = "".join("<tr>" + "".join(f"<td>{cell(x)}</td>" for x in r) + "</tr>" for r in rows)
-    return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
+    top = f"<caption>{_escape(caption)}</caption>" if caption else ""
+    return f"<table>{top}<thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
 
 
 def check_plot_path(path) -> Path:

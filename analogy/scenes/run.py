@@ -240,7 +240,9 @@ class SceneResult(Tabular):
         elif sc.solvers:
             n = 0 if self.time is None else self.time.size
             lines.append(f"robot {system.provenance.robot}, topology {system.topology.name}, "
-                         f"preset {sc.preset}, {n} time points, reference {self.reference or 'none'}")
+                         f"preset {sc.preset}, {n} time points; "
+                         + (f"errors against the {self.reference} solution" if self.reference
+                            else "no reference, so no errors measured"))
             lines.append(f"{'solver':<10}{'run time [ms]':>15}")
             for s, seconds in self.run_times.items():
                 lines.append(f"{s:<10}{seconds * 1e3:>15.3f}")

@@ -151,11 +151,10 @@ class Comparison(Tabular):
 
     def table(self) -> str:
         """A plain-text table of run time, error and steps per solver."""
-        ref = self.reference or "none"
-        where = (" (errors on each solver's own points; each output against its own peak)" if self.reference
-                 else " (no errors measured)")
+        where = (f"errors against the {self.reference} solution, on each solver's own points, each output "
+                 "against its own peak" if self.reference else "no reference, so no errors measured")
         lines = [f"robot {self.system.provenance.robot}, topology {self.system.topology.name}, "
-                 f"preset {self.preset}, {self.time.size} time points, reference {ref}{where}",
+                 f"preset {self.preset}, {self.time.size} time points; {where}",
                  f"{'solver':<10}{'run time [ms]':>15}{'max |error|':>14}{'worst output':>14}"
                  f"{'error / peak':>14}{'all / peak':>12}{'steps':>8}"]
         for name, ms, e, worst, r, whole, steps, note in self._rows():
@@ -182,7 +181,12 @@ class Comparison(Tabular):
 
     def _repr_html_(self) -> str:
         return html_table(["solver", "run time [ms]", "max |error|", "worst output", "error / its peak",
-                           "all / largest peak", "steps", "note"], self._rows())
+                           "all / largest peak", "steps", "note"], self._rows(), self.caption)
+
+    @property
+    def caption(self) -> str:
+        """Robot, topology, preset, time points and reference: what the table's figures are of."""
+        return self.table().splitlines()[0]
 
     def columns(self) -> dict[str, np.ndarray]:
         """``time``, then every solver's joint rates ``r1_spice`` …"""

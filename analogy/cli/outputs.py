@@ -1,0 +1,52 @@
+"""What the commands leave: output paths checked before any work, and the exit code of an accuracy verdict."""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+from ..errors import EXIT_ACCURACY, EXIT_OK, InputError
+
+__all__ = ["check_writable", "accuracy_exit"]
+
+
+def check_writable(path) -> None:
+    """Nothing if a file can be written at *path*; one sentence if not.
+
+    Parameters
+    ----------
+    path : str or Path or None
+        Where a file will go (None: nothing to check).
+    """
+    if path is None:
+        return
+    if Path(path).is_dir():
+        raise InputError(f"cannot write {path}: it is a folder")
+    folder = Path(path).resolve().parent
+    if not folder.is_dir():
+        raise InputError(f"cannot write {path}: folder {folder} does not exist")
+    if not os.access(folder, os.W_OK) or (Path(path).exists() and not os.access(path, os.W_OK)):
+        raise InputError(f"cannot write {path}: permission denied")
+
+
+def accuracy_exit(flags: dict, preset: str, bound: float, result=None) -> int:
+    """Exit 3 and one line per solver whose worst output is past *bound*; else 0.
+
+    Parameters
+    ----------
+    flags : dict
+        Solver to its worst error over its own peak, for those past the bound.
+    preset : str
+        The preset that promised the bound.
+    bound : float
+        The bound.
+    result : Comparison, optional
+        Names each solver's worst output.
+    """
+    for solver, err in flags.items():
+        worst = getattr(result, "worst_output", None)
+        which = f" on {worst(solver)[0]}" if worst is not None and solver in result.results else ""
+        print(f"analogy: accuracy: {solver} error{which} {err:.3g} of its own peak is above the {preset} "
+              f"preset's bound {bound:g}", file=sys.stderr)
+    return EXIT_ACCURACY if flags else EXIT_OK

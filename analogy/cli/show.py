@@ -1,0 +1,88 @@
+"""The commands that show a scene to a class: ``animate`` (the arm moving with its circuit) and ``report``."""
+
+from __future__ import annotations
+
+from ..errors import EXIT_FAILED, EXIT_OK, InputError, SimulationError
+from ..results.animation import check_animation_path
+from ..results.output import check_plot_path
+from .outputs import accuracy_exit, check_writable
+from .scene_options import scene_from_args, solver_list
+
+__all__ = ["animate_command", "report_command"]
+
+#: The flags that describe a scene (beside a scene file they are refused, not ignored).
+_SCENE_FLAGS = ("robot", "urdf", "joints", "mass", "damping", "stiffness", "gravity", "param", "link_modes", "q",
+                "topology", "force", "r0", "t_stop", "equilibrium")
+
+
+def animate_command(args) -> int:
+    """``analogy animate``: one solver's run drawn as the mechanism moving beside its node voltages.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+    """
+    from ..solvers.registry import solve
+    from ..study.motion import motion
+    sc = scene_from_args(args)
+    check_animation_path(args.output)
+    check_writable(args.output)
+    if args.sheet:
+        check_plot_path(args.sheet)
+        check_writable(args.sheet)
+    if not args.fps > 0:
+        raise InputError(f"--fps must be positive, got {args.fps:g}")
+    if not 2 <= args.frames <= 2000:
+        raise InputError(f"--frames takes 2 to 2000 frames, got {args.frames}")
+    system = sc.system()
+    run = solve(system, args.solver, preset=args.preset)
+    if not run.success:
+        raise SimulationError(f"{args.solver}: {run.message}")
+    shown = motion(system, run, args.frames, link_modes=sc.model.link_modes)
+    shown.save(args.output, args.fps)
+    print(f"wrote {args.output} ({shown.frames} frames, {shown.frames / args.fps:.3g} s at {args.fps:g} fps)")
+    if shown.note:
+        print(f"  {shown.note}")
+    if args.sheet:
+        shown.sheet(args.sheet)
+        print(f"wrote {args.sheet}")
+    return EXIT_OK
+
+
+def report_command(args) -> int:
+    """``analogy report``: one scene's run on one self-contained HTML page, ``DIR/index.html``.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+    """
+    from pathlib import Path
+
+    from ..scenes.report import scene_report
+    from ..scenes.toml import load_scene, validated
+    if args.scene_file:
+        given = [f"--{k.replace('_', '-')}" for k in _SCENE_FLAGS if getattr(args, k, None)]
+        if given or args.scene != "default":
+            raise InputError(f"give a scene file or scene flags, not both: {(given or ['--scene'])[0]} "
+                             f"would change {args.scene_file}")
+        sc = load_scene(args.scene_file)
+    else:
+        sc = scene_from_args(args).replace(preset=args.preset or "accurate")
+    changes = {k: v for k, v in (("dynamics", args.dynamics), ("preset", args.preset),
+                                  ("solvers", solver_list(args.solvers))) if v is not None and v != getattr(sc, k)}
+    sc = validated(sc.replace(**changes)) if changes else sc
+    out = Path(args.output_dir)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"cannot write the report into {out}: it is a file")
+    if out.is_dir():
+        check_writable(out / "index.html")
+    if not 2 <= args.frames <= 2000:
+        raise InputError(f"--frames takes 2 to 2000 frames, got {args.frames}")
+    report = scene_report(sc, animation=not args.no_animation, frames=args.frames)
+    path = report.save(out)
+    print(report.comparison.table())
+    print(f"wrote {path} ({len(report.html) / 1e6:.2f} MB)")
+    c = report.comparison
+    return EXIT_FAILED if c.failures else accuracy_exit(c.outside_bound(), c.preset, c.bound, c)

@@ -1,0 +1,145 @@
+"""Mechanism: where a robot's links are at each configuration, as polylines in its plane, for drawings."""
+
+from __future__ import annotations
+
+from typing import Callable, Mapping
+
+import numpy as np
+
+from ..errors import InputError
+from .beams import beam_modes
+from .catalog import family_builder, robot_family
+
+__all__ = ["Outline", "planar_chain_outline", "five_bar_outline", "flexible_arm_outline", "mechanism_outline"]
+
+#: Links at each of F configurations: a list of link polylines per frame, each (k, 2) in metres.
+Outline = list[list[np.ndarray]]
+
+#: Points drawn along a flexible link: enough for its fourth mode's three nodes to show.
+_BEAM_POINTS = 41
+
+
+def _cumulative_chain(angles: np.ndarray, lengths: np.ndarray) -> np.ndarray:
+    """Joint and tip points (F, n + 1, 2) of a planar chain from its relative joint angles (F, n)."""
+    absolute = np.cumsum(angles, axis=1)
+    steps = lengths * np.stack([np.cos(absolute), np.sin(absolute)], axis=-1).transpose(2, 0, 1)
+    points = np.cumsum(steps.transpose(1, 2, 0), axis=1)
+    return np.concatenate([np.zeros((len(angles), 1, 2)), points], axis=1)
+
+
+def planar_chain_outline(q: np.ndarray, parameters: Mapping[str, float]) -> Outline:
+    """The planar serial arm: q_k is link k's angle from link k − 1, l_k its length.
+
+    Parameters
+    ----------
+    q : ndarray, shape (F, n)
+        Joint angles [rad], one row per frame.
+    parameters : mapping
+        l1 … ln [m].
+    """
+    q = np.atleast_2d(q)
+    lengths = np.array([parameters[f"l{k + 1}"] for k in range(q.shape[1])])
+    points = _cumulative_chain(q, lengths)
+    return [[frame] for frame in points]
+
+
+def five_bar_outline(q: np.ndarray, parameters: Mapping[str, float]) -> Outline:
+    """The five-bar: base joints at (∓d/2, 0), proximal links at absolute angles q1, q2, distal ones
+    meeting at P to the left of E1→E2 (the model's elbows-out assembly mode).
+
+    Parameters
+    ----------
+    q : ndarray, shape (F, 2)
+        Proximal link angles [rad].
+    parameters : mapping
+        d, la, lb [m].
+    """
+    q = np.atleast_2d(q)
+    d, la, lb = (parameters[k] for k in ("d", "la", "lb"))
+    bases = np.array([[-d / 2, 0.0], [d / 2, 0.0]])
+    frames = []
+    for q1, q2 in q:
+        e1 = bases[0] + la * np.array([np.cos(q1), np.sin(q1)])
+        e2 = bases[1] + la * np.array([np.cos(q2), np.sin(q2)])
+        chord = e2 - e1
+        half = np.linalg.norm(chord) / 2
+        rise = np.sqrt(max(lb ** 2 - half ** 2, 0.0))       # 0 where the loop cannot close: drawn flat
+        normal = np.array([-chord[1], chord[0]]) / (2 * half)
+        p = (e1 + e2) / 2 + rise * normal
+        frames.append([np.array([bases[0], e1, p, e2, bases[1]]), bases.copy()])
+    return frames
+
+
+def flexible_arm_outline(q: np.ndarray, parameters: Mapping[str, float], *, links: int = 2,
+                         link_modes: str | None = None, exaggeration: float = 1.0) -> Outline:
+    """The flexible arm bent by its modes: link i's point at x is r_i(x) = o_i + R(α_i)·(x, Σ_k φ_ik(x)·δ_ik).
+
+    α_i is the sum of θ_1 … θ_i (joint i measured from link i − 1's undeformed axis, as the
+    model's kinematics have it) and o_i link i − 1's deformed tip.
+
+    Parameters
+    ----------
+    q : ndarray, shape (F, dof)
+        θ_1 … θ_links, then every link's modal coordinates δ_ik, one row per frame.
+    parameters : mapping
+        l_i, rhoA_i, EI_i, modes_i and the tip loads (see ``FLEXIBLE_DEFAULTS``).
+    links : int
+        Number of links.
+    link_modes : {"clamped-free", "clamped-mass"}, optional
+        The model's mode shapes (default clamped-free).
+    exaggeration : float
+        Deflections are drawn this many times their size.
+    """
+    q = np.atleast_2d(q)
+    tips = [(parameters.get("mh2", 0.0), parameters.get("Jh2", 0.0)), (parameters["mp"], parameters["Jp"])] \
+        if links == 2 else [(parameters["mp"], parameters["Jp"])]
+    at, shapes = links, []
+    for i in range(links):
+        count, length = int(parameters[f"modes{i + 1}"]), parameters[f"l{i + 1}"]
+        x = np.linspace(0.0, length, _BEAM_POINTS)
+        if count:
+            load = tips[i] if link_modes == "clamped-mass" else (0.0, 0.0)
+            modes = beam_modes(count, length, parameters[f"rhoA{i + 1}"], parameters[f"EI{i + 1}"], *load)
+            shapes.append((x, modes.shape(x), slice(at, at + count)))
+        else:
+            shapes.append((x, np.zeros((x.size, 0)), slice(at, at)))
+        at += count
+    frames = []
+    for row in q:
+        origin, alpha, frame = np.zeros(2), 0.0, []
+        for i, (x, phi, cols) in enumerate(shapes):
+            alpha += row[i]
+            u = exaggeration * phi @ row[cols]
+            c, s = np.cos(alpha), np.sin(alpha)
+            points = origin + np.stack([c * x - s * u, s * x + c * u], axis=1)
+            frame.append(points)
+            origin = points[-1]
+        frames.append(frame)
+    return frames
+
+
+def mechanism_outline(robot: str, q: np.ndarray, parameters: Mapping[str, float],
+                      **options) -> Outline | None:
+    """The outline of built-in robot *robot* at each row of *q*, or None where it has no drawing.
+
+    Parameters
+    ----------
+    robot : str
+        A built-in robot's name.
+    q : ndarray, shape (F, n)
+        Joint coordinates, one row per frame.
+    parameters : mapping
+        The model's parameter values.
+    **options
+        A flexible arm's ``link_modes`` and ``exaggeration`` (ignored for rigid robots).
+    """
+    try:
+        family, _ = robot_family(robot)
+    except InputError:                  # a URDF robot, or a model given by its matrices
+        return None
+    if family.outline is None:
+        return None
+    outline: Callable = family_builder(family.outline)
+    # only a flexible arm's drawing has options: its mode shapes and how much its bending is enlarged
+    options = {**options, "links": family.args[0]} if family.flexible else {}
+    return outline(np.atleast_2d(np.asarray(q, dtype=float)), parameters, **options)

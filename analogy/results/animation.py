@@ -1,0 +1,332 @@
+"""Animation: the mechanism moving beside its node voltages and, for nonlinear runs, its MP capacitances."""
+
+from __future__ import annotations
+
+import base64
+import io
+import re
+import shutil
+from dataclasses import dataclass
+from html import escape
+from pathlib import Path
+from typing import TYPE_CHECKING, Literal
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from ..errors import InputError
+
+if TYPE_CHECKING:
+    from matplotlib.animation import FuncAnimation
+
+__all__ = ["Motion", "ANIMATION_FORMATS", "AnimationFormat", "check_animation_path", "offline", "png_data_uri"]
+
+#: What an animation is written as, by the file's suffix.
+AnimationFormat = Literal[".gif", ".mp4", ".html"]
+ANIMATION_FORMATS: tuple[str, ...] = (".gif", ".mp4", ".html")
+#: Capacitance traces drawn at most: the largest |c_ij| first (a 10-node arm has 45 MP models).
+_MOST_TRACES = 6
+#: Frames the tip's trail reaches back.
+_TRAIL = 20
+
+
+@dataclass(frozen=True, eq=False)
+class Motion:
+    """One run seen as a motion: frames of the mechanism and the traces shown beside it.
+
+    Attributes
+    ----------
+    title : str
+        Robot, dynamics and solver.
+    time : ndarray, shape (N,)
+        The solver's time points.
+    voltages : ndarray, shape (N, n)
+        Node voltages (velocities) on them.
+    nodes : list of str
+        Node names.
+    frame_times : ndarray, shape (F,)
+        Times of the frames.
+    outline : list of list of ndarray, or None
+        Per frame, the link polylines (k, 2) [m]; None: the nodes are drawn as masses on rails.
+    displacements : ndarray, shape (F, n)
+        Node positions x = ∫v dt at the frames (the rails' blocks when there is no outline).
+    capacitances : ndarray, shape (F, n, n), or None
+        M'(x) at the frames, for a circuit whose capacitances change (nonlinear runs).
+    note : str
+        What the drawing shows (its scale, its exaggeration).
+    """
+
+    title: str
+    time: np.ndarray
+    voltages: np.ndarray
+    nodes: list
+    frame_times: np.ndarray
+    outline: list | None
+    displacements: np.ndarray
+    capacitances: np.ndarray | None = None
+    note: str = ""
+
+    def __repr__(self) -> str:
+        drawn = "links" if self.outline is not None else "nodes on rails"
+        varying = ", capacitances varying" if self.capacitances is not None else ""
+        return (f"<Motion {self.title}: {len(self.frame_times)} frames over {self.frame_times[-1]:.3g} s, "
+                f"{drawn}{varying}>")
+
+    @property
+    def frames(self) -> int:
+        """Number of frames F."""
+        return len(self.frame_times)
+
+    def animation(self, fps: float = 15.0) -> "FuncAnimation":
+        """The matplotlib animation of every frame, *fps* frames per second.
+
+        Parameters
+        ----------
+        fps : float
+            Frames per second.
+        """
+        from matplotlib.animation import FuncAnimation
+        fig, update = _figure(self)
+        return FuncAnimation(fig, update, frames=self.frames, interval=1000.0 / fps, blit=False)
+
+    def save(self, path, fps: float = 15.0) -> Path:
+        """Write the animation as GIF (pillow), MP4 (ffmpeg) or a self-contained HTML page.
+
+        Parameters
+        ----------
+        path : str or Path
+            Ends in .gif, .mp4 or .html.
+        fps : float
+            Frames per second.
+        """
+        path = Path(path)
+        suffix = check_animation_path(path)
+        anim = self.animation(fps)
+        if suffix == ".html":
+            path.write_text(_page(self.title, offline(anim.to_jshtml(fps=fps, default_mode="loop"))))
+        elif suffix == ".gif":
+            from matplotlib.animation import PillowWriter
+            anim.save(path, writer=PillowWriter(fps=fps))
+        else:
+            from matplotlib.animation import FFMpegWriter
+            anim.save(path, writer=FFMpegWriter(fps=fps, codec="h264", extra_args=["-pix_fmt", "yuv420p"]))
+        return path
+
+    def to_jshtml(self, fps: float = 15.0) -> str:
+        """The animation as HTML with its own player (JavaScript, frames embedded), for notebooks and pages.
+
+        Parameters
+        ----------
+        fps : float
+            Frames per second.
+        """
+        return offline(self.animation(fps).to_jshtml(fps=fps, default_mode="loop"))
+
+    def _repr_html_(self) -> str:
+        return self.to_jshtml()
+
+    def frame_png(self, k: int, dpi: int = 100) -> bytes:
+        """Frame *k* drawn as a PNG.
+
+        Parameters
+        ----------
+        k : int
+            Frame index (negative counts from the end).
+        dpi : int
+            Resolution.
+        """
+        fig, update = _figure(self)
+        update(range(self.frames)[k])
+        buffer = io.BytesIO()
+        fig.savefig(buffer, format="png", dpi=dpi)
+        return buffer.getvalue()
+
+    def sheet(self, path=None, count: int = 3) -> Figure:
+        """A contact sheet: *count* frames, evenly spread from the first to the last, side by side.
+
+        Parameters
+        ----------
+        path : str or Path, optional
+            Write it as PNG or SVG.
+        count : int
+            Frames shown.
+        """
+        import matplotlib.image as mpimg
+        picks = np.unique(np.linspace(0, self.frames - 1, max(count, 1)).round().astype(int))
+        sheet = Figure(figsize=(5.0 * len(picks), 2.5), layout="constrained")
+        for ax, k in zip(sheet.subplots(1, len(picks), squeeze=False)[0], picks):
+            ax.imshow(mpimg.imread(io.BytesIO(self.frame_png(int(k))), format="png"))
+            ax.set_axis_off()
+            ax.set_title(f"frame {k + 1} of {self.frames}, t = {self.frame_times[k]:.3g} s", fontsize=9)
+        sheet.suptitle(self.title, fontsize=10)
+        if path is not None:
+            sheet.savefig(path, dpi=160)
+        return sheet
+
+
+def check_animation_path(path) -> str:
+    """The suffix of *path* if an animation can be written there; one sentence if not.
+
+    Parameters
+    ----------
+    path : str or Path
+        Where the animation goes.
+    """
+    suffix = Path(path).suffix.lower()
+    if suffix not in ANIMATION_FORMATS:
+        raise InputError(f"cannot write an animation as {Path(path).name!r}: end the name in "
+                         f"{', '.join(ANIMATION_FORMATS)}")
+    if suffix == ".mp4" and shutil.which("ffmpeg") is None:
+        raise InputError("an .mp4 needs ffmpeg, which is not installed (apt-get install ffmpeg): "
+                         "write .gif or .html instead")
+    return suffix
+
+
+def _figure(motion: Motion):
+    """The figure at frame 0 and ``update(k)``, which moves every artist to frame k."""
+    varying = motion.capacitances is not None
+    fig = Figure(figsize=(10.0, 4.6 if varying else 4.0), layout="constrained")
+    grid = fig.add_gridspec(2 if varying else 1, 2, width_ratios=(1.0, 1.25))
+    arm = fig.add_subplot(grid[:, 0])
+    volts = fig.add_subplot(grid[0, 1])
+    moving = _draw_outline(arm, motion) if motion.outline is not None else _draw_rails(arm, motion)
+    cursors = [volts.axvline(0.0, color="0.3", lw=0.8)]
+    peaks = np.max(np.abs(motion.voltages), axis=0) if motion.voltages.size else np.zeros(0)
+    dots = []
+    for j in _largest(peaks):
+        # each over its own peak: a joint's rad/s and a mode's m/s differ by orders of magnitude
+        scale = peaks[j] if peaks[j] > 0 else 1.0
+        line, = volts.plot(motion.time, motion.voltages[:, j] / scale, lw=1.0,
+                           label=f"v({motion.nodes[j]}), peak {peaks[j]:.3g}")
+        dots.append((volts.plot([], [], "o", color=line.get_color(), ms=5)[0], motion.voltages[:, j] / scale))
+    volts.set_xlabel("t [s]")
+    volts.set_ylabel("velocity / its peak")
+    volts.set_ylim(-1.15, 1.15)
+    volts.legend(fontsize=7, loc="lower left", ncol=2)
+    volts.set_title("node voltages (velocities), each over its own peak", fontsize=9)
+    if varying:
+        caps = fig.add_subplot(grid[1, 1], sharex=volts)
+        cursors.append(caps.axvline(0.0, color="0.3", lw=0.8))
+        _draw_capacitances(caps, motion)
+        volts.tick_params(labelbottom=False)
+        volts.set_xlabel("")
+    heading = fig.suptitle(motion.title, fontsize=10)
+
+    def update(k: int):
+        t = motion.frame_times[k]
+        for cursor in cursors:
+            cursor.set_xdata([t, t])
+        for dot, values in dots:
+            dot.set_data([t], [np.interp(t, motion.time, values)])
+        heading.set_text(f"{motion.title}   t = {t:.3f} s")
+        return moving(k) + cursors + [d for d, _ in dots] + [heading]
+
+    update(0)
+    fig.draw_without_rendering()
+    fig.set_layout_engine("none")       # laid out once: every frame has the same furniture
+    return fig, update
+
+
+def _largest(peaks: np.ndarray, most: int = _MOST_TRACES) -> list[int]:
+    return sorted(np.argsort(-peaks, kind="stable")[:most].tolist())
+
+
+def _draw_outline(ax, motion: Motion):
+    frames = motion.outline
+    every = np.concatenate([p for frame in frames for p in frame])
+    low, high = every.min(axis=0), every.max(axis=0)
+    middle, half = (low + high) / 2, max(float(np.max(high - low)) / 2, 1e-9) * 1.12
+    ax.set_xlim(middle[0] - half, middle[0] + half)
+    ax.set_ylim(middle[1] - half, middle[1] + half)
+    ax.set_aspect("equal")
+    ax.plot([0.0], [0.0], marker="^", ms=11, color="0.35", zorder=1)
+    links = [ax.plot([], [], lw=3.0, solid_capstyle="round", color=f"C{i}")[0] for i in range(len(frames[0]))]
+    joints = ax.plot([], [], "o", ms=6, mfc="white", mec="0.2", zorder=3)[0]
+    tips = np.array([frame[-1][-1] for frame in frames])
+    trail = ax.plot([], [], lw=0.8, color="0.6", zorder=0)[0]
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_title(motion.note or "the mechanism", fontsize=9)
+
+    def moving(k: int):
+        for line, points in zip(links, frames[k]):
+            line.set_data(points[:, 0], points[:, 1])
+        # a rigid link's polyline is its joints; a flexible one's many points are its bent shape
+        ends = np.concatenate([p if len(p) <= 12 else p[[0, -1]] for p in frames[k]])
+        joints.set_data(ends[:, 0], ends[:, 1])
+        trail.set_data(tips[max(k - _TRAIL, 0):k + 1, 0], tips[max(k - _TRAIL, 0):k + 1, 1])
+        return links + [joints, trail]
+    return moving
+
+
+def _draw_rails(ax, motion: Motion):
+    x = motion.displacements
+    n = x.shape[1]
+    peaks = np.max(np.abs(x), axis=0)
+    scaled = x / np.where(peaks > 0, peaks, 1.0)
+    for i in range(n):
+        ax.axhline(i, color="0.8", lw=1.0, zorder=0)
+    blocks = ax.plot(scaled[0], np.arange(n), "s", ms=14, mfc="C0", mec="0.2")[0]
+    ax.set_xlim(-1.25, 1.25)
+    ax.set_ylim(-0.8, n - 0.2)
+    ax.set_yticks(range(n), [f"{name}\n(peak {p:.2g})" for name, p in zip(motion.nodes, peaks)], fontsize=7)
+    ax.set_xlabel("node position x = ∫v dt, over its own peak")
+    ax.set_title(motion.note or "each node a mass on its rail", fontsize=9)
+
+    def moving(k: int):
+        blocks.set_data(scaled[k], np.arange(n))
+        return [blocks]
+    return moving
+
+
+def _draw_capacitances(ax, motion: Motion) -> None:
+    m = motion.capacitances
+    n = m.shape[1]
+    upper = [(i, j) for i in range(n) for j in range(i + 1, n)]
+    floating = np.array([-m[:, i, j] for i, j in upper]).T if upper else np.zeros((len(m), 0))
+    for k in _largest(np.max(np.abs(floating), axis=0) if upper else np.zeros(0)):
+        i, j = upper[k]
+        ax.plot(motion.frame_times, floating[:, k], lw=1.4, label=f"c{i + 1}{j + 1} (MP)")
+    grounded = m.sum(axis=2)
+    for i in _largest(np.max(np.abs(grounded), axis=0), 3):
+        ax.plot(motion.frame_times, grounded[:, i], ls="--", lw=1.0, label=f"C{i + 1} (to ground)")
+    ax.axhline(0.0, color="0.5", lw=0.6)
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("capacitance = mass")
+    ax.set_title("MP capacitances c_ij = -M'_ij change with the pose", fontsize=9)
+    ax.legend(fontsize=7, loc="upper right", ncol=2)
+
+
+#: The player's buttons as text: matplotlib's player fetches an icon font from the web for them.
+_GLYPHS = {"fast-backward": "&#8676;", "step-backward": "&#9665;", "play fa-flip-horizontal": "&#9664;",
+           "pause": "&#10074;&#10074;", "play": "&#9654;", "step-forward": "&#9655;",
+           "fast-forward": "&#8677;", "minus": "&minus;", "plus": "+"}
+
+
+def offline(player: str) -> str:
+    """Matplotlib's HTML player with no address outside the page: its icon-font link dropped,
+    its buttons labelled by characters.
+
+    Parameters
+    ----------
+    player : str
+        ``FuncAnimation.to_jshtml()``.
+    """
+    player = re.sub(r"<link[^>]*font-awesome[^>]*>", "", player)
+    return re.sub(r'<i class="fa fa-([a-z -]+)"></i>', lambda m: _GLYPHS.get(m.group(1), m.group(1)), player)
+
+
+def _page(title: str, body: str) -> str:
+    return (f"<!DOCTYPE html>\n<html><head><meta charset='utf-8'><title>{escape(title)}</title></head>"
+            f"<body><h3>{escape(title)}</h3>\n{body}\n</body></html>\n")
+
+
+def png_data_uri(data: bytes) -> str:
+    """*data* (PNG bytes) as a ``data:`` address for an ``<img>``.
+
+    Parameters
+    ----------
+    data : bytes
+        A PNG file's bytes.
+    """
+    return "data:image/png;base64," + base64.b64encode(data).decode("ascii")

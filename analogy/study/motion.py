@@ -1,0 +1,83 @@
+"""Motion of a run: node positions integrated from its voltages, the pose and the capacitances at each frame."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.integrate import cumulative_trapezoid
+
+from ..errors import InputError
+from ..model.dynamics import NodeDynamics
+from ..model.mechanism import mechanism_outline
+from ..results.animation import Motion
+from ..results.trajectory import Trajectory
+
+__all__ = ["motion", "DEFLECTION_SHOWN"]
+
+#: A flexible arm's largest deflection is drawn as at least this share of its reach.
+DEFLECTION_SHOWN = 0.15
+
+
+def _nice(factor: float) -> float:
+    """The 1-2-5 number at or below *factor* (≥ 1): a readable exaggeration."""
+    if factor <= 1.0:
+        return 1.0
+    decade = 10.0 ** math.floor(math.log10(factor))
+    return max(m * decade for m in (1.0, 2.0, 5.0) if m * decade <= factor)
+
+
+def motion(system: NodeDynamics, trajectory: Trajectory, frames: int = 60, *,
+           link_modes: str | None = None) -> Motion:
+    """The run *trajectory* of *system* as frames: the pose q = q0 + T⁻¹·∫v dt and, where M' varies, M'(x).
+
+    Positions are integrated from the solver's own voltages by the trapezoidal rule,
+    between its points (a linear circuit's drawn motion is the one it predicts about q0).
+
+    Parameters
+    ----------
+    system : NodeDynamics
+        The system that was solved.
+    trajectory : Trajectory
+        A successful run of it.
+    frames : int
+        Frames, evenly spread over the run.
+    link_modes : {"clamped-free", "clamped-mass"}, optional
+        A flexible arm's mode shapes, as its model was built.
+    """
+    if not trajectory.success:
+        raise InputError(f"the {trajectory.solver} run failed, so there is no motion to draw: "
+                         f"{trajectory.message}")
+    if not 2 <= frames <= 2000:
+        raise InputError(f"an animation takes 2 to 2000 frames, got {frames}")
+    t, v = trajectory.time, trajectory.voltages
+    x = trajectory.positions if trajectory.positions is not None else cumulative_trapezoid(v, t, axis=0,
+                                                                                           initial=0.0)
+    shown = np.linspace(0.0, t[-1], frames)
+    x_shown = np.column_stack([np.interp(shown, t, x[:, j]) for j in range(x.shape[1])])
+    provenance = system.provenance
+    if system.kind == "nonlinear":
+        q0 = np.asarray(system.q0, dtype=float)
+    else:
+        at = list(provenance.configuration.values())        # in the model's coordinate order
+        q0 = np.array(at, dtype=float) if len(at) == system.dof else np.zeros(system.dof)
+    q = q0 + system.joint_rates(x_shown)
+    outline, note = None, ""
+    parameters = dict(provenance.parameters)
+    if parameters:
+        outline = mechanism_outline(provenance.robot, q, parameters, link_modes=link_modes)
+    if outline is not None and provenance.robot.startswith("flex"):
+        stiff = mechanism_outline(provenance.robot, q, parameters, link_modes=link_modes, exaggeration=0.0)
+        bend = max(float(np.max(np.linalg.norm(a - b, axis=1))) for fa, fb in zip(outline, stiff)
+                   for a, b in zip(fa, fb))
+        reach = sum(float(np.linalg.norm(p[-1] - p[0])) for p in stiff[0])
+        factor = _nice(DEFLECTION_SHOWN * reach / bend) if bend > 0 else 1.0
+        if factor > 1.0:
+            outline = mechanism_outline(provenance.robot, q, parameters, link_modes=link_modes,
+                                        exaggeration=factor)
+        note = f"deflections drawn x{factor:g} (largest {bend * 1e3:.3g} mm)"
+    elif outline is not None and system.kind == "linear":
+        note = "the motion the linear circuit predicts about q0"
+    capacitances = np.array([system.node_mass(row) for row in x_shown]) if system.kind == "nonlinear" else None
+    title = f"{provenance.robot} {system.kind}, {trajectory.solver}"
+    return Motion(title, t, v, list(system.nodes), shown, outline, x_shown, capacitances, note)
