@@ -31,6 +31,7 @@ _EXPORTS = {
     "Topology": "circuit.topology", "parallel": "circuit.topology", "serial": "circuit.topology",
     "PWL": "waveforms", "Pulse": "waveforms", "Sine": "waveforms", "Step": "waveforms",
     "run_batch": "batch.run", "draw_circuit": "circuit.diagram",
+    "motion": "study.motion", "Motion": "results.animation", "scene_report": "scenes.report",
 }
 
 __all__ = sorted(_EXPORTS)

@@ -53,6 +53,21 @@ def _in_kernel() -> bool:
     return "ipykernel" in sys.modules
 
 
+def display_figure(fig) -> None:
+    """Show *fig* as a PNG below the cell (or in a widget's output), with no file written."""
+    import io
+
+    from IPython.display import Image, display
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=90)
+    display(Image(data=buffer.getvalue()))
+
+
+def in_notebook() -> bool:
+    """True when the lab runs as a notebook (a Jupyter kernel), where widgets can be shown."""
+    return _in_kernel()
+
+
 def section(title: str) -> None:
     print(f"\n=== {title} ===")
 
@@ -247,6 +262,20 @@ def save(fig, path: Path) -> Path:
     fig.savefig(path, dpi=110)
     print(f"wrote {path}")
     show(path)
+    return path
+
+
+def animate(shown, path: Path) -> Path:
+    """Write the motion *shown* as a GIF at *path* and its contact sheet beside it; in a notebook,
+    play it below the cell (its own HTML player)."""
+    shown.save(path)
+    sheet = path.with_name(path.stem + "_sheet.png")
+    shown.sheet(sheet)
+    print(f"wrote {path} ({shown.frames} frames) and {sheet.name}")
+    if _in_kernel():
+        from IPython.display import HTML, display
+        display(HTML(shown.to_jshtml()))
+    show(sheet)
     return path
 
 

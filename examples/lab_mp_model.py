@@ -1,3 +1,11 @@
+# ---
+# jupyter:
+#   kernelspec:
+#     display_name: Python 3
+#     language: python
+#     name: python3
+# ---
+
 # %% [markdown]
 # # Lab: the MP (mass/pulley) model is a floating capacitor (paper Figs. 3-7, eqs. 4-8)
 #

@@ -1,3 +1,11 @@
+# ---
+# jupyter:
+#   kernelspec:
+#     display_name: Python 3
+#     language: python
+#     name: python3
+# ---
+
 # %% [markdown]
 # # Lab: the 2-DOF parallel five-bar (paper eqs. 24-26, Fig. 13): grounded actuators, coupled masses
 #

@@ -1,3 +1,11 @@
+# ---
+# jupyter:
+#   kernelspec:
+#     display_name: Python 3
+#     language: python
+#     name: python3
+# ---
+
 # %% [markdown]
 # # Lab: the 3-DOF planar 3-RRR parallel mechanism (paper eq. 35): three MP models and three springs
 #

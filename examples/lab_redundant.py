@@ -1,3 +1,11 @@
+# ---
+# jupyter:
+#   kernelspec:
+#     display_name: Python 3
+#     language: python
+#     name: python3
+# ---
+
 # %% [markdown]
 # # Lab: redundant actuators on one axis (paper Figs. 8-9, eqs. 11-16): masses suffice, if you pick the nodes well
 #

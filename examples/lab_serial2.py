@@ -1,3 +1,11 @@
+# ---
+# jupyter:
+#   kernelspec:
+#     display_name: Python 3
+#     language: python
+#     name: python3
+# ---
+
 # %% [markdown]
 # # Lab: the 2-DOF serial arm (paper eqs. 17-23, Figs. 10-12) and its configuration-dependent MP model
 #
@@ -131,3 +139,39 @@ _lab.plot_sweep(ax, x, {
     here=scene.q[1])
 ax.set_xticks(np.linspace(-np.pi, np.pi, 5), ["−π", "−π/2", "0", "π/2", "π"])
 _lab.save(fig, out / "serial2_sweep.png")
+
+# %% [markdown]
+# ## 6. Turn the elbow yourself: the element values follow the pose
+#
+# In a notebook, drag the slider: the bars are the circuit's capacitances at that elbow angle
+# (red where negative). The floating C1_2 = p'12 = −l1·l2·d2·cos q2 goes through zero at
+# q2 = ±π/2 and comes back positive past it; the grounded C1 = M'11 − C1_2 moves the other way,
+# so M'11 = C1 + C1_2 stays l1²·(d1 + d2). Run as a script, the cell draws two poses instead.
+
+# %%
+def capacitances_at(q2: float):
+    """The capacitors of the circuit at elbow angle q2, and a bar chart of them."""
+    at = scene.replace(q=(0.0, float(q2))).system(model)
+    parts = [e for e in analogy.elements(at) if e.kind == "C"]
+    fig, axes = _lab.figure(size=(6.5, 3.2))
+    ax = axes[0, 0]
+    ax.bar([e.name for e in parts], [e.value for e in parts],
+           color=["C3" if e.value < 0 else "C0" for e in parts])
+    ax.axhline(0.0, color="k", lw=0.6)
+    ax.set_ylim(-1.2, 4.0)
+    ax.set_ylabel(_lab.MASS_AXIS)
+    mp = next(e for e in parts if e.floating)
+    ax.set_title(f"q2 = {q2:.2f} rad: the MP capacitance {mp.name} = {mp.value:+.3f} F")
+    return parts, fig
+
+
+near, _ = capacitances_at(0.3)
+folded, _ = capacitances_at(2.0)
+c12 = {name: next(e.value for e in parts if e.floating) for name, parts in (("near", near), ("folded", folded))}
+print(f"C1_2 at q2 = 0.3 rad: {c12['near']:+.4f} F; at q2 = 2.0 rad: {c12['folded']:+.4f} F")
+assert c12["near"] < 0 < c12["folded"], "the MP capacitance changes sign past q2 = pi/2"
+if _lab.in_notebook():
+    import ipywidgets
+    ipywidgets.interact(lambda q2: _lab.display_figure(capacitances_at(q2)[1]),
+                        q2=ipywidgets.FloatSlider(value=0.3, min=-np.pi, max=np.pi, step=0.05,
+                                                  description="q2 [rad]"))

@@ -30,11 +30,12 @@ OUTPUTS = {
     "lab_parallel3.py": ["parallel3.png", "parallel3.csv", "parallel3_sweep.png", *_diagrams("parallel3")],
     "lab_many_poses.py": ["many_poses.png", "many_poses.csv"],
     "lab_nonlinear.py": ["nonlinear.png", "nonlinear.csv", "nonlinear_mp.png", "nonlinear_energy.png",
-                         "nonlinear_linear.png", "pendulum.png"],
+                         "nonlinear_linear.png", "pendulum.png", "nonlinear_motion.gif",
+                         "nonlinear_motion_sheet.png"],
     "lab_mp_model.py": ["mp_loading.png", "mp_current.png", "mp_grounded_mass.csv", "mp_open.csv",
                         "mp_unloaded.csv", "mp_driven.csv"],
     "lab_flexible_arm.py": ["flexible_modes.png", "flexible_mass_matrix.png", "flexible_step.png",
-                            "flexible_step.csv", "flexible_bode.png", "flexible_convergence.png",
+                            "flexible_step.csv", "flexible_step_motion.gif", "flexible_step_motion_sheet.png", "flexible_bode.png", "flexible_convergence.png",
                             "flex2_elements.png"],
     "lab_your_robot.py": ["ur5_elbow_sweep.png", "ur5_elements.png", "ur5.png", "ur5.csv", "ur5_wrist.png",
                           "ur5_singular.png", "ur5_singular.csv"],
@@ -50,6 +51,8 @@ def _check_outputs(lab, out):
         data = path.read_bytes()
         if name.endswith(".png"):
             assert data[:8] == PNG_SIGNATURE, f"{name} is not a PNG"
+        elif name.endswith(".gif"):
+            assert data[:6] == b"GIF89a", f"{name} is not a GIF"
         else:
             assert data.count(b"\n") > 10, f"{name} has too few rows"
 
@@ -61,6 +64,13 @@ def lab_module(monkeypatch):
     monkeypatch.delenv("ANALOGY_LAB_OUTPUT", raising=False)
     import _lab
     return _lab
+
+
+@pytest.mark.parametrize("lab", LABS)
+def test_a_lab_opened_as_a_notebook_names_its_kernel(lab):
+    jupytext = pytest.importorskip("jupytext")
+    kernel = jupytext.read(EXAMPLES / lab).metadata.get("kernelspec", {})
+    assert kernel.get("name") == "python3" and kernel.get("language") == "python"
 
 
 def test_every_lab_is_listed():
@@ -151,6 +161,14 @@ def test_lab_runs_as_a_notebook(lab, tmp_path, monkeypatch):
     shown = [o for cell in notebook.cells if cell.cell_type == "code"
              for o in cell.outputs if "image/png" in o.get("data", {})]
     assert len(shown) == len(pictures), "the notebook shows every picture it writes, once"
+    players = [o for cell in notebook.cells if cell.cell_type == "code"
+               for o in cell.outputs if 'aria-label="Play"' in "".join(o.get("data", {}).get("text/html", ""))]
+    assert len(players) == len(list(out.glob("*.gif"))), "every animation plays in the notebook"
+    state = notebook.metadata.get("widgets", {}).get("application/vnd.jupyter.widget-state+json", {})
+    for widget in state.get("state", {}).values():
+        if widget["model_name"] == "OutputModel":
+            drawn = [o for o in widget["state"].get("outputs", []) if "image/png" in o.get("data", {})]
+            assert len(drawn) == 1, "a widget's output is the picture of its current value"
 
 
 @pytest.mark.ngspice
