@@ -176,3 +176,14 @@ def test_batch_report_help_shows_the_report_form(capsys):
     with pytest.raises(SystemExit):
         main(["batch", "report", "--help"])
     assert "analogy batch report DIR [-o FOLDER]" in capsys.readouterr().out
+
+
+def test_a_negative_value_after_a_flag_gets_the_equals_hint():
+    out = cli("compare", "--q", "-0.6,0.3")
+    assert out.returncode == 2 and "goes after '=', e.g. --q=-0.6,0.3" in out.stderr
+
+
+def test_a_mass_vector_is_the_diagonal_of_the_mass_matrix():
+    out = cli("netlist", "--mass", "[1, 2]", "--damping", "[0.5, 0.25]")
+    assert out.returncode == 0, out.stderr
+    assert "C1 n1 0 1.0" in out.stdout and "C2 n2 0 2.0" in out.stdout and "C1_2" not in out.stdout

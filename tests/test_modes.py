@@ -59,5 +59,26 @@ def test_the_modes_command_writes_the_documented_columns(tmp_path):
     out = tmp_path / "modes.csv"
     assert main(["modes", "--scene", "parallel3", "--locked", "1", "--csv", str(out)]) == 0
     rows = list(csv.reader(out.open()))
-    assert rows[0] == ["mode", "omega_rad_s", "f_hz", "damping_ratio"] and len(rows) == 3
+    assert rows[0] == ["mode", "omega_rad_s", "f_hz", "damping_ratio", "kind"] and len(rows) == 3
     assert float(rows[1][2]) == pytest.approx(float(rows[1][1]) / (2 * np.pi), rel=1e-12)
+    assert [r[0] for r in rows[1:]] == ["1", "2"] and {r[4] for r in rows[1:]} <= {"oscillating", "rigid body"}
+
+
+def test_a_damped_system_without_springs_lists_its_real_poles():
+    # M·s² + B·s = 0 with diagonal M = (1, 2), B = (1, 3): s = 0 twice (free), s = −b/m = −1 and −1.5
+    modes = natural_modes(JointSpace(np.diag([1.0, 2.0]), np.diag([1.0, 3.0])))
+    assert np.allclose(np.sort(modes.poles.real), [-1.5, -1.0, 0.0, 0.0], rtol=0, atol=1e-14)
+    assert np.all(modes.poles.imag == 0)
+    text = modes.table()
+    assert "time constant 1 s" in text and "time constant 0.6667 s" in text and "nan" not in text
+
+
+def test_poles_are_the_roots_of_the_mass_spring_damper_characteristic_equation():
+    # one mass: m·s² + b·s + k = 0, s = (−b ± √(b² − 4mk)) / 2m
+    m, b, k = 2.0, 0.4, 8.0
+    modes = natural_modes(JointSpace(np.array([[m]]), np.array([[b]]), np.array([[k]])))
+    root = (-b + np.sqrt(complex(b * b - 4 * m * k))) / (2 * m)
+    # eigenvalues of a 2 × 2 companion matrix: a few ε of |s|
+    assert np.allclose(np.sort_complex(modes.poles), np.sort_complex([root, root.conjugate()]),
+                       rtol=0, atol=16 * np.finfo(float).eps * abs(root))
+    assert -modes.poles[0].real / abs(modes.poles[0]) == pytest.approx(modes.damping_ratio[0], rel=1e-12)

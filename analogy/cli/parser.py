@@ -17,6 +17,8 @@ class _Parser(argparse.ArgumentParser):
     """argparse with one-line errors (exit 2) instead of a usage dump."""
 
     def error(self, message):
+        if "expected one argument" in message:      # argparse reads "-0.6,0.3" as a flag
+            message += "; a value starting with '-' goes after '=', e.g. --q=-0.6,0.3"
         raise InputError(f"{message} (see {self.prog} --help)")
 
 
@@ -55,7 +57,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("modes", help="natural frequencies and damping ratios of the linear system at q")
     scene_options(p)
     p.add_argument("--locked", metavar="JOINTS", help="joints held clamped, e.g. '1' or '1,2'")
-    p.add_argument("--csv", metavar="FILE", help="write mode, omega_rad_s, f_hz, damping_ratio")
+    p.add_argument("--csv", metavar="FILE", help="write mode, omega_rad_s, f_hz, damping_ratio, kind "
+                   "(oscillating, rigid body or unstable)")
     p = sub.add_parser("ac", help="ngspice's .ac sweep against the exact mobility (M's + B' + K'/s)^-1")
     scene_options(p)
     for flag, what in (("--f-start", "first frequency (default: modes / 10)"), ("--f-stop", "last (modes x 10)")):

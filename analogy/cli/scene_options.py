@@ -59,7 +59,8 @@ def scene_options(p: argparse.ArgumentParser, preset: str = "accurate") -> None:
                    "joints depth first, each link's joints by name (Pinocchio's order)")
     g.add_argument("--joints", metavar="NAMES", help="with --urdf: the movable joints kept, e.g. "
                    "'shoulder_pan_joint,elbow_joint'; the others are frozen at 0")
-    g.add_argument("--mass", metavar="MATRIX", help="mass matrix, e.g. '[[m1, m3], [m3, m2]]'; "
+    g.add_argument("--mass", metavar="VECTOR|MATRIX", help="mass matrix, e.g. '[[m1, m3], [m3, m2]]', or its "
+                   "diagonal '[m1, m2]'; "
                    "may use --param names and q1..qn")
     g.add_argument("--damping", metavar="VECTOR|MATRIX", help="damping: diagonal '[b1, b2]' or a matrix")
     g.add_argument("--stiffness", metavar="VECTOR|MATRIX", help="stiffness: diagonal or a matrix")
@@ -130,6 +131,9 @@ def scene_from_args(args) -> Scene:
     changes: dict = {"source": "command line"}
     if args.mass is not None:
         mass = _entries(args.mass, "--mass")
+        if mass and not any(isinstance(r, list) for r in mass):
+            # a vector is the diagonal, as for --damping and --stiffness
+            mass = [[x if i == j else "0" for j in range(len(mass))] for i, x in enumerate(mass)]
         if not mass or not all(isinstance(r, list) and r for r in mass):
             if not mass or any(r == [] for r in mass):
                 raise InputError("--mass must be a matrix like [[m1, m3], [m3, m2]], not empty")

@@ -12,7 +12,7 @@ import scipy.linalg as la
 from ..errors import InputError
 from .output import Tabular, html_table
 
-__all__ = ["Modes", "natural_modes"]
+__all__ = ["Modes", "natural_modes", "system_poles"]
 
 
 @dataclass(eq=False)
@@ -33,6 +33,10 @@ class Modes(Tabular):
         M-normalised mode shapes in the free joints' coordinates.
     free : tuple of int
         The joints (1-based) that move; the others are locked.
+    poles : ndarray of complex
+        The 2n roots s of det(M·s² + B·s + K) = 0, as python-control's ``damp`` lists
+        them: a pair per oscillating mode, real ones where damping wins or no spring holds
+        (s = 0 for a free rigid body).
     """
 
     omega: np.ndarray
@@ -40,6 +44,7 @@ class Modes(Tabular):
     damping_ratio: np.ndarray
     shapes: np.ndarray
     free: tuple
+    poles: np.ndarray = None
 
     @property
     def unstable(self) -> np.ndarray:
@@ -49,7 +54,9 @@ class Modes(Tabular):
     def columns(self) -> dict[str, np.ndarray]:
         """``mode``, ``omega_rad_s``, ``f_hz`` and ``damping_ratio``, one row per mode."""
         return {"mode": np.arange(1, self.omega.size + 1), "omega_rad_s": self.omega,
-                "f_hz": self.omega / (2 * math.pi), "damping_ratio": self.damping_ratio}
+                "f_hz": self.omega / (2 * math.pi), "damping_ratio": self.damping_ratio,
+                "kind": np.array(["unstable" if bad else "rigid body" if w == 0 else "oscillating"
+                                  for w, bad in zip(self.omega, self.unstable)])}
 
     def table(self) -> str:
         """A plain-text table of the modes, unstable ones marked."""
@@ -57,7 +64,13 @@ class Modes(Tabular):
                  f"{'mode':>4}{'omega [rad/s]':>16}{'f [Hz]':>14}{'damping ratio':>15}"]
         for k, (w, z, bad) in enumerate(zip(self.omega, self.damping_ratio, self.unstable)):
             note = "  unstable (growth rate)" if bad else ("  rigid body" if w == 0 else "")
-            lines.append(f"{k + 1:>4}{w:>16.8g}{w / (2 * math.pi):>14.6g}{z:>15.6g}{note}")
+            zeta = f"{z:>15.6g}" if np.isfinite(z) else f"{'-':>15}"
+            lines.append(f"{k + 1:>4}{w:>16.8g}{w / (2 * math.pi):>14.6g}{zeta}{note}")
+        if self.poles is not None:
+            lines += ["poles s of det(M s^2 + B s + K) = 0 (as python-control's damp):",
+                      f"{'pole s [1/s]':>30}{'|s| [rad/s]':>14}{'damping':>11}   what it does"]
+            for s in self.poles:
+                lines.append(f"{_pole_text(s):>30}{abs(s):>14.6g}{_pole_damping(s):>11}   {_pole_kind(s)}")
         return "\n".join(lines)
 
     def __str__(self) -> str:
@@ -71,6 +84,44 @@ class Modes(Tabular):
         return html_table(["mode", "omega [rad/s]", "f [Hz]", "damping ratio"],
                           [[k + 1, float(w), float(w / (2 * math.pi)), float(z)]
                            for k, (w, z) in enumerate(zip(self.omega, self.damping_ratio))])
+
+
+def _pole_text(s: complex) -> str:
+    return f"{s.real:.6g}" if s.imag == 0 else f"{s.real:.6g} {'+' if s.imag > 0 else '-'} {abs(s.imag):.6g}j"
+
+
+def _pole_damping(s: complex) -> str:
+    return "-" if s == 0 else f"{-s.real / abs(s) + 0.0:.4g}"      # + 0.0: no "-0"
+
+
+def _pole_kind(s: complex) -> str:
+    if s == 0:
+        return "rigid body: no spring holds it"
+    if s.real > 0:
+        return f"unstable: grows as e^({s.real:.4g} t)"
+    if s.imag == 0:
+        return f"real: decays with time constant {-1 / s.real:.4g} s"
+    return f"oscillates at {abs(s.imag) / (2 * math.pi):.4g} Hz, decays with time constant {-1 / s.real:.4g} s" \
+        if s.real < 0 else f"oscillates at {abs(s.imag) / (2 * math.pi):.4g} Hz, undamped"
+
+
+def system_poles(m: np.ndarray, b: np.ndarray, k: np.ndarray) -> np.ndarray:
+    """The 2n roots of det(M·s² + B·s + K) = 0: eigenvalues of the first-order form, sorted by |s|.
+
+    Parameters
+    ----------
+    m, b, k : ndarray, shape (n, n)
+        Mass, damping and stiffness (M positive definite).
+    """
+    n = m.shape[0]
+    a = np.block([[np.zeros((n, n)), np.eye(n)], [-la.solve(m, k), -la.solve(m, b)]])
+    s = la.eigvals(a)
+    scale = max(float(np.max(np.abs(s))), 1e-300)
+    # rounding of a real pole leaves an imaginary part of order ε·|A|; a zero pole the same
+    tiny = 1e3 * np.finfo(float).eps * scale
+    s = np.where(np.abs(s.imag) <= tiny, s.real + 0j, s)
+    s = np.where(np.abs(s.real) <= tiny, 0.0 + 1j * s.imag + 0.0, s)
+    return s[np.lexsort((s.imag, np.abs(s)))]
 
 
 def natural_modes(joint, locked: Sequence[int] = ()) -> Modes:
@@ -101,4 +152,4 @@ def natural_modes(joint, locked: Sequence[int] = ()) -> Modes:
     modal_b = np.einsum("ik,ij,jk->k", shapes, b, shapes)
     with np.errstate(divide="ignore", invalid="ignore"):
         zeta = np.where(omega > 0, modal_b / (2 * omega), np.nan)
-    return Modes(omega, w2, zeta, shapes, free)
+    return Modes(omega, w2, zeta, shapes, free, system_poles(m, b, k))

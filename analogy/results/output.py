@@ -36,8 +36,17 @@ def write_columns(path, columns: Mapping[str, np.ndarray]) -> Path:
         w = csv.writer(fh)
         w.writerow(list(columns))
         for row in zip(*columns.values()):
-            w.writerow([repr(float(x)) for x in row])
+            w.writerow([_cell(x) for x in row])
     return path
+
+
+def _cell(x) -> str:
+    """A CSV cell: a count as an integer, a number at full double precision, a word as itself."""
+    if isinstance(x, (str, np.str_)):
+        return str(x)
+    if isinstance(x, (int, np.integer)) and not isinstance(x, (bool, np.bool_)):
+        return str(int(x))
+    return repr(float(x))
 
 
 def write_rows(path, header: list[str], rows) -> Path:
