@@ -187,3 +187,10 @@ def test_a_mass_vector_is_the_diagonal_of_the_mass_matrix():
     out = cli("netlist", "--mass", "[1, 2]", "--damping", "[0.5, 0.25]")
     assert out.returncode == 0, out.stderr
     assert "C1 n1 0 1.0" in out.stdout and "C2 n2 0 2.0" in out.stdout and "C1_2" not in out.stdout
+
+
+def test_the_draw_note_names_only_the_limit_the_system_passes(tmp_path):
+    # serial6: 6 nodes (the limit, not past it) and 20 floating MP models and dampers (past 12)
+    out = cli("draw", "--robot", "serial6", "-o", str(tmp_path))
+    assert out.returncode == 0, out.stderr
+    assert "floating elements (more than 12) are past" in out.stderr and "nodes (more than" not in out.stderr

@@ -184,9 +184,12 @@ def _cmd_draw(args) -> int:
     from ..circuit.diagram import MAX_SCHEMATIC_FLOATING, MAX_SCHEMATIC_NODES, schematic_fits
     if not args.schematic and not schematic_fits(system):
         floating = sum(1 for e in circuit(system).elements if e.b)
-        print(f"analogy: note: {system.dof} nodes and {floating} floating elements are past what a schematic "
-              f"keeps readable ({MAX_SCHEMATIC_NODES} nodes, {MAX_SCHEMATIC_FLOATING} floating elements), so "
-              "the element values are drawn as a map by node pair (--schematic draws it anyway)", file=sys.stderr)
+        # name only the limits this system passes
+        past = [f"{count} {what} (more than {limit})" for count, what, limit in
+                ((system.dof, "nodes", MAX_SCHEMATIC_NODES), (floating, "floating elements", MAX_SCHEMATIC_FLOATING))
+                if count > limit]
+        print(f"analogy: note: {' and '.join(past)} are past what a schematic keeps readable, so the element "
+              "values are drawn as a map by node pair (--schematic draws it anyway)", file=sys.stderr)
     for path in draw(system, out, stem, schematic=True if args.schematic else None):
         print(f"wrote {path}")
     return EXIT_OK
