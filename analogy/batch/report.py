@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import base64
-import io
 from dataclasses import dataclass
 from html import escape
 from pathlib import Path
@@ -153,7 +151,7 @@ class BatchReport:
         plots : bool
             Include the plots (PNG, embedded).
         """
-        from ..results.output import html_table
+        from ..results.output import figure_uri, html_table
         from ..scenes.report import html_page
         parts = []
         for heading, paragraphs, header, rows in self.sections(worst):
@@ -164,10 +162,7 @@ class BatchReport:
             if (shown := self.plot_map()) is not None:
                 figures.append(("Error map", shown))
             for heading, fig in figures:
-                buffer = io.BytesIO()
-                fig.savefig(buffer, format="png", dpi=100)
-                uri = "data:image/png;base64," + base64.b64encode(buffer.getvalue()).decode("ascii")
-                parts.append((heading, f"<img src='{uri}' alt='{escape(heading)}'>"))
+                parts.append((heading, f"<img src='{figure_uri(fig)}' alt='{escape(heading)}'>"))
         return html_page(self.title, parts)
 
     def _repr_html_(self) -> str:

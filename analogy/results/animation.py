@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import base64
 import io
 import re
 import shutil
@@ -19,7 +18,7 @@ from ..errors import InputError
 if TYPE_CHECKING:
     from matplotlib.animation import FuncAnimation
 
-__all__ = ["Motion", "ANIMATION_FORMATS", "AnimationFormat", "check_animation_path", "offline", "png_data_uri"]
+__all__ = ["Motion", "ANIMATION_FORMATS", "AnimationFormat", "check_animation_path", "offline"]
 
 #: What an animation is written as, by the file's suffix.
 AnimationFormat = Literal[".gif", ".mp4", ".html"]
@@ -319,14 +318,3 @@ def offline(player: str) -> str:
 def _page(title: str, body: str) -> str:
     return (f"<!DOCTYPE html>\n<html><head><meta charset='utf-8'><title>{escape(title)}</title></head>"
             f"<body><h3>{escape(title)}</h3>\n{body}\n</body></html>\n")
-
-
-def png_data_uri(data: bytes) -> str:
-    """*data* (PNG bytes) as a ``data:`` address for an ``<img>``.
-
-    Parameters
-    ----------
-    data : bytes
-        A PNG file's bytes.
-    """
-    return "data:image/png;base64," + base64.b64encode(data).decode("ascii")

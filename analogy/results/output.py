@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import base64
 import csv
+import io
 import re
 from pathlib import Path
 from typing import TYPE_CHECKING, Mapping
@@ -15,7 +17,8 @@ from ..units import rate_unit
 if TYPE_CHECKING:
     import pandas
 
-__all__ = ["Tabular", "column_unit", "write_columns", "write_rows", "html_table", "check_plot_path", "PLOT_FORMATS"]
+__all__ = ["Tabular", "column_unit", "write_columns", "write_rows", "html_table", "check_plot_path", "PLOT_FORMATS",
+           "data_uri", "figure_uri"]
 
 #: File formats matplotlib writes here.
 PLOT_FORMATS = ("png", "svg", "pdf", "jpg", "jpeg", "eps", "ps", "tif", "tiff", "webp")
@@ -162,3 +165,31 @@ class Tabular:
         import pandas as pd
         cols = self.columns()
         return pd.DataFrame(cols).set_index(next(iter(cols)))
+
+
+def data_uri(data: bytes, media: str) -> str:
+    """*data* as a ``data:`` address, so that a page carries its images and files inside it.
+
+    Parameters
+    ----------
+    data : bytes
+        The file's bytes.
+    media : str
+        Its media type, e.g. ``"image/png"``.
+    """
+    return f"data:{media};base64," + base64.b64encode(data).decode("ascii")
+
+
+def figure_uri(fig, dpi: int = 100) -> str:
+    """A matplotlib figure drawn as PNG, as a ``data:`` address for an ``<img>``.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure.
+    dpi : int
+        Resolution.
+    """
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=dpi)
+    return data_uri(buffer.getvalue(), "image/png")

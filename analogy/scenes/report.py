@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import base64
-import io
 import tempfile
 from dataclasses import dataclass
 from datetime import datetime, timezone
@@ -14,9 +12,10 @@ from .. import __version__
 from ..errors import InputError
 from ..presets import preset as get_preset
 from ..solvers.transient import netlist as make_netlist
+from ..results.output import data_uri, figure_uri
 from ..study.comparison import Comparison, compare
 
-__all__ = ["SceneReport", "scene_report", "html_page", "svg_data_uri"]
+__all__ = ["SceneReport", "scene_report", "html_page"]
 
 _STYLE = """
 body { font-family: system-ui, sans-serif; margin: 2em auto; max-width: 1100px; color: #222; }
@@ -29,23 +28,6 @@ th { background: #f0f0f0; } caption { caption-side: top; text-align: left; color
 img { max-width: 100%; height: auto; } pre { background: #f7f7f7; padding: 0.8em; overflow: auto;
 max-height: 28em; font-size: 0.8em; }
 """
-
-
-def svg_data_uri(text: str) -> str:
-    """An SVG document as a ``data:`` address for an ``<img>`` (its ids cannot clash with the page's).
-
-    Parameters
-    ----------
-    text : str
-        The SVG document.
-    """
-    return "data:image/svg+xml;base64," + base64.b64encode(text.encode()).decode("ascii")
-
-
-def _png(fig) -> str:
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=100)
-    return "data:image/png;base64," + base64.b64encode(buffer.getvalue()).decode("ascii")
 
 
 def html_page(title: str, sections: list[tuple[str, str]]) -> str:
@@ -125,7 +107,7 @@ def _drawings(system) -> str:
     from ..circuit.diagram import draw
     with tempfile.TemporaryDirectory() as folder:
         paths = [p for p in draw(system, folder, "scene") if p.suffix == ".svg"]
-        images = [(p.stem.removeprefix("scene_"), svg_data_uri(p.read_text())) for p in sorted(paths)]
+        images = [(p.stem.removeprefix("scene_"), data_uri(p.read_bytes(), "image/svg+xml")) for p in sorted(paths)]
     return "\n".join(f"<figure><img src='{uri}' alt='{escape(what)}'></figure>" for what, uri in images)
 
 
@@ -168,7 +150,7 @@ def scene_report(scene, *, animation: bool = True, frames: int = 48) -> SceneRep
     text = make_netlist(system, p, title=title, loosen=1.0 if ran is None else ran.loosen)
     sections = [("Result", _verdict(comparison) + comparison._repr_html_()),
                 ("Circuit", _drawings(system)),
-                ("Rates and errors", f"<img src='{_png(comparison.plot())}' alt='rates and errors'>")]
+                ("Rates and errors", f"<img src='{figure_uri(comparison.plot())}' alt='rates and errors'>")]
     if animation:
         from ..study.motion import motion
         run = next((comparison.results[s] for s in ("spice", *comparison.results) if s in comparison.results
@@ -176,7 +158,7 @@ def scene_report(scene, *, animation: bool = True, frames: int = 48) -> SceneRep
         if run is not None:
             shown = motion(system, run, frames, link_modes=scene.model.link_modes)
             sections.append((f"Motion ({run.solver})", shown.to_jshtml()))
-    link = "data:text/plain;base64," + base64.b64encode(text.encode()).decode("ascii")
+    link = data_uri(text.encode(), "text/plain")
     sections.append(("Netlist", f"<p><a download='{escape(scene.name)}.cir' href='{link}'>download</a> "
                                 f"(runs as it is in <code>ngspice -b</code>)</p><pre>{escape(text)}</pre>"))
     sections.append(("Scene and provenance", _provenance(scene, system)))
