@@ -10,6 +10,7 @@ import numpy as np
 
 from .errors import InputError
 from .model.expressions import parse_call, parse_number
+from .model.quantities import FORCE
 
 __all__ = ["Waveform", "Step", "PWL", "Pulse", "Sine", "Piece", "parse_waveform"]
 
@@ -320,7 +321,7 @@ def parse_waveform(text: str) -> Waveform:
     """
     stripped = text.strip()
     if "(" not in stripped:
-        return Step(parse_number(stripped))
+        return Step(parse_number(stripped, FORCE))
     name, args, kwargs = parse_call(stripped, _WAVEFORMS)
     try:
         if name == "pwl":

@@ -169,3 +169,46 @@ def test_a_scene_file_s_coordinate_is_judged_by_its_joint_kind(tmp_path, capsys)
                     '[inputs]\nforces = [1, 0]\n')
     assert main(["run", str(path)]) == 2
     assert "[configuration] q: q2 is an angle (a revolute joint), got a length ('mm')" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--param", "l1=30 deg"], "--param l1 is a length (m), got an angle ('deg')"),
+    (["--param", "l1=2 s"], "--param l1 is a length (m), got a time ('s')"),
+    (["--param", "d2=1 m"], "--param d2 is a mass (kg), got a length ('m')"),
+    (["--param", "g=3 kg"], "--param g is measured in m/s^2, got a mass ('kg')"),
+    (["--robot", "flex1", "--param", "modes1=2 m"], "--param modes1 is a pure number, got a length ('m')"),
+    (["--robot", "parallel2", "--param", "d=1 kg"], "--param d is a length (m), got a mass ('kg')"),
+    (["--robot", "parallel2", "--param", "ma=1 m"], "--param ma is a mass (kg), got a length ('m')"),
+])
+def test_a_parameter_s_unit_is_judged_by_the_dimension_its_model_declares(argv, message, capsys):
+    """The five-bar's d is a length where the serial arm's d1 is a mass: each model declares its own."""
+    assert main(["netlist", *argv]) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1
+
+
+def test_a_parameter_of_its_declared_dimension_is_its_si_value(capsys):
+    assert main(["netlist", "--param", "l1=500 mm", "--param", "b1=1 N*m*s/rad", "--param", "d1=2000 g"]) == 0
+    assert "l1=0.5, l2=0.8, d1=2.0" in capsys.readouterr().out
+
+
+def test_every_built_in_parameter_declares_its_unit():
+    """No parameter of a built-in robot escapes the check: each has an SI unit in the catalogue."""
+    from analogy.model.catalog import robot_family
+    from analogy.scenes.build import scene_model
+    for robot in ("serial2", "serial3", "serial7", "parallel2", "parallel3", "redundant", "flex1", "flex2"):
+        sc = scene("default").replace(model=scene("default").model.__class__(robot=robot))
+        names = list(scene_model(sc).parameters)
+        assert set(robot_family(robot)[0].parameter_units(names)) == set(names), robot
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--force", "1 N", "--force", "1 N*m"], "--force: F1 is a torque (a revolute joint), got a force ('N')"),
+    (["--robot", "redundant", "--force", "1 N", "--force", "1 N*m"],
+     "--force: F2 is a force (a prismatic joint), got a torque ('N*m')"),
+    (["--force", "2 m", "--force", "1"], "--force: expected a torque or force, got a unit of [length] ('m')"),
+])
+def test_a_force_s_unit_is_judged_by_its_joint_kind(argv, message, capsys):
+    assert main(["netlist", *argv]) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1

@@ -13,7 +13,7 @@ from ..model.expressions import (
     parse_vector,
     split_entries,
 )
-from ..model.quantities import COORDINATE, RATE
+from ..model.quantities import ANY, COORDINATE, RATE
 from ..presets import PRESETS
 from ..scenes.build import LABELS, scene_model
 from ..scenes.builtin import SCENES, scene
@@ -93,7 +93,7 @@ def _split_param(text: str) -> tuple[str, float]:
     if not sep or not name.strip().isidentifier():
         raise InputError(f"--param needs NAME=VALUE, got {text!r}")
     try:
-        return name.strip(), parse_number(value)
+        return name.strip(), parse_number(value, ANY)      # the model judges the unit's dimension
     except InputError as exc:
         raise InputError(f"--param {name.strip()}: {exc}") from None
 

@@ -44,6 +44,10 @@ class RobotFamily:
     outline : str or None
         ``"module:function"`` that draws the links at each configuration
         (:mod:`analogy.model.mechanism`); None: drawn as its circuit's nodes.
+    units : tuple of (str, str)
+        The SI unit of each parameter, as (name, unit) with a trailing ``#`` for the
+        numbered ones (``("l#", "m")`` covers l1, l2 …); ``"1"`` is a pure number. A value
+        given with a unit of another dimension is refused.
     description : str
         A few words for listings.
     """
@@ -57,31 +61,58 @@ class RobotFamily:
     seeded: bool = False
     args: tuple = ()
     outline: str | None = None
+    units: tuple[tuple[str, str], ...] = ()
     description: str = ""
+
+    def parameter_units(self, names) -> dict[str, str]:
+        """The SI unit of each of *names* that :attr:`units` declares.
+
+        Parameters
+        ----------
+        names : iterable of str
+            The model's parameter names.
+        """
+        out = {}
+        for name in names:
+            for pattern, unit in self.units:
+                stem = pattern.rstrip("#")
+                if name == pattern or (pattern.endswith("#") and name.startswith(stem) and name[len(stem):].isdigit()):
+                    out[name] = unit
+                    break
+        return out
 
 
 _DRAWN = "analogy.model.mechanism:"
+# Joint dampers and springs of revolute joints: N·m·s/rad and N·m/rad (rad is a pure number).
+_SERIAL = (("l#", "m"), ("d#", "kg"), ("b#", "N*m*s"), ("k#", "N*m"), ("g", "m/s^2"))
+_LINKS = (("la", "m"), ("lb", "m"), ("ma", "kg"), ("mb", "kg"), ("ja", "kg*m^2"), ("jb", "kg*m^2"),
+          ("b#", "N*m*s"), ("k#", "N*m"))
+_FLEXIBLE = (("l#", "m"), ("rhoA#", "kg/m"), ("EI#", "N*m^2"), ("Jh#", "kg*m^2"), ("mh#", "kg"), ("mp", "kg"),
+             ("Jp", "kg*m^2"), ("g", "m/s^2"), ("modes#", "1"), ("zeta#", "1"), ("b#", "N*m*s"))
 
 #: Every built-in robot: a fixed name resolves before a sized family of the same prefix.
 FAMILIES: tuple[RobotFamily, ...] = (
     RobotFamily("redundant", "analogy.model.robots:redundant_actuators",
+                units=(("d#", "kg"), ("b#", "N*s/m")),
                 description="redundant rotary and prismatic actuators on one axis"),
     RobotFamily("serial2", "analogy.model.robots:serial_2dof", outline=_DRAWN + "planar_chain_outline",
-                description="the papers' 2-DOF serial arm"),
+                units=_SERIAL, description="the papers' 2-DOF serial arm"),
     RobotFamily("parallel2", "analogy.model.robots:five_bar", outline=_DRAWN + "five_bar_outline",
-                description="the five-bar parallel robot"),
+                units=_LINKS + (("d", "m"), ("me", "kg")), description="the five-bar parallel robot"),
     RobotFamily("serial3", "analogy.model.robots:serial_3dof", outline=_DRAWN + "planar_chain_outline",
-                description="the papers' 3-DOF serial arm"),
-    RobotFamily("parallel3", "analogy.model.robots:parallel_3dof", description="the 3-RRR parallel robot"),
+                units=_SERIAL, description="the papers' 3-DOF serial arm"),
+    RobotFamily("parallel3", "analogy.model.robots:parallel_3dof",
+                units=_LINKS + (("rb", "m"), ("rp", "m"), ("mp", "kg"), ("jp", "kg*m^2")),
+                description="the 3-RRR parallel robot"),
     RobotFamily("flex1", "analogy.model.flexible:flexible_arm", flexible=True, args=(1,),
-                outline=_DRAWN + "flexible_arm_outline",
+                outline=_DRAWN + "flexible_arm_outline", units=_FLEXIBLE,
                 description="one flexible link on a hub"),
     RobotFamily("flex2", "analogy.model.flexible:flexible_arm", flexible=True, args=(2,),
-                outline=_DRAWN + "flexible_arm_outline",
+                outline=_DRAWN + "flexible_arm_outline", units=_FLEXIBLE,
                 description="two flexible links, serial"),
     RobotFamily("serial", "analogy.model.robots:planar_serial", "analogy.model.serial_chain:SerialChain",
                 sizes=MAX_SERIAL, symbolic_sizes=MAX_SYMBOLIC_SERIAL,
-                outline=_DRAWN + "planar_chain_outline", description="a planar N-joint arm"),
+                outline=_DRAWN + "planar_chain_outline", units=_SERIAL, description="a planar N-joint arm"),
     RobotFamily("random", None, "analogy.model.robots:random_spd_model", sizes=MAX_RANDOM, seeded=True,
                 description="a random SPD N-joint system"),
 )

@@ -326,7 +326,9 @@ def parse_number(text: str, dimension: Dimension | tuple[Dimension, ...] | None 
         A constant expression, perhaps with a unit (``100 mm``, ``30 deg``).
     dimension : Dimension or tuple of Dimension, optional
         What the value measures: a unit of another dimension is refused in one sentence
-        (``"10 kg"`` for a time). A bare number is taken as SI.
+        (``"10 kg"`` for a time). A bare number is taken as SI. A tuple (of several, or
+        none: any dimension) returns a :class:`Measured` that keeps the unit's dimension
+        for the model to judge.
     """
     try:
         return _finite(_Converter(text, _Numeric, {}, allow_lists=False).convert(_syntax_tree(text)), text)
@@ -335,7 +337,7 @@ def parse_number(text: str, dimension: Dimension | tuple[Dimension, ...] | None 
         if split is None:
             raise
     number, unit = split        # a number with a unit, e.g. "100 mm": converted to SI
-    if dimension is not None:
+    if dimension:
         check_dimension(unit, dimension)
     value = _finite(parse_number(number) * unit_factor(unit), text)
     # Of several dimensions (an angle or a length), which one is for the model to judge.

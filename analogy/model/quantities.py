@@ -9,7 +9,8 @@ from typing import Literal
 from ..errors import InputError
 
 __all__ = ["split_unit", "unit_factor", "unit_dimension", "check_dimension", "Dimension", "DIMENSIONS", "COORDINATE", "RATE",
-           "MAX_UNIT_LENGTH", "MAX_UNIT_EXPONENT", "Measured", "check_joint_dimensions"]
+           "FORCE", "ANY",
+           "MAX_UNIT_LENGTH", "MAX_UNIT_EXPONENT", "Measured", "check_joint_dimensions", "check_parameter_units"]
 
 #: Longest unit text accepted.
 MAX_UNIT_LENGTH = 40
@@ -26,13 +27,18 @@ _TOKEN = re.compile(r"\s*(?:(?P<name>[A-Za-zµμ°Ω_]+)|(?P<int>[+-]?[0-9]+)|(?
 
 #: The physical dimensions a field may ask of its unit, as pint dimensionalities. An angle is
 #: dimensionless in SI (rad = m/m), so a bare number and rad, deg or turn all pass as one.
-Dimension = Literal["time", "length", "angle", "mass", "frequency", "angular rate", "velocity"]
+Dimension = Literal["time", "length", "angle", "mass", "frequency", "angular rate", "velocity", "force",
+                    "torque"]
 DIMENSIONS: dict[str, str] = {"time": "[time]", "length": "[length]", "angle": "dimensionless",
                               "mass": "[mass]", "frequency": "1 / [time]", "angular rate": "1 / [time]",
-                              "velocity": "[length] / [time]"}
+                              "velocity": "[length] / [time]", "force": "[mass] * [length] / [time] ** 2",
+                              "torque": "[mass] * [length] ** 2 / [time] ** 2"}
 #: A joint coordinate (an angle or a travel) and its rate, before the model says which joint is which.
 COORDINATE: tuple[Dimension, ...] = ("angle", "length")
 RATE: tuple[Dimension, ...] = ("angular rate", "velocity")
+FORCE: tuple[Dimension, ...] = ("torque", "force")
+#: Any dimension, kept with the value for the model to judge (a parameter's unit is the model's to declare).
+ANY: tuple[Dimension, ...] = ()
 
 
 class Measured(float):
@@ -56,36 +62,70 @@ class Measured(float):
 
 
 #: What a coordinate and its rate measure, per joint kind.
-_JOINT_DIMENSIONS: dict[str, tuple[Dimension, Dimension]] = {
-    "revolute": ("angle", "angular rate"), "prismatic": ("length", "velocity"), "modal": ("length", "velocity")}
+_JOINT_DIMENSIONS: dict[str, tuple[Dimension, Dimension, Dimension]] = {
+    "revolute": ("angle", "angular rate", "torque"), "prismatic": ("length", "velocity", "force"),
+    "modal": ("length", "velocity", "force")}
 _JOINT_NOUNS = {"revolute": "a revolute joint", "prismatic": "a prismatic joint", "modal": "a modal amplitude"}
 
 
-def check_joint_dimensions(values, joints, rates: bool = False, name: str = "q") -> None:
-    """One sentence if a value read with a unit does not measure what its joint's coordinate is.
+def _noun(dimension: str) -> str:
+    """``an angle``, ``a force`` …: the pint dimensionality in words, where it has a name."""
+    found = next((d for d in _JOINT_DIMENSIONS["revolute"] + _JOINT_DIMENSIONS["prismatic"] + ("mass", "time")
+                  if DIMENSIONS[d] == dimension), None)
+    return f"a unit of {dimension}" if found is None else f"{'an' if found[0] in 'aeiou' else 'a'} {found}"
+
+
+def check_joint_dimensions(values, joints, rates: bool = False, name: str = "q",
+                           quantity: Literal["coordinate", "rate", "force"] | None = None) -> None:
+    """One sentence if a value read with a unit does not measure what its joint's coordinate (rate, force) is.
 
     Parameters
     ----------
     values : sequence of float
-        Coordinates (or, with *rates*, their rates); :class:`Measured` entries are checked.
+        Coordinates (or their rates, or forces); :class:`Measured` entries are checked.
     joints : sequence of str or None
         The model's joint kinds (``"revolute"``, ``"prismatic"``, ``"modal"``); None checks nothing.
     rates : bool
-        The values are rates.
+        The values are rates (the same as *quantity* ``"rate"``).
     name : str
-        The values' symbol in the sentence (``q1``, ``r1`` …).
+        The values' symbol in the sentence (``q1``, ``r1``, ``F1`` …).
+    quantity : {"coordinate", "rate", "force"}, optional
+        What the values are; default a coordinate, or a rate with *rates*.
     """
     if joints is None:
         return
+    which = ("coordinate", "rate", "force").index(quantity or ("rate" if rates else "coordinate"))
     for k, (x, kind) in enumerate(zip(values, joints)):
         if not isinstance(x, Measured) or kind not in _JOINT_DIMENSIONS:
             continue
-        wanted = _JOINT_DIMENSIONS[kind][1 if rates else 0]
+        wanted = _JOINT_DIMENSIONS[kind][which]
         if x.dimension != DIMENSIONS[wanted]:
             article = "an" if wanted[0] in "aeiou" else "a"
-            found = next((d for d in ("angle", "length", "angular rate", "velocity") if DIMENSIONS[d] == x.dimension), None)
-            got = f"a unit of {x.dimension}" if found is None else f"{'an' if found[0] in 'aeiou' else 'a'} {found}"
-            raise InputError(f"{name}{k + 1} is {article} {wanted} ({_JOINT_NOUNS[kind]}), got {got} ({x.unit!r})")
+            raise InputError(f"{name}{k + 1} is {article} {wanted} ({_JOINT_NOUNS[kind]}), "
+                             f"got {_noun(x.dimension)} ({x.unit!r})")
+
+
+def check_parameter_units(values, units) -> None:
+    """One sentence if a parameter read with a unit does not measure what its model declares.
+
+    Parameters
+    ----------
+    values : mapping of str to float
+        Parameter values; :class:`Measured` entries are checked.
+    units : mapping of str to str
+        The model's SI unit of each parameter (``"m"``, ``"kg*m^2"``; ``"1"`` for a pure
+        number); a parameter it does not list is not judged.
+    """
+    for key, x in values.items():
+        unit = units.get(key)
+        if not isinstance(x, Measured) or unit is None:
+            continue
+        wanted = "dimensionless" if unit == "1" else unit_dimension(unit)
+        if x.dimension != wanted:
+            what = _noun(wanted)
+            what = ("a pure number" if unit == "1" else f"measured in {unit}" if what.startswith("a unit of")
+                    else f"{what} ({unit})")
+            raise InputError(f"{key} is {what}, got {_noun(x.dimension)} ({x.unit!r})")
 
 
 def split_unit(text: str) -> tuple[str, str] | None:

@@ -19,7 +19,7 @@ from ..model.urdf import STANDARD_GRAVITY, urdf_model
 from ..model.urdf_robots import URDF_ROBOTS, urdf_robot
 from ..model.expressions import parse_expression, parse_number, reserved_name
 from ..model.joint import JointSpace
-from ..model.quantities import check_joint_dimensions
+from ..model.quantities import FORCE, check_joint_dimensions, check_parameter_units
 from .spec import ModelSpec, SceneData
 
 __all__ = ["scene_model", "symbolic_model", "scene_system", "scene_systems", "entry_value", "TOML_KEYS",
@@ -214,6 +214,10 @@ def scene_model(scene: SceneData) -> object:
                 if key not in model.parameters:
                     raise InputError(f"{keys['parameters']} {key}: robot {spec.robot} has no such "
                                      f"parameter (it has: {', '.join(model.parameters) or 'none'})")
+            try:
+                check_parameter_units(params, robot_family(spec.robot)[0].parameter_units(params))
+            except InputError as exc:
+                raise InputError(f"{keys['parameters']} {exc}") from None
             if getattr(model, "builder", None) is not None and params:
                 with keyed(keys["parameters"]):
                     return model.with_parameters(params)    # mode shapes follow the parameters
@@ -254,6 +258,10 @@ def _urdf(spec: ModelSpec, params: Mapping[str, float], dynamics: str, keys: dic
             raise InputError(f"{keys[label]}: a URDF robot has its own")
     if unknown := [k for k in params if k != "g"]:
         raise InputError(f"{keys['parameters']} {unknown[0]}: a URDF robot has no such parameter (it has: g)")
+    try:
+        check_parameter_units(params, {"g": "m/s^2"})
+    except InputError as exc:
+        raise InputError(f"{keys['parameters']} {exc}") from None
     with keyed(keys.get("urdf", keys["robot"])):
         return urdf_model(spec.urdf, spec.joints, None, float(params.get("g", STANDARD_GRAVITY)))
 
@@ -327,6 +335,10 @@ def _inputs(scene: SceneData, n: int, keys: dict, joints=None) -> dict:
             if isinstance(item, tuple) and not item:
                 raise InputError("an empty list: give a number or a waveform such as \"step(1)\"")
             out.append(waveforms([item], 1)[0])
+    with keyed(keys["forces"]):
+        # a force written with a unit: a torque on a revolute joint, a force on a sliding one
+        check_joint_dimensions([parse_number(f, FORCE) if isinstance(f, str) and "(" not in f else 0.0
+                                for f in forces], joints, quantity="force", name="F")
     r0 = None
     if scene.initial_rates is not None:
         with keyed(keys["initial_rates"]):

@@ -40,7 +40,7 @@ from ..errors import InputError
 from ..model.dynamics import DYNAMICS
 from ..model.urdf import read_urdf
 from ..model.expressions import parse_number
-from ..model.quantities import COORDINATE, RATE
+from ..model.quantities import ANY, COORDINATE, RATE
 from ..presets import preset as get_preset
 from ..results.output import check_plot_path
 from ..solvers.registry import SOLVER_NAMES
@@ -316,7 +316,7 @@ def _model_fields(ctx: _Context, data: dict) -> dict:
     params = {}
     for key, value in params_raw.items():
         with ctx.key(f"[parameters] {_label(key)}"):
-            params[key] = _number(value)
+            params[key] = _number(value, ANY)      # the model judges the unit's dimension
     out["parameters"] = params
     if "robot" in model:
         if not isinstance(model["robot"], str):
