@@ -1,5 +1,6 @@
 """Compiled models on disk: the same numbers as the symbolic model, without sympy."""
 
+import os
 import subprocess
 import sys
 
@@ -39,3 +40,26 @@ def test_cached_netlist_job_runs_without_sympy():
     assert first.returncode == 0, first.stderr
     again = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert again.stdout.strip() == "False"      # the second process finds the compiled model
+
+
+@pytest.mark.parametrize("args", [["--robot", "flex2"], ["--robot", "flex1", "--param", "l1=0.4"]])
+def test_a_flexible_arm_is_compiled_per_parameter_set_and_a_later_process_needs_no_sympy(args, tmp_path):
+    """Its mode shapes follow the parameters, so each set is compiled with its numbers in:
+    the second process writes the same netlist from the cache, without sympy."""
+    code = ("import sys\nfrom analogy.cli import main\n"
+            f"main(['netlist', *{args!r}, '-o', sys.argv[1]])\nprint('sympy' in sys.modules)")
+    env = dict(os.environ, ANALOGY_CACHE_DIR=str(tmp_path / "cache"))      # empty at first, whatever ran before
+    runs = [subprocess.run([sys.executable, "-c", code, str(tmp_path / f"{k}.cir")], capture_output=True,
+                           text=True, timeout=300, env=env) for k in range(2)]
+    assert [r.returncode for r in runs] == [0, 0], runs[0].stderr
+    assert [r.stdout.strip() for r in runs] == ["True", "False"]
+    assert (tmp_path / "0.cir").read_text() == (tmp_path / "1.cir").read_text()
+
+
+def test_a_model_compiled_for_one_parameter_set_refuses_another():
+    from analogy.errors import InputError
+    from analogy.model.flexible import flexible_arm
+    compiled = compile_model(flexible_arm(1), "flex1 test", baked=True)
+    assert compiled.joint_space([0.0] * compiled.dof, {"l1": 0.5}) is not None      # its own values
+    with pytest.raises(InputError, match="compiled for one parameter set"):
+        compiled.joint_space([0.0] * compiled.dof, {"l1": 0.4})

@@ -11,20 +11,25 @@ import sympy as sp
 __all__ = ["module_source"]
 
 
-def module_source(model) -> str:
+def module_source(model, baked: bool = False) -> str:
     """Python source of *model*'s M, B, K and G, linearised (`Model.linear_parts`), as numpy functions, with its names and defaults.
 
     Parameters
     ----------
     model : Model
         A symbolic model.
+    baked : bool
+        Its parameters are numbers inside its expressions (a flexible arm's mode shapes
+        follow them): the source holds that one parameter set only.
     """
+    from .equilibrium import elastic_coordinates
     args = list(model.coordinates) + list(model.symbols.values())
     header = [f"NAME = {model.name!r}", f"PARAMETERS = {dict(model.parameters)!r}",
               f"COORDINATES = {tuple(str(c) for c in model.coordinates)!r}",
               f"TOPOLOGY = {model.topology!r}", f"DESCRIPTION = {model.description!r}",
               f"JOINTS = {None if model.joints is None else tuple(model.joints)!r}",
-              f"DOF = {model.dof}", ""]
+              f"DOF = {model.dof}", f"BAKED = {bool(baked)!r}",
+              f"ELASTIC = {tuple(elastic_coordinates(model))!r}", ""]
     body, used = [], set()
     for label, expr in zip(("mass_matrix", "damping", "stiffness", "gravity"), model.linear_parts()):
         if expr is None:

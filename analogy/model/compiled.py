@@ -7,6 +7,7 @@ import importlib.util
 import os
 from pathlib import Path
 
+from ..errors import InputError
 from ..units import joint_units
 from .joint import (
     JointSpace,
@@ -20,7 +21,8 @@ from .joint import (
 
 __all__ = ["CompiledModel", "cache_dir", "compile_model", "load_compiled"]
 
-_SOURCES = ("joint.py", "symbolic.py", "robots.py", "linkages.py", "compiled.py", "codegen.py")
+_SOURCES = ("joint.py", "symbolic.py", "robots.py", "linkages.py", "compiled.py", "codegen.py", "flexible.py",
+            "beams.py", "equilibrium.py")
 
 
 def cache_dir() -> Path | None:
@@ -57,6 +59,8 @@ class CompiledModel:
         self.topology = module.TOPOLOGY
         self.description = module.DESCRIPTION
         self.joints = module.JOINTS
+        self.baked = bool(getattr(module, "BAKED", False))
+        self.elastic = tuple(getattr(module, "ELASTIC", ()))
 
     @property
     def units(self) -> tuple[str, ...] | None:
@@ -77,6 +81,7 @@ class CompiledModel:
         parameters : mapping, optional
             Parameter overrides.
         """
+        self._same_parameters(parameters)
         args = evaluation_arguments(self.name, self.coordinates, self.parameters, q, parameters)
         return JointSpace(*(evaluate_entries(self.name, f, args, shape) for f, shape in self._parts()))
 
@@ -90,16 +95,22 @@ class CompiledModel:
         parameters : mapping, optional
             Parameter overrides.
         """
+        self._same_parameters(parameters)
         q = configuration_stack(self.name, self.coordinates, qs)
         args = list(q.T) + stack_arguments(self.name, self.parameters, parameters, len(q))
         return JointStack(*(evaluate_entries(self.name, f, args, shape, len(q)) for f, shape in self._parts()))
+
+    def _same_parameters(self, parameters) -> None:
+        # A baked model's numbers are its parameters: other values would be silently ignored.
+        if self.baked and parameters and any(self.parameters.get(k) != v for k, v in parameters.items()):
+            raise InputError(f"{self.name} was compiled for one parameter set: build it for the others")
 
     def _parts(self):
         m = self._m
         return zip((m.mass_matrix, m.damping, m.stiffness, m.gravity), part_shapes(self.dof))
 
 
-def compile_model(model, name: str) -> CompiledModel | None:
+def compile_model(model, name: str, baked: bool = False) -> CompiledModel | None:
     """Write *model*'s numeric source to the cache under *name*; return it loaded (or None).
 
     Parameters
@@ -108,6 +119,9 @@ def compile_model(model, name: str) -> CompiledModel | None:
         A symbolic model.
     name : str
         The cache entry's name.
+    baked : bool
+        The model's parameters are numbers in its expressions (see
+        :func:`~analogy.model.codegen.module_source`); *name* must then name them.
     """
     from .codegen import module_source
     from .symbolic import Model
@@ -118,7 +132,7 @@ def compile_model(model, name: str) -> CompiledModel | None:
         folder.mkdir(parents=True, exist_ok=True)
         path = folder / f"model-{_key(name)}.py"
         tmp = path.with_suffix(f".{os.getpid()}.tmp")
-        tmp.write_text(module_source(model))
+        tmp.write_text(module_source(model, baked))
         os.replace(tmp, path)                           # atomic: readers never see half a file
     except OSError:
         return None

@@ -16,9 +16,11 @@ def elastic_coordinates(model) -> list[int]:
 
     Parameters
     ----------
-    model : Model
-        A symbolic model.
+    model : Model or CompiledModel
+        A symbolic model, or one compiled from it.
     """
+    if hasattr(model, "elastic"):          # compiled: found when its source was generated
+        return list(model.elastic)
     k = getattr(model, "stiffness", None)
     if k is None:
         return []

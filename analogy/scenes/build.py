@@ -180,6 +180,13 @@ def _symbolic(parts: dict, params: Mapping[str, float], keys: dict):
                      parameters=dict(params), coordinates=qs if used_q else (), topology="parallel")
 
 
+def _check_names(params: Mapping[str, float], model, robot: str, keys: dict) -> None:
+    for key in params:
+        if key not in model.parameters:
+            raise InputError(f"{keys['parameters']} {key}: robot {robot} has no such "
+                             f"parameter (it has: {', '.join(model.parameters) or 'none'})")
+
+
 def scene_model(scene: SceneData) -> object:
     """The model a scene evaluates: a compiled or symbolic robot, a symbolic model or a JointSpace.
 
@@ -205,19 +212,21 @@ def scene_model(scene: SceneData) -> object:
                 if getattr(spec, label) is not None:
                     raise InputError(f"{keys[label]}: a built-in robot has its own; set its parameters "
                                      "instead, or give a mass matrix without a robot")
-            cache = (spec, scene.dynamics)
-            model = _MODELS.get(cache)
-            if model is None:
-                with keyed(keys["robot"]):
-                    model = _MODELS[cache] = _robot(spec, scene.dynamics)
-            for key in params:
-                if key not in model.parameters:
-                    raise InputError(f"{keys['parameters']} {key}: robot {spec.robot} has no such "
-                                     f"parameter (it has: {', '.join(model.parameters) or 'none'})")
+            with keyed(keys["robot"]):
+                family = robot_family(spec.robot)[0]
             try:
-                check_parameter_units(params, robot_family(spec.robot)[0].parameter_units(params))
+                check_parameter_units(params, family.parameter_units(params))
             except InputError as exc:
                 raise InputError(f"{keys['parameters']} {exc}") from None
+            flexible = family.flexible or spec.link_modes is not None
+            cache = (spec, scene.dynamics) + ((tuple(sorted(params.items())),) if flexible else ())
+            model = _MODELS.get(cache)
+            if model is None:
+                if flexible and params:             # built for these parameters: the defaults name them
+                    _check_names(params, _robot(spec, scene.dynamics), spec.robot, keys)
+                with keyed(keys["robot"]):
+                    model = _MODELS[cache] = _robot(spec, scene.dynamics, params if flexible else None)
+            _check_names(params, model, spec.robot, keys)
             if getattr(model, "builder", None) is not None and params:
                 with keyed(keys["parameters"]):
                     return model.with_parameters(params)    # mode shapes follow the parameters
@@ -281,13 +290,21 @@ def symbolic_model(scene: SceneData) -> object:
     return model
 
 
-def _robot(spec: ModelSpec, dynamics: str):
-    """A built-in robot's model, as its family's registry entry says to build it."""
+def _robot(spec: ModelSpec, dynamics: str, parameters: Mapping[str, float] | None = None):
+    """A built-in robot's model, as its family's registry entry says to build it (a flexible
+    arm's for its *parameters*; the others take theirs when evaluated)."""
     family, size = robot_family(spec.robot)
     if family.seeded:                           # numbers only, drawn from the scene's seed
         return family_builder(family.numeric)(size, seed=spec.seed)
-    if family.flexible or spec.link_modes is not None:     # numeric matrices, rebuilt per parameter set
-        return family_builder("analogy.model.robots:robot")(spec.robot, spec.link_modes)
+    if family.flexible or spec.link_modes is not None:
+        # Mode shapes follow the parameters: compiled per parameter set, those numbers baked in.
+        name = f"{spec.robot} {spec.link_modes} {sorted((k, float(v)) for k, v in (parameters or {}).items())}"
+        cached = load_compiled(name) if dynamics == "linear" else None
+        if cached is not None:
+            return cached
+        model = family_builder("analogy.model.robots:robot")(spec.robot, spec.link_modes)
+        model = model.with_parameters(parameters) if parameters else model
+        return (compile_model(model, name, baked=True) or model) if dynamics == "linear" else model
     if dynamics == "linear" and family.numeric is not None:
         return family_builder(family.numeric)(size)   # numeric at any size: no sympy
     if dynamics == "linear":
