@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import sys
+import threading
 import time as _time
 
-__all__ = ["Progress"]
+__all__ = ["Progress", "Heartbeat"]
 
 
 class Progress:
@@ -78,3 +79,50 @@ class Progress:
             self._bar.close()
         elif self.enabled and self.done > self._first:
             print(self.line(), file=self.stream, flush=True)
+
+
+class Heartbeat:
+    """Lines on a long wait: silent for *quiet* seconds, then one line every *every* seconds until it ends.
+
+    Used as the ``progress`` hook of :func:`~analogy.study.comparison.compare`: it is
+    called with a solver's name as it starts and with ``None`` when it ends. A run shorter
+    than *quiet* prints nothing; a longer one says what runs and for how long, and how
+    long it took.
+
+    Parameters
+    ----------
+    stream : file
+        Where the lines go (default stderr).
+    quiet : float
+        Seconds before the first line.
+    every : float
+        Seconds between lines.
+    """
+
+    def __init__(self, stream=None, quiet: float = 3.0, every: float = 15.0):
+        self.stream = stream or sys.stderr
+        self.quiet, self.every = quiet, every
+        self._stop: threading.Event | None = None
+        self._thread: threading.Thread | None = None
+
+    def __call__(self, what: str | None) -> None:
+        self._end()
+        if what is not None:
+            self._stop = threading.Event()
+            self._thread = threading.Thread(target=self._beat, args=(what, self._stop), daemon=True)
+            self._thread.start()
+
+    def _beat(self, what: str, stop: threading.Event) -> None:
+        start = _time.monotonic()
+        wait, spoke = self.quiet, False
+        while not stop.wait(wait):
+            print(f"analogy: {what} running, {_time.monotonic() - start:.0f} s so far", file=self.stream, flush=True)
+            wait, spoke = self.every, True
+        if spoke:
+            print(f"analogy: {what} finished in {_time.monotonic() - start:.1f} s", file=self.stream, flush=True)
+
+    def _end(self) -> None:
+        if self._stop is not None:
+            self._stop.set()
+            self._thread.join()
+            self._stop = self._thread = None

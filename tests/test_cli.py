@@ -194,3 +194,22 @@ def test_the_draw_note_names_only_the_limit_the_system_passes(tmp_path):
     out = cli("draw", "--robot", "serial6", "-o", str(tmp_path))
     assert out.returncode == 0, out.stderr
     assert "floating elements (more than 12) are past" in out.stderr and "nodes (more than" not in out.stderr
+
+
+def test_a_long_solver_run_says_so_and_a_short_one_stays_quiet():
+    """The heartbeat speaks only past its quiet time, then says how long the run took."""
+    import io
+    import time
+    from analogy.progress import Heartbeat
+    out = io.StringIO()
+    beat = Heartbeat(out, quiet=0.05, every=0.05)
+    beat("spice")
+    deadline = time.monotonic() + 60
+    while "running" not in out.getvalue() and time.monotonic() < deadline:
+        time.sleep(0.01)
+    beat.quiet = 60.0
+    beat("ode")                 # ends spice, starts ode
+    beat(None)                  # ode ended within its quiet time: nothing said of it
+    lines = out.getvalue().splitlines()
+    assert lines[0] == "analogy: spice running, 0 s so far" and lines[-1].startswith("analogy: spice finished in")
+    assert not any("ode" in line for line in lines)

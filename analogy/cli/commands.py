@@ -21,6 +21,7 @@ from ..model.expressions import (
     parse_number,
 )
 from ..presets import PRESETS
+from ..progress import Heartbeat
 from ..presets import preset as get_preset
 from ..results.output import check_plot_path
 from .outputs import accuracy_exit, check_writable
@@ -80,7 +81,7 @@ def _cmd_compare(args) -> int:
                          operation_budget=preset.operation_budget * budget / preset.work_budget)
     if args.dynamics == "both":
         return _compare_both(sc, args, solvers, step)
-    result = compare(sc.system(), preset, solvers, step=step)
+    result = compare(sc.system(), preset, solvers, step=step, progress=Heartbeat())
     print(result.table())
     return _written_and_judged(result, result, args)
 
@@ -211,7 +212,7 @@ def _cmd_run(args) -> int:
     for job in jobs:
         if len(jobs) > 1:
             print(f"== {job.source}")
-        result = run_scene(job, args.output_dir)
+        result = run_scene(job, args.output_dir, progress=Heartbeat())
         print(result.table())
         if job.netlist and not job.netlist_file:
             sys.stdout.write(result.netlist)

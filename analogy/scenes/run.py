@@ -40,7 +40,7 @@ def save_names(scene: Scene, system) -> list[str]:
     return nodes + list(scene.element_currents)
 
 
-def run_scene(scene: Scene, output_dir=None) -> "SceneResult":
+def run_scene(scene: Scene, output_dir=None, progress=None) -> "SceneResult":
     """Compute exactly what *scene*'s outputs require and write its files.
 
     Relative file names go to *output_dir* if given, else next to the scene file. A
@@ -52,6 +52,8 @@ def run_scene(scene: Scene, output_dir=None) -> "SceneResult":
         A validated scene (:func:`~analogy.scenes.toml.load_scene` gives one).
     output_dir : str or Path, optional
         Folder for the scene's output files.
+    progress : callable, optional
+        Told of each solver as it starts (see :func:`~analogy.study.comparison.compare`).
     """
     if not isinstance(scene, Scene):
         raise InputError(f"run_scene takes a Scene, got {type(scene).__name__}: read a file with load_scene(path)")
@@ -79,7 +81,7 @@ def run_scene(scene: Scene, output_dir=None) -> "SceneResult":
     reference = "auto" if scene.errors else ("exact" if "exact" in scene.solvers else None)
     currents = list(scene.element_currents)
     comparison = compare(system, p, scene.solvers, reference=reference, step=scene.step,
-                         save=currents, positions=bool(currents))
+                         save=currents, positions=bool(currents), progress=progress)
     ran = getattr(comparison.results.get("spice"), "settings", None)
     if scene.netlist and ran is not None and ran.loosen != 1.0:
         write_netlist(ran.loosen)   # the settings of the retry that ran, not those that collapsed

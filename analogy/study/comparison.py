@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Sequence
+from typing import TYPE_CHECKING, Callable, Sequence
 
 import numpy as np
 
@@ -245,7 +245,8 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
                  solvers: Sequence[str] = DEFAULT_SOLVERS, times=None, *,
                  reference: str | None = "auto", step: float | None = None,
                  save: Sequence[str] = (), positions: bool = False,
-                 t_stop: float | None = None, forces=None) -> list[Comparison]:
+                 t_stop: float | None = None, forces=None,
+                 progress: Callable[[str | None], None] | None = None) -> list[Comparison]:
     """:func:`compare` for many systems, each solver running them together where it can.
 
     SPICE runs the systems as one circuit to the longest horizon, each system's output
@@ -275,6 +276,9 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
         End of the simulated interval [s] for every system, instead of their own.
     forces : sequence, optional
         Joint forces for every system, one entry per joint, instead of their own.
+    progress : callable, optional
+        Called with each solver's name as it starts and with None when it ends (a
+        :class:`~analogy.progress.Heartbeat` prints lines on long runs).
     """
     if not systems:
         return []
@@ -308,6 +312,8 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
             order.remove(name)
     for name in order:
         s = solver(name)
+        if progress is not None:
+            progress(name)
         if s.own_grid:
             trs = run_many(name, systems, None, p, save=save, positions=want_x)
             native[name] = trs
@@ -335,6 +341,8 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
                 if tr.success and not tr.currents:
                     tr.currents = trajectory_currents(sys_, tr, save)
         runs[name] = trs
+    if progress is not None:
+        progress(None)
     out = []
     measured = _measure(systems, runs, native, ref_name, p, tuple(save), set(native) if given is not None else set())
     columns = [(n, runs[n]) for n in order]
@@ -417,7 +425,8 @@ def _measure(systems, runs, native, ref_name, p, save=(), resampled=frozenset())
 def compare(system, preset: str | Preset = "accurate", solvers: Sequence[str] = DEFAULT_SOLVERS,
             times=None, *, reference: str | None = "auto", step: float | None = None,
             save: Sequence[str] = (), positions: bool = False,
-            t_stop: float | None = None, forces=None) -> Comparison:
+            t_stop: float | None = None, forces=None,
+            progress: Callable[[str | None], None] | None = None) -> Comparison:
     """Run the requested solvers on *system* and compare them on shared time points.
 
     A failing solver, or one that does not apply, is recorded in
@@ -445,6 +454,8 @@ def compare(system, preset: str | Preset = "accurate", solvers: Sequence[str] = 
         End of the simulated interval [s], instead of the system's.
     forces : sequence, optional
         Joint forces, one entry per joint, instead of the system's (gravity is kept).
+    progress : callable, optional
+        Called with each solver's name as it starts and with None when it ends.
     """
     return compare_many([system], preset, solvers, times, reference=reference, step=step,
-                        save=save, positions=positions, t_stop=t_stop, forces=forces)[0]
+                        save=save, positions=positions, t_stop=t_stop, forces=forces, progress=progress)[0]
