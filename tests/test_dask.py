@@ -128,7 +128,7 @@ def test_a_sweep_survives_a_killed_worker_and_resumes_after_a_killed_scheduler(t
         assert f"{first} already stored" in again.stdout
         rows = read(out)
         # every scene once, with the values of the uninterrupted run
-        assert len(rows) == count and rows["index"].is_unique and (rows["status"] == "ok").all()
+        assert len(rows) == count and rows["scene"].is_unique and (rows["status"] == "ok").all()
         rows = rows.set_index("key").loc[plain.index]
         np.testing.assert_array_equal(rows["error_spice"].to_numpy(), plain["error_spice"].to_numpy())
         np.testing.assert_array_equal(rows["error_exact"].to_numpy(), plain["error_exact"].to_numpy())

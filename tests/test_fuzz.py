@@ -455,7 +455,7 @@ def test_a_corrupted_store_reads_or_says_what_is_damaged(small_store, target, fl
         except InputError as exc:
             refused("store", exc)
         else:
-            assert len(frame) <= 20 and frame["index"].is_unique
+            assert len(frame) <= 20 and frame["scene"].is_unique
 
 
 class _Reached(BaseException):

@@ -98,7 +98,7 @@ def test_a_part_copied_in_twice_counts_its_scenes_once(stored, tmp_path, capsys)
     folder = tmp_path / "store"
     shutil.copytree(stored / "base", folder)
     shutil.copy(_part(folder), folder / "part-999999.parquet")
-    assert len(read(folder)) == 60 and read(folder)["index"].is_unique
+    assert len(read(folder)) == 60 and read(folder)["scene"].is_unique
     assert main(["batch", "report", str(folder)]) == 0
     assert "60 of 60 scenes stored" in capsys.readouterr().out
 
@@ -116,7 +116,7 @@ def test_a_full_disk_is_one_sentence_and_the_rerun_completes(stored, tmp_path):
     again = subprocess.run(argv, capture_output=True, text=True)
     assert again.returncode == 0, again.stderr
     rows = read(folder)
-    assert len(rows) == 60 and rows["index"].is_unique
+    assert len(rows) == 60 and rows["scene"].is_unique
 
 
 def test_a_second_writer_on_one_folder_is_refused(stored, tmp_path, capsys):
@@ -146,7 +146,7 @@ def test_a_report_folder_that_is_a_symlink_out_of_the_store_is_refused(stored, t
 @pytest.mark.parametrize("design, said", [
     ('method = "grid"\n[sweep.axes]\ndd1 = [0, 1]', "axis dd1: not something a sweep can vary"),
     ('method = "grid"\n[sweep.axes]\nmessage = [0, 1]', "axis message: the results store has a column"),
-    ('method = "grid"\n[sweep.axes]\nindex = [0, 1]', "axis index: the results store has a column"),
+    ('method = "grid"\n[sweep.axes]\nscene = [0, 1]', "axis scene: the results store has a column"),
     ('method = "grid"\n[sweep.axes]\nerror_spice = [0, 1]', "axis error_spice: the results store has a column"),
     ('method = "random"\ncount = 1000000000000\n[sweep.axes]\nq2 = [0.0, 1.0]', "more than 100,000,000"),
     ('method = "sobol"\ncount = 1099511627776\n[sweep.axes]\nq2 = [0.0, 1.0]', "more than 100,000,000"),
@@ -192,3 +192,25 @@ def test_a_folder_of_invalid_scenes_only_is_taken_by_the_corrected_sweep(tmp_pat
     assert main(["batch", sweep("other", "[0.7]"), "-o", folder, "--no-progress", "--workers", "1"]) == 2
     assert "holds the results of another sweep" in capsys.readouterr().err
     assert read(folder)["status"].tolist() == ["ok", "invalid"]
+
+
+def test_store_columns_are_pandas_friendly_and_an_older_store_still_reads(tmp_path):
+    """The scene number is 'scene' (not 'index', which a DataFrame has), an ok row's message is
+    null, and a part written with the old 'index' column reads as 'scene'."""
+    import pyarrow.parquet as pq
+    from analogy.batch.store import read as read_store
+    from analogy.cli import main
+    folder = tmp_path / "store"
+    sweep = tmp_path / "s.toml"
+    sweep.write_text('name = "s"\n[model]\nrobot = "serial2"\n[configuration]\nq = [0, 0.3]\n'
+                     '[inputs]\nforces = [1, 0.5]\nt_stop = 1\n[sweep]\nmethod = "grid"\n'
+                     '[sweep.axes]\nq2 = [0.1, 0.2, 0.3]\n')
+    assert main(["batch", str(sweep), "-o", str(folder), "--no-progress"]) == 0
+    frame = read_store(folder)
+    assert "index" not in frame.columns and list(frame["scene"]) == [0, 1, 2]
+    assert frame.loc[frame["status"] == "ok", "message"].isna().all()
+    for part in folder.rglob("*.parquet"):
+        table = pq.read_table(part)
+        pq.write_table(table.rename_columns(["index" if n == "scene" else n for n in table.column_names]), part)
+    again = read_store(folder)
+    assert list(again["scene"]) == [0, 1, 2] and "index" not in again.columns

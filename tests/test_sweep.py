@@ -95,7 +95,7 @@ def test_the_store_holds_one_row_per_scene_with_the_in_memory_batch_errors(tmp_p
     run = run_sweep(sw, tmp_path / "store", workers=2, progress=False)
     assert run.solved == 300 and run.statuses == {"ok": 300}
     frame = pd.read_parquet(tmp_path / "store")
-    assert len(frame) == 300 and frame["key"].is_unique and frame["index"].is_unique
+    assert len(frame) == 300 and frame["key"].is_unique and frame["scene"].is_unique
     frame = read(tmp_path / "store")
     scenes = sw.scenes()
     assert frame["key"].tolist() == [s.key for s in scenes]
@@ -177,7 +177,7 @@ def test_a_killed_then_resumed_sweep_holds_each_scene_once_with_uninterrupted_va
     assert not list(store.rglob("*.tmp"))
     assert main(["batch", str(path), "-o", str(tmp_path / "whole"), "--no-progress"]) == 0
     resumed, whole = read(store), read(tmp_path / "whole")
-    assert len(resumed) == 3000 and resumed["index"].is_unique and resumed["key"].is_unique
+    assert len(resumed) == 3000 and resumed["scene"].is_unique and resumed["key"].is_unique
     pd.testing.assert_frame_equal(resumed.drop(columns=[c for c in resumed if c.startswith("seconds_")]),
                                   whole.drop(columns=[c for c in whole if c.startswith("seconds_")]))
 
@@ -265,7 +265,7 @@ def test_groups_of_a_killed_worker_are_retried_and_every_scene_stored_once(tmp_p
     out, err = proc.communicate(timeout=120)
     assert proc.returncode == 0 and "Traceback" not in err, err
     frame = read(store)
-    assert len(frame) == 4000 and frame["index"].is_unique
+    assert len(frame) == 4000 and frame["scene"].is_unique
     assert set(frame["status"]) == {"ok"}          # retried groups were solved, not lost
 
 

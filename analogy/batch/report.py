@@ -103,11 +103,11 @@ class BatchReport:
         if self.solvers:
             first = f"error_{self.solvers[0]}"
             top = f.dropna(subset=[first]).nlargest(worst, first)
-            rows = [[str(row["index"]),
+            rows = [[str(row["scene"]),
                      *(f"{row[a]:.6g}" if isinstance(row[a], float) else str(row[a]) for a in self.axes),
                      _fmt(row[first]), row["key"][:12]] for _, row in top.iterrows()]
             out.append((f"The {len(top)} worst scenes ({self.solvers[0]})", [],
-                        ["index", *self.axes, "error", "key"], rows))
+                        ["scene", *self.axes, "error", "key"], rows))
         bad = f[f["status"] != "ok"]
         if len(bad):
             rows = [[status, f"{len(part):,}", " ".join(str(message).split())[:200]]
@@ -177,7 +177,7 @@ class BatchReport:
             Image file to write.
         """
         from matplotlib.figure import Figure
-        axes = [a for a in self.axes if a in self.frame] or ["index"]
+        axes = [a for a in self.axes if a in self.frame] or ["scene"]
         fig = Figure(figsize=(4.2 * len(axes), 3.6), layout="constrained")
         panels = np.atleast_1d(fig.subplots(1, len(axes), sharey=True))
         f = self.frame.sample(min(len(self.frame), 20_000), random_state=0) if len(self.frame) else self.frame

@@ -97,7 +97,7 @@ def row_schema(sweep: Sweep, solvers: Sequence[str]) -> "pyarrow.Schema":
         The solvers with error and seconds columns.
     """
     import pyarrow as pa
-    cols = [("key", pa.string()), ("index", pa.int64())]
+    cols = [("key", pa.string()), ("scene", pa.int64())]
     cols += [(a.name, pa.float64() if a.numeric else pa.string()) for a in sweep.axes]
     cols += [("status", pa.string()), ("message", pa.string())]
     for name in solvers:
@@ -137,9 +137,9 @@ def solve_points(sweep: Sweep, start: int, points: np.ndarray, todo: np.ndarray,
     rows = np.flatnonzero(todo)
     values = {k: v[rows] for k, v in sweep.values(points).items()}
     count = len(rows)
-    cols: dict = {"key": [""] * count, "index": (start + rows).astype(np.int64)}
+    cols: dict = {"key": [""] * count, "scene": (start + rows).astype(np.int64)}
     cols.update(values)
-    status, message = ["ok"] * count, [""] * count
+    status, message = ["ok"] * count, [None] * count      # null where nothing is to be said
     errors = {name: np.full(count, np.nan) for name in solvers}
     seconds = {name: np.zeros(count) for name in solvers}
     try:
@@ -333,7 +333,7 @@ def _died(sweep: Sweep, start: int, points: np.ndarray, todo: np.ndarray, solver
             keys.append(sweep.scenes_at({k: v[j:j + 1] for k, v in values.items()})[0].key)
         except InputError:
             keys.append("")
-    cols = {"key": keys, "index": (start + rows).astype(np.int64), **values,
+    cols = {"key": keys, "scene": (start + rows).astype(np.int64), **values,
             "status": ["worker-died"] * count,
             "message": [f"the worker process died while solving this group ({ATTEMPTS} attempts)"] * count}
     for name in solvers:

@@ -36,7 +36,7 @@ _COMPACT_ROWS = 50_000
 
 
 #: Columns every row has besides its axes and solvers: no sweep axis may take these names.
-RESERVED_COLUMNS = ("key", "index", "status", "message")
+RESERVED_COLUMNS = ("key", "scene", "status", "message")
 
 
 class StoreError(AnalogyError):
@@ -81,15 +81,20 @@ def _read_part(path: Path, columns=None):
         names = pq.read_schema(path).names
     except (OSError, pa.ArrowException, ValueError) as exc:
         raise _damaged(path, exc) from None
+    # A part written before the scene number's column was renamed from 'index' (which pandas shadows).
+    old = "index" in names and "scene" not in names
+    names = ["scene" if old and n == "index" else n for n in names]
     missing = [c for c in (columns or RESERVED_COLUMNS) if c not in names]
     if missing:
         raise InputError(f"{path} is not a part of a sweep store (it has no {missing[0]!r} column): move it "
                          "out of the folder")
+    wanted = None if columns is None else ["index" if old and c == "scene" else c for c in columns]
     try:
-        table = pq.read_table(path, columns=columns, page_checksum_verification=True)
+        table = pq.read_table(path, columns=wanted, page_checksum_verification=True)
     except (OSError, pa.ArrowException, ValueError) as exc:
         raise _damaged(path, exc) from None
-    return table
+    return table.rename_columns(["scene" if old and n == "index" else n for n in table.column_names]) if old \
+        else table
 
 
 def _computed(directory: Path) -> bool:
@@ -240,7 +245,7 @@ class ResultStore:
         parts = _parts(self.directory)
         if not parts:
             return np.empty(0, dtype=np.int64)
-        return np.unique(np.concatenate([_read_part(p, ["index"]).column("index").to_numpy() for p in parts]))
+        return np.unique(np.concatenate([_read_part(p, ["scene"]).column("scene").to_numpy() for p in parts]))
 
     # --------------------------------------------------------------- writing
 
@@ -258,7 +263,7 @@ class ResultStore:
         table = pa.table({name: columns[name] for name in self.schema.names}, schema=self.schema)
         if not table.num_rows:
             return
-        first = int(table.column("index")[0].as_py())
+        first = int(table.column("scene")[0].as_py())
         stem = f"g{first:012d}"
         if trajectories is not None and trajectories.num_rows:
             _write(self.directory / _PENDING / f"{stem}.traj.arrow", lambda p: _write_ipc(p, trajectories))
@@ -283,7 +288,7 @@ class ResultStore:
             except (OSError, self._pa.ArrowException, ValueError) as exc:
                 raise _damaged(p, exc) from None
             done.append(p)
-            first = int(t.column("index")[0].as_py())
+            first = int(t.column("scene")[0].as_py())
             at = np.searchsorted(stored, first)
             if at < stored.size and stored[at] == first:
                 continue        # merged before a kill stopped the clean-up
@@ -341,10 +346,10 @@ def read(directory) -> "pandas.DataFrame":
     except (pa.ArrowException, ValueError) as exc:
         raise InputError(f"the parts of {path} do not share one schema ({' '.join(str(exc).split())[:120]}): "
                          "move the foreign part out of the folder") from None
-    frame = frame.sort_values("index", kind="stable")
+    frame = frame.sort_values("scene", kind="stable")
     # a part copied in twice holds the same scenes again: each scene counts once
-    frame = frame[~frame.duplicated(["index", "key"])]
-    if frame["index"].duplicated().any():
+    frame = frame[~frame.duplicated(["scene", "key"])]
+    if frame["scene"].duplicated().any():
         raise InputError(f"{path} holds two different scenes under one index: a part of another store was "
                          "copied in; move it out of the folder")
     return frame.reset_index(drop=True)

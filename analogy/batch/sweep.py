@@ -160,7 +160,7 @@ class Sweep:
         if len(set(names)) != len(names):
             raise InputError(f"axis {next(n for n in names if names.count(n) > 1)} is given twice")
         if clash := [n for n in names if n in RESERVED_COLUMNS or n.startswith(("error_", "seconds_"))]:
-            raise InputError(f"axis {clash[0]}: the results store has a column of that name (key, index, "
+            raise InputError(f"axis {clash[0]}: the results store has a column of that name (key, scene, "
                              "status, message, error_<solver>, seconds_<solver>): sweep a model parameter, "
                              "q<k>, rate<k>, force<k>, topology, preset, dynamics or t_stop")
         if not (isinstance(self.seed, int) and 0 <= self.seed < 2 ** 63):
