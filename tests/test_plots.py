@@ -73,3 +73,43 @@ def test_drawing_a_large_system_says_why_in_one_line_and_draws_the_map(tmp_path,
     captured = capsys.readouterr()
     assert captured.err.count("\n") == 1 and "element values are drawn as a map" in captured.err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["random10_elements.png", "random10_elements.svg"]
+
+
+def test_rates_of_different_units_never_share_an_axis_and_the_titles_say_what_is_drawn():
+    """A flexible arm's joints (rad/s) and modal rates (m/s) get a panel each; the error panel
+    is the largest error of each window (not a running maximum), its bound label inside the axes."""
+    from analogy.cli import scene_from_args, build_parser
+    args = build_parser().parse_args(["compare", "--robot", "flex1", "--t-stop", "0.05"])
+    c = compare(scene_from_args(args).system(), "fast", ["ode", "exact"])
+    fig = c.plot()
+    rates = [ax.get_ylabel() for ax in fig.axes[:-1]]
+    assert rates == ["joint rate [rad/s]", "joint rate [m/s]"]
+    title = fig.axes[-1].get_title()
+    assert "largest in each time window" in title and "running maximum" not in title
+    (label,) = [t for t in fig.axes[-1].texts if "bound" in t.get_text()]
+    assert label.get_position()[0] < 1.0
+
+
+def test_a_one_joint_comparison_names_its_joint_not_all_one_of_them():
+    c = compare(_one_joint(), "fast", ["ode", "exact"])
+    assert "worst of" not in c.plot().axes[-1].get_title()
+
+
+def _one_joint():
+    from analogy.cli import scene_from_args, build_parser
+    return scene_from_args(build_parser().parse_args(["compare", "--mass", "[2]", "--damping", "[1]",
+                                                      "--force", "1", "--t-stop", "1"])).system()
+
+
+def test_a_bode_plot_without_resonances_does_not_promise_their_lines():
+    from analogy.results.plots import plot_bode
+    from analogy.results.frequency import exact_mobility
+    response = exact_mobility(scene("default").system(), np.logspace(-2, 2, 81))
+    title = plot_bode(response).axes[0].get_title()
+    assert len(response.resonances()) == 0 and "no resonance in the band" in title
+
+
+def test_the_element_map_names_the_conductance_it_draws():
+    from analogy.circuit.element_map import draw_element_map
+    titles = [ax.get_title() for ax in draw_element_map(scene("default").system()).axes]
+    assert "1/Ri_j between nodes (i < j)" in titles and not any(t.startswith("Ri_j") for t in titles)

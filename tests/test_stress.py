@@ -40,12 +40,13 @@ def test_the_stress_report_has_every_family_and_no_ok_row_past_its_bound(quick_r
     assert {r["family"] for r in rows} == set(FAMILY_TITLES)
     for r in rows:
         err, bound = float(r["error"]), float(r["bound"])
-        if r["status"] == "ok" and not r["message"].startswith("horizon"):
+        if r["status"] == "ok" and not r["message"].startswith(("horizon", "within 1e-3")):     # chaotic: judged by its horizon
             assert not err > bound, r
         if r["status"] == "outside bound":
             assert err > bound, r
     assert all((out / f"stress_{f}.png").exists() for f in FAMILY_TITLES)
     assert "| family | solver |" in (out / "stress.md").read_text() and "cost growth" in stdout
+    assert "horizon inf" not in stdout      # a run that never departs says so in words
 
 
 @pytest.mark.ngspice

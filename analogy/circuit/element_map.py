@@ -70,11 +70,13 @@ def draw_element_map(system: "NodeSystem", path: str | Path | None = None, *,
         names = [f"n{k + 1}" for k in ticks]
         ax.set_xticks(ticks, names, rotation=90 if n > 10 else 0, fontsize="small")
         ax.set_yticks(ticks, names, fontsize="small")
-        ax.set_title(f"{kind}i_j between nodes (i < j)", fontsize="medium")
+        # what is drawn is the coefficient (1/R for a resistor), named as the colour bar names it
+        shown = {"C": "C", "R": "1/R", "L": "1/L"}[kind]
+        ax.set_title(f"{shown}i_j between nodes (i < j)", fontsize="medium")
         axg.set_xticks([0], ["to ground"], fontsize="small")
         axg.set_yticks(ticks, names, fontsize="small")
         axg.yaxis.tick_right()
-        axg.set_title(f"{kind}k", fontsize="medium")
+        axg.set_title(f"{shown}k", fontsize="medium")
         if annotate:
             for (i, j), v in np.ndenumerate(floating):
                 if np.isfinite(v):

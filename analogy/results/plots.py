@@ -57,7 +57,7 @@ def shown_joints(rates: np.ndarray) -> list[int]:
 
 
 def error_envelope(time: np.ndarray, error: np.ndarray, bins: int = 400) -> tuple[np.ndarray, np.ndarray]:
-    """A running maximum of *error* over *bins* equal windows of time, as a step curve.
+    """The maximum of *error* within each of *bins* equal windows of time, as a step curve.
 
     Step-to-step ringing (trapezoidal, or SPICE's own steps) fills a plain plot of the
     error with a solid band; its envelope shows how large the error gets, and when.
@@ -133,22 +133,29 @@ def plot_comparison(comparison, path=None) -> Figure:
     path : str or Path, optional
         Image file to write.
     """
-    fig = Figure(figsize=(9, 6), layout="constrained")
-    ax, axe = fig.subplots(2, 1, sharex=True)
     units = comparison.system.provenance.units
+    n = comparison.system.dof
+    # rad/s and m/s never share an axis: one panel of rates per unit (a flexible arm's joints and modes)
+    kinds: dict = {}
+    for j in range(n):
+        kinds.setdefault(units[j] if units else None, []).append(j)
+    fig = Figure(figsize=(9, 6 + 2.2 * (len(kinds) - 1)), layout="constrained")
+    *axes, axe = fig.subplots(len(kinds) + 1, 1, sharex=True)
     ok = {name: tr for name, tr in comparison.results.items() if tr.success and tr.rates.size}
     ref = ok.get(comparison.reference) if comparison.reference else None
     first = ref if ref is not None else next(iter(ok.values()), None)
-    joints = shown_joints(first.rates) if first is not None else []
-    for name, tr in ok.items():
-        for j in joints:
-            ax.plot(tr.time, tr.rates[:, j], color=f"C{j % 10}", **solver_style(name))
-    ax.set_ylabel(rate_label(units))
-    n = comparison.system.dof
-    shown = f"; {len(joints)} of {n} joints shown (largest peaks)" if len(joints) < n else ""
-    ax.set_title(f"{comparison.system.provenance.robot}: {', '.join(ok)} "
-                 f"(preset {comparison.preset}){shown}", fontsize="medium")
-    _legends(ax, joints, units, list(ok))
+    count = 0
+    for ax, (unit, idx) in zip(axes, kinds.items()):
+        joints = [idx[k] for k in shown_joints(first.rates[:, idx])] if first is not None else []
+        count += len(joints)
+        for name, tr in ok.items():
+            for j in joints:
+                ax.plot(tr.time, tr.rates[:, j], color=f"C{j % 10}", **solver_style(name))
+        ax.set_ylabel(rate_label(None if unit is None else [unit]))
+        _legends(ax, joints, units, list(ok))
+    shown = f"; {count} of {n} joints shown (largest peaks)" if count < n else ""
+    axes[0].set_title(f"{comparison.system.provenance.robot}: {', '.join(ok)} "
+                      f"(preset {comparison.preset}){shown}", fontsize="medium")
     if ref is not None:
         own = np.max(np.abs(ref.rates), axis=0)
         peak = np.maximum(own, PEAK_FLOOR * np.max(own))      # each joint against its own peak, as the table
@@ -159,15 +166,16 @@ def plot_comparison(comparison, path=None) -> Figure:
             err = np.max(np.abs(tr.rates - ref.rates) / peak, axis=1)
             t, env = error_envelope(tr.time, np.where(err > 0, err, np.nan))     # log axis: no zeros
             axe.semilogy(t, env, color="k", label=name, **solver_style(name))
-        axe.set_title(f"error against {comparison.reference}: worst of all {n} joints, each relative to its "
-                      "own peak rate (running maximum)", fontsize="small")
+        which = "the joint's rate" if n == 1 else f"worst of the {n} joints"
+        axe.set_title(f"error against {comparison.reference}: {which}, each relative to its own peak "
+                      "(largest in each time window)", fontsize="small")
     axe.set_xlabel("time [s]")
     axe.set_ylabel("|error| / own peak rate [1]")
     if axe.lines:
         axe.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False, fontsize="small",
                    title="solver", title_fontsize="small")
         axe.axhline(comparison.bound, color="tab:red", lw=0.8, ls=(0, (1, 3)))
-        axe.annotate(f"{comparison.preset} bound {comparison.bound:g}", (1.0, comparison.bound),
+        axe.annotate(f"{comparison.preset} bound {comparison.bound:g}", (0.99, comparison.bound),
                      xycoords=("axes fraction", "data"), ha="right", va="top", fontsize="x-small",
                      color="tab:red")
     return _save(fig, path)
@@ -235,7 +243,7 @@ def plot_quantities(time: np.ndarray, groups: list, errors: dict, title: str, pa
                 ax.semilogy(t, env, color="k", label=s, **solver_style(s))
         ax.set_ylabel("|error| / peak [1]")
         ax.set_title(f"error against {reference}: max over every curve, relative to its quantity's peak "
-                     "(running maximum)", fontsize="small")
+                     "(largest in each time window)", fontsize="small")
         if ax.lines:
             ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False, fontsize="small")
     axes[-1].set_xlabel("time [s]")
@@ -317,11 +325,12 @@ def plot_bode(response, reference=None, path=None) -> Figure:
     kinds = set(units or ())
     unit = {frozenset({"rad"}): "(rad/s)/(N·m)", frozenset({"m"}): "(m/s)/N"}.get(frozenset(kinds),
                                                                                   "(rad/s)/(N·m) or (m/s)/N")
-    mag.set_ylabel(f"|R_j / F_j| [{unit}]")
+    mag.set_ylabel(f"driving-point mobility |R/F| [{unit}]")
     phase.set_ylabel("phase [deg]")
     phase.set_yticks([-90, -45, 0, 45, 90])
     phase.set_xlabel("frequency [Hz]")
     solvers = response.solver + (f" ({reference.solver} beneath)" if reference is not None else "")
-    mag.set_title(f"driving-point mobilities, {solvers}; grey lines: resonances")
+    marks = "; grey lines: resonances" if len(response.resonances()) else "; no resonance in the band"
+    mag.set_title(f"driving-point mobilities, {solvers}{marks}")
     mag.legend(fontsize="small", loc="center left", bbox_to_anchor=(1.0, 0.5))
     return _save(fig, path)

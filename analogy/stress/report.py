@@ -218,7 +218,9 @@ def _case_rows(case: StressCase) -> list[StressRow]:
             ("outside bound" if math.isfinite(err) else "failed")
         message = tr.message or ("" if c.reference else f"no reference: {c.failures}")
         if case.horizon and c.reference:
-            message = f"horizon {c.horizon(solver, 1e-3):.3g} s (deviation past 1e-3 of the peak)"
+            h = c.horizon(solver, 1e-3)
+            message = (f"horizon {h:.3g} s (deviation past 1e-3 of the peak)" if math.isfinite(h) else
+                       f"within 1e-3 of the peak over the whole run ({c.time[-1]:.3g} s): no horizon reached")
             status = "ok"                 # a chaotic motion is judged by its horizon, not its error
         rows.append(StressRow(**base, solver=label, status=status, error=err, bound=preset.bound,
                               seconds=tr.run_time, steps=math.nan if tr.stats.steps is None else tr.stats.steps,
