@@ -213,3 +213,9 @@ def test_a_long_solver_run_says_so_and_a_short_one_stays_quiet():
     lines = out.getvalue().splitlines()
     assert lines[0] == "analogy: spice running, 0 s so far" and lines[-1].startswith("analogy: spice finished in")
     assert not any("ode" in line for line in lines)
+
+
+def test_the_robot_option_says_that_a_robot_with_a_scene_starts_from_it():
+    """--robot serial3 takes the serial3 scene's pose, forces and initial rates: the help says so."""
+    text = " ".join(cli("compare", "--help").stdout.split())
+    assert "A robot with a built-in scene of its name" in text and "forces and initial rates included" in text

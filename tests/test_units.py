@@ -212,3 +212,11 @@ def test_a_force_s_unit_is_judged_by_its_joint_kind(argv, message, capsys):
     assert main(["netlist", *argv]) == 2
     err = capsys.readouterr().err
     assert message in err and err.count("\n") == 1
+
+
+def test_a_result_frame_carries_its_columns_units():
+    """Plain column names to index by, and the units the CSV header gives, in frame.attrs."""
+    from analogy.study.comparison import compare
+    frame = compare(scene("redundant").replace(t_stop=0.5).system(), "fast", ["ode", "exact"]).to_frame()
+    units = frame.attrs["units"]
+    assert "r1_ode" in frame.columns and units["r1_ode"] == "m/s" and units["time"] == "s"

@@ -53,7 +53,11 @@ def scene_options(p: argparse.ArgumentParser, preset: str = "accurate") -> None:
     g.add_argument("--scene", default="default", help="built-in scene to start from (see 'analogy scenes')")
     g.add_argument("--robot", help=f"built-in robot: {', '.join(ROBOT_NAMES)}, serial<N> (a planar "
                                    f"N-joint arm, e.g. serial4, N up to {MAX_SERIAL}) or random<N>; or from "
-                                   f"example-robot-data (pip install 'analogy[robots]'): {', '.join(URDF_ROBOTS)}")
+                                   f"example-robot-data (pip install 'analogy[robots]'): {', '.join(URDF_ROBOTS)}. "
+                                   "A robot with a built-in scene of its name "
+                                   f"({', '.join(s for s in SCENES if s != 'default')}) "
+                                   "starts from that scene, its pose, forces and initial rates included; "
+                                   "the other options change it")
     g.add_argument("--urdf", metavar="FILE", help="a robot from its URDF file (revolute, continuous, prismatic "
                    "and fixed joints; gravity along -z, --param g=0 turns it off); q1..qn follow its movable "
                    "joints depth first, each link's joints by name (Pinocchio's order)")

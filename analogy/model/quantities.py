@@ -8,9 +8,9 @@ from typing import Literal
 
 from ..errors import InputError
 
-__all__ = ["split_unit", "unit_factor", "unit_dimension", "check_dimension", "Dimension", "DIMENSIONS", "COORDINATE", "RATE",
-           "FORCE", "ANY",
-           "MAX_UNIT_LENGTH", "MAX_UNIT_EXPONENT", "Measured", "check_joint_dimensions", "check_parameter_units"]
+__all__ = ["split_unit", "unit_factor", "unit_dimension", "check_dimension", "Dimension", "DIMENSIONS", "COORDINATE",
+           "RATE", "FORCE", "ANY", "MAX_UNIT_LENGTH", "MAX_UNIT_EXPONENT", "Measured", "check_joint_dimensions",
+           "check_parameter_units"]
 
 #: Longest unit text accepted.
 MAX_UNIT_LENGTH = 40

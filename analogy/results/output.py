@@ -161,10 +161,19 @@ class Tabular:
         return write_columns(path, {_with_unit(name, units): v for name, v in cols.items()})
 
     def to_frame(self) -> "pandas.DataFrame":
-        """The :meth:`columns` as a pandas DataFrame indexed by the first of them."""
+        """The :meth:`columns` as a pandas DataFrame indexed by the first of them.
+
+        Column names stay plain (``r1_spice``), so that code can index them; their units
+        are in ``frame.attrs["units"]`` (``{"time": "s", "r1_spice": "rad/s", …}``), as
+        the CSV's header names them.
+        """
         import pandas as pd
+        system = getattr(self, "system", None)
+        joint = system.provenance.units if system is not None else None
         cols = self.columns()
-        return pd.DataFrame(cols).set_index(next(iter(cols)))
+        frame = pd.DataFrame(cols).set_index(next(iter(cols)))
+        frame.attrs["units"] = {name: u for name in cols if (u := column_unit(name, joint))}
+        return frame
 
 
 def data_uri(data: bytes, media: str) -> str:
