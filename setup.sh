@@ -2,14 +2,16 @@
 # Install whatever is missing, then run a task:
 #   bash setup.sh run   - the built-in default scene: SPICE, ODE and exact solutions compared
 #   bash setup.sh test  - the test suite
+#   bash setup.sh engine - the SPICE tests again, against ngspice 46 (Debian bookworm-backports)
 # Missing pieces: the ngspice shared library and executable (Debian libngspice0, ngspice),
 # Python's venv module, and a virtual environment .venv with analogy and its dependencies;
-# for the tests also Chromium (Debian chromium) and a font, for the browser check of the report.
+# for the tests also Chromium (Debian chromium) and a font, for the browser check of the report,
+# gnucap, and where npm exists ngspice compiled to WebAssembly (npm eecircuit-engine, in .engines/wasm).
 set -euo pipefail
 cd "$(dirname "$0")"
 task="${1:-run}"
 shift || true
-case "$task" in run|test) ;; *) echo "usage: bash setup.sh run|test" >&2; exit 2 ;; esac
+case "$task" in run|test|engine) ;; *) echo "usage: bash setup.sh run|test|engine" >&2; exit 2 ;; esac
 
 PYTHON="${PYTHON:-python3}"
 packages=()
@@ -18,9 +20,10 @@ packages=()
 command -v ngspice >/dev/null 2>&1 || packages+=(ngspice)
 "$PYTHON" -c 'import venv, ensurepip' >/dev/null 2>&1 || packages+=(python3-venv)
 # the test suite opens the HTML report in a real browser
-if [ "$task" = test ]; then
+if [ "$task" != run ]; then
     command -v chromium >/dev/null 2>&1 || packages+=(chromium)
     [ -d /usr/share/fonts/truetype/dejavu ] || packages+=(fonts-dejavu-core)
+    command -v gnucap >/dev/null 2>&1 || packages+=(gnucap)
 fi
 
 if [ "${#packages[@]}" -gt 0 ]; then
@@ -32,8 +35,29 @@ if [ "${#packages[@]}" -gt 0 ]; then
         "${packages[@]}" >/dev/null
 fi
 
+# ngspice 46 beside the system's: unpacked from bookworm-backports into .engines/ngspice-46, with
+# its own lists (the system's apt sources are left alone) and its code-model paths pointed there
+ngspice46() {
+    local root=.engines/ngspice-46 lists=.engines/apt
+    [ -x "$root/bin/ngspice" ] && return 0
+    grep -q '^12' /etc/debian_version 2>/dev/null || { echo "setup: ngspice 46 is fetched on Debian 12 only" >&2; return 1; }
+    mkdir -p "$lists/lists/partial" "$lists/cache/archives/partial" "$root/bin"
+    printf 'Types: deb\nURIs: http://deb.debian.org/debian\nSuites: bookworm-backports\nComponents: main\nSigned-By: /usr/share/keyrings/debian-archive-keyring.gpg\n' \
+        > "$lists/backports.sources"
+    local apt=(apt-get -qq -o Dir::Etc::sourcelist="$PWD/$lists/backports.sources" -o Dir::Etc::sourceparts=-
+               -o Dir::State::Lists="$PWD/$lists/lists" -o Dir::Cache="$PWD/$lists/cache")
+    "${apt[@]}" update
+    (cd "$lists" && "${apt[@]}" download libngspice0/bookworm-backports ngspice/bookworm-backports 2>/dev/null)
+    for deb in "$lists"/*ngspice*_46*.deb; do dpkg -x "$deb" "$root"; done
+    local here="$PWD/$root"
+    sed -i "s#/usr/lib/x86_64-linux-gnu/ngspice#$here/usr/lib/x86_64-linux-gnu/ngspice#g; s#/usr/lib/aarch64-linux-gnu/ngspice#$here/usr/lib/aarch64-linux-gnu/ngspice#g" \
+        "$root/usr/share/ngspice/scripts/spinit"
+    printf '#!/bin/sh\nSPICE_SCRIPTS=%s/usr/share/ngspice/scripts exec %s/usr/bin/ngspice "$@"\n' "$here" "$here" > "$root/bin/ngspice"
+    chmod +x "$root/bin/ngspice"
+}
+
 extras=""
-[ "$task" = test ] && extras="[test]"
+[ "$task" != run ] && extras="[test]"
 stamp=".venv/.installed$(echo "$extras" | tr -d '[]')"
 want="$(sha256sum pyproject.toml | cut -d' ' -f1)"
 if [ ! -x .venv/bin/python ]; then
@@ -46,9 +70,23 @@ if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
     echo "$want" > "$stamp"
 fi
 
+if [ "$task" = test ] && command -v npm >/dev/null 2>&1 && [ ! -d .engines/wasm/node_modules/eecircuit-engine ]; then
+    echo "setup: installing ngspice compiled to WebAssembly (npm eecircuit-engine) into .engines/wasm"
+    mkdir -p .engines/wasm
+    npm install --silent --prefix .engines/wasm eecircuit-engine >/dev/null 2>&1 \
+        || echo "setup: npm could not install eecircuit-engine; its tests will skip" >&2
+fi
+
 if [ "$task" = run ]; then
     mkdir -p out
     exec .venv/bin/analogy compare --csv out/default.csv --plot out/default.png "$@"
+elif [ "$task" = engine ]; then
+    ngspice46 || { echo "setup: no ngspice 46 here, so no engine pass" >&2; exit 0; }
+    lib="$(ls "$PWD"/.engines/ngspice-46/usr/lib/*/libngspice.so.0)"
+    echo "setup: the SPICE tests against $("$PWD"/.engines/ngspice-46/bin/ngspice -v | grep -o 'ngspice-[0-9]*' | head -1)"
+    ANALOGY_EXPECT_NGSPICE=46 PATH="$PWD/.engines/ngspice-46/bin:$PATH" NGSPICE_LIBRARY_PATH="$lib" \
+        SPICE_SCRIPTS="$PWD/.engines/ngspice-46/usr/share/ngspice/scripts" \
+        exec .venv/bin/python -m pytest -q -m "ngspice and not deep" "$@"
 else
     exec .venv/bin/python -m pytest -q "$@"
 fi

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 import re
-from typing import Iterable, Sequence
+from typing import Iterable, Literal, Sequence
 
 from ..errors import InputError
 from .description import (
@@ -16,8 +16,14 @@ from .description import (
 from .description import circuit as describe
 from .elements import ZERO_TOL
 
-__all__ = ["write_netlist", "write_batch", "ac_netlist", "circuit_lines", "analysis_lines", "first_step_lines",
-           "save_vectors", "comment_text", "spice_expression"]
+__all__ = ["Dialect", "DIALECTS", "write_netlist", "write_batch", "ac_netlist", "circuit_lines", "analysis_lines",
+           "first_step_lines", "save_vectors", "comment_text", "spice_expression", "gnucap_lines"]
+
+#: The SPICE engines a netlist is written for: ngspice's language, and gnucap's (linear circuits).
+Dialect = Literal["ngspice", "gnucap"]
+DIALECTS: tuple[str, ...] = ("ngspice", "gnucap")
+#: ``.options`` gnucap reads as ngspice does; the others are ngspice's own.
+_GNUCAP_OPTIONS = ("method", "reltol", "abstol", "vntol", "chgtol", "trtol")
 
 _SAFE_COMMENT = re.compile(r"[^A-Za-z0-9 _.,:;=+\-*/()\[\]{}<>'#%@!?|~^&$]")
 _SAFE_EXPRESSION = re.compile(r"^[A-Za-z0-9_.+\-*/()^ ,<>=!&|?:]+$")
@@ -225,7 +231,7 @@ def _header(c: Circuit, title: str | None, realizable: bool) -> list[str]:
 
 
 def write_netlist(c: Circuit, settings, save: Iterable[str] | None = None, title: str | None = None,
-                  printing: bool = True) -> str:
+                  printing: bool = True, dialect: Dialect = "ngspice") -> str:
     """Circuit *c* with the spice solver's *settings* as a SPICE netlist that ``ngspice -b`` runs unchanged.
 
     Parameters
@@ -241,11 +247,60 @@ def write_netlist(c: Circuit, settings, save: Iterable[str] | None = None, title
         First line of the netlist.
     printing : bool
         End with ``.print tran`` of the saved vectors (see :func:`analysis_lines`).
+    dialect : {"ngspice", "gnucap"}
+        The engine that reads it (see :func:`gnucap_lines` for what gnucap needs).
     """
+    if dialect == "gnucap":
+        return "\n".join(_header(c, title, bool(c.couplings)) + gnucap_lines(c, settings, save)) + "\n"
+    if dialect != "ngspice":
+        raise InputError(f"unknown netlist dialect {dialect!r}: use {' or '.join(DIALECTS)}")
     vectors = save_vectors(c, save)
     body = circuit_lines(c) + first_step_lines(settings, c.node_names[0])
     tail = analysis_lines(settings, c.initial, vectors, printing) + [".end"]
     return "\n".join(_header(c, title, bool(c.couplings)) + body + tail) + "\n"
+
+
+def gnucap_lines(c: Circuit, settings, save: Iterable[str] | None = None) -> list[str]:
+    """Circuit *c* in gnucap's dialect: the device and analysis lines after the header.
+
+    gnucap reads ngspice's element and source lines, but not ``.ic`` (each capacitor gets
+    ``IC=`` its initial voltage instead), ``.save``, a SIN phase, a ``.print`` after ``.tran``
+    (it runs ``.tran`` as soon as it reads it) or behavioural parts (``Q={…}``, ``B``).
+    ``numdgt=17`` prints every digit; ``noincmode`` solves each step in full, since the
+    incremental mode's error (1e-6 to 1e-4 measured) is above the accurate bound.
+
+    Parameters
+    ----------
+    c : Circuit
+        A linear circuit (its couplings too).
+    settings : TransientSettings
+        The spice solver's settings.
+    save : iterable of str, optional
+        Node names to print (gnucap prints node voltages here); default every node.
+    """
+    if c.behavioural:
+        raise InputError("gnucap has no charge-defined capacitors (Q={...}) or behavioural sources (B): "
+                         "a nonlinear circuit runs in ngspice only")
+    wanted = list(c.node_names) if save is None else list(save)
+    if bad := [n for n in wanted if n not in c.node_names]:
+        raise InputError(f"gnucap prints node voltages here: {bad[0]!r} is not one of {', '.join(c.node_names)}")
+    start = {"0": 0.0, **{name: value for name, value in c.initial}}
+    lines = []
+    for line in circuit_lines(c) + first_step_lines(settings, c.node_names[0]):
+        words = line.split()
+        if words[0][0] == "C":              # the run starts from each capacitor's initial voltage
+            line += f" IC={_num(start.get(words[1], 0.0) - start.get(words[2], 0.0))}"
+        elif words[0][0] == "I" and words[3].startswith("SIN("):
+            args = line[line.index("SIN(") + 4:-1].split()
+            if len(args) == 6 and float(args[5]) != 0.0:
+                raise InputError(f"gnucap's SIN has no phase: source {words[0]} starts at phase {args[5]} deg")
+            line = line[:line.index("SIN(")] + "SIN(" + " ".join(args[:5]) + ")"
+        lines.append(line)
+    options = " ".join(f"{k}={v}" for k, v in settings.options if k in _GNUCAP_OPTIONS)
+    return lines + [f".options {options} numdgt=17 noincmode",
+                    ".print tran " + " ".join(f"v({n})" for n in wanted),
+                    f".tran {_num(settings.print_step)} {_num(settings.stop)} 0 {_num(settings.max_step)} uic",
+                    ".end"]
 
 
 def write_batch(described: Sequence[Circuit], settings) -> str:

@@ -43,7 +43,8 @@ def _cmd_netlist(args) -> int:
         raise InputError("--realizable applies to the linear circuit, not to --dynamics nonlinear")
     check_writable(args.output)
     save = None if args.save is None else [s.strip() for s in args.save.split(",") if s.strip()]
-    text = netlist(sc.system(), args.preset, save=save, realizable=args.realizable, title=_title(sc))
+    text = netlist(sc.system(), args.preset, save=save, realizable=args.realizable, title=_title(sc),
+                   dialect=args.dialect)
     if args.output:
         try:
             Path(args.output).write_text(text)
@@ -59,7 +60,7 @@ def _cmd_compare(args) -> int:
     sc = scene_from_args(args)
     solvers = [s.strip() for s in args.solvers.split(",") if s.strip()]
     if not solvers:
-        raise InputError("--solvers names no solver: use spice, ode, exact and/or reference")
+        raise InputError("--solvers names no solver: use spice, gnucap, ode, exact and/or reference")
     if args.no_plot and args.plot:
         raise InputError("--plot and --no-plot contradict each other")
     # Output paths are checked before any work, so nothing computed is lost to a typo.

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from .. import __version__
+from ..circuit.netlist import DIALECTS
 from ..errors import InputError
 from ..presets import PRESETS
 from .batch import batch_options
@@ -34,13 +35,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--save", metavar="NAMES", help="nodes or elements to save, e.g. 'n1, C1_2' (default: all nodes)")
     p.add_argument("--realizable", action="store_true",
                    help="no negative values: negative elements behind 1:-1 couplings")
+    p.add_argument("--dialect", default="ngspice", choices=list(DIALECTS),
+                   help="the engine that reads it: ngspice (default, any circuit) or gnucap (linear circuits: "
+                        "IC= on each capacitor instead of .ic, .print before .tran)")
     p.add_argument("--dynamics", default="linear", choices=["linear", "nonlinear"],
                    help="the circuit at q (linear), or the robot's full nonlinear circuit: "
                         "charge-defined capacitors, behavioural forces and integrators")
     p = sub.add_parser("compare", help="run SPICE, ODE and exact solvers and compare them")
     scene_options(p)
     p.add_argument("--solvers", default="spice,ode,exact",
-                   help="comma-separated registered solvers: spice, ode, exact, reference")
+                   help="comma-separated registered solvers: spice, gnucap (linear circuits, where installed), "
+                        "ode, exact, reference")
     p.add_argument("--dynamics", default="linear", choices=["linear", "nonlinear", "both"],
                    help="the circuit at q (linear), the full configuration-dependent motion, or both: "
                         "how long the linear circuit holds")

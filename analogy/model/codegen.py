@@ -8,6 +8,8 @@ import inspect
 import numpy as np
 import sympy as sp
 
+from .equilibrium import elastic_coordinates
+
 __all__ = ["module_source"]
 
 
@@ -22,7 +24,6 @@ def module_source(model, baked: bool = False) -> str:
         Its parameters are numbers inside its expressions (a flexible arm's mode shapes
         follow them): the source holds that one parameter set only.
     """
-    from .equilibrium import elastic_coordinates
     args = list(model.coordinates) + list(model.symbols.values())
     header = [f"NAME = {model.name!r}", f"PARAMETERS = {dict(model.parameters)!r}",
               f"COORDINATES = {tuple(str(c) for c in model.coordinates)!r}",

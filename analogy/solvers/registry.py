@@ -47,11 +47,12 @@ from ..results.trajectory_stack import TrajectoryStack
 __all__ = ["Solver", "SolverName", "SOLVER_NAMES", "solver", "solve", "run", "run_many", "stacked_trajectories"]
 
 #: Registered solver names.
-SolverName = Literal["spice", "ode", "exact", "reference"]
+SolverName = Literal["spice", "gnucap", "ode", "exact", "reference"]
 
 # name -> module that defines SOLVER; imported on first use.
 _MODULES: dict[str, str] = {
     "spice": "analogy.solvers.spice",
+    "gnucap": "analogy.solvers.gnucap",
     "ode": "analogy.solvers.ode",
     "exact": "analogy.solvers.exact",
     "reference": "analogy.solvers.reference",

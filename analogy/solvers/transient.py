@@ -11,7 +11,7 @@ import numpy as np
 from ..circuit.description import Circuit, circuits
 from ..circuit.description import circuit as describe
 from ..circuit.elements import ZERO_TOL
-from ..circuit.netlist import write_batch, write_netlist
+from ..circuit.netlist import Dialect, write_batch, write_netlist
 from ..circuit.scales import Scales, combined_scales, stack_scales, system_scales
 from ..errors import InputError, SimulationError
 from ..presets import Preset
@@ -165,7 +165,7 @@ def _settings_of(system, c: Circuit, preset, loosen: float = 1.0) -> TransientSe
 
 def netlist(system, preset: str | Preset = "accurate", save: Iterable[str] | None = None,
             zero_tol: float = ZERO_TOL, title: str | None = None, realizable: bool = False,
-            printing: bool = True, loosen: float = 1.0) -> str:
+            printing: bool = True, loosen: float = 1.0, dialect: Dialect = "ngspice") -> str:
     """The netlist the spice solver runs for *system*; ``ngspice -b`` runs and prints it unchanged.
 
     Parameters
@@ -187,17 +187,20 @@ def netlist(system, preset: str | Preset = "accurate", save: Iterable[str] | Non
         digits), which ``ngspice -b`` shows; the steps taken are the same without it.
     loosen : float
         Factor on abstol and vntol (see :class:`TransientSettings`).
+    dialect : {"ngspice", "gnucap"}
+        The engine that reads it: ngspice's language, or gnucap's for a linear circuit
+        (:func:`~analogy.circuit.netlist.gnucap_lines`).
     """
     if isinstance(system, Circuit):
         settings = transient_settings(preset, system.t_stop, None, behavioural=bool(system.behavioural),
                                       coupled=bool(system.couplings), loosen=loosen)
-        return write_netlist(system, settings, save, title, printing)
+        return write_netlist(system, settings, save, title, printing, dialect)
     c = describe(system, zero_tol, realizable)
     try:
         settings = _settings_of(system, c, preset, loosen)
     except SimulationError as exc:      # no netlist can be written for it: the input's scale
         raise InputError(str(exc)) from None
-    return write_netlist(c, settings, save, title, printing)
+    return write_netlist(c, settings, save, title, printing, dialect)
 
 
 def batch_netlist(systems: Sequence, preset: str | Preset = "fast", scales: Scales | None = None) -> str:
