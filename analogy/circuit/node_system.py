@@ -195,6 +195,22 @@ class NodeSystem(NodeCoordinates):
     """
 
     kind: DynamicsKind = "linear"
+    #: Its circuit puts each negative element behind a 1:−1 coupling (see :meth:`realized`).
+    realizable: bool = False
+
+    def realized(self, realizable: bool = True) -> "NodeSystem":
+        """This system, to be simulated as its realizable circuit: the same dynamics, no
+        negative element (each behind a 1:−1 coupling). The circuit solvers (spice, gnucap)
+        build that circuit; the ODE and exact solvers solve the same equations.
+
+        Parameters
+        ----------
+        realizable : bool
+            False gives back the signed circuit.
+        """
+        out = copy.copy(self)
+        out.realizable = bool(realizable)
+        return out
 
     def __init__(self, joint: JointSpace, topology: Topology, forces: tuple, initial_rates,
                  t_stop: float, info: Mapping | None = None):

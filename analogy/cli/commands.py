@@ -39,7 +39,7 @@ def _title(sc: Scene) -> str:
 
 def _cmd_netlist(args) -> int:
     sc = scene_from_args(args)
-    if args.realizable and sc.dynamics != "linear":
+    if args.realizable and args.dynamics != "linear":
         raise InputError("--realizable applies to the linear circuit, not to --dynamics nonlinear")
     check_writable(args.output)
     save = None if args.save is None else [s.strip() for s in args.save.split(",") if s.strip()]
@@ -80,9 +80,12 @@ def _cmd_compare(args) -> int:
         # one knob: the operation budget scales with the points'
         preset = replace(preset, work_budget=budget, segment_budget=int(min(budget, 2 ** 62)),
                          operation_budget=preset.operation_budget * budget / preset.work_budget)
+    if args.realizable and args.dynamics != "linear":
+        raise InputError("--realizable applies to the linear circuit, not to --dynamics nonlinear or both")
     if args.dynamics == "both":
         return _compare_both(sc, args, solvers, step)
-    result = compare(sc.system(), preset, solvers, step=step, progress=Heartbeat())
+    system = sc.system().realized() if args.realizable else sc.system()
+    result = compare(system, preset, solvers, step=step, progress=Heartbeat())
     print(result.table())
     return _written_and_judged(result, result, args)
 

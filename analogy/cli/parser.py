@@ -49,6 +49,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--dynamics", default="linear", choices=["linear", "nonlinear", "both"],
                    help="the circuit at q (linear), the full configuration-dependent motion, or both: "
                         "how long the linear circuit holds")
+    p.add_argument("--realizable", action="store_true", help="the circuit solvers (spice, gnucap) run the "
+                   "realizable circuit: no negative values, negative elements behind 1:-1 couplings")
     p.add_argument("--step", metavar="SECONDS", help="output step of the shared time grid "
                    "(default: SPICE's own points); errors are measured on each solver's own points")
     p.add_argument("--timeout", metavar="SECONDS", help="wall-time limit of each ODE integration "

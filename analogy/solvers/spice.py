@@ -82,7 +82,7 @@ def solve_spice(system, times=None, *, preset="accurate", save=None) -> Trajecto
     save : sequence of str, optional
         Element names whose currents to return in :attr:`Trajectory.currents`.
     """
-    circ = circuit(system, describe=False)
+    circ = circuit(system, realizable=getattr(system, "realizable", False), describe=False)
     names = [e for e in (save or []) if e not in system.nodes] + circ.state_nodes
     vectors = save_vectors(circ, list(system.nodes) + names)
     scales = system_scales(system)
@@ -169,7 +169,7 @@ class SpiceSolver(Solver):
         positions : bool
             Unused.
         """
-        if len(systems) == 1 or save or times is not None:
+        if len(systems) == 1 or save or times is not None or any(getattr(s, "realizable", False) for s in systems):
             return super().solve_many(systems, times, preset, save=save)
         scales = combined_scales(stack_scales(systems))
         text = batch_netlist(systems, preset, scales)

@@ -58,6 +58,9 @@ class TransientSettings:
     horizons : tuple of float
         Ends of shorter systems in the same run, before :attr:`stop`: each is a breakpoint,
         so that ngspice steps onto it and each system's output ends at its own horizon.
+    impedance : float or None
+        The circuit's impedance scale [Ω]: its velocity scale over its current scale
+        (gnucap's dialect sizes the resistance of its voltage sources from it).
     """
 
     options: tuple
@@ -67,6 +70,7 @@ class TransientSettings:
     first_step: float
     loosen: float = 1.0
     horizons: tuple = ()
+    impedance: float | None = None
 
     @property
     def breakpoint(self) -> float | None:
@@ -155,7 +159,11 @@ def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | Non
                 raise SimulationError(f"SPICE cannot run this circuit: its {key} scale is past the floating-point "
                                       f"range ({_SCALE_NAMES[key]} = {size:.3g}); the ODE and exact solvers can")
             opts[key] = f"{value:.3g}"
-    return TransientSettings(tuple((k, str(v)) for k, v in opts.items()), tstep, t_stop, tmax, first, loosen)
+    impedance = None
+    if scales is not None and scales.current > 0 and math.isfinite(scales.peak_velocity / scales.current):
+        impedance = scales.peak_velocity / scales.current
+    return TransientSettings(tuple((k, str(v)) for k, v in opts.items()), tstep, t_stop, tmax, first, loosen,
+                             impedance=impedance)
 
 
 def _settings_of(system, c: Circuit, preset, loosen: float = 1.0) -> TransientSettings:
@@ -164,7 +172,7 @@ def _settings_of(system, c: Circuit, preset, loosen: float = 1.0) -> TransientSe
 
 
 def netlist(system, preset: str | Preset = "accurate", save: Iterable[str] | None = None,
-            zero_tol: float = ZERO_TOL, title: str | None = None, realizable: bool = False,
+            zero_tol: float = ZERO_TOL, title: str | None = None, realizable: bool | None = None,
             printing: bool = True, loosen: float = 1.0, dialect: Dialect = "ngspice") -> str:
     """The netlist the spice solver runs for *system*; ``ngspice -b`` runs and prints it unchanged.
 
@@ -180,8 +188,9 @@ def netlist(system, preset: str | Preset = "accurate", save: Iterable[str] | Non
         Relative tolerance under which an element is left out.
     title : str, optional
         First line of the netlist.
-    realizable : bool
-        Build negative elements from positive ones behind inverting couplings.
+    realizable : bool, optional
+        Build negative elements from positive ones behind inverting couplings (default:
+        as the system says, :meth:`~analogy.circuit.node_system.NodeSystem.realized`).
     printing : bool
         Print the saved vectors on the print step (``.print tran``, ``interp`` and 15
         digits), which ``ngspice -b`` shows; the steps taken are the same without it.
@@ -195,7 +204,7 @@ def netlist(system, preset: str | Preset = "accurate", save: Iterable[str] | Non
         settings = transient_settings(preset, system.t_stop, None, behavioural=bool(system.behavioural),
                                       coupled=bool(system.couplings), loosen=loosen)
         return write_netlist(system, settings, save, title, printing, dialect)
-    c = describe(system, zero_tol, realizable)
+    c = describe(system, zero_tol, getattr(system, "realizable", False) if realizable is None else realizable)
     try:
         settings = _settings_of(system, c, preset, loosen)
     except SimulationError as exc:      # no netlist can be written for it: the input's scale

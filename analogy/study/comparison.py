@@ -153,7 +153,8 @@ class Comparison(Tabular):
         """A plain-text table of run time, error and steps per solver."""
         where = (f"errors against the {self.reference} solution, on each solver's own points, each output "
                  "against its own peak" if self.reference else "no reference, so no errors measured")
-        lines = [f"robot {self.system.provenance.robot}, topology {self.system.topology.name}, "
+        circuit = ", realizable circuit" if getattr(self.system, "realizable", False) else ""
+        lines = [f"robot {self.system.provenance.robot}, topology {self.system.topology.name}{circuit}, "
                  f"preset {self.preset}, {self.time.size} time points; {where}",
                  f"{'solver':<10}{'run time [ms]':>15}{'max |error|':>14}{'worst output':>14}"
                  f"{'error / peak':>14}{'all / peak':>12}{'steps':>8}"]
@@ -305,6 +306,7 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
     nonlinear = systems[0].kind != "linear"
     want_x = positions or bool(save) or nonlinear       # the energy balance needs positions
     skipped = {}
+    resampled: set = set()          # own-grid solvers reported on another's points
     for name in list(order):
         reason = solver(name).supports(systems[0])
         if reason is not None:
@@ -317,11 +319,13 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
         if s.own_grid:
             trs = run_many(name, systems, None, p, save=save, positions=want_x)
             native[name] = trs
-            if given is None:
+            if given is None and all(g is None for g in grids):       # the first to run sets the grid
                 grids = [tr.time if tr.success and grids[k] is None else grids[k]
                          for k, tr in enumerate(trs)]
-            else:
-                trs = TrajectoryStack([tr.resampled(grids[k], sys_.joint_rates) if tr.success else tr
+            else:               # on the shared grid for the table; its errors on its own points
+                resampled.add(name)
+                trs = TrajectoryStack([tr.resampled(grids[k], sys_.joint_rates)
+                                       if tr.success and grids[k] is not None else tr
                                        for k, (tr, sys_) in enumerate(zip(trs, systems))])
         else:
             default = {t: np.linspace(0.0, t, p.steps + 1) for t in dict.fromkeys(ends)}
@@ -344,7 +348,7 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
     if progress is not None:
         progress(None)
     out = []
-    measured = _measure(systems, runs, native, ref_name, p, tuple(save), set(native) if given is not None else set())
+    measured = _measure(systems, runs, native, ref_name, p, tuple(save), resampled)
     columns = [(n, runs[n]) for n in order]
     for k, system in enumerate(systems):
         results, failures = {}, {}
