@@ -406,3 +406,13 @@ def test_every_robot_family_is_one_registry_entry_that_builds():
     assert robot_family("serial2")[0].name == "serial2"       # a fixed name before its family
     with pytest.raises(InputError, match=r"unknown robot 'ur5': use redundant, .*serial<N>.*random<N>"):
         robot_family("ur5")
+
+
+def test_a_symbolic_model_shows_itself_briefly_and_as_rendered_maths():
+    """A short repr, and LaTeX for a notebook: M(q) of the 2R arm has its cos(q2) coupling term."""
+    from analogy.model.robots import robot
+    model = robot("serial2")
+    assert repr(model) == "<Model serial2: coordinates q1, q2; 7 parameters>"
+    latex = model._repr_latex_()
+    assert latex.startswith("$\\displaystyle M(q) = ") and latex.endswith("$")
+    assert "2 d_{2} l_{1} l_{2} \\cos{\\left(q_{2} \\right)}" in latex and "B = " in latex

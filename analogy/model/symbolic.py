@@ -184,6 +184,16 @@ class Model:
         """Per coordinate, ``"rad"`` or ``"m"``, from :attr:`joints` (None where not declared)."""
         return joint_units(self.joints)
 
+    def __repr__(self) -> str:
+        coords = ", ".join(str(c) for c in self.coordinates) or "none"
+        return f"<Model {self.name}: coordinates {coords}; {len(self.parameters)} parameters>"
+
+    def _repr_latex_(self) -> str:
+        """M(q), and B, K and G(q) where the model has them, as LaTeX: a notebook renders the maths."""
+        parts = (("M(q)", self.mass_matrix), ("B", self.damping), ("K", self.stiffness), ("G(q)", self.gravity))
+        shown = [f"{label} = {sp.latex(m)}" for label, m in parts if m is not None and m.is_zero_matrix is not True]
+        return "$\\displaystyle " + ",\\quad ".join(shown) + "$"
+
     def __post_init__(self):
         if isinstance(self.mass_matrix, sp.MatrixBase):
             m = self.mass_matrix
