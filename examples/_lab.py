@@ -147,15 +147,14 @@ def check_solvers(system, out: Path, stem: str):
     return result
 
 
-def draw_diagrams(system, out: Path, stem: str) -> list[Path]:
-    """Circuit and mechanism diagrams (SVG and PNG) of *system*."""
+def draw_diagrams(system, out: Path, stem: str) -> None:
+    """Circuit and mechanism diagrams (SVG and PNG) of *system*, listed and shown."""
     from analogy.circuit.diagram import draw
     paths = draw(system, out, stem)
     print("diagrams:", ", ".join(p.name for p in paths))
     for path in paths:
         if path.suffix == ".png":
             show(path)
-    return paths
 
 
 def sweep(scene, model, joint: int, values):
@@ -257,15 +256,15 @@ def envelope(time, values, windows: int = 100):
     return ((edges[:-1] + edges[1:]) / 2)[keep], top[keep]
 
 
-def save(fig, path: Path) -> Path:
-    """Write *fig* to *path*; in a notebook, show it as well."""
+def save(fig, path: Path) -> None:
+    """Write *fig* to *path*; in a notebook, show it as well (and nothing else: a cell that ends
+    with it shows the picture, not a PosixPath)."""
     fig.savefig(path, dpi=110)
     print(f"wrote {path}")
     show(path)
-    return path
 
 
-def animate(shown, path: Path) -> Path:
+def animate(shown, path: Path) -> None:
     """Write the motion *shown* as a GIF at *path* and its contact sheet beside it; in a notebook,
     play it below the cell (its own HTML player)."""
     shown.save(path)
@@ -276,7 +275,6 @@ def animate(shown, path: Path) -> Path:
         from IPython.display import HTML, display
         display(HTML(shown.to_jshtml()))
     show(sheet)
-    return path
 
 
 def show(path: Path) -> None:

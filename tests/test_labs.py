@@ -164,6 +164,9 @@ def test_lab_runs_as_a_notebook(lab, tmp_path, monkeypatch):
     players = [o for cell in notebook.cells if cell.cell_type == "code"
                for o in cell.outputs if 'aria-label="Play"' in "".join(o.get("data", {}).get("text/html", ""))]
     assert len(players) == len(list(out.glob("*.gif"))), "every animation plays in the notebook"
+    results = [o["data"].get("text/plain", "") for cell in notebook.cells if cell.cell_type == "code"
+               for o in cell.outputs if o.get("output_type") == "execute_result"]
+    assert not [r for r in results if r.startswith(("PosixPath(", "["))], "a cell ends on a path or list"
     state = notebook.metadata.get("widgets", {}).get("application/vnd.jupyter.widget-state+json", {})
     for widget in state.get("state", {}).values():
         if widget["model_name"] == "OutputModel":
