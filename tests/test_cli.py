@@ -219,3 +219,13 @@ def test_the_robot_option_says_that_a_robot_with_a_scene_starts_from_it():
     """--robot serial3 takes the serial3 scene's pose, forces and initial rates: the help says so."""
     text = " ".join(cli("compare", "--help").stdout.split())
     assert "A robot with a built-in scene of its name" in text and "forces and initial rates included" in text
+
+
+def test_a_csv_of_many_rows_is_announced_with_its_size_and_the_step_that_thins_it(tmp_path, monkeypatch, capsys):
+    from analogy.cli import commands, main
+    monkeypatch.setattr(commands, "CSV_ROWS", 50)
+    path = tmp_path / "r.csv"
+    assert main(["compare", "--solvers", "ode,exact", "--no-plot", "--csv", str(path)]) == 0
+    err = capsys.readouterr().err
+    rows = sum(1 for _ in path.open()) - 1
+    assert f"writing {rows:,} rows to {path}" in err and "--step 0.001 writes 10,001" in err

@@ -102,10 +102,20 @@ def _compare_both(sc, args, solvers, step) -> int:
     return _written_and_judged(horizon, horizon.nonlinear, args)
 
 
+#: Rows of a CSV past which the command says how many, and how large, before writing.
+CSV_ROWS = 100_000
+
+
 def _written_and_judged(output, result, args) -> int:
     """Write --csv and --plot of *output* (even when a solver failed), then the exit code of *result*."""
     try:
         if args.csv:
+            cols = output.columns()
+            rows = len(next(iter(cols.values())))
+            if rows > CSV_ROWS:         # said before the time and disk go, with the way to fewer rows
+                span = float(output.time[-1]) if getattr(output, "time", None) is not None else 0.0
+                print(f"analogy: writing {rows:,} rows to {args.csv} (about {rows * len(cols) * 20 / 1e6:,.0f} MB);"
+                      f" --step {span / 10_000:.3g} writes 10,001", file=sys.stderr)
             output.to_csv(args.csv)
             print(f"wrote {args.csv}")
         if args.plot:
