@@ -90,7 +90,8 @@ def solve_gnucap(system, preset: str | Preset = "accurate") -> Trajectory:
     elapsed = _time.perf_counter() - start
     said = [line for line in (res.stdout + res.stderr).splitlines() if re.search(r"error|fail|abort", line, re.I)]
     if res.returncode != 0 or said:
-        raise SimulationError("gnucap failed: " + (" ".join(said[0].split())[:200] if said else f"exit {res.returncode}"))
+        why = " ".join(said[0].split())[:200] if said else f"exit {res.returncode}"
+        raise SimulationError(f"gnucap failed: {why}")
     data = read_gnucap(res.stdout)
     volts = np.column_stack([data[f"v({n})"] for n in system.nodes])
     time = data["time"]
