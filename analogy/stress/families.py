@@ -18,7 +18,7 @@ __all__ = ["StressCase", "FAMILIES", "FAMILY_TITLES", "cases", "singular_q1", "s
 
 #: The families, by letter, with what each sweeps.
 FAMILY_TITLES = {
-    "a": "conditioning: cond(M') from 1 to 1e14",
+    "a": "conditioning: cond(M) from 1 to 1e14",
     "b": "time-scale separation: ω_max/ω_min from 1 to 1e8, damping ratio from 0 to 1e3",
     "c": "long undamped runs: 10 to 10,000 periods",
     "d": "size: n = 2 to 200, dense, serial topology",

@@ -147,7 +147,11 @@ class StressReport(Tabular):
             for b in bounds:
                 top.axhline(b, color="grey", ls=":", lw=1)
             top.set(yscale="log", ylabel="max |error| / peak [1]")
-            fig.suptitle(textwrap.fill(f"family {fam}: {FAMILY_TITLES[fam]}", 80)
+            # what this run swept (a --quick run only the ends of each range), not the full ranges
+            swept = "; ".join(f"{axis} " + (f"{lo:g}" if lo == hi else f"from {lo:g} to {hi:g}")
+                              for axis in axes for lo, hi in [(min(r.value for r in rows if r.axis == axis),
+                                                               max(r.value for r in rows if r.axis == axis))])
+            fig.suptitle(textwrap.fill(f"family {fam}, {FAMILY_TITLES[fam].split(':')[0]}: {swept}", 80)
                          + "\n(dotted: bounds; red rings: outside bound)", fontsize=10)
             bottom.set(yscale="log", ylabel="run time [s]",
                        xlabel=_AXIS_UNITS.get(axes[0], f"{axes[0]} [1]") if len(axes) == 1
