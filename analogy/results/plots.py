@@ -166,9 +166,10 @@ def plot_comparison(comparison, path=None) -> Figure:
             err = np.max(np.abs(tr.rates - ref.rates) / peak, axis=1)
             t, env = error_envelope(tr.time, np.where(err > 0, err, np.nan))     # log axis: no zeros
             axe.semilogy(t, env, color="k", label=name, **solver_style(name))
-        which = "the joint's rate" if n == 1 else f"worst of the {n} joints"
-        axe.set_title(f"error against {comparison.reference}: {which}, each relative to its own peak "
-                      "(largest in each time window)", fontsize="small")
+        which = "the joint's rate, relative to its peak" if n == 1 else \
+            f"worst of the {n} joints, each relative to its own peak"
+        axe.set_title(f"error against {comparison.reference}: {which} (largest in each time window)",
+                      fontsize="small")
     axe.set_xlabel("time [s]")
     axe.set_ylabel("|error| / own peak rate [1]")
     if axe.lines:
