@@ -39,19 +39,23 @@ fi
 # its own lists (the system's apt sources are left alone) and its code-model paths pointed there
 ngspice46() {
     local root=.engines/ngspice-46 lists=.engines/apt
-    [ -x "$root/bin/ngspice" ] && return 0
+    [ -x "$root/bin/ngspice" ] && [ -n "$(ls "$root"/usr/lib/*/libngspice.so.0 2>/dev/null)" ] && return 0
     grep -q '^12' /etc/debian_version 2>/dev/null || { echo "setup: ngspice 46 is fetched on Debian 12 only" >&2; return 1; }
-    mkdir -p "$lists/lists/partial" "$lists/cache/archives/partial" "$root/bin"
+    rm -rf "$root" "$lists"
+    mkdir -p "$lists/lists/partial" "$lists/cache/archives/partial"
     printf 'Types: deb\nURIs: http://deb.debian.org/debian\nSuites: bookworm-backports\nComponents: main\nSigned-By: /usr/share/keyrings/debian-archive-keyring.gpg\n' \
         > "$lists/backports.sources"
     local apt=(apt-get -qq -o Dir::Etc::sourcelist="$PWD/$lists/backports.sources" -o Dir::Etc::sourceparts=-
                -o Dir::State::Lists="$PWD/$lists/lists" -o Dir::Cache="$PWD/$lists/cache")
-    "${apt[@]}" update
-    (cd "$lists" && "${apt[@]}" download libngspice0/bookworm-backports ngspice/bookworm-backports 2>/dev/null)
-    for deb in "$lists"/*ngspice*_46*.deb; do dpkg -x "$deb" "$root"; done
-    local here="$PWD/$root"
-    sed -i "s#/usr/lib/x86_64-linux-gnu/ngspice#$here/usr/lib/x86_64-linux-gnu/ngspice#g; s#/usr/lib/aarch64-linux-gnu/ngspice#$here/usr/lib/aarch64-linux-gnu/ngspice#g" \
-        "$root/usr/share/ngspice/scripts/spinit"
+    "${apt[@]}" update || return 1
+    (cd "$lists" && "${apt[@]}" download libngspice0/bookworm-backports ngspice/bookworm-backports 2>/dev/null) || return 1
+    local debs=("$lists"/*ngspice*_46*.deb)
+    [ -f "${debs[0]}" ] || { echo "setup: bookworm-backports has no ngspice 46" >&2; return 1; }
+    for deb in "${debs[@]}"; do dpkg -x "$deb" "$root" || return 1; done
+    local here="$PWD/$root" spinit="$root/usr/share/ngspice/scripts/spinit"
+    [ -f "$spinit" ] && [ -n "$(ls "$root"/usr/lib/*/libngspice.so.0 2>/dev/null)" ] || return 1
+    sed -i "s#/usr/lib/x86_64-linux-gnu/ngspice#$here/usr/lib/x86_64-linux-gnu/ngspice#g; s#/usr/lib/aarch64-linux-gnu/ngspice#$here/usr/lib/aarch64-linux-gnu/ngspice#g" "$spinit"
+    mkdir -p "$root/bin"            # the wrapper last: its presence says the rest is there
     printf '#!/bin/sh\nSPICE_SCRIPTS=%s/usr/share/ngspice/scripts exec %s/usr/bin/ngspice "$@"\n' "$here" "$here" > "$root/bin/ngspice"
     chmod +x "$root/bin/ngspice"
 }
@@ -81,7 +85,8 @@ if [ "$task" = run ]; then
     mkdir -p out
     exec .venv/bin/analogy compare --csv out/default.csv --plot out/default.png "$@"
 elif [ "$task" = engine ]; then
-    ngspice46 || { echo "setup: no ngspice 46 here, so no engine pass" >&2; exit 0; }
+    # a machine that cannot fetch it (not Debian 12, no network) skips the pass and says so
+    ngspice46 || { echo "setup: ngspice 46 could not be set up here, so there is no engine pass" >&2; exit 0; }
     lib="$(ls "$PWD"/.engines/ngspice-46/usr/lib/*/libngspice.so.0)"
     echo "setup: the SPICE tests against $("$PWD"/.engines/ngspice-46/bin/ngspice -v | grep -o 'ngspice-[0-9]*' | head -1)"
     ANALOGY_EXPECT_NGSPICE=46 PATH="$PWD/.engines/ngspice-46/bin:$PATH" NGSPICE_LIBRARY_PATH="$lib" \

@@ -93,8 +93,7 @@ def _read_part(path: Path, columns=None):
         table = pq.read_table(path, columns=wanted, page_checksum_verification=True)
     except (OSError, pa.ArrowException, ValueError) as exc:
         raise _damaged(path, exc) from None
-    return table.rename_columns(["scene" if old and n == "index" else n for n in table.column_names]) if old \
-        else table
+    return _scene_column(table)
 
 
 def _computed(directory: Path) -> bool:
@@ -321,7 +320,15 @@ def _write_ipc(path: Path, table) -> None:
 def _read_ipc(path: Path):
     import pyarrow as pa
     with pa.memory_map(str(path)) as source:
-        return pa.ipc.open_file(source).read_all()
+        return _scene_column(pa.ipc.open_file(source).read_all())
+
+
+def _scene_column(table):
+    """*table* with an older store's 'index' column named 'scene', as it is now."""
+    names = table.column_names
+    if "index" in names and "scene" not in names:
+        return table.rename_columns(["scene" if n == "index" else n for n in names])
+    return table
 
 
 def read(directory) -> "pandas.DataFrame":

@@ -7,6 +7,8 @@ import importlib.util
 import os
 from pathlib import Path
 
+import numpy as np
+
 from ..errors import InputError
 from ..units import joint_units
 from .joint import (
@@ -22,7 +24,7 @@ from .joint import (
 __all__ = ["CompiledModel", "cache_dir", "compile_model", "load_compiled"]
 
 _SOURCES = ("joint.py", "symbolic.py", "robots.py", "linkages.py", "compiled.py", "codegen.py", "flexible.py",
-            "beams.py", "equilibrium.py")
+            "beams.py", "equilibrium.py", "catalog.py")
 
 
 def cache_dir() -> Path | None:
@@ -102,7 +104,12 @@ class CompiledModel:
 
     def _same_parameters(self, parameters) -> None:
         # A baked model's numbers are its parameters: other values would be silently ignored.
-        if self.baked and parameters and any(self.parameters.get(k) != v for k, v in parameters.items()):
+        if not (self.baked and parameters):
+            return
+        if any(np.ndim(v) for v in parameters.values()):
+            raise InputError(f"model {self.name!r} is rebuilt for new parameter values, "
+                             "so its parameters cannot vary along a stack")
+        if any(self.parameters.get(k) != float(v) for k, v in parameters.items()):
             raise InputError(f"{self.name} was compiled for one parameter set: build it for the others")
 
     def _parts(self):

@@ -88,7 +88,9 @@ def solve_gnucap(system, preset: str | Preset = "accurate") -> Trajectory:
         except subprocess.TimeoutExpired:
             raise SimulationError(f"gnucap ran past the preset's time limit ({limit:g} s)") from None
     elapsed = _time.perf_counter() - start
-    said = [line for line in (res.stdout + res.stderr).splitlines() if re.search(r"error|fail|abort", line, re.I)]
+    # gnucap echoes the netlist's title (a robot's name may hold "fail"): comments are not its words
+    said = [line for line in (res.stdout + res.stderr).splitlines()
+            if not line.lstrip().startswith("*") and re.search(r"error|fail|abort", line, re.I)]
     if res.returncode != 0 or said:
         why = " ".join(said[0].split())[:200] if said else f"exit {res.returncode}"
         raise SimulationError(f"gnucap failed: {why}")
@@ -143,8 +145,11 @@ class GnucapSolver(Solver):
         save : sequence of str
             Unused: element currents follow from the trajectory.
         positions : bool
-            Unused.
+            Node positions are not reported: refused for a system with springs.
         """
+        if positions and getattr(system, "stiffness", None) is not None:
+            raise SimulationError("gnucap reports node voltages only here: a system with springs needs its "
+                                  "node positions for element currents or its energy (use the spice solver)")
         return solve_gnucap(system, preset)
 
 

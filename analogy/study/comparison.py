@@ -312,41 +312,43 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
         if reason is not None:
             skipped[name] = reason
             order.remove(name)
-    for name in order:
-        s = solver(name)
-        if progress is not None:
-            progress(name)
-        if s.own_grid:
-            trs = run_many(name, systems, None, p, save=save, positions=want_x)
-            native[name] = trs
-            if given is None and all(g is None for g in grids):       # the first to run sets the grid
-                grids = [tr.time if tr.success and grids[k] is None else grids[k]
-                         for k, tr in enumerate(trs)]
-            else:               # on the shared grid for the table; its errors on its own points
-                resampled.add(name)
-                trs = TrajectoryStack([tr.resampled(grids[k], sys_.joint_rates)
-                                       if tr.success and grids[k] is not None else tr
-                                       for k, (tr, sys_) in enumerate(zip(trs, systems))])
-        else:
-            default = {t: np.linspace(0.0, t, p.steps + 1) for t in dict.fromkeys(ends)}
-            grids = [default[t] if g is None else g for g, t in zip(grids, ends)]
-            groups = _by_grid(grids)
-            if len(groups) == 1:
-                trs = run_many(name, systems, grids[0], p, save=save, positions=want_x)
+    try:
+        for name in order:
+            s = solver(name)
+            if progress is not None:
+                progress(name)
+            if s.own_grid:
+                trs = run_many(name, systems, None, p, save=save, positions=want_x)
+                native[name] = trs
+                # Per system, the first own-grid solver that succeeds sets the shared grid; a later one
+                # is reported on it (for the table and plots) and measured on its own points.
+                if any(g is not None and tr.success for g, tr in zip(grids, trs)):
+                    resampled.add(name)
+                    trs = TrajectoryStack([tr.resampled(grids[k], sys_.joint_rates)
+                                           if tr.success and grids[k] is not None else tr
+                                           for k, (tr, sys_) in enumerate(zip(trs, systems))])
+                grids = [tr.time if tr.success and grids[k] is None else grids[k] for k, tr in enumerate(trs)]
             else:
-                rows: list = [None] * count
-                for idx in groups:
-                    for k, tr in zip(idx, run_many(name, _subset(systems, idx), grids[idx[0]], p,
-                                                   save=save, positions=want_x)):
-                        rows[k] = tr
-                trs = TrajectoryStack(rows)
-        if save:
-            for tr, sys_ in zip(trs, systems):
-                if tr.success and not tr.currents:
-                    tr.currents = trajectory_currents(sys_, tr, save)
-        runs[name] = trs
-    if progress is not None:
-        progress(None)
+                default = {t: np.linspace(0.0, t, p.steps + 1) for t in dict.fromkeys(ends)}
+                grids = [default[t] if g is None else g for g, t in zip(grids, ends)]
+                groups = _by_grid(grids)
+                if len(groups) == 1:
+                    trs = run_many(name, systems, grids[0], p, save=save, positions=want_x)
+                else:
+                    rows: list = [None] * count
+                    for idx in groups:
+                        for k, tr in zip(idx, run_many(name, _subset(systems, idx), grids[idx[0]], p,
+                                                       save=save, positions=want_x)):
+                            rows[k] = tr
+                    trs = TrajectoryStack(rows)
+            if save:
+                for tr, sys_ in zip(trs, systems):
+                    if tr.success and not tr.currents:
+                        tr.currents = trajectory_currents(sys_, tr, save)
+            runs[name] = trs
+    finally:             # a heartbeat ends whatever happened
+        if progress is not None:
+            progress(None)
     out = []
     measured = _measure(systems, runs, native, ref_name, p, tuple(save), resampled)
     columns = [(n, runs[n]) for n in order]
