@@ -170,3 +170,17 @@ def test_a_sweep_over_horizons_keeps_each_scenes_bound():
     items = [base.replace(q=(0.0, q), t_stop=t) for q, t in zip(np.linspace(-2, 2, 6), np.linspace(3, 5, 6))]
     res = run_batch(items, "fast", workers=1)
     assert not res.failures and np.all(res.errors <= preset("fast").bound)
+
+
+@pytest.mark.ngspice
+def test_throughput_reports_the_ngspice_floor_beside_the_batched_path():
+    """The floor is ngspice alone on the very batch netlists the batched path runs: every
+    path's worst error stays within the fast bound, and the share of the floor is printed."""
+    import re
+    from analogy.throughput import throughput
+    text = throughput(n=200, baseline_n=20, repeats=1, workers=1, group_size=50, progress=False)
+    assert "ngspice alone on the same batch netlists (1 process, 200 scenes" in text
+    share = re.search(r"reaches (\d+\.\d+) of the ngspice floor; 0 scenes failed", text)
+    assert share is not None and float(share.group(1)) > 0
+    worst = [float(x) for x in re.findall(r"worst error/peak (\S+?),?\s", text + " ")]
+    assert len(worst) == 4 and max(worst) <= 1e-3
