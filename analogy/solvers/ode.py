@@ -183,6 +183,7 @@ def solve_ode(system, times=None, method: str = "DOP853", rtol: float = 1e-10,
         if work is not None:
             work[at_start] = y[-1]
         idx = idx[t[idx] > t0]
+        wanted = t[idx]             # ascending: each step's output points are found by bisection
         k = 0
         if t1 > t0 and method == "LSODA":
             values, counts = _lsoda(rhs, jac, y, t0, t1, t[idx], rtol, atol, start, timeout, system.t_stop)
@@ -205,9 +206,7 @@ def solve_ode(system, times=None, method: str = "DOP853", rtol: float = 1e-10,
                                           f"t = {sol.t:.6g} of {system.t_stop:g} s: raise the preset's timeout or "
                                           "use the fast preset")
                 steps += 1
-                stop = k
-                while stop < idx.size and t[idx[stop]] <= sol.t:
-                    stop += 1
+                stop = int(np.searchsorted(wanted, sol.t, side="right"))
                 if stop > k:
                     values = sol.dense_output()(t[idx[k:stop]])
                     out[idx[k:stop]] = values[vs].T
