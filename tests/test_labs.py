@@ -140,14 +140,14 @@ def test_the_envelope_of_an_alternating_error_is_its_largest_value_in_each_windo
     assert np.all(np.diff(top) > 0), "the envelope follows the growth the band hides"
 
 
-@pytest.mark.ngspice
-@pytest.mark.slow
 # Each lab runs as a notebook (a kernel per lab, 5 to 30 s each; the flexible arm's a minute or
 # more) in CI's deep pass; the default pass keeps two: the default scene's, and serial2's with its
 # widget. The labs' own helpers are tested in the default pass above.
 _NOTEBOOKS_KEPT = ("lab_default_scene.py", "lab_serial2.py")
 
 
+@pytest.mark.ngspice
+@pytest.mark.slow
 @pytest.mark.parametrize("lab", [lab if lab in _NOTEBOOKS_KEPT else pytest.param(lab, marks=pytest.mark.deep)
                                  for lab in LABS])
 def test_lab_runs_as_a_notebook(lab, tmp_path, monkeypatch):

@@ -221,3 +221,25 @@ def test_every_keyword_the_force_help_shows_is_one_the_parser_takes():
     assert w.frequency == 2.0 and w.phase == 90.0
     with pytest.raises(InputError, match="no argument 'freq'; its arguments are offset, amplitude, frequency"):
         parse_waveform("sine(0, 1, freq=3)")
+
+
+def test_the_ode_s_segment_forces_are_the_waveforms_themselves():
+    """On each segment between breakpoints, the closed form a + b·τ + Σ c·e^{sτ} the ODE's
+    right-hand side evaluates is every waveform's own sum, to rounding (a few ε of the peak)."""
+    from analogy.circuit.joint_forces import waveforms
+    from analogy.solvers.ode import _SegmentForces
+    forces = waveforms(["sine(0.5, 2, 3, delay=0.1, damping=0.7, phase=30)",
+                        ["pulse(0, 1, 0.05, 1e-3, 1e-3, 0.2, 0.5)", "pwl(0, 0, 0.3, 1, 0.6, -2)"],
+                        "step(1.5)"], 3)
+    edges = sorted({0.0, 1.0} | {b for ws in forces for w in ws for b in w.breakpoints(1.0)})
+    segment = _SegmentForces(forces)
+    worst = 0.0
+    for t0, t1 in zip(edges[:-1], edges[1:]):
+        segment.segment(t0, t1)
+        for tt in np.linspace(t0, t1, 7)[1:-1]:
+            direct = np.array([sum(float(w(tt)) for w in ws) for ws in forces])
+            worst = max(worst, float(np.max(np.abs(segment(tt) - direct))))
+    # rounding: the sine's phase ω·τ over a segment of at most 0.9 s, ε·ω·τ·A = ε·(6π·0.9)·2 ≈ 34ε,
+    # and a few ε of the constant and linear parts (peak |force| ≤ 3)
+    eps = np.finfo(float).eps
+    assert worst <= eps * (6 * np.pi * 0.9 * 2 + 4 * 3.0)

@@ -81,34 +81,56 @@ def state_matrices(system) -> tuple[np.ndarray, np.ndarray]:
     return a, g
 
 
-def _joint_force(forces, tt: float) -> np.ndarray:
-    return np.array([sum(float(w(tt)) for w in ws) if ws else 0.0 for ws in forces])
+class _SegmentForces:
+    """The joint forces on one segment between breakpoints, in the closed form the exact solver
+    uses, u(t0 + τ) = a + b·τ + Σ c·e^{s·τ} (:class:`~analogy.waveforms.Piece`): a few array
+    operations per call instead of every waveform's own evaluation."""
+
+    def __init__(self, forces):
+        self.forces = forces
+        self.segment(0.0, 0.0)
+
+    def segment(self, t0: float, t1: float) -> None:
+        pieces = [[w.piece(t0, t1) for w in ws] for ws in self.forces]
+        self.t0 = t0
+        self.a = np.array([sum(p.a for p in ps) for ps in pieces], dtype=float)
+        self.b = np.array([sum(p.b for p in ps) for ps in pieces], dtype=float)
+        terms = [(j, c, e) for j, ps in enumerate(pieces) for p in ps for c, e in zip(p.c, p.s)]
+        self.rows = np.array([j for j, _, _ in terms], dtype=int)
+        self.c = np.array([c for _, c, _ in terms], dtype=complex)
+        self.s = np.array([e for _, _, e in terms], dtype=complex)
+
+    def __call__(self, tt: float) -> np.ndarray:
+        tau = tt - self.t0
+        f = self.a + self.b * tau
+        if self.rows.size:
+            f = f + np.bincount(self.rows, (self.c * np.exp(self.s * tau)).real, minlength=f.size)
+        return f
 
 
-def _linear(system):
+def _linear(system, force):
     """(rhs, jacobian, initial state, whether x is in the state)."""
     a, g = state_matrices(system)
-    forces = system.forces
     springs = system.stiffness is not None
     v0 = system.initial_voltages
     y0 = np.concatenate([np.zeros(system.dof), v0]) if springs else v0.copy()
 
     def rhs(tt, yy):
-        return a @ yy + g @ _joint_force(forces, tt)
+        return a @ yy + g @ force(tt)
     return rhs, a, y0, springs
 
 
-def _nonlinear(system):
+def _nonlinear(system, force):
     """State [x, v, W]: W = ∫(iᵀv − vᵀB'v − G'ᵀv) dt, the work of the forces that are not
     in the kinetic and spring energies, so that the energy balance can be checked."""
     n = system.dof
-    forces, cmap, b = system.forces, system.current_map, system.damping
+    cmap, b = system.current_map, system.damping
     k = system.stiffness
     gravity = system.node_gravity
 
     def rhs(tt, yy):
         x, v = yy[:n], yy[n:2 * n]
-        drive = cmap @ _joint_force(forces, tt)
+        drive = cmap @ force(tt)
         loss = b @ v
         i = drive - loss - system.node_load(x, v, tt)
         if k is not None:
@@ -119,7 +141,7 @@ def _nonlinear(system):
     jac = None
     if system.functions.derivatives is not None:
         def jac(tt, yy):
-            return system.jacobian(yy[:n], yy[n:2 * n], cmap @ _joint_force(forces, tt))
+            return system.jacobian(yy[:n], yy[n:2 * n], cmap @ force(tt))
     return rhs, jac, y0, True
 
 
@@ -154,7 +176,8 @@ def solve_ode(system, times=None, method: str = "DOP853", rtol: float = 1e-10,
     t = system.time_points(times)
     n = system.dof
     linear = system.kind == "linear"
-    rhs, jac, y, has_x = _linear(system) if linear else _nonlinear(system)
+    force = _SegmentForces(system.forces)
+    rhs, jac, y, has_x = _linear(system, force) if linear else _nonlinear(system, force)
     sc = None
     if atol is None:
         # Per state component, relative to the motion it can have (small modal nodes too).
@@ -174,6 +197,7 @@ def solve_ode(system, times=None, method: str = "DOP853", rtol: float = 1e-10,
     work = np.empty(t.size) if not linear else None
     steps = nfev = njev = 0
     for t0, t1 in system.segments():
+        force.segment(t0, t1)
         last = t1 >= system.t_stop
         idx = np.flatnonzero((t >= t0) & ((t <= t1) if last else (t < t1)))
         at_start = idx[t[idx] == t0]
