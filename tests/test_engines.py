@@ -144,9 +144,16 @@ def test_the_realizable_circuit_keeps_the_accurate_bound_in_both_engines(name):
 
 
 def test_the_gnucap_dialect_sets_its_source_resistance_where_couplings_need_it(capsys):
+    """short = √ε × the circuit's impedance scale (velocity scale / current scale): the balance of
+    its series error (∝ short) against rounding in its 1/short conductance (∝ 1/short)."""
+    import math
+    from analogy.circuit.scales import system_scales
     assert main(["netlist", "--dialect", "gnucap", "--realizable"]) == 0
     options = next(line for line in capsys.readouterr().out.splitlines() if line.startswith(".options"))
-    assert "method=trap" in options and " short=" in options
+    assert "method=trap" in options
+    scales = system_scales(scene("default").system())
+    short = float(options.split(" short=")[1].split()[0])
+    assert short == pytest.approx(math.sqrt(2.0 ** -52) * scales.peak_velocity / scales.current, rel=1e-15)
     assert main(["netlist", "--dialect", "gnucap"]) == 0                       # no coupling: gnucap's own
     assert " short=" not in capsys.readouterr().out
 

@@ -214,3 +214,17 @@ def test_store_columns_are_pandas_friendly_and_an_older_store_still_reads(tmp_pa
         pq.write_table(table.rename_columns(["index" if n == "scene" else n for n in table.column_names]), part)
     again = read_store(folder)
     assert list(again["scene"]) == [0, 1, 2] and "index" not in again.columns
+
+
+def test_a_pending_group_of_an_older_store_reads_with_the_scene_column(tmp_path):
+    """A group an older run left pending (its 'index' column) is resumed as the store is read now."""
+    import pyarrow as pa
+    from analogy.batch.store import _read_ipc
+    path = tmp_path / "g0.arrow"
+    table = pa.table({"key": ["a", "b"], "index": pa.array([0, 1], pa.int64()), "status": ["ok", "ok"],
+                      "message": pa.array([None, None], pa.string())})
+    with pa.ipc.new_file(str(path), table.schema) as writer:
+        writer.write_table(table)
+    again = _read_ipc(path)
+    assert again.column_names == ["key", "scene", "status", "message"]
+    assert again.column("scene").to_pylist() == [0, 1]
