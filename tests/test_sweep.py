@@ -248,6 +248,10 @@ def test_trajectories_are_kept_downsampled_in_a_second_table(tmp_path):
     one = traj[(traj["solver"] == "exact") & (traj["key"] == traj["key"].iloc[0])]
     np.testing.assert_allclose(one["t"], np.linspace(0.0, 10.0, 11))
     assert len(pd.read_parquet(tmp_path / "s")) == 6          # the second table is not in the rows
+    assert [c for c in traj.columns if c not in ("key", "solver", "t")] == ["r1", "r2"]    # as in the CSV
+    for part in (tmp_path / "s" / "_trajectories").glob("part-*.parquet"):          # as an older store wrote it
+        pd.read_parquet(part).rename(columns={"r1": "rate1", "r2": "rate2"}).to_parquet(part)
+    assert list(read_trajectories(tmp_path / "s").columns) == list(traj.columns)
 
 
 @pytest.mark.ngspice

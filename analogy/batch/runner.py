@@ -186,20 +186,21 @@ def solve_points(sweep: Sweep, start: int, points: np.ndarray, todo: np.ndarray,
 
 
 def _downsampled(kept: dict, keys: list, sweep: Sweep, points: int):
-    """Long table of trajectories: key, solver, t, then one rate column per joint."""
+    """Long table of trajectories: key, solver, t, then each joint's rate r1 … (the name the CSV
+    and ``to_frame`` give it too)."""
     import pyarrow as pa
     t = np.linspace(0.0, sweep.base.t_stop, points)
     n = len(sweep.base.q)
     out: dict = {"key": [], "solver": [], "t": []}
-    out.update({f"rate{i + 1}": [] for i in range(n)})
+    out.update({f"r{i + 1}": [] for i in range(n)})
     for j, per_solver in sorted(kept.items()):
         for name, (time, rates) in per_solver.items():
             out["key"] += [keys[j]] * points
             out["solver"] += [name] * points
             out["t"].append(t)
             for i in range(n):
-                out[f"rate{i + 1}"].append(np.interp(t, time, rates[:, i]))
-    for k in ["t"] + [f"rate{i + 1}" for i in range(n)]:
+                out[f"r{i + 1}"].append(np.interp(t, time, rates[:, i]))
+    for k in ["t"] + [f"r{i + 1}" for i in range(n)]:
         out[k] = np.concatenate(out[k]) if out[k] else np.empty(0)
     return pa.table(out)
 

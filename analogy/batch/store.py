@@ -375,7 +375,9 @@ def read_trajectories(directory) -> "pandas.DataFrame":
     if not path.is_dir() or not any(path.glob("part-*.parquet")):
         raise InputError(f"{directory} holds no trajectories: the sweep was run without keeping any",
                          field="trajectories")
-    return pd.read_parquet(path)
+    frame = pd.read_parquet(path)
+    # a store written before the rates were named r1 …, as everywhere else, called them rate1 …
+    return frame.rename(columns={c: "r" + c[4:] for c in frame.columns if c.startswith("rate") and c[4:].isdigit()})
 
 
 def manifest(directory) -> dict:
