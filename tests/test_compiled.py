@@ -87,3 +87,11 @@ def test_a_sweep_over_a_flexible_arm_s_parameter_runs(tmp_path, capsys):
     rows = read(tmp_path / "store")
     assert list(rows["status"]) == ["ok", "ok"] and rows["l1"].tolist() == [0.4, 0.5]
     assert (rows["error_ode"] <= 1e-6).all()            # each arm, its own mode shapes, within the bound
+
+
+def test_an_unknown_parameter_of_a_flexible_arm_is_named_in_one_sentence(capsys):
+    """Its builder, which takes the parameters, names the ones it has; nothing else is derived first."""
+    from analogy.cli import main
+    assert main(["netlist", "--robot", "flex1", "--param", "zz=1"]) == 2
+    err = capsys.readouterr().err
+    assert "--param: model 'flex1' has no parameter 'zz' (it has: l1, rhoA1, EI1" in err and err.count("\n") == 1

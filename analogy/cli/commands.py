@@ -43,8 +43,8 @@ def _cmd_netlist(args) -> int:
         raise InputError("--realizable applies to the linear circuit, not to --dynamics nonlinear")
     check_writable(args.output)
     save = None if args.save is None else [s.strip() for s in args.save.split(",") if s.strip()]
-    text = netlist(sc.system(), args.preset, save=save, realizable=args.realizable, title=_title(sc),
-                   dialect=args.dialect)
+    system = sc.system().realized() if args.realizable else sc.system()     # as compare --realizable does
+    text = netlist(system, args.preset, save=save, title=_title(sc), dialect=args.dialect)
     if args.output:
         try:
             Path(args.output).write_text(text)

@@ -222,9 +222,8 @@ def scene_model(scene: SceneData) -> object:
             cache = (spec, scene.dynamics) + ((tuple(sorted(params.items())),) if flexible else ())
             model = _MODELS.get(cache)
             if model is None:
-                if flexible and params:             # built for these parameters: the defaults name them
-                    _check_names(params, _robot(spec, scene.dynamics), spec.robot, keys)
-                with keyed(keys["robot"]):
+                # a flexible arm is built for its parameters: its builder names an unknown one
+                with keyed(keys["parameters"] if flexible and params else keys["robot"]):
                     model = _MODELS[cache] = _robot(spec, scene.dynamics, params if flexible else None)
             _check_names(params, model, spec.robot, keys)
             if getattr(model, "builder", None) is not None and params:
