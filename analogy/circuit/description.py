@@ -11,6 +11,7 @@ from .elements import ZERO_TOL, Element, element_table, laplacian_split, spice_v
 from .node_stack import NodeStack, inputs_key
 from .parts import (
     BehaviouralCurrent,
+    BehaviouralVoltage,
     ChargeCapacitor,
     Circuit,
     Coupling,
@@ -21,8 +22,8 @@ from .parts import (
     describe_forces,
 )
 
-__all__ = ["CurrentSource", "Coupling", "ChargeCapacitor", "BehaviouralCurrent", "Integrator", "Circuit",
-           "circuit", "circuits", "current_sources", "describe_forces", "comments"]
+__all__ = ["CurrentSource", "Coupling", "ChargeCapacitor", "BehaviouralCurrent", "BehaviouralVoltage", "Integrator",
+           "Circuit", "circuit", "circuits", "current_sources", "describe_forces", "comments"]
 
 
 def _check_dropped(mass: np.ndarray, kept: list[Element], zero_tol: float):

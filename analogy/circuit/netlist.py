@@ -9,6 +9,7 @@ from typing import Iterable, Literal, Sequence
 from ..errors import InputError
 from .description import (
     BehaviouralCurrent,
+    BehaviouralVoltage,
     ChargeCapacitor,
     Circuit,
     Integrator,
@@ -57,7 +58,7 @@ def spice_expression(text: str) -> str:
     return text
 
 
-_NODE_REFERENCE = re.compile(r"\bv\(([nx]\d+)\)")
+_NODE_REFERENCE = re.compile(r"\bv\(([nxe]\d+|m\d+_\d+)\)")
 
 
 def _prefixed(expression: str, prefix: str) -> str:
@@ -103,6 +104,9 @@ def circuit_lines(c: Circuit, prefix: str = "", memo: dict | None = None) -> lis
         if isinstance(p, Integrator):           # x_k = ∫ v(n_k): 1 F charged by a current v(n_k)
             x, n = f"{prefix}{p.name}", f"{prefix}n{p.node}"
             lines += [f"C{x} {x} 0 1", f"B{x} 0 {x} I={{v({n})}}"]
+            continue
+        if isinstance(p, BehaviouralVoltage):   # a shared quantity: a node held at its expression
+            lines.append(f"B{prefix}{p.name} {prefix}{p.name} 0 V={{{_prefixed(spice_expression(p.voltage), prefix)}}}")
             continue
         a, b = _node(p.a, prefix), _node(p.b, prefix)
         if isinstance(p, ChargeCapacitor) and p.initial == 0.0:    # ngspice's Q form starts at Q = 0

@@ -29,12 +29,14 @@ from ..errors import InputError
 from .elements import ZERO_TOL, Element, element_table, spice_value
 from .parts import (
     BehaviouralCurrent,
+    BehaviouralVoltage,
     ChargeCapacitor,
     Circuit,
     Integrator,
     comments,
     current_sources,
 )
+from .tree_lagrangian import tree_lagrangian
 
 __all__ = ["NodeLagrangian", "node_lagrangian", "nonlinear_circuit", "spice_text"]
 
@@ -46,15 +48,32 @@ class NodeLagrangian(NamedTuple):
     v: list
     mass: sp.Matrix          # M'(x)
     load: sp.Matrix          # h(x, v) = −½·vᵀ(∂M'/∂x_a)v + (T⁻ᵀG)_a
+    shared: tuple = ()       # (symbol, expression) pairs the others use, in evaluation order
+
+    def values(self, x, v) -> dict:
+        """Every symbol's value at node positions *x* and rates *v*, the shared ones evaluated in order.
+
+        Parameters
+        ----------
+        x, v : sequence of float
+            Node positions and rates.
+        """
+        values = {**dict(zip(self.x, map(float, x))), **dict(zip(self.v, map(float, v)))}
+        for symbol, e in self.shared:
+            values[symbol] = float(e.xreplace(values))
+        return values
 
 
 def node_lagrangian(system) -> NodeLagrangian:
     """M'(x) and h(x, v) of a nonlinear node system, derived from its symbolic model.
 
+    A symbolic model's M(q) is written out; a rigid tree's (URDF robots) comes from
+    :func:`~analogy.circuit.tree_lagrangian.tree_lagrangian`, in shared subexpressions.
+
     Parameters
     ----------
     system : NonlinearNodeSystem
-        A system built from a symbolic model.
+        A system built from a symbolic model or a rigid tree.
     """
     model = system.model
     if model is None:
@@ -62,6 +81,8 @@ def node_lagrangian(system) -> NodeLagrangian:
     n = system.dof
     x = list(sp.symbols(f"x1:{n + 1}", real=True))
     v = list(sp.symbols(f"v1:{n + 1}", real=True))
+    if hasattr(model, "tree"):          # a rigid tree: its recursions, one shared expression per quantity
+        return NodeLagrangian(x, v, *tree_lagrangian(model.tree, system.q0, system.topology.inverse, x, v))
     subs = {sym: system.parameters[name] for name, sym in model.symbols.items()}
     tinv = sp.Matrix(np.asarray(system.topology.inverse).tolist())
     q = list(model.coordinates) or list(sp.symbols(f"q1:{n + 1}", real=True))
@@ -135,6 +156,7 @@ def spice_text(expr, lagrangian: NodeLagrangian) -> str:
     """
     names = {s: f"v(x{k + 1})" for k, s in enumerate(lagrangian.x)}
     names.update({s: f"v(n{k + 1})" for k, s in enumerate(lagrangian.v)})
+    names.update({s: f"v({s.name})" for s, _ in lagrangian.shared})
     return _SpicePrinter(names).doprint(expr)
 
 
@@ -153,16 +175,17 @@ def nonlinear_circuit(system, zero_tol: float = ZERO_TOL, describe: bool = True)
     lag = node_lagrangian(system)
     n = system.dof
     v0 = system.initial_voltages
-    at_start = {**{x: 0.0 for x in lag.x}}
+    at_start = lag.values(np.zeros(n), v0)
 
     def charge(c, a, b):
         """Q = c(x)·(v_a − v_b) as text, and its value at t = 0."""
         across = f"v(n{a})" if b == 0 else f"(v(n{a})-v(n{b}))"
-        q0 = float(c.subs(at_start)) * (v0[a - 1] - (v0[b - 1] if b else 0.0))
+        q0 = float(c.xreplace(at_start)) * (v0[a - 1] - (v0[b - 1] if b else 0.0))
         name = f"{a}" if b == 0 else f"{a}_{b}"
         return ChargeCapacitor(name, a, b, f"({spice_text(c, lag)})*{across}", q0)
 
-    parts = []
+    parts = [BehaviouralVoltage(str(symbol), spice_text(e, lag), at_start[symbol])
+             for symbol, e in lag.shared]
     for a in range(n):                  # grounded c_a = Σ_j M'_aj, floating c_ab = −M'_ab
         c = sp.expand(sum(lag.mass[a, j] for j in range(n)))
         if c != 0:
@@ -183,7 +206,8 @@ def nonlinear_circuit(system, zero_tol: float = ZERO_TOL, describe: bool = True)
                      for kind, a, b, c in table if kind != "C" and c[0] != 0.0)
     initial = tuple([(f"n{i + 1}", float(x)) for i, x in enumerate(v0)] + [(f"x{i + 1}", 0.0) for i in range(n)]
                     + [(node, p.initial) for p in parts if isinstance(p, ChargeCapacitor) and p.initial != 0.0
-                       for node in p.follower_nodes])
+                       for node in p.follower_nodes]
+                    + [(p.name, p.initial) for p in parts if isinstance(p, BehaviouralVoltage)])
     return Circuit(n, elements, current_sources(system, zero_tol), initial, system.t_stop, (),
                    tuple(parts), comments(system) if describe else (),
                    system.provenance.robot)

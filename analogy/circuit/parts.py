@@ -9,7 +9,7 @@ import numpy as np
 from ..waveforms import Waveform
 from .elements import ZERO_TOL, Element
 
-__all__ = ["CurrentSource", "Coupling", "ChargeCapacitor", "BehaviouralCurrent", "Integrator", "Circuit",
+__all__ = ["CurrentSource", "Coupling", "ChargeCapacitor", "BehaviouralCurrent", "BehaviouralVoltage", "Integrator", "Circuit",
            "current_sources", "describe_forces", "comments"]
 
 
@@ -81,6 +81,14 @@ class BehaviouralCurrent(NamedTuple):
     a: int
     b: int
     current: str
+
+
+class BehaviouralVoltage(NamedTuple):
+    """A node *name* held at the SPICE expression *voltage* (a quantity others share), *initial* at t = 0."""
+
+    name: str
+    voltage: str
+    initial: float = 0.0
 
 
 class Integrator(NamedTuple):

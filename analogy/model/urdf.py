@@ -16,6 +16,7 @@ import numpy as np
 from ..errors import InputError
 from . import rigid_tree as rigid_tree_module
 from .compiled import cache_dir
+from .dynamics import MechanicalFunctions
 from .joint import JointSpace, JointStack, configuration_stack
 from .rigid_tree import RigidTree, axis_rotation, plucker, spatial_inertia
 
@@ -409,6 +410,19 @@ class UrdfModel:
             offsets.append(np.linalg.norm([px[2, 1], px[0, 2], px[1, 0]]))
         reach = sum(offsets) + float(np.linalg.norm(com, axis=1).max(initial=0.0))
         return float(np.linalg.norm(t.gravity) * mass.sum() * reach)
+
+    def mechanical_functions(self, parameters: Mapping[str, float] | None = None) -> MechanicalFunctions:
+        """M(q), c(q, q̇) and G(q) of the tree by its recursions, for the nonlinear dynamics.
+
+        Parameters
+        ----------
+        parameters : mapping, optional
+            ``g``.
+        """
+        tree = self._at(parameters).tree
+        return MechanicalFunctions(tree.mass_matrix, tree.velocity_load,
+                                   tree.gravity_load if np.any(tree.gravity) else None,
+                                   np.diag(self.joint_damping), None)
 
     def joint_stack(self, qs, parameters: Mapping[str, float] | None = None) -> JointStack:
         """:meth:`joint_space` at every row of *qs*.

@@ -202,11 +202,11 @@ def scene_model(scene: SceneData) -> object:
     params = scene.parameter_values
     with _where(scene):
         if spec.urdf is not None:
-            return _urdf(spec, params, scene.dynamics, keys)
+            return _urdf(spec, params, keys)
         if spec.robot in URDF_ROBOTS:
             with keyed(keys["robot"]):
                 text, joints = urdf_robot(spec.robot)
-            return _urdf(ModelSpec(urdf=text, joints=joints), params, scene.dynamics, keys)
+            return _urdf(ModelSpec(urdf=text, joints=joints), params, keys)
         if spec.robot is not None:
             for label in ("mass", "damping", "stiffness", "gravity"):
                 if getattr(spec, label) is not None:
@@ -256,11 +256,8 @@ def scene_model(scene: SceneData) -> object:
         return model
 
 
-def _urdf(spec: ModelSpec, params: Mapping[str, float], dynamics: str, keys: dict):
+def _urdf(spec: ModelSpec, params: Mapping[str, float], keys: dict):
     """A URDF robot's model (parsed once per process), at the scene's g."""
-    if dynamics == "nonlinear":
-        raise InputError(f"{keys['dynamics']}: a URDF robot's nonlinear dynamics are not built yet: use its "
-                         "linear circuit at a pose")
     for label in ("mass", "damping", "stiffness", "gravity"):
         if getattr(spec, label) is not None:
             raise InputError(f"{keys[label]}: a URDF robot has its own")
