@@ -75,3 +75,9 @@ def test_the_3rrr_mass_matrix_grows_as_one_over_the_distance_to_its_singular_pos
         base.replace(q=(q1 + 1e-9, -1.7, 0.35)).system()       # past it the loop does not close
     conds = [np.linalg.cond(base.replace(q=(q1 - d, -1.7, 0.35)).system().mass) for d in (1e-2, 1e-4, 1e-6)]
     assert 50 < conds[1] / conds[0] < 200 and 50 < conds[2] / conds[1] < 200
+
+
+def test_the_command_s_default_runs_every_family():
+    from analogy.cli import build_parser
+    from analogy.stress.families import ALL_FAMILIES
+    assert build_parser().parse_args(["stress"]).families == ALL_FAMILIES

@@ -14,7 +14,7 @@ from ..errors import InputError
 from ..model.joint import JointSpace
 from ..presets import PRESETS, Preset
 
-__all__ = ["StressCase", "FAMILIES", "FAMILY_TITLES", "cases", "singular_q1", "spd_with_spectrum"]
+__all__ = ["StressCase", "FAMILIES", "FAMILY_TITLES", "ALL_FAMILIES", "cases", "singular_q1", "spd_with_spectrum"]
 
 #: The families, by letter, with what each sweeps.
 FAMILY_TITLES = {
@@ -26,7 +26,11 @@ FAMILY_TITLES = {
     "f": "near-singular: MP capacitances through zero, elements at the zero tolerance, the 3-RRR near its "
          "singular pose",
     "g": "nonlinear: fast motions and a chaotic double pendulum",
+    "h": "a real arm at its singular poses: the UR5's elbow straightening (q3 → 0) and its wrist "
+         "(q5 → 0), from its URDF, g = 0",
 }
+#: Every family, the default of :func:`cases`.
+ALL_FAMILIES = "".join(FAMILY_TITLES)
 
 
 @dataclass(frozen=True)
@@ -221,11 +225,31 @@ def _nonlinear(quick: bool, p: Preset) -> Iterator[StressCase]:
                      _runs(p, ("spice", "ode")), horizon=True)
 
 
+def _real_arm(quick: bool, p: Preset) -> Iterator[StressCase]:
+    """The UR5's kinematic singularities: the Jacobian of its hand loses rank, its M(q) does not.
+
+    Held at a pose by no torque, gravity would topple it, so g = 0; each joint is driven by a
+    unit step. Without ``example-robot-data`` each case is a row saying how to get it.
+    """
+    from ..model.urdf import urdf_model
+    from ..model.urdf_robots import urdf_robot
+    for joint, name in ((3, "elbow"), (5, "wrist")):
+        for delta in (1.0, 1e-3) if quick else (1.0, 1e-1, 1e-2, 1e-3, 1e-4, 1e-6, 0.0):
+            def build(joint=joint, delta=delta):
+                text, joints = urdf_robot("ur5")
+                q = [0.0, -1.0, 1.0, 0.0, 1.0, 0.0]
+                q[joint - 1] = delta
+                return node_system(urdf_model(text, joints), q, parameters={"g": 0.0}, forces=[1.0] * 6,
+                                   t_stop=2.0)
+            yield StressCase("h", f"UR5 {name}: q{joint}", delta, f"UR5 {name}, q{joint} = {delta:g}", build,
+                             _runs(p))
+
+
 FAMILIES = {"a": _conditioning, "b": _time_scales, "c": _long_runs, "d": _size, "e": _units,
-            "f": _singular, "g": _nonlinear}
+            "f": _singular, "g": _nonlinear, "h": _real_arm}
 
 
-def cases(families: str = "abcdefg", quick: bool = False, timeout: float = 10.0) -> Iterator[StressCase]:
+def cases(families: str = ALL_FAMILIES, quick: bool = False, timeout: float = 10.0) -> Iterator[StressCase]:
     """Every case of the chosen *families*, built lazily.
 
     Parameters

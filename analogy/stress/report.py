@@ -16,7 +16,7 @@ from ..progress import Progress
 from ..study.comparison import compare
 from ..results.metrics import relative_error
 from ..results.output import Tabular, write_rows
-from .families import FAMILY_TITLES, StressCase, cases
+from .families import ALL_FAMILIES, FAMILY_TITLES, StressCase, cases
 
 __all__ = ["StressRow", "StressReport", "stress", "write_report", "EXACT_BOUND"]
 
@@ -232,7 +232,7 @@ def _case_rows(case: StressCase) -> list[StressRow]:
     return rows
 
 
-def stress(families: str = "abcdefg", quick: bool = False, timeout: float = 10.0,
+def stress(families: str = ALL_FAMILIES, quick: bool = False, timeout: float = 10.0,
            progress: bool = True) -> StressReport:
     """Run every case of the chosen families and collect a :class:`StressReport`.
 
