@@ -153,13 +153,24 @@ class NonlinearNodeSystem(NodeCoordinates):
             A solution with positions.
         """
         x, v, t = trajectory.positions, trajectory.voltages, trajectory.time
-        kinetic = 0.5 * np.einsum("ti,tij,tj->t", v, np.stack([self.node_mass(p) for p in x]), v)
+        f = self.functions
+        if f.masses is not None:        # the model evaluates a stack of poses at once
+            masses = self.topology.node_matrix(f.masses(self.q0 + x @ self.topology.inverse.T))
+        else:
+            masses = np.stack([self.node_mass(p) for p in x])
+        kinetic = 0.5 * np.einsum("ti,tij,tj->t", v, masses, v)
         spring = np.zeros_like(kinetic) if self.stiffness is None else \
             0.5 * np.einsum("ti,ij,tj->t", x, self.stiffness, x)
         work = trajectory.work
         if work is None:
             drive = self.node_currents(t)
-            power = np.einsum("ti,ti->t", v, drive - v @ self.damping.T - np.stack([self.node_gravity(p) for p in x]))
+            if f.gravity is None:
+                gravity = np.zeros_like(v)
+            elif f.gravities is not None:
+                gravity = f.gravities(self.q0 + x @ self.topology.inverse.T) @ self.current_map.T
+            else:
+                gravity = np.stack([self.node_gravity(p) for p in x])
+            power = np.einsum("ti,ti->t", v, drive - v @ self.damping.T - gravity)
             work = np.concatenate([[0.0], np.cumsum(0.5 * (power[1:] + power[:-1]) * np.diff(t))])
         energy = kinetic + spring
         residual = energy - energy[0] - work

@@ -110,7 +110,9 @@ class MechanicalFunctions(NamedTuple):
     Each takes numeric q (and q̇) of shape (n,) and returns an array: M(q) (n, n),
     c(q, q̇) (n,), G(q) (n,) or None, and the constant B and K (None without springs).
     *derivatives* (q, q̇) gives (∂M/∂q_k stacked on the first axis, ∂c/∂q, ∂c/∂q̇, ∂G/∂q),
-    for analytic Jacobians; None where the model does not provide them.
+    for analytic Jacobians; None where the model does not provide them. *masses* and
+    *gravities* take a stack of poses (p, n) at once, where the model has them (energy
+    residuals along a trajectory of many points).
     """
 
     mass: Callable[[np.ndarray], np.ndarray]
@@ -119,3 +121,5 @@ class MechanicalFunctions(NamedTuple):
     damping: np.ndarray
     stiffness: np.ndarray | None
     derivatives: Callable | None = None
+    masses: Callable[[np.ndarray], np.ndarray] | None = None
+    gravities: Callable[[np.ndarray], np.ndarray] | None = None

@@ -420,9 +420,9 @@ class UrdfModel:
             ``g``.
         """
         tree = self._at(parameters).tree
-        return MechanicalFunctions(tree.mass_matrix, tree.velocity_load,
-                                   tree.gravity_load if np.any(tree.gravity) else None,
-                                   np.diag(self.joint_damping), None)
+        gravity = tree.gravity_load if np.any(tree.gravity) else None
+        return MechanicalFunctions(tree.mass_matrix, tree.velocity_load, gravity, np.diag(self.joint_damping), None,
+                                   masses=tree.mass_matrices, gravities=gravity)
 
     def joint_stack(self, qs, parameters: Mapping[str, float] | None = None) -> JointStack:
         """:meth:`joint_space` at every row of *qs*.

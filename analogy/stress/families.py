@@ -12,6 +12,8 @@ from ..circuit.elements import ZERO_TOL
 from ..circuit.node_system import node_system
 from ..errors import InputError
 from ..model.joint import JointSpace
+from ..model.urdf import urdf_model
+from ..model.urdf_robots import urdf_robot
 from ..presets import PRESETS, Preset
 
 __all__ = ["StressCase", "FAMILIES", "FAMILY_TITLES", "ALL_FAMILIES", "cases", "singular_q1", "spd_with_spectrum"]
@@ -231,8 +233,6 @@ def _real_arm(quick: bool, p: Preset) -> Iterator[StressCase]:
     Held at a pose by no torque, gravity would topple it, so g = 0; each joint is driven by a
     unit step. Without ``example-robot-data`` each case is a row saying how to get it.
     """
-    from ..model.urdf import urdf_model
-    from ..model.urdf_robots import urdf_robot
     for joint, name in ((3, "elbow"), (5, "wrist")):
         for delta in (1.0, 1e-3) if quick else (1.0, 1e-1, 1e-2, 1e-3, 1e-4, 1e-6, 0.0):
             def build(joint=joint, delta=delta):
