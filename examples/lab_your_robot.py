@@ -173,8 +173,9 @@ _lab.check_solvers(singular, out, "ur5_singular")
 # composite inertia of the links it carries, and finally the entries M_ij as nodes
 # ``m1_1 … m6_6`` that the capacitors read.
 #
-# Hanging down (q2 = π/2) the arm is at a stable pose under gravity, and sine torques on
-# the pan and the shoulder swing it through about a radian in a second.
+# Hanging down (q2 = π/2) the arm is at a stable pose under gravity. Sine torques on the
+# pan and the shoulder turn the pan through 2.5 rad in a second; the shoulder swings
+# 0.4 rad, and the wrist, driven by no torque, turns 1.2 rad as the arm drags it along.
 
 # %%
 hanging = (0.0, np.pi / 2, 0.0, 0.0, 0.0, 0.0)

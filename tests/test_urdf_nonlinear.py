@@ -96,6 +96,19 @@ def test_the_same_holds_for_random_trees_and_the_hand_written_bench(tmp_path, se
         assert max(rel.values()) <= AGREEMENT, (p.name, rel)
 
 
+def test_the_circuit_takes_the_system_s_gravity_as_its_functions_do():
+    """g set on the system (not on the model) reaches the circuit: at rest, g = 0 leaves no load."""
+    model = UrdfModel(BENCH.read_text())
+    q0 = [0.1, 0.5, -0.3]
+    for g in (0.0, 2.5):
+        system = nonlinear_system(model, q0, parameters={"g": g}, t_stop=1.0)
+        lag = node_lagrangian(system)
+        load = np.array(lag.load.xreplace(lag.values(np.zeros(3), np.zeros(3))).tolist(), dtype=float).ravel()
+        expected = system.node_gravity(np.zeros(3))
+        assert np.abs(load - expected).max() <= AGREEMENT * max(np.abs(expected).max(), 1.0), (g, load, expected)
+    assert not np.any(nonlinear_system(model, q0, parameters={"g": 0.0}, t_stop=1.0).node_gravity(np.zeros(3)))
+
+
 def test_every_node_is_a_few_products_of_the_ones_before():
     """The netlist grows as n, not n³: the Panda's is 439 lines and tens of kB, no expression long."""
     model, _ = _robot("panda")
