@@ -96,6 +96,26 @@ def test_the_same_holds_for_random_trees_and_the_hand_written_bench(tmp_path, se
         assert max(rel.values()) <= AGREEMENT, (p.name, rel)
 
 
+def test_a_placement_and_a_body_inertia_read_back_the_frame_and_body_they_were_made_from():
+    """placement_frame inverts plucker and body_inertia inverts spatial_inertia, to a few roundings."""
+    from scipy.spatial.transform import Rotation
+    from analogy.model.rigid_tree import body_inertia, placement_frame, plucker, spatial_inertia
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        rotation, position = Rotation.random(random_state=rng).as_matrix(), rng.normal(size=3)
+        e, p = placement_frame(plucker(rotation, position))
+        np.testing.assert_allclose(e, rotation, rtol=0, atol=8 * np.finfo(float).eps)
+        np.testing.assert_allclose(p, position, rtol=0, atol=8 * np.finfo(float).eps * np.abs(position).max())
+        a = rng.normal(size=(3, 3))
+        m, com, at_com = rng.uniform(0.1, 5.0), rng.normal(size=3), a @ a.T
+        m2, c2, i2 = body_inertia(spatial_inertia(m, com, at_com))
+        # Ī comes back from Ī + m·c×c×ᵀ less the same product: roundings of m·|c|² and of Ī
+        scale = np.abs(at_com).max() + m * (com @ com)
+        assert m2 == m
+        np.testing.assert_allclose(c2, com, rtol=8 * np.finfo(float).eps)
+        np.testing.assert_allclose(i2, at_com, rtol=0, atol=16 * np.finfo(float).eps * scale)
+
+
 def test_the_circuit_takes_the_system_s_gravity_as_its_functions_do():
     """g set on the system (not on the model) reaches the circuit: at rest, g = 0 leaves no load."""
     model = UrdfModel(BENCH.read_text())

@@ -154,8 +154,9 @@ class NonlinearNodeSystem(NodeCoordinates):
         """
         x, v, t = trajectory.positions, trajectory.voltages, trajectory.time
         f = self.functions
+        qs = self.q0 + x @ self.topology.inverse.T       # q at every point
         if f.masses is not None:        # the model evaluates a stack of poses at once
-            masses = self.topology.node_matrix(f.masses(self.q0 + x @ self.topology.inverse.T))
+            masses = self.topology.node_matrix(f.masses(qs))
         else:
             masses = np.stack([self.node_mass(p) for p in x])
         kinetic = 0.5 * np.einsum("ti,tij,tj->t", v, masses, v)
@@ -167,7 +168,7 @@ class NonlinearNodeSystem(NodeCoordinates):
             if f.gravity is None:
                 gravity = np.zeros_like(v)
             elif f.gravities is not None:
-                gravity = f.gravities(self.q0 + x @ self.topology.inverse.T) @ self.current_map.T
+                gravity = f.gravities(qs) @ self.current_map.T
             else:
                 gravity = np.stack([self.node_gravity(p) for p in x])
             power = np.einsum("ti,ti->t", v, drive - v @ self.damping.T - gravity)

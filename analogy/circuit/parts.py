@@ -9,8 +9,8 @@ import numpy as np
 from ..waveforms import Waveform
 from .elements import ZERO_TOL, Element
 
-__all__ = ["CurrentSource", "Coupling", "ChargeCapacitor", "BehaviouralCurrent", "BehaviouralVoltage", "Integrator", "Circuit",
-           "current_sources", "describe_forces", "comments"]
+__all__ = ["CurrentSource", "Coupling", "ChargeCapacitor", "BehaviouralCurrent", "BehaviouralVoltage", "Integrator",
+           "Circuit", "current_sources", "describe_forces", "comments"]
 
 
 class CurrentSource(NamedTuple):

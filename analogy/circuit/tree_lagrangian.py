@@ -28,6 +28,8 @@ from __future__ import annotations
 import numpy as np
 import sympy as sp
 
+from ..model.rigid_tree import body_inertia, placement_frame
+
 __all__ = ["tree_lagrangian"]
 
 #: Rotation and offset entries within this many roundings of zero are zero (an axis
@@ -43,9 +45,9 @@ class _Program:
 
     def let(self, expr, name: str | None = None):
         expr = sp.sympify(expr)
-        if name is None and (expr.is_Number or expr.is_Symbol or (expr.is_Mul and len(expr.args) == 2 and expr.args[0].is_Number
-                                                and expr.args[1].is_Symbol)):
-            return expr                 # a scaled copy costs less inline than as a node
+        scaled = expr.is_Mul and len(expr.args) == 2 and expr.args[0].is_Number and expr.args[1].is_Symbol
+        if name is None and (expr.is_Number or expr.is_Symbol or scaled):
+            return expr                 # a number, a symbol or a scaled copy costs less inline than as a node
         symbol = sp.Symbol(name or f"e{len(self.shared) + 1}", real=True)
         self.shared.append((symbol, expr))
         return symbol
@@ -80,17 +82,11 @@ def _clean(values: np.ndarray, scale: float) -> list:
 
 def _constants(tree):
     """Per joint: rotation E and offset p of its frame in its parent's, and the body's m, c, Ī."""
+    frames = [placement_frame(x) for x in tree.placements]
+    reach = max(1.0, *(np.abs(p).max() for _, p in frames))
     out = []
-    reach = max(1.0, *(np.abs(-x[:3, :3] @ x[3:, :3]).max() for x in tree.placements))
-    for x, inertia in zip(tree.placements, tree.inertias):
-        e = x[:3, :3].T                     # ᴮX_A = [[Eᵀ, 0], [−Eᵀ·p×, Eᵀ]]
-        px = -e @ x[3:, :3]
-        offset = np.array([px[2, 1], px[0, 2], px[1, 0]])
-        m = float(inertia[5, 5])
-        first = np.array([inertia[2, 4], inertia[0, 5], inertia[1, 3]])      # m·c from the m·c× block
-        com = first / m if m > 0 else np.zeros(3)
-        cx = np.array([[0, -com[2], com[1]], [com[2], 0, -com[0]], [-com[1], com[0], 0]])
-        at_com = inertia[:3, :3] - m * cx @ cx.T
+    for (e, offset), inertia in zip(frames, tree.inertias):
+        m, com, at_com = body_inertia(inertia)
         out.append((np.array(_clean(e, 1.0)).reshape(3, 3), _clean(offset, reach), m,
                     _clean(com, reach), np.array(_clean(at_com, np.abs(at_com).max(initial=0.0))).reshape(3, 3)))
     return out

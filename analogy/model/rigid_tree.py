@@ -7,7 +7,7 @@ from typing import Literal, Sequence
 
 import numpy as np
 
-__all__ = ["JointKind", "RigidTree", "axis_rotation", "spatial_inertia", "plucker"]
+__all__ = ["JointKind", "RigidTree", "axis_rotation", "spatial_inertia", "plucker", "placement_frame", "body_inertia"]
 
 #: The joints a tree moves by: a rotation about an axis, or a slide along it.
 JointKind = Literal["revolute", "prismatic"]
@@ -36,6 +36,19 @@ def plucker(rotation: np.ndarray, position: np.ndarray) -> np.ndarray:
     x[3:, 3:] = et
     x[3:, :3] = -et @ _skew(position)
     return x
+
+
+def placement_frame(transform: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(rotation, position) of the frame a motion transform :func:`plucker` made: its inverse.
+
+    Parameters
+    ----------
+    transform : ndarray, shape (6, 6)
+        ᴮX_A = [[Eᵀ, 0], [−Eᵀ·p×, Eᵀ]].
+    """
+    rotation = transform[:3, :3].T
+    px = -rotation @ transform[3:, :3]
+    return rotation, np.array([px[2, 1], px[0, 2], px[1, 0]])
 
 
 def axis_rotation(axis: np.ndarray, angles) -> np.ndarray:
@@ -76,6 +89,21 @@ def spatial_inertia(mass: float, com: np.ndarray, inertia_at_com: np.ndarray) ->
     i[3:, :3] = mass * cx.T
     i[3:, 3:] = mass * np.eye(3)
     return i
+
+
+def body_inertia(inertia: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    """(m, c, Ī) of a spatial inertia :func:`spatial_inertia` made: its inverse (c = 0 when m = 0).
+
+    Parameters
+    ----------
+    inertia : ndarray, shape (6, 6)
+        A body's spatial inertia about its frame's origin.
+    """
+    m = float(inertia[5, 5])
+    first = np.array([inertia[2, 4], inertia[0, 5], inertia[1, 3]])     # m·c from the m·c× block
+    com = first / m if m > 0 else np.zeros(3)
+    cx = _skew(com)
+    return m, com, inertia[:3, :3] - m * cx @ cx.T
 
 
 @dataclass(frozen=True)

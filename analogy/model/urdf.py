@@ -18,7 +18,7 @@ from . import rigid_tree as rigid_tree_module
 from .compiled import cache_dir
 from .dynamics import MechanicalFunctions
 from .joint import JointSpace, JointStack, configuration_stack
-from .rigid_tree import RigidTree, axis_rotation, plucker, spatial_inertia
+from .rigid_tree import RigidTree, axis_rotation, body_inertia, placement_frame, plucker, spatial_inertia
 
 __all__ = ["UrdfModel", "urdf_model", "read_urdf", "MAX_URDF_BYTES", "STANDARD_GRAVITY"]
 
@@ -352,7 +352,14 @@ class UrdfModel:
     def units(self) -> tuple[str, ...]:
         return tuple("rad" if k == "revolute" else "m" for k in self.joints)
 
-    def _at(self, parameters: Mapping[str, float] | None) -> "UrdfModel":
+    def with_parameters(self, parameters: Mapping[str, float] | None = None) -> "UrdfModel":
+        """This robot at other parameter values (``g``): itself when they are its own.
+
+        Parameters
+        ----------
+        parameters : mapping, optional
+            ``g``.
+        """
         if not parameters:
             return self
         if unknown := [k for k in parameters if k != "g"]:
@@ -383,7 +390,7 @@ class UrdfModel:
 
     def _parts(self, qs: np.ndarray, parameters) -> tuple:
         """M, B, ∂G/∂q and G at every row of *qs* (the last two None without gravity)."""
-        model = self._at(parameters)
+        model = self.with_parameters(parameters)
         tree = model.tree
         m = tree.mass_matrices(qs)
         b = np.broadcast_to(np.diag(self.joint_damping), m.shape)
@@ -401,15 +408,10 @@ class UrdfModel:
     def gravity_scale(self) -> float:
         """g·Σm·reach [N·m]: how large a gravity load or stiffness of the tree can be."""
         t = self.tree
-        mass = t.inertias[:, 5, 5]
-        com = np.array([[i[1, 5], i[2, 3], i[0, 4]] for i in t.inertias]) / np.where(mass > 0, mass, 1.0)[:, None]
-        offsets = []
-        for x in t.placements:
-            e = x[:3, :3].T
-            px = -e @ x[3:, :3]
-            offsets.append(np.linalg.norm([px[2, 1], px[0, 2], px[1, 0]]))
-        reach = sum(offsets) + float(np.linalg.norm(com, axis=1).max(initial=0.0))
-        return float(np.linalg.norm(t.gravity) * mass.sum() * reach)
+        bodies = [body_inertia(i) for i in t.inertias]
+        reach = sum(float(np.linalg.norm(placement_frame(x)[1])) for x in t.placements) \
+            + max((float(np.linalg.norm(c)) for _, c, _ in bodies), default=0.0)
+        return float(np.linalg.norm(t.gravity) * sum(m for m, _, _ in bodies) * reach)
 
     def mechanical_functions(self, parameters: Mapping[str, float] | None = None) -> MechanicalFunctions:
         """M(q), c(q, q̇) and G(q) of the tree by its recursions, for the nonlinear dynamics.
@@ -419,7 +421,7 @@ class UrdfModel:
         parameters : mapping, optional
             ``g``.
         """
-        tree = self._at(parameters).tree
+        tree = self.with_parameters(parameters).tree
         gravity = tree.gravity_load if np.any(tree.gravity) else None
         return MechanicalFunctions(tree.mass_matrix, tree.velocity_load, gravity, np.diag(self.joint_damping), None,
                                    masses=tree.mass_matrices, gravities=gravity)
