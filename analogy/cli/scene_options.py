@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 
 from ..errors import InputError
 from ..model.catalog import MAX_SERIAL, ROBOT_NAMES
+from ..model.conventions import CONVENTIONS, JOINT_FRAMES, LINK_MODES
 from ..model.expressions import (
     parse_expression,
     parse_matrix,
@@ -30,6 +32,7 @@ CLI_KEYS = {"robot": "--robot", "mass": "--mass", "damping": "--damping", "stiff
             "gravity": "--gravity", "q": "--q", "topology": "--topology", "forces": "--force",
             "initial_rates": "--r0", "t_stop": "--t-stop", "parameters": "--param", "model": "--mass",
             "inputs": "--force", "dynamics": "--dynamics", "link_modes": "--link-modes", "urdf": "--urdf",
+            "joint_frame": "--joint-frame", "geometric_stiffness": "--geometric-stiffness",
             "joints": "--joints", "numbered": False}
 LABELS["command line"] = CLI_KEYS
 
@@ -73,9 +76,18 @@ def scene_options(p: argparse.ArgumentParser, preset: str = "accurate") -> None:
     g.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                    help="parameter value (repeatable), e.g. l1=0.5 or l1='500 mm'; qK=VALUE sets "
                         "joint coordinate K, e.g. q2=pi/4 or q2='45 deg'")
-    g.add_argument("--link-modes", choices=("clamped-free", "clamped-mass"),
-                   help="flexible arms: each link's mode shapes, a cantilever's (default) or "
-                        "loaded by the tip mass and inertia the link carries")
+    g.add_argument("--link-modes", choices=LINK_MODES,
+                   help="flexible arms: each link's mode shapes, a cantilever's or loaded by the tip mass "
+                        "and inertia the link carries (default: clamped-free in the axis frame, "
+                        "clamped-mass in the tip frame)")
+    g.add_argument("--joint-frame", choices=JOINT_FRAMES,
+                   help="flexible arms: joint 2 measured from link 1's undeformed axis (default, the "
+                        "paper's equations) or from its deformed tip (a physical clamp: --locked 2 holds "
+                        "the elbow's slope, and the elbow motor pushes back on link 1's tip)")
+    g.add_argument("--geometric-stiffness", choices=("on", "off"),
+                   help="flexible arms: gravity's axial-load stiffness of the links, which stiffens a "
+                        "hanging link and softens an upright one (default: on in the tip frame, off in "
+                        "the axis frame)")
     g.add_argument("--q", metavar="VALUES", help="configuration [rad or m], e.g. '0, 0.3' or '0, 30 deg'")
     g.add_argument("--topology", metavar="serial|parallel|MATRIX",
                    help="joint-to-node map: serial, parallel or a matrix T with v = T r")
@@ -133,6 +145,9 @@ def scene_from_args(args) -> Scene:
     params = dict(_split_param(p) for p in args.param)
     coords = {k: params.pop(k) for k in list(params) if k[0] == "q" and k[1:].isdigit()}
     changes: dict = {"source": "command line"}
+    chosen = {k: getattr(args, k) for k in CONVENTIONS if getattr(args, k, None) is not None}
+    if "geometric_stiffness" in chosen:
+        chosen["geometric_stiffness"] = chosen["geometric_stiffness"] == "on"
     if args.mass is not None:
         mass = _entries(args.mass, "--mass")
         if mass and not any(isinstance(r, list) for r in mass):
@@ -165,8 +180,8 @@ def scene_from_args(args) -> Scene:
     elif args.damping or args.stiffness or args.gravity:
         raise InputError("--damping, --stiffness and --gravity need --mass (built-in robots have their own; "
                          "the serial arms take --param g=9.81)")
-    elif args.robot is not None and (args.robot != sc.model.robot or args.link_modes is not None):
-        spec = ModelSpec(robot=args.robot, link_modes=args.link_modes)
+    elif args.robot is not None and (args.robot != sc.model.robot or chosen):
+        spec = ModelSpec(robot=args.robot, **chosen)
         probe = Scene.of(args.robot, spec, parameters=params, source="command line")
         model = scene_model(probe)          # one sentence on an unknown name or parameter
         # a unit step on every joint the model drives; a flexible link's modal amplitude is not driven
@@ -174,8 +189,12 @@ def scene_from_args(args) -> Scene:
         forces = tuple(float(kind != "modal") for kind in joints)
         changes.update(model=spec, q=(0.0,) * len(model.coordinates), parameters=params,
                        forces=forces, initial_rates=None, topology=None)
-    elif args.link_modes is not None:
-        raise InputError("--link-modes applies to the flexible arms: give --robot flex1 or flex2")
+    elif chosen and sc.model.robot is not None:      # the scene's own arm, with these conventions
+        changes["model"] = replace(sc.model, **chosen)
+        scene_model(sc.replace(**changes))
+    elif chosen:
+        flag = "--" + next(iter(chosen)).replace("_", "-")
+        raise InputError(f"{flag} applies to the flexible arms: give --robot flex1 or flex2")
     elif params:
         changes["parameters"] = dict(sc.parameters, **params)
     if args.q is not None:

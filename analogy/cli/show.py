@@ -11,7 +11,8 @@ from .scene_options import scene_from_args, solver_list
 __all__ = ["animate_command", "report_command"]
 
 #: The flags that describe a scene (beside a scene file they are refused, not ignored).
-_SCENE_FLAGS = ("robot", "urdf", "joints", "mass", "damping", "stiffness", "gravity", "param", "link_modes", "q",
+_SCENE_FLAGS = ("robot", "urdf", "joints", "mass", "damping", "stiffness", "gravity", "param", "link_modes",
+                "joint_frame", "geometric_stiffness", "q",
                 "topology", "force", "r0", "t_stop", "equilibrium")
 
 
@@ -39,7 +40,7 @@ def animate_command(args) -> int:
     run = solve(system, args.solver, preset=args.preset)
     if not run.success:
         raise SimulationError(f"{args.solver}: {run.message}")
-    shown = motion(system, run, args.frames, link_modes=sc.model.link_modes)
+    shown = motion(system, run, args.frames, conventions=sc.model.conventions)
     shown.save(args.output, args.fps)
     print(f"wrote {args.output} ({shown.frames} frames, {shown.frames / args.fps:.3g} s at {args.fps:g} fps)")
     if shown.note:

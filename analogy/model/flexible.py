@@ -1,7 +1,7 @@
 """Planar chains of flexible links by assumed modes: M(q) = Σ∫ρA·JᵀJ dx + the hubs, motors and payload.
 
 Link i turns by θ_i from link i−1's undeformed axis, so its axis points along
-α_i = θ_1 + … + θ_i (the flexible-robot paper's eqs. 20–21). A point at x along it
+α_i = θ_1 + … + θ_i (the flexible-robot paper's eqs. 20–21, ``joint_frame="axis"``). A point at x along it
 sits at r_i(x) = o_i + x·e_i + u_i(x)·n_i, with e_i = (cos α_i, sin α_i), n_i ⊥ e_i and
 the deflection u_i(x) = Σ_k ψ_ik(x)·δ_ik; the next link starts at its tip,
 o_{i+1} = r_i(l_i). The coordinates are (θ_1 … θ_n, δ_11 …, δ_21 …, …) unless an
@@ -12,26 +12,37 @@ the entries of JᵀJ are polynomials in them, and each monomial x^a·ψ_ik·ψ_j
 replaced by its integral ∫ρA·x^a·ψ_ik·ψ_jl dx, computed by Gauss–Legendre quadrature
 (converged below 1e-14, see tests/test_beams.py). G_i = g·Σ∫ρA·J[y, i] dx (the
 y row, gravity along −y), and K is the modal bending stiffness ∫EI·ψ''ψ'' dx.
+
+In the tip frame (``joint_frame="tip"``) joint i + 1 is measured from link i's deformed
+tip, θ'_{i+1} = θ_{i+1} − Σ_k ψ'_ik(l_i)·δ_ik, as a clamped joint or an elbow motor
+sees it. The positions are the same, so the model is the axis frame's under the
+constant map q = A·q': M' = Aᵀ·M(A·q')·A and G' = Aᵀ·G(A·q'); joint torques, joint
+dampers and locks then act on the relative angle at the tip.
+
+Gravity's geometric stiffness: an inextensible link's points move in by ½∫₀ˣ u'² along
+its axis, which the assumed modes leave out. Over the mass m_i(x) beyond x (the link's
+rest and everything it carries) this adds V = −½·g·sin α_i·∫ m_i(x)·u_i'(x)² dx, whose
+gradient joins G: an axial tension stiffens a hanging link, a compression softens an
+upright one.
 """
 
 from __future__ import annotations
 
 from dataclasses import replace
 from functools import partial
-from typing import Literal, NamedTuple, Sequence
+from typing import NamedTuple, Sequence
 
 import numpy as np
 import sympy as sp
 
 from ..errors import InputError
 from .beams import BeamModes, Normalisation, beam_modes, gauss_points
+from .conventions import JOINT_FRAMES, LINK_MODES, JointFrame, LinkModes, link_modes_for
 from .symbolic import Model
 
-__all__ = ["FlexibleLink", "ChainKinematics", "chain_kinematics", "flexible_chain", "LinkModes",
-           "FLEXIBLE_DEFAULTS", "flexible_arm"]
+__all__ = ["FlexibleLink", "ChainKinematics", "chain_kinematics", "flexible_chain", "FLEXIBLE_DEFAULTS",
+           "flexible_arm"]
 
-#: Mode shapes: each link clamped-free (the paper's), or clamped and loaded by what its tip carries.
-LinkModes = Literal["clamped-free", "clamped-mass"]
 _QUADRATURE_POINTS = 96
 
 
@@ -126,9 +137,10 @@ def chain_kinematics(lengths: Sequence, modes: Sequence[int], order: Sequence[in
     return ChainKinematics(q, theta, modal, x, shapes, tip_shapes, tip_slopes, points, tips, tip_angles)
 
 
-def flexible_chain(links: Sequence[FlexibleLink], *, gravity: float = 0.0, link_modes: LinkModes = "clamped-free",
+def flexible_chain(links: Sequence[FlexibleLink], *, gravity: float = 0.0, link_modes: LinkModes | None = None,
                    normalisation: Normalisation = "link-mass", damping: Sequence[float] | None = None,
-                   order: Sequence[int] | None = None, name: str = "flexible") -> Model:
+                   order: Sequence[int] | None = None, name: str = "flexible", joint_frame: JointFrame = "axis",
+                   geometric_stiffness: bool | None = None) -> Model:
     """The assumed-modes model of a planar chain of flexible links on revolute joints.
 
     Parameters
@@ -137,9 +149,10 @@ def flexible_chain(links: Sequence[FlexibleLink], *, gravity: float = 0.0, link_
         The links from the base out.
     gravity : float
         g [m/s²] along −y (0: a horizontal plane).
-    link_modes : {"clamped-free", "clamped-mass"}
+    link_modes : {"clamped-free", "clamped-mass"}, optional
         Each link's mode shapes: those of a cantilever (the paper's setting), or of a
-        link clamped at its joint and loaded by its tip mass and inertia.
+        link clamped at its joint and loaded by its tip mass and inertia. None: the
+        joint frame's (see `link_modes_for`).
     normalisation : {"link-mass", "unit"}
         Each mode's modal mass: the link's mass ρA·l, or 1 kg (see `beam_modes`).
     damping : sequence of float, optional
@@ -148,11 +161,22 @@ def flexible_chain(links: Sequence[FlexibleLink], *, gravity: float = 0.0, link_
         A permutation of the default coordinates (see `chain_kinematics`).
     name : str
         The model's name.
+    joint_frame : {"axis", "tip"}
+        Joint i + 1 measured from link i's undeformed axis (the paper's) or from its
+        deformed tip (a physical clamp or elbow motor).
+    geometric_stiffness : bool, optional
+        Gravity's axial-load stiffness of the links; None: on in the tip frame, off in the
+        axis frame, whose equations are the paper's.
     """
     if not links:
         raise InputError("a flexible chain needs at least one link")
-    if link_modes not in ("clamped-free", "clamped-mass"):
-        raise InputError(f"unknown link modes {link_modes!r}: use clamped-free or clamped-mass")
+    link_modes = link_modes_for(joint_frame, link_modes)
+    if link_modes not in LINK_MODES:
+        raise InputError(f"unknown link modes {link_modes!r}: use {' or '.join(LINK_MODES)}")
+    if joint_frame not in JOINT_FRAMES:
+        raise InputError(f"unknown joint frame {joint_frame!r}: use {' or '.join(JOINT_FRAMES)}")
+    if geometric_stiffness is None:
+        geometric_stiffness = joint_frame == "tip"
     n = len(links)
     kin = chain_kinematics([ln.length for ln in links], [ln.modes for ln in links], order)
     q = kin.coordinates
@@ -179,9 +203,13 @@ def flexible_chain(links: Sequence[FlexibleLink], *, gravity: float = 0.0, link_
         grav += gravity * ln.tip_mass * tip_jac[1, :]
         if i > 0:
             mass += ln.hub_inertia * _turn(kin, i, q).T * _turn(kin, i, q)
+    if geometric_stiffness and gravity:
+        grav += _axial_load(kin, links, modes, gravity)
     mass = _trig_reduced(mass.subs(tip_values), kin.angles)
-    mass = sp.Matrix(dof, dof, lambda a, b: mass[min(a, b), max(a, b)])    # exactly symmetric
     grav = _trig_reduced(grav.subs(tip_values), kin.angles)
+    if joint_frame == "tip":
+        mass, grav = _in_tip_frame(kin, modes, links, mass, grav)
+    mass = sp.Matrix(dof, dof, lambda a, b: mass[min(a, b), max(a, b)])    # exactly symmetric
     stiffness = np.zeros((dof, dof))
     modal_damping = np.zeros((dof, dof))
     for i, (ln, md) in enumerate(zip(links, modes)):
@@ -208,6 +236,45 @@ def flexible_chain(links: Sequence[FlexibleLink], *, gravity: float = 0.0, link_
                  gravity=g if any(v != 0 for v in g) else None, coordinates=q, topology="parallel",
                  joints=tuple("modal" if c in modal else "revolute" for c in q),
                  description=f"planar chain of {n} flexible links, assumed modes")
+
+
+def _axial_load(kin: ChainKinematics, links: Sequence[FlexibleLink], modes, gravity: float) -> sp.Matrix:
+    """∂V/∂q of the links' foreshortening under gravity, V = −½·g·Σ sin α_i·δ_iᵀ·(∫ m_i·ψ_i'ψ_i'ᵀ dx)·δ_i."""
+    potential = sp.S.Zero
+    xg, wg = gauss_points(_QUADRATURE_POINTS)
+    alpha = sp.S.Zero
+    for i, (ln, md) in enumerate(zip(links, modes)):
+        alpha = alpha + kin.angles[i]
+        if md is None:
+            continue
+        beyond = ln.tip_mass + sum(nx.rho_a * nx.length + nx.tip_mass for nx in links[i + 1:])
+        xs = xg * ln.length
+        slope = md.shape(xs, 1)
+        carried = ln.rho_a * (ln.length - xs) + beyond
+        block = ln.length * (slope.T * (wg * carried)) @ slope
+        delta = sp.Matrix(kin.modal[i])
+        potential += -sp.Rational(1, 2) * gravity * sp.sin(alpha) * (delta.T * sp.Matrix(block.tolist()) * delta)[0]
+    return sp.Matrix([potential]).jacobian(kin.coordinates)
+
+
+def _in_tip_frame(kin: ChainKinematics, modes, links, mass: sp.Matrix, grav: sp.Matrix):
+    """M and G in tip-frame coordinates q': q = A·q' with θ_{i+1} = θ'_{i+1} + Σ_k ψ'_ik(l_i)·δ_ik."""
+    q = kin.coordinates
+    a = sp.eye(len(q))
+    shift = {}
+    for i in range(len(links) - 1):
+        if modes[i] is None:
+            continue
+        slopes = modes[i].shape([links[i].length], 1)[0]
+        nxt = kin.angles[i + 1]
+        for s, d in zip(slopes, kin.modal[i]):
+            a[q.index(nxt), q.index(d)] = float(s)
+        shift[nxt] = nxt + sum((float(s) * d for s, d in zip(slopes, kin.modal[i])), sp.S.Zero)
+    if not shift:
+        return mass, grav
+    mass = a.T * mass.subs(shift, simultaneous=True) * a
+    grav = grav.subs(shift, simultaneous=True) * a
+    return mass.applyfunc(sp.expand), grav.applyfunc(sp.expand)
 
 
 def _trig_reduced(matrix: sp.MatrixBase, angles) -> sp.MatrixBase:
@@ -266,7 +333,8 @@ FLEXIBLE_DEFAULTS = {
 MAX_MODES = 8
 
 
-def flexible_arm(links: int = 2, link_modes: LinkModes = "clamped-free", normalisation: Normalisation = "link-mass",
+def flexible_arm(links: int = 2, link_modes: LinkModes | None = None, normalisation: Normalisation = "link-mass",
+                 joint_frame: JointFrame = "axis", geometric_stiffness: bool | None = None,
                  **parameters: float) -> Model:
     """The built-in arm ``flex1`` (one flexible link on a hub) or ``flex2`` (the paper's two-link arm).
 
@@ -274,10 +342,14 @@ def flexible_arm(links: int = 2, link_modes: LinkModes = "clamped-free", normali
     ----------
     links : {1, 2}
         Number of links.
-    link_modes : {"clamped-free", "clamped-mass"}
-        Mode shapes (see :func:`flexible_chain`).
+    link_modes : {"clamped-free", "clamped-mass"}, optional
+        Mode shapes (see :func:`flexible_chain`; None: the joint frame's).
     normalisation : {"link-mass", "unit"}
         Modal mass of each mode.
+    joint_frame : {"axis", "tip"}
+        Where joint 2 is measured from (see :func:`flexible_chain`).
+    geometric_stiffness : bool, optional
+        Gravity's axial-load stiffness (None: on in the tip frame only).
     **parameters : float
         Overrides of :data:`FLEXIBLE_DEFAULTS` (for ``flex1``, those of link 1, the hub,
         the payload, g, modes1, zeta1 and b1).
@@ -305,8 +377,14 @@ def flexible_arm(links: int = 2, link_modes: LinkModes = "clamped-free", normali
                           values["Jh1"] if k == 1 else 0.0, *tips[k - 1], values[f"zeta{k}"])
              for k in range(1, links + 1)]
     model = flexible_chain(chain, gravity=values["g"], link_modes=link_modes, normalisation=normalisation,
-                           damping=[values[f"b{k}"] for k in range(1, links + 1)], name=f"flex{links}")
+                           damping=[values[f"b{k}"] for k in range(1, links + 1)], name=f"flex{links}",
+                           joint_frame=joint_frame, geometric_stiffness=geometric_stiffness)
     counts = "+".join(str(int(values[f"modes{k}"])) for k in range(1, links + 1))
+    link_modes = link_modes_for(joint_frame, link_modes)
+    axial = geometric_stiffness if geometric_stiffness is not None else joint_frame == "tip"
+    conventions = (", joints from the tip" if joint_frame == "tip" and links > 1 else "") \
+        + (", geometric stiffness" if axial and values["g"] else "")
     return replace(model, parameters=values, spring_rest=(0.0,) * model.dof,
-                   builder=partial(flexible_arm, links, link_modes, normalisation),
-                   description=f"{'two' if links == 2 else 'one'}-link flexible arm, {counts} {link_modes} modes")
+                   builder=partial(flexible_arm, links, link_modes, normalisation, joint_frame, geometric_stiffness),
+                   description=f"{'two' if links == 2 else 'one'}-link flexible arm, {counts} {link_modes} modes"
+                               f"{conventions}")

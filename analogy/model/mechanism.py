@@ -8,6 +8,7 @@ import numpy as np
 
 from ..errors import InputError
 from .beams import beam_modes
+from .conventions import link_modes_for
 from .catalog import family_builder, robot_family
 
 __all__ = ["Outline", "planar_chain_outline", "five_bar_outline", "flexible_arm_outline", "mechanism_outline"]
@@ -71,11 +72,13 @@ def five_bar_outline(q: np.ndarray, parameters: Mapping[str, float]) -> Outline:
 
 
 def flexible_arm_outline(q: np.ndarray, parameters: Mapping[str, float], *, links: int = 2,
-                         link_modes: str | None = None, exaggeration: float = 1.0) -> Outline:
+                         link_modes: str | None = None, joint_frame: str | None = None,
+                         geometric_stiffness: bool | None = None, exaggeration: float = 1.0) -> Outline:
     """The flexible arm bent by its modes: link i's point at x is r_i(x) = o_i + R(α_i)·(x, Σ_k φ_ik(x)·δ_ik).
 
-    α_i is the sum of θ_1 … θ_i (joint i measured from link i − 1's undeformed axis, as the
-    model's kinematics have it) and o_i link i − 1's deformed tip.
+    α_i is θ_i plus link i − 1's direction: its undeformed axis's (the axis frame, the
+    paper's kinematics) or its deformed tip's (the tip frame); o_i is link i − 1's deformed
+    tip.
 
     Parameters
     ----------
@@ -86,7 +89,11 @@ def flexible_arm_outline(q: np.ndarray, parameters: Mapping[str, float], *, link
     links : int
         Number of links.
     link_modes : {"clamped-free", "clamped-mass"}, optional
-        The model's mode shapes (default clamped-free).
+        The model's mode shapes (None: the joint frame's).
+    joint_frame : {"axis", "tip"}, optional
+        Where each joint is measured from (None: the axis).
+    geometric_stiffness : bool, optional
+        Not drawn; taken so that a scene's conventions pass as they are.
     exaggeration : float
         Deflections are drawn this many times their size.
     """
@@ -98,22 +105,24 @@ def flexible_arm_outline(q: np.ndarray, parameters: Mapping[str, float], *, link
         count, length = int(parameters[f"modes{i + 1}"]), parameters[f"l{i + 1}"]
         x = np.linspace(0.0, length, _BEAM_POINTS)
         if count:
-            load = tips[i] if link_modes == "clamped-mass" else (0.0, 0.0)
+            load = tips[i] if link_modes_for(joint_frame, link_modes) == "clamped-mass" else (0.0, 0.0)
             modes = beam_modes(count, length, parameters[f"rhoA{i + 1}"], parameters[f"EI{i + 1}"], *load)
-            shapes.append((x, modes.shape(x), slice(at, at + count)))
+            slope = modes.shape([length], 1)[0] if joint_frame == "tip" else np.zeros(count)
+            shapes.append((x, modes.shape(x), slice(at, at + count), slope))
         else:
-            shapes.append((x, np.zeros((x.size, 0)), slice(at, at)))
+            shapes.append((x, np.zeros((x.size, 0)), slice(at, at), np.zeros(0)))
         at += count
     frames = []
     for row in q:
         origin, alpha, frame = np.zeros(2), 0.0, []
-        for i, (x, phi, cols) in enumerate(shapes):
+        for i, (x, phi, cols, slope) in enumerate(shapes):
             alpha += row[i]
             u = exaggeration * phi @ row[cols]
             c, s = np.cos(alpha), np.sin(alpha)
             points = origin + np.stack([c * x - s * u, s * x + c * u], axis=1)
             frame.append(points)
             origin = points[-1]
+            alpha += exaggeration * slope @ row[cols]       # the tip frame: the next joint turns with the tip
         frames.append(frame)
     return frames
 
@@ -131,7 +140,8 @@ def mechanism_outline(robot: str, q: np.ndarray, parameters: Mapping[str, float]
     parameters : mapping
         The model's parameter values.
     **options
-        A flexible arm's ``link_modes`` and ``exaggeration`` (ignored for rigid robots).
+        A flexible arm's conventions (``link_modes``, ``joint_frame``) and ``exaggeration``
+        (ignored for rigid robots).
     """
     try:
         family, _ = robot_family(robot)

@@ -408,7 +408,8 @@ def parallel_3dof() -> ClosedChainModel:
     return planar_3rrr(stiffnesses=(0.01, 0.01, 0.01))
 
 
-def robot(name: str, link_modes: str | None = None) -> Model:
+def robot(name: str, link_modes: str | None = None, joint_frame: str | None = None,
+          geometric_stiffness: bool | None = None) -> Model:
     """The symbolic model of a built-in robot (see :data:`~analogy.model.catalog.FAMILIES`).
 
     Parameters
@@ -417,17 +418,24 @@ def robot(name: str, link_modes: str | None = None) -> Model:
         A built-in robot (see :func:`analogy.model.catalog.robot_family`).
     link_modes : {"clamped-free", "clamped-mass"}, optional
         The flexible arms' mode shapes (see :func:`analogy.model.flexible.flexible_chain`).
+    joint_frame : {"axis", "tip"}, optional
+        The flexible arms' joint frame.
+    geometric_stiffness : bool, optional
+        The flexible arms' axial-load stiffness under gravity.
     """
     family, size = robot_family(name)
-    if link_modes is not None and not family.flexible:
+    conventions = {k: v for k, v in (("link_modes", link_modes), ("joint_frame", joint_frame),
+                                     ("geometric_stiffness", geometric_stiffness)) if v is not None}
+    if conventions and not family.flexible:
         flexible = " and ".join(f.name for f in FAMILIES if f.flexible)
-        raise InputError(f"link modes apply to the flexible arms {flexible}, not to {name}")
+        shown = ", ".join(k.replace("_", " ") for k in conventions)
+        raise InputError(f"{shown} apply to the flexible arms {flexible}, not to {name}")
     if family.symbolic is None:
         raise InputError(f"{name} is given by its numbers: it has no symbolic model (its linear dynamics "
                          "are built numerically)")
     build = family_builder(family.symbolic)
     if size is None:
-        return build(*family.args, **({} if link_modes is None else {"link_modes": link_modes}))
+        return build(*family.args, **conventions)
     if size > family.symbolic_sizes:
         raise InputError(f"{name}'s symbolic model (needed for its nonlinear dynamics) is built up to "
                          f"{family.symbolic_sizes} joints; its linear dynamics are numeric at any size "

@@ -31,7 +31,8 @@ TOML_KEYS = {"robot": "[model] robot", "mass": "[model] mass", "damping": "[mode
              "topology": "[configuration] topology", "forces": "[inputs] forces",
              "initial_rates": "[inputs] initial_rates", "t_stop": "[inputs] t_stop",
              "parameters": "[parameters]", "model": "[model]", "inputs": "[inputs]",
-             "dynamics": "dynamics", "link_modes": "[model] link_modes", "urdf": "[model] urdf",
+             "dynamics": "dynamics", "link_modes": "[model] link_modes",
+             "joint_frame": "[model] joint_frame", "geometric_stiffness": "[model] geometric_stiffness", "urdf": "[model] urdf",
              "joints": "[model] joints"}
 
 #: How errors name each part of a scene, by the scene's source: a front end adds its own
@@ -218,7 +219,7 @@ def scene_model(scene: SceneData) -> object:
                 check_parameter_units(params, family.parameter_units(params))
             except InputError as exc:
                 raise InputError(f"{keys['parameters']} {exc}") from None
-            flexible = family.flexible or spec.link_modes is not None
+            flexible = family.flexible or bool(spec.conventions)
             cache = (spec, scene.dynamics) + ((tuple(sorted(params.items())),) if flexible else ())
             model = _MODELS.get(cache)
             if model is None:
@@ -292,13 +293,14 @@ def _robot(spec: ModelSpec, dynamics: str, parameters: Mapping[str, float] | Non
     family, size = robot_family(spec.robot)
     if family.seeded:                           # numbers only, drawn from the scene's seed
         return family_builder(family.numeric)(size, seed=spec.seed)
-    if family.flexible or spec.link_modes is not None:
+    if family.flexible or spec.conventions:
         # Mode shapes follow the parameters: compiled per parameter set, those numbers baked in.
-        name = f"{spec.robot} {spec.link_modes} {sorted((k, float(v)) for k, v in (parameters or {}).items())}"
+        name = f"{spec.robot} {sorted(spec.conventions.items())} " \
+               f"{sorted((k, float(v)) for k, v in (parameters or {}).items())}"
         cached = load_compiled(name) if dynamics == "linear" else None
         if cached is not None:
             return cached
-        model = family_builder("analogy.model.robots:robot")(spec.robot, spec.link_modes)
+        model = family_builder("analogy.model.robots:robot")(spec.robot, **spec.conventions)
         model = model.with_parameters(parameters) if parameters else model
         return (compile_model(model, name, baked=True) or model) if dynamics == "linear" else model
     if dynamics == "linear" and family.numeric is not None:

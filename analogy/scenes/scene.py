@@ -30,6 +30,7 @@ SCENE_SCHEMA = "analogy-scene-2"
 # Fields that name, describe or locate a scene but do not change its result.
 # Where results are written changes no result: a renamed output file or folder re-solves nothing.
 _NOT_CONTENT = ("name", "description", "source", "netlist_file", "csv_file", "plot_file")
+_WHEN_SET = ("urdf", "joints", "joint_frame", "geometric_stiffness")
 
 
 @dataclass(frozen=True)
@@ -258,9 +259,9 @@ def _canonical(value):
         return f"s:{value}"
     if isinstance(value, tuple):
         return [_canonical(v) for v in value]
-    if isinstance(value, ModelSpec):      # the URDF fields only when set: other scenes keep their keys
+    if isinstance(value, ModelSpec):      # fields added later only when set: other scenes keep their keys
         return {f.name: _canonical(getattr(value, f.name)) for f in fields(value)
-                if f.name not in ("urdf", "joints") or getattr(value, f.name) is not None}
+                if f.name not in _WHEN_SET or getattr(value, f.name) is not None}
     return repr(value)
 
 

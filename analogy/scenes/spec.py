@@ -39,11 +39,17 @@ class ModelSpec:
     seed : int
         Random robots only: the seed of their mass matrix.
     link_modes : str or None
-        Flexible arms only: ``"clamped-free"`` (the default) or ``"clamped-mass"`` mode shapes.
+        Flexible arms only: ``"clamped-free"`` or ``"clamped-mass"`` mode shapes (None: the
+        joint frame's, see :func:`analogy.model.conventions.link_modes_for`).
     urdf : str or None
         A URDF robot: the file's text (its content, not its path, is part of the scene).
     joints : tuple of str or None
         A URDF robot's movable joints kept (None: all); the others are frozen at 0.
+    joint_frame : str or None
+        Flexible arms only: joints measured from the previous link's undeformed ``"axis"``
+        (None, the paper's) or its deformed ``"tip"``.
+    geometric_stiffness : bool or None
+        Flexible arms only: gravity's axial-load stiffness (None: on in the tip frame).
     """
 
     robot: str | None = None
@@ -55,6 +61,8 @@ class ModelSpec:
     link_modes: str | None = None
     urdf: str | None = None
     joints: tuple | None = None
+    joint_frame: str | None = None
+    geometric_stiffness: bool | None = None
 
     @classmethod
     def of(cls, robot: str | None = None, **parts) -> "ModelSpec":
@@ -68,6 +76,12 @@ class ModelSpec:
             ``mass``, ``damping``, ``stiffness``, ``gravity``, ``seed`` and ``link_modes``.
         """
         return cls(robot, **{k: freeze(v) for k, v in parts.items()})
+
+    @property
+    def conventions(self) -> dict[str, Any]:
+        """The flexible-arm conventions set (link_modes, joint_frame, geometric_stiffness), by name."""
+        return {k: getattr(self, k) for k in ("link_modes", "joint_frame", "geometric_stiffness")
+                if getattr(self, k) is not None}
 
     @property
     def label(self) -> str:

@@ -30,6 +30,7 @@ nothing; :func:`load_scene` then builds the system once to check the outputs' na
 
 from __future__ import annotations
 
+import json
 import math
 import re
 import tomllib
@@ -37,6 +38,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from ..errors import InputError
+from ..model.conventions import CONVENTIONS
 from ..model.dynamics import DYNAMICS
 from ..model.urdf import read_urdf
 from ..model.expressions import parse_number
@@ -52,7 +54,7 @@ from .validate import validated
 __all__ = ["load_scene", "parse_scene", "parse_toml", "read_text", "scene_from_table", "toml_table", "validated"]
 
 _TABLES = {
-    "model": ("robot", "mass", "damping", "stiffness", "gravity", "link_modes", "urdf", "joints"),
+    "model": ("robot", "mass", "damping", "stiffness", "gravity", *CONVENTIONS, "urdf", "joints"),
     "parameters": None,         # free names
     "configuration": ("q", "topology", "equilibrium"),
     "inputs": ("forces", "initial_rates", "t_stop"),
@@ -325,13 +327,16 @@ def _model_fields(ctx: _Context, data: dict) -> dict:
             if key in model:
                 raise ctx.error(f"[model] {key}", "a built-in robot has its own; set its [parameters] "
                                                   "instead, or give mass = [[...]] without robot")
-        link_modes = model.get("link_modes")
-        if link_modes is not None and link_modes not in ("clamped-free", "clamped-mass"):
-            raise ctx.error("[model] link_modes", f"expected \"clamped-free\" or \"clamped-mass\", "
-                                                  f"got {link_modes!r}")
-        out["model"] = ModelSpec(robot=model["robot"], link_modes=link_modes)
-    elif "link_modes" in model:
-        raise ctx.error("[model] link_modes", "applies to the flexible arms: give robot = \"flex2\"")
+        chosen = {k: model[k] for k in CONVENTIONS if k in model}
+        for key, value in chosen.items():       # 1 == True: a choice must have the choices' type too
+            if value not in CONVENTIONS[key] or type(value) is not type(CONVENTIONS[key][0]):
+                shown = json.dumps(value) if isinstance(value, (str, bool)) else _kind(value)
+                raise ctx.error(f"[model] {key}", f"expected {' or '.join(map(json.dumps, CONVENTIONS[key]))}, "
+                                                  f"got {shown}")
+        out["model"] = ModelSpec(robot=model["robot"], **chosen)
+    elif any(k in model for k in CONVENTIONS):
+        raise ctx.error(f"[model] {next(k for k in CONVENTIONS if k in model)}",
+                        "applies to the flexible arms: give robot = \"flex2\"")
     elif "urdf" in model:
         out["model"] = _urdf_spec(ctx, model)
     elif "mass" in model:
@@ -425,12 +430,7 @@ def _outputs(ctx, data) -> dict:
             if item not in allowed:
                 raise ctx.error("outputs", f"unknown output {item!r} (use {', '.join(allowed)}, "
                                            "or an [outputs] table for files)")
-            if item == "netlist":
-                out["netlist"] = True
-            elif item == "joint_rates":
-                out["joint_rates"] = True
-            else:
-                out[item] = True
+            out[item] = True
         if not raw:
             raise ctx.error("outputs", "asks for nothing")
         return out

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import Any, Mapping
 
 import numpy as np
 from scipy.integrate import cumulative_trapezoid
@@ -28,7 +29,7 @@ def _nice(factor: float) -> float:
 
 
 def motion(system: NodeDynamics, trajectory: Trajectory, frames: int = 60, *,
-           link_modes: str | None = None) -> Motion:
+           conventions: Mapping[str, Any] | None = None) -> Motion:
     """The run *trajectory* of *system* as frames: the pose q = q0 + T⁻¹·∫v dt and, where M' varies, M'(x).
 
     Positions are integrated from the solver's own voltages by the trapezoidal rule,
@@ -42,8 +43,9 @@ def motion(system: NodeDynamics, trajectory: Trajectory, frames: int = 60, *,
         A successful run of it.
     frames : int
         Frames, evenly spread over the run.
-    link_modes : {"clamped-free", "clamped-mass"}, optional
-        A flexible arm's mode shapes, as its model was built.
+    conventions : mapping, optional
+        A flexible arm's conventions as its model was built (``link_modes``,
+        ``joint_frame``; see :attr:`analogy.scenes.spec.ModelSpec.conventions`).
     """
     if not trajectory.success:
         raise InputError(f"the {trajectory.solver} run failed, so there is no motion to draw: "
@@ -63,17 +65,18 @@ def motion(system: NodeDynamics, trajectory: Trajectory, frames: int = 60, *,
         q0 = np.array(at, dtype=float) if len(at) == system.dof else np.zeros(system.dof)
     q = q0 + system.joint_rates(x_shown)
     outline, note = None, ""
+    drawn = dict(conventions or {})
     parameters = dict(provenance.parameters)
     if parameters:
-        outline = mechanism_outline(provenance.robot, q, parameters, link_modes=link_modes)
+        outline = mechanism_outline(provenance.robot, q, parameters, **drawn)
     if outline is not None and provenance.robot.startswith("flex"):
-        stiff = mechanism_outline(provenance.robot, q, parameters, link_modes=link_modes, exaggeration=0.0)
+        stiff = mechanism_outline(provenance.robot, q, parameters, **drawn, exaggeration=0.0)
         bend = max(float(np.max(np.linalg.norm(a - b, axis=1))) for fa, fb in zip(outline, stiff)
                    for a, b in zip(fa, fb))
         reach = sum(float(np.linalg.norm(p[-1] - p[0])) for p in stiff[0])
         factor = _nice(DEFLECTION_SHOWN * reach / bend) if bend > 0 else 1.0
         if factor > 1.0:
-            outline = mechanism_outline(provenance.robot, q, parameters, link_modes=link_modes,
+            outline = mechanism_outline(provenance.robot, q, parameters, **drawn,
                                         exaggeration=factor)
         note = f"deflections drawn x{factor:g} (largest {bend * 1e3:.3g} mm)"
     elif outline is not None and system.kind == "linear":
