@@ -32,6 +32,8 @@
 # 5. The Bode plot of the two-link arm: SPICE's AC sweep against (M's + B' + K'/s)⁻¹,
 #    with the resonances at the natural frequencies.
 # 6. How the first frequencies settle as modes are added.
+# 7. A clamp at the elbow: the paper's joint frame against the tip frame, and the mode
+#    shapes that show the difference.
 
 # %%
 import _lab
@@ -41,6 +43,7 @@ from matplotlib.figure import Figure
 import analogy
 from analogy.model.beams import beam_modes
 from analogy.model.flexible import FLEXIBLE_DEFAULTS, flexible_arm
+from analogy.model.mechanism import flexible_arm_outline
 from analogy.results.modes import natural_modes
 from analogy.scenes.scene import Scene
 from analogy.scenes.spec import ModelSpec
@@ -172,3 +175,41 @@ ax.set_title(f"flex2, gravity off: each frequency falls toward its {counts[-1]}-
 ax.grid(alpha=0.3)
 _lab.legend_outside(ax)
 _lab.save(fig, out / "flexible_convergence.png")
+
+# %% [markdown]
+# ## 7. A clamp at the elbow: which frame is joint 2 measured in?
+#
+# The paper measures θ2 from link 1's *undeformed* axis. Locking joint 2 then holds link 2's
+# direction to the hub, whatever link 1's bent tip does: in the first mode link 2 moves parallel
+# to itself, and the elbow's angle to link 1's tip changes. A real clamp (or a
+# braked elbow motor) holds link 2 to link 1's *tip*. `joint_frame="tip"` measures θ2 there.
+# It is the same arm in other coordinates, so with free joints nothing changes. Lock both
+# joints, though, and the arm becomes a clamped frame. A finite-element model of that frame
+# (50 Hermite beam elements a link, in `tests/beam_frame.py`) gives 2.2806 Hz for its first
+# mode. Gravity is off here; with it, the tip frame also adds the links' geometric stiffness.
+
+# %%
+_lab.section("a clamp at the elbow: axis frame against tip frame")
+clamp_pose = [0.3, 0.5]
+fig = Figure(figsize=(9, 4), layout="constrained")
+axes = fig.subplots(1, 2, sharex=True, sharey=True)
+for ax, frame in zip(axes, ("axis", "tip")):
+    arm = flexible_arm(2, joint_frame=frame, modes1=4, modes2=4, g=0.0)
+    locked = natural_modes(arm.joint_space(clamp_pose + [0.0] * 8), [1, 2])
+    f1 = locked.omega[0] / (2 * np.pi)
+    print(f"{frame} frame, both joints locked: first frequency {f1:.4f} Hz")
+    shape = locked.shapes[:, 0]
+    for sign, style in ((0.0, ":"), (1.0, "-"), (-1.0, "--")):
+        q = np.array([clamp_pose + list(sign * 0.03 * shape / np.max(np.abs(shape)))])
+        for link in flexible_arm_outline(q, p, joint_frame=frame)[0]:
+            ax.plot(link[:, 0], link[:, 1], style, color="k" if sign == 0 else "C0", lw=1.5)
+    ax.set_title(f"joint_frame=\"{frame}\": first locked mode {f1:.3f} Hz", fontsize="medium")
+    ax.set_aspect("equal")
+    ax.grid(alpha=0.3)
+    ax.set_xlabel("x [m]")
+axes[0].set_ylabel("y [m]")
+fig.suptitle("flex2, both joints locked at (0.3, 0.5) rad, its first mode drawn ± (dotted: at rest)\n"
+             "axis frame: link 2 keeps its direction as link 1 bends\n"
+             "tip frame: link 2 turns with link 1's tip, a clamped frame (finite elements: 2.2806 Hz)",
+             fontsize="medium")
+_lab.save(fig, out / "flexible_clamp.png")

@@ -229,3 +229,18 @@ def test_a_csv_of_many_rows_is_announced_with_its_size_and_the_step_that_thins_i
     err = capsys.readouterr().err
     rows = sum(1 for _ in path.open()) - 1
     assert f"writing {rows:,} rows to {path}" in err and "--step 0.001 writes 10,001" in err
+
+
+def test_the_flexible_arm_s_joint_frame_from_the_command_line():
+    """--joint-frame tip --locked 1,2 prints the clamped arm's modes, as the API gives them;
+    on a rigid robot the flag is one sentence and exit 2."""
+    import numpy as np
+    from analogy.model.flexible import flexible_arm
+    from analogy.results.modes import natural_modes
+    res = cli("modes", "--robot", "flex2", "--joint-frame", "tip", "--q=0.3,0.5,0,0,0,0", "--locked", "1,2")
+    assert res.returncode == 0, res.stderr
+    first = float(next(line for line in res.stdout.splitlines() if line.split()[:1] == ["1"]).split()[2])
+    expected = natural_modes(flexible_arm(2, joint_frame="tip").joint_space([0.3, 0.5, 0, 0, 0, 0]), [1, 2])
+    assert first == pytest.approx(expected.omega[0] / (2 * np.pi), rel=1e-5)      # 6 printed digits
+    bad = cli("modes", "--robot", "serial2", "--joint-frame", "tip")
+    assert bad.returncode == 2 and bad.stderr.count("\n") == 1 and "flexible arms" in bad.stderr

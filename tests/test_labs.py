@@ -36,6 +36,7 @@ OUTPUTS = {
                         "mp_unloaded.csv", "mp_driven.csv"],
     "lab_flexible_arm.py": ["flexible_modes.png", "flexible_mass_matrix.png", "flexible_step.png",
                             "flexible_step.csv", "flexible_step_motion.gif", "flexible_step_motion_sheet.png", "flexible_bode.png", "flexible_convergence.png",
+                            "flexible_clamp.png",
                             "flex2_elements.png"],
     "lab_your_robot.py": ["ur5_elbow_sweep.png", "ur5_elements.png", "ur5.png", "ur5.csv", "ur5_wrist.png",
                           "ur5_singular.png", "ur5_singular.csv"],

@@ -584,3 +584,34 @@ def test_draw_circuit_is_part_of_the_package_namespace():
     import analogy
     from analogy.circuit.diagram import draw_circuit
     assert analogy.draw_circuit is draw_circuit and "draw_circuit" in analogy.__all__
+
+
+def test_a_scene_file_chooses_the_flexible_arm_s_joint_frame_and_geometric_stiffness():
+    """[model] joint_frame and geometric_stiffness reach the model, change the key, and are
+    checked by value and by type."""
+    text = textwrap.dedent("""
+        [model]
+        robot = "flex2"
+        joint_frame = "tip"
+        [configuration]
+        q = [0.3, 0.5, 0, 0, 0, 0]
+        [inputs]
+        forces = [1, 1, 0, 0, 0, 0]
+        t_stop = 0.2
+    """)
+    tip, axis = parse_scene(text), parse_scene(text.replace('joint_frame = "tip"', ""))
+    assert tip.model.conventions == {"joint_frame": "tip"} and axis.model.conventions == {}
+    assert tip.key != axis.key
+    from analogy.results.modes import natural_modes
+    # locked at the elbow's tip the arm is a clamped frame, 2.25 Hz; locked to the hub's axis, 3.39 Hz
+    f_tip, f_axis = (natural_modes(s.system().joint, [1, 2]).omega[0] / (2 * np.pi) for s in (tip, axis))
+    assert f_tip < 0.7 * f_axis
+    off = parse_scene(text.replace('joint_frame = "tip"', 'joint_frame = "tip"\ngeometric_stiffness = false'))
+    assert off.key != tip.key and off.model.geometric_stiffness is False
+    with pytest.raises(InputError, match=r'\[model\] joint_frame: expected "axis" or "tip", got "bent"'):
+        parse_scene(text.replace('"tip"', '"bent"'))
+    with pytest.raises(InputError, match=r"\[model\] geometric_stiffness: expected true or false, got a number"):
+        parse_scene(text.replace('joint_frame = "tip"', "geometric_stiffness = 1"))
+    with pytest.raises(InputError, match="apply to the flexible arms"):
+        parse_scene(text.replace('"flex2"', '"serial2"').replace("q = [0.3, 0.5, 0, 0, 0, 0]", "q = [0, 0.3]")
+                    .replace("forces = [1, 1, 0, 0, 0, 0]", "forces = [1, 1]"))
