@@ -76,6 +76,9 @@ def circuit(system, zero_tol: float = ZERO_TOL, realizable: bool = False, descri
     InputError
         If leaving out the capacitors under the tolerance makes the circuit singular.
     """
+    if system.kind != "linear" and hasattr(system.model, "passive"):
+        from .constrained_circuit import constrained_circuit  # sympy: only for nonlinear circuits
+        return constrained_circuit(system, zero_tol, describe)
     if system.kind != "linear":
         from .nonlinear_circuit import (
             nonlinear_circuit,  # sympy: only for nonlinear circuits

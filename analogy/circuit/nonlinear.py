@@ -243,16 +243,16 @@ def nonlinear_system(model, q: Sequence[float], *, parameters: Mapping[str, floa
     info : mapping, optional
         Extra report fields.
     """
-    if hasattr(model, "passive"):
-        raise InputError(f"{model.name} is a closed chain, whose M(q) has no closed form (its passive "
-                         "joints are solved numerically): its nonlinear dynamics are not built; "
-                         "use the linear circuit at q")
     if not hasattr(model, "mechanical_functions"):
         raise InputError(f"model {getattr(model, 'name', model)!r} has no symbolic M(q): "
                          "nonlinear dynamics need a symbolic model")
     functions = model.mechanical_functions(parameters)
     n = model.dof
     top = make_topology(model.topology if topology is None else topology, n)
+    if hasattr(model, "passive") and not np.array_equal(top.matrix, np.eye(n)):
+        # its circuit has a node per joint of the loop, the active ones first: v = r
+        raise InputError(f"{model.name} is a closed chain: its nonlinear circuit takes the parallel "
+                         "topology (a node per joint)", field="topology")
     values = dict(model.parameters, **(parameters or {}))
     base = Provenance.of(info, robot=model.name, parameters=values,
                          configuration=dict(zip((str(c) for c in model.coordinates), list(q))),

@@ -9,7 +9,8 @@ import numpy as np
 from ..waveforms import Waveform
 from .elements import ZERO_TOL, Element
 
-__all__ = ["CurrentSource", "Coupling", "ChargeCapacitor", "BehaviouralCurrent", "BehaviouralVoltage", "Integrator",
+__all__ = ["CurrentSource", "Coupling", "ChargeCapacitor", "BehaviouralCurrent", "ConstraintCurrent", "BehaviouralVoltage",
+           "Integrator",
            "Circuit", "current_sources", "describe_forces", "comments"]
 
 
@@ -83,6 +84,11 @@ class BehaviouralCurrent(NamedTuple):
     current: str
 
 
+class ConstraintCurrent(BehaviouralCurrent):
+    """A loop-closure branch: J(x)·v + α·Φ(x) into a multiplier's node, which nothing else
+    touches, so that Kirchhoff's current law there is the constraint (closed chains)."""
+
+
 class BehaviouralVoltage(NamedTuple):
     """A node *name* held at the SPICE expression *voltage* (a quantity others share), *initial* at t = 0."""
 
@@ -92,9 +98,14 @@ class BehaviouralVoltage(NamedTuple):
 
 
 class Integrator(NamedTuple):
-    """A state node x_k = ∫ v(n_k) dt: a 1 F capacitor charged by a current equal to the node's rate."""
+    """A state node x_k = ∫ v(n_k) dt: a 1 F capacitor charged by a current equal to the node's rate.
+
+    *reported*: the node is one of the system's positions; a closed chain's passive joints
+    are integrated too, and saved apart (:attr:`Circuit.monitors`).
+    """
 
     node: int
+    reported: bool = True
 
     @property
     def name(self) -> str:
@@ -158,8 +169,18 @@ class Circuit(NamedTuple):
 
     @property
     def state_nodes(self) -> list[str]:
-        """The integrators' nodes x1 … (positions), in a nonlinear circuit."""
-        return [p.name for p in self.behavioural if isinstance(p, Integrator)]
+        """The integrators' nodes x1 … (the system's positions), in a nonlinear circuit."""
+        return [p.name for p in self.behavioural if isinstance(p, Integrator) and p.reported]
+
+    @property
+    def constraints(self) -> int:
+        """Loop-closure equations: nodes whose only branch is a :class:`ConstraintCurrent`."""
+        return sum(isinstance(p, ConstraintCurrent) for p in self.behavioural)
+
+    @property
+    def monitors(self) -> list[str]:
+        """Integrator nodes that are not the system's positions: a closed chain's passive joints."""
+        return [p.name for p in self.behavioural if isinstance(p, Integrator) and not p.reported]
 
     def element(self, name: str) -> Element | None:
         """The element called *name* (any case), or None.

@@ -1,4 +1,12 @@
-"""Closed kinematic chains: M(q) = Sᵀ·M_θ(q, p)·S with passive coordinates p(q) from loop closure."""
+"""Closed kinematic chains: M(q) = Sᵀ·M_θ(q, p)·S with passive coordinates p(q) from loop closure.
+
+Cut open, the chain is a tree over θ = (q, p) with mass matrix M_θ(θ), velocity terms
+c_θ(θ, θ̇) and the loop closure Φ(θ) = 0 as constraints: M_θ·θ̈ + c_θ = E·τ + Φ_θᵀ·λ.
+On the constraint θ̇ = S·q̇ with S = [I; G], so θ̈ = S·q̈ + (0, p̈₀), where
+p̈₀ = −Φ_p⁻¹·(∂(Φ_θ·θ̇)/∂θ)·θ̇ is the passive acceleration at q̈ = 0. SᵀΦ_θᵀ = 0 and SᵀE = I
+leave M(q)·q̈ + Sᵀ·(M_θ·(0, p̈₀) + c_θ) = τ: the velocity terms of the active joints
+(:meth:`ClosedChainModel.mechanical_functions`).
+"""
 
 from __future__ import annotations
 
@@ -10,6 +18,7 @@ import sympy as sp
 from sympy.simplify.fu import TR8
 
 from ..errors import InputError
+from .dynamics import MechanicalFunctions
 from .joint import JointStack, configuration_stack
 from .symbolic import Model
 
@@ -67,12 +76,15 @@ class ClosedChainModel(Model):
         Loop-closure residual Φ(q, p), one entry per passive coordinate.
     reference : callable
         Maps a dict of parameter values to (q_ref, p_ref) in the working mode.
+    tree_mass : sympy Matrix, optional
+        M_θ over (q, p), the chain cut open (needed for its nonlinear dynamics).
     """
 
     passive: Sequence = ()
     rates: object = None
     constraints: object = None
     reference: Callable | None = None
+    tree_mass: object = None
 
     #: Largest first Newton correction (rad, or m) accepted in one continuation step.
     max_correction = 0.2
@@ -119,7 +131,82 @@ class ClosedChainModel(Model):
         full = link_mass_matrix(links, q + p)
         mass = sp.ImmutableMatrix((s.T * full * s).applyfunc(sp.expand))
         return cls(name, mass, coordinates=q, passive=p, rates=rates,
-                   constraints=sp.Matrix(constraints), reference=reference, **kw)
+                   constraints=sp.Matrix(constraints), reference=reference, tree_mass=sp.ImmutableMatrix(full), **kw)
+
+    def open_tree(self) -> Model:
+        """The chain cut open: M_θ over all its joints (q, p), the joint dampers and springs on q.
+
+        Its own dynamics are the chain's without the loop closure; the constraint forces
+        Φ_θᵀ·λ are what hold it closed (see :mod:`analogy.circuit.constrained_circuit`).
+        """
+        if self.tree_mass is None:
+            raise InputError(f"closed chain {self.name!r} keeps no tree mass matrix: its nonlinear "
+                             "dynamics are not built")
+        m = len(self.passive)
+
+        def padded(matrix):
+            if matrix is None:
+                return None
+            full = sp.zeros(self.dof + m)
+            full[:self.dof, :self.dof] = matrix
+            return full
+        return Model(f"{self.name} (cut open)", self.tree_mass, damping=padded(self.damping),
+                     stiffness=padded(self.stiffness), parameters=self.parameters,
+                     coordinates=tuple(self.coordinates) + self.passive, topology="parallel")
+
+    def mechanical_functions(self, parameters: Mapping[str, float] | None = None) -> MechanicalFunctions:
+        """M(q) = SᵀM_θS and c(q, q̇) = Sᵀ·(M_θ·(0, p̈₀) + c_θ(θ, S·q̇)) at fixed parameters (see the module).
+
+        Parameters
+        ----------
+        parameters : mapping, optional
+            Overrides of :attr:`parameters` by name.
+        """
+        values = dict(self.parameters)
+        for key, value in (parameters or {}).items():
+            if key not in values:
+                raise InputError(f"model {self.name!r} has no parameter {key!r} (it has: {', '.join(values)})")
+            values[key] = float(value)
+        cache = self.__dict__.setdefault("_mechanical", {})
+        key = tuple(sorted(values.items()))
+        if key not in cache:
+            cache[key] = self._constrained_functions(values)
+        return cache[key]
+
+    def _constrained_functions(self, values: dict) -> MechanicalFunctions:
+        tree = self.open_tree().mechanical_functions(values)
+        n, m = self.dof, len(self.passive)
+        theta = list(self.coordinates) + list(self.passive)
+        rates = sp.symbols(f"thetad1:{n + m + 1}", real=True)
+        subs = {sym: values[name] for name, sym in self.symbols.items()}
+        phi = self.constraints.subs(subs)
+        drift = phi.jacobian(theta) * sp.Matrix(rates)          # Φ_θ·θ̇
+        quadratic = sp.lambdify([theta, rates], list(drift.jacobian(theta) * sp.Matrix(rates)), cse=True)
+        jac_p = sp.lambdify([theta], phi.jacobian(list(self.passive)), cse=True)
+
+        def state(q, r=None):
+            p, g = self.assemble(q, values)
+            s = np.vstack([np.eye(n), g])
+            return np.concatenate([q, p]), s
+
+        def mass(q):
+            th, s = state(np.asarray(q, dtype=float))
+            return s.T @ tree.mass(th) @ s
+
+        def velocity(q, r):
+            th, s = state(np.asarray(q, dtype=float))
+            thd = s @ np.asarray(r, dtype=float)
+            passive = -np.linalg.solve(np.asarray(jac_p(th), dtype=float),
+                                       np.asarray(quadratic(th, thd), dtype=float).reshape(m))
+            return s.T @ (tree.mass(th) @ np.concatenate([np.zeros(n), passive]) + tree.velocity(th, thd))
+
+        gravity = None
+        if tree.gravity is not None:
+            def gravity(q):
+                th, s = state(np.asarray(q, dtype=float))
+                return s.T @ tree.gravity(th)
+        return MechanicalFunctions(mass, velocity, gravity, tree.damping[:n, :n],
+                                   None if tree.stiffness is None else tree.stiffness[:n, :n])
 
     def joint_stack(self, qs, parameters=None) -> JointStack:
         """Evaluate configuration by configuration: each needs its own assembly solve.
@@ -201,6 +288,8 @@ class ClosedChainModel(Model):
         return p.copy(), rates.copy()
 
 
+#: A pose this close (rad, or m) to the last one solved continues from it, not from the reference.
+_NEAR = 0.05
 #: Continuation steps from the reference assembly to the asked configuration (each a few Newton
 #: iterations); a pose many turns away would otherwise take minutes.
 _MAX_CONTINUATION_STEPS = 2000
@@ -221,6 +310,9 @@ class _AssemblySolver:
             return self.last[1]
         q, params = np.array(key[:self.n]), key[self.n:]
         q0, p0 = self._reference(params)
+        near = self.last[0]
+        if near is not None and near[self.n:] == params and np.max(np.abs(q - near[:self.n]), initial=0) <= _NEAR:
+            q0, p0 = np.array(near[:self.n]), self.last[1][0]     # along a trajectory: from the last pose
         p = self._continue(q0, p0, q, params)
         jp = self._jp(q, p, params)
         if np.linalg.cond(jp) > self.model.max_condition:

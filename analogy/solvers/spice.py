@@ -83,11 +83,12 @@ def solve_spice(system, times=None, *, preset="accurate", save=None) -> Trajecto
         Element names whose currents to return in :attr:`Trajectory.currents`.
     """
     circ = circuit(system, realizable=getattr(system, "realizable", False), describe=False)
-    names = [e for e in (save or []) if e not in system.nodes] + circ.state_nodes
+    names = [e for e in (save or []) if e not in system.nodes] + circ.state_nodes + circ.monitors
     vectors = save_vectors(circ, list(system.nodes) + names)
     scales = system_scales(system)
     settings = transient_settings(preset, system.t_stop, scales, behavioural=bool(circ.behavioural),
-                                  coupled=bool(circ.couplings), breakpoints=system.breakpoints())
+                                  coupled=bool(circ.couplings), constrained=bool(circ.constraints),
+                                  breakpoints=system.breakpoints())
     sess = session()
     start = _time.perf_counter()
     note = ""
@@ -107,8 +108,13 @@ def solve_spice(system, times=None, *, preset="accurate", save=None) -> Trajecto
     elapsed = _time.perf_counter() - start
     v = np.column_stack([data[f"v({n})"] for n in system.nodes])
     x = np.column_stack([data[f"v({n})"] for n in circ.state_nodes]) if circ.state_nodes else None
-    currents = {name: data[vec] for name, vec in zip(names, vectors[system.dof:]) if name not in circ.state_nodes}
+    kept = set(circ.state_nodes) | set(circ.monitors)
+    currents = {name: data[vec] for name, vec in zip(names, vectors[system.dof:]) if name not in kept}
     tr = _trajectory(system, *_from_start(data["time"]), v, currents, stats, elapsed, x)
+    if circ.monitors:           # a closed chain's passive positions, from 0 (its first row is the start)
+        start = np.zeros(int(tr.time.size) - int(data["time"].size))
+        tr = replace(tr, currents={**tr.currents, **{name: np.concatenate([start, data[vec]]) for name, vec
+                                                     in zip(names, vectors[system.dof:]) if name in circ.monitors}})
     tr = replace(tr, message=note, settings=settings) if note else replace(tr, settings=settings)
     return tr if times is None else tr.resampled(system.time_points(times), system.joint_rates)
 
