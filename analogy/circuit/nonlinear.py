@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -176,6 +177,35 @@ class NonlinearNodeSystem(NodeCoordinates):
         energy = kinetic + spring
         residual = energy - energy[0] - work
         return residual, float(max(np.max(np.abs(energy)), np.max(np.abs(work)), np.finfo(float).tiny))
+
+    def loop_residual(self, trajectory) -> tuple[float, float] | None:
+        """A closed chain's largest |Φ| along *trajectory*, and the largest equilibrated cond(Φ_p) it met.
+
+        The passive joints are the circuit's own (saved as ``x<k>``) where the solver
+        integrated them, else solved from the loop closure at up to 400 of its points.
+        None for a tree, or a run without positions.
+
+        Parameters
+        ----------
+        trajectory : Trajectory
+            A solution with positions.
+        """
+        model = self.model
+        if not hasattr(model, "passive") or trajectory.positions is None:
+            return None
+        q = self.configuration(trajectory.positions)
+        names = [f"x{self.dof + k + 1}" for k in range(len(model.passive))]
+        p0, _ = model.assemble(self.q0, self.parameters)
+        if all(n in trajectory.currents for n in names):
+            p = p0 + np.column_stack([trajectory.currents[n] for n in names])
+        else:
+            q = q[np.unique(np.linspace(0, len(q) - 1, min(len(q), 400)).astype(int))]
+            try:
+                p = np.array([model.assemble(row, self.parameters)[0] for row in q])
+            except InputError:          # the run reached a pose where the loop does not close
+                return math.nan, math.inf
+        size, cond = model.loop_closure(np.column_stack([q, p]), self.parameters)
+        return float(np.max(size)), float(np.max(cond))
 
     def jacobian(self, x: np.ndarray, v: np.ndarray, drive: np.ndarray) -> np.ndarray | None:
         """∂f/∂y of the first-order form y = [x, v, W], y' = f (see :func:`~analogy.solvers.ode.solve_ode`).

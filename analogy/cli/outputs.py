@@ -31,7 +31,8 @@ def check_writable(path) -> None:
 
 
 def accuracy_exit(flags: dict, preset: str, bound: float, result=None) -> int:
-    """Exit 3 and one line per solver whose worst output is past *bound*; else 0.
+    """Exit 3 and one line per solver whose worst output is past *bound*, or on a closed chain's
+    motion near a singular pose (:attr:`Comparison.singular`); else 0.
 
     Parameters
     ----------
@@ -49,4 +50,7 @@ def accuracy_exit(flags: dict, preset: str, bound: float, result=None) -> int:
         which = f" on {worst(solver)[0]}" if worst is not None and solver in result.results else ""
         print(f"analogy: accuracy: {solver} error{which} {err:.3g} of its own peak is above the {preset} "
               f"preset's bound {bound:g}", file=sys.stderr)
-    return EXIT_ACCURACY if flags else EXIT_OK
+    singular = getattr(result, "singular", "")
+    if singular:
+        print(f"analogy: accuracy: {singular}", file=sys.stderr)
+    return EXIT_ACCURACY if flags or singular else EXIT_OK

@@ -154,6 +154,37 @@ class ClosedChainModel(Model):
                      stiffness=padded(self.stiffness), parameters=self.parameters,
                      coordinates=tuple(self.coordinates) + self.passive, topology="parallel")
 
+    def loop_closure(self, thetas, parameters: Mapping[str, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """|Φ(θ)| and the equilibrated condition number of Φ_p at each row of *thetas* = (q, p).
+
+        Φ_p's rows and columns scaled to unit length first, the condition number does not
+        depend on units (metres against radians); it is 1 for orthogonal constraints and
+        grows without bound at a singular pose, where the passive joints lose their
+        solution and the constraint forces grow as its inverse.
+
+        Parameters
+        ----------
+        thetas : array_like, shape (count, dof + passive)
+            Poses of every joint, active first.
+        parameters : mapping, optional
+            Parameter overrides.
+        """
+        values = {**self.parameters, **(parameters or {})}
+        theta = list(self.coordinates) + list(self.passive)
+        subs = {sym: values[name] for name, sym in self.symbols.items()}
+        phi = self.constraints.subs(subs)
+        residual = sp.lambdify([theta], list(phi), cse=True)
+        jac = sp.lambdify([theta], phi.jacobian(list(self.passive)), cse=True)
+        rows = np.atleast_2d(np.asarray(thetas, dtype=float))
+        size = np.array([np.max(np.abs(np.asarray(residual(r), dtype=float))) for r in rows])
+        conds = []
+        for r in rows:
+            a = np.asarray(jac(r), dtype=float)
+            a = a / np.linalg.norm(a, axis=0)
+            a = a / np.linalg.norm(a, axis=1)[:, None]
+            conds.append(np.linalg.cond(a))
+        return size, np.array(conds)
+
     def mechanical_functions(self, parameters: Mapping[str, float] | None = None) -> MechanicalFunctions:
         """M(q) = SᵀM_θS and c(q, q̇) = Sᵀ·(M_θ·(0, p̈₀) + c_θ(θ, S·q̇)) at fixed parameters (see the module).
 

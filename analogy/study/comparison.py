@@ -24,7 +24,12 @@ from ..circuit.node_stack import NodeStack
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-__all__ = ["Comparison", "compare", "compare_many", "DEFAULT_SOLVERS"]
+#: Equilibrated cond(Φ_p) past which a closed chain's motion counts as near a singular pose: the
+#: passive joints' solution is then ten times more sensitive than at orthogonal constraints (for
+#: the five-bar, its distal links within about 11° of collinear).
+SINGULAR_CONDITION = 10.0
+
+__all__ = ["Comparison", "compare", "compare_many", "DEFAULT_SOLVERS", "SINGULAR_CONDITION"]
 
 #: The solvers a comparison runs unless told otherwise.
 DEFAULT_SOLVERS: tuple[str, ...] = ("spice", "ode", "exact")
@@ -57,6 +62,10 @@ class Comparison(Tabular):
     energy : dict of str to float
         Nonlinear systems: per solver, max |T + U − T(0) − W| over the energy scale
         (:meth:`~analogy.circuit.nonlinear.NonlinearNodeSystem.energy_residual`).
+    loop : dict of str to (float, float)
+        Closed chains: per solver, the largest loop residual |Φ| and the largest
+        equilibrated cond(Φ_p) along its run
+        (:meth:`~analogy.circuit.nonlinear.NonlinearNodeSystem.loop_residual`).
     measured : dict of str to OutputErrors
         Per solver, measured on its own time points: every output (joint rate, element
         current asked for) against that output's own peak; indexed as a pair, (max |error|,
@@ -73,6 +82,17 @@ class Comparison(Tabular):
     bound: float = math.nan
     energy: dict = field(default_factory=dict)
     skipped: dict = field(default_factory=dict)
+    loop: dict = field(default_factory=dict)
+
+    @property
+    def singular(self) -> str:
+        """A sentence if the motion came near a singular pose of a closed chain, else ``""``."""
+        worst = max((c for _, c in self.loop.values()), default=0.0)
+        if worst < SINGULAR_CONDITION:
+            return ""
+        return (f"the motion comes near a singular pose of the loop (equilibrated cond(Φ_p) reaches {worst:.3g}, "
+                f"past {SINGULAR_CONDITION:g}): its constraint forces grow without bound there, and no solver's "
+                "error is promised")
 
     @property
     def peak(self) -> float:
@@ -142,6 +162,8 @@ class Comparison(Tabular):
             err = self.errors()[name]
             st = tr.stats
             note = "reference" if name == self.reference else tr.message
+            if name in self.loop and name not in ("ode", "reference"):        # those solve the loop exactly
+                note = f"loop residual {self.loop[name][0]:.2e}" + (f", {note}" if note else "")
             if name in self.energy:
                 note = f"energy residual {self.energy[name]:.2e}" + (f", {note}" if note else "")
             worst = "" if name == self.reference else err.worst
@@ -168,6 +190,8 @@ class Comparison(Tabular):
             lines.append(f"{name:<10}{ms:>15.3f}{errs}{steps!s:>8}{tail}")
         if getattr(getattr(self.system, "joint", None), "unstable", False):
             lines.append("unstable equilibrium: K + ∂G/∂q has a negative eigenvalue, so the motion grows")
+        if self.singular:
+            lines.append(self.singular)
         return "\n".join(lines)
 
     def __str__(self) -> str:
@@ -362,15 +386,21 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
                 failures[n] = tr.message
         grid = grids[k] if grids[k] is not None else np.linspace(0.0, system.t_stop, p.steps + 1)
         ref = ref_name if ref_name in results else None
-        energy = {}
+        energy, loop = {}, {}
         if nonlinear:
             for n in results:
                 tr = native[n][k] if n in native else results[n]     # on the solver's own points
                 if tr.success and tr.positions is not None:
-                    residual, scale = system.energy_residual(tr)
-                    energy[n] = float(np.max(np.abs(residual))) / scale
+                    closure = system.loop_residual(tr)
+                    if closure is not None:
+                        loop[n] = closure
+                    try:
+                        residual, scale = system.energy_residual(tr)
+                        energy[n] = float(np.max(np.abs(residual))) / scale
+                    except InputError:      # a closed chain's run went where its loop does not close
+                        energy[n] = math.nan
         out.append(Comparison(system, p.name, grid, results, failures, ref, measured[k] if ref else {},
-                              p.bound, energy, skipped))
+                              p.bound, energy, skipped, loop))
     return out
 
 
