@@ -170,9 +170,10 @@ def test_the_nonlinear_reference_is_converged():
         assert relative_error(a, b) <= 1e-10
 
 
-def test_closed_chains_are_refused_with_one_sentence():
-    with pytest.raises(InputError, match="parallel2 is a closed chain, whose M\\(q\\) has no closed form"):
-        scene("parallel2").replace(dynamics="nonlinear").system()
+def test_a_closed_chain_s_nonlinear_circuit_takes_the_parallel_topology_only():
+    """Its circuit has a node per joint of the loop, v = r; another T is refused in one sentence."""
+    with pytest.raises(InputError, match="parallel2 is a closed chain: its nonlinear circuit takes the parallel"):
+        scene("parallel2").replace(dynamics="nonlinear", topology="serial").system()
 
 
 @pytest.mark.parametrize("make", [lambda: nonlinear("default"), lambda: nonlinear("serial3"),
