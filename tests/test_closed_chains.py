@@ -99,8 +99,8 @@ def test_the_constrained_circuit_keeps_the_preset_s_bound_against_the_reduced_re
 
 @pytest.mark.ngspice
 def test_a_motion_near_a_singular_pose_is_flagged_with_exit_3(capsys):
-    """The five-bar's built-in scene, nonlinear over its 10 s, swings its distal links to within
-    about 11° of collinear: the comparison says so, and the command exits 3."""
+    """The five-bar's built-in scene, nonlinear over its 10 s, folds both legs flat at t = 1.42 s
+    with the distal links in line (cond(Φ_p) 66 on the fast preset's points): the comparison says so, and the command exits 3."""
     c = compare(scene_system(scene("parallel2").replace(dynamics="nonlinear")), "fast", solvers=("spice",))
     assert "singular pose" in c.singular and c.loop["spice"][1] >= SINGULAR_CONDITION
     assert main(["compare", "--robot", "parallel2", "--dynamics", "nonlinear", "--preset", "fast",

@@ -38,6 +38,7 @@ OUTPUTS = {
                             "flexible_step.csv", "flexible_step_motion.gif", "flexible_step_motion_sheet.png", "flexible_bode.png", "flexible_convergence.png",
                             "flexible_clamp.png",
                             "flex2_elements.png"],
+    "lab_closed_chains.py": ["closed_chain_forces.png", "closed_chain_singular.png"],
     "lab_your_robot.py": ["ur5_elbow_sweep.png", "ur5_elements.png", "ur5.png", "ur5.csv", "ur5_wrist.png",
                           "ur5_singular.png", "ur5_singular.csv"],
 }

@@ -157,10 +157,12 @@ class ClosedChainModel(Model):
     def loop_closure(self, thetas, parameters: Mapping[str, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
         """|Φ(θ)| and the equilibrated condition number of Φ_p at each row of *thetas* = (q, p).
 
-        Φ_p's rows and columns scaled to unit length first, the condition number does not
-        depend on units (metres against radians); it is 1 for orthogonal constraints and
-        grows without bound at a singular pose, where the passive joints lose their
-        solution and the constraint forces grow as its inverse.
+        Φ_p's rows and columns are scaled by the lengths they have at the first row (the
+        run's start), so that the condition number does not depend on units (metres
+        against radians); scaled at each pose instead, a row that vanishes at a singular
+        pose would be blown up and hide it. It grows without bound at a singular pose,
+        where the passive joints lose their solution and the constraint forces grow as
+        its inverse.
 
         Parameters
         ----------
@@ -177,12 +179,10 @@ class ClosedChainModel(Model):
         jac = sp.lambdify([theta], phi.jacobian(list(self.passive)), cse=True)
         rows = np.atleast_2d(np.asarray(thetas, dtype=float))
         size = np.array([np.max(np.abs(np.asarray(residual(r), dtype=float))) for r in rows])
-        conds = []
-        for r in rows:
-            a = np.asarray(jac(r), dtype=float)
-            a = a / np.linalg.norm(a, axis=0)
-            a = a / np.linalg.norm(a, axis=1)[:, None]
-            conds.append(np.linalg.cond(a))
+        start = np.asarray(jac(rows[0]), dtype=float)
+        columns = np.linalg.norm(start, axis=0)
+        lines = np.linalg.norm(start / columns, axis=1)
+        conds = [np.linalg.cond(np.asarray(jac(r), dtype=float) / columns / lines[:, None]) for r in rows]
         return size, np.array(conds)
 
     def mechanical_functions(self, parameters: Mapping[str, float] | None = None) -> MechanicalFunctions:

@@ -108,13 +108,17 @@ def solve_spice(system, times=None, *, preset="accurate", save=None) -> Trajecto
     elapsed = _time.perf_counter() - start
     v = np.column_stack([data[f"v({n})"] for n in system.nodes])
     x = np.column_stack([data[f"v({n})"] for n in circ.state_nodes]) if circ.state_nodes else None
-    kept = set(circ.state_nodes) | set(circ.monitors)
-    currents = {name: data[vec] for name, vec in zip(names, vectors[system.dof:]) if name not in kept}
+    # node voltages past the system's own (a closed chain's passive positions and multipliers) are kept
+    # beside the element currents: a position starts at 0, a multiplier's node is not known at t = 0
+    nodes = {name: 0.0 if name in circ.monitors else math.nan for name in names
+             if name in circ.monitors or name in circ.node_names}
+    currents = {name: data[vec] for name, vec in zip(names, vectors[system.dof:])
+                if name not in circ.state_nodes and name not in nodes}
     tr = _trajectory(system, *_from_start(data["time"]), v, currents, stats, elapsed, x)
-    if circ.monitors:           # a closed chain's passive positions, from 0 (its first row is the start)
-        start = np.zeros(int(tr.time.size) - int(data["time"].size))
-        tr = replace(tr, currents={**tr.currents, **{name: np.concatenate([start, data[vec]]) for name, vec
-                                                     in zip(names, vectors[system.dof:]) if name in circ.monitors}})
+    if nodes:
+        start = int(tr.time.size) - int(data["time"].size)
+        tr = replace(tr, currents={**tr.currents, **{name: np.concatenate([np.full(start, nodes[name]), data[vec]])
+                                                     for name, vec in zip(names, vectors[system.dof:]) if name in nodes}})
     tr = replace(tr, message=note, settings=settings) if note else replace(tr, settings=settings)
     return tr if times is None else tr.resampled(system.time_points(times), system.joint_rates)
 
