@@ -24,6 +24,8 @@ if [ "$task" != run ]; then
     command -v chromium >/dev/null 2>&1 || packages+=(chromium)
     [ -d /usr/share/fonts/truetype/dejavu ] || packages+=(fonts-dejavu-core)
     command -v gnucap >/dev/null 2>&1 || packages+=(gnucap)
+    # without its default plugins gnucap reads no netlist (they are only a Recommends)
+    ls /usr/lib/*/gnucap*/gnucap-default-plugins.so >/dev/null 2>&1 || packages+=(gnucap-default-plugins0)
 fi
 
 if [ "${#packages[@]}" -gt 0 ]; then
