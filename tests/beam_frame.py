@@ -101,3 +101,145 @@ def frame_frequencies(links: Sequence, angles: Sequence[float], *, gravity: floa
     shift = 1.0 + 2.0 * float(np.max(np.abs(rough)))
     w2 = np.sort(1.0 / la.eigh(m, k + shift * m, eigvals_only=True) - shift)
     return np.sign(w2) * np.sqrt(np.abs(w2)) / (2 * np.pi)
+
+
+class Frame:
+    """A planar frame of Hermite beams and rigid bars on shared nodes, for closed chains.
+
+    Every node has X and Y; a beam's nodes have a rotation each, and a beam may start on
+    another's rotation (a clamp) or on its own (a pin). Rigid bars are inextensible
+    two-node members with a uniform bar's mass, m/6·(v1² + v1·v2 + v2²) per direction.
+    Extra linear constraints tie a bracket's turn to a beam's root. Gravity's axial forces
+    come from the frame's statics (the inextensibility multipliers), so no load path is
+    assumed; each member's geometric stiffness is then N·∫v'² (beams) or N/L·(Δv)² (bars).
+    """
+
+    def __init__(self):
+        self.xy, self.size = [], 0
+        self.masses, self.inertias, self.rows, self.locks = [], [], [], []
+        self.beams, self.bars, self.rotors, self.ys = [], [], [], set()
+
+    def _dofs(self, count):
+        self.size += count
+        return list(range(self.size - count, self.size))
+
+    def node(self, xy):
+        """A new node at *xy*: its (X, Y) dofs."""
+        self.xy.append(np.asarray(xy, dtype=float))
+        x, y = self._dofs(2)
+        self.ys.add(y)
+        return x, y, len(self.xy) - 1
+
+    def rotation(self):
+        return self._dofs(1)[0]
+
+    def beam(self, start, rotation, angle, length, rho_a, ei, elements):
+        """A beam from node *start* on rotation dof *rotation* along *angle*: its end node and end rotation."""
+        h = length / elements
+        e = np.array([np.cos(angle), np.sin(angle)])
+        node, rot = start, rotation
+        for k in range(elements):
+            nxt, nrot = self.node(self.xy[start[2]] + (k + 1) * h * e), self.rotation()
+            self.beams.append((node, rot, nxt, nrot, angle, h, rho_a, ei))
+            node, rot = nxt, nrot
+        return node, rot
+
+    def bar(self, a, b, mass):
+        self.bars.append((a, b, mass))
+
+    def point(self, node, mass):
+        self.masses += [(node[0], mass), (node[1], mass)]
+
+    def inertia(self, dof, value):
+        self.inertias.append((dof, value))
+
+    def rotor(self, node, normal, radius, value):
+        """A rotor of inertia *value* turning with a bar: node's velocity along *normal* over *radius*."""
+        self.rotors.append(([node[0], node[1]], value / radius ** 2 * np.outer(normal, normal)))
+
+    def constrain(self, row):
+        """A linear constraint Σ c_k·u_k = 0, given as {dof: c}."""
+        self.rows.append(row)
+
+    def hold(self, *dofs):
+        """Supports: these dofs are zero."""
+        self.rows += [{d: 1.0} for d in dofs]
+
+    def lock(self, row):
+        """A motor's lock, {dof: c}: held in the statics, let go by ``frequencies(release=…)``; its index."""
+        self.locks.append(row)
+        return len(self.locks) - 1
+
+    def _direction(self, a, b):
+        d = self.xy[b[2]] - self.xy[a[2]]
+        length = np.linalg.norm(d)
+        return d / length, length
+
+    def assemble(self):
+        n = self.size
+        mass, stiff = np.zeros((n, n)), np.zeros((n, n))
+        rows = []
+        for a, ra, b, rb, angle, h, rho_a, ei in self.beams:
+            c, s = np.cos(angle), np.sin(angle)
+            rot = np.array([[c, s, 0], [-s, c, 0], [0, 0, 1.0]])
+            t = la.block_diag(rot, rot)
+            index = [a[0], a[1], ra, b[0], b[1], rb]
+            m, k, _ = _element(h, rho_a, ei, 0.0, 0.0)
+            mass[np.ix_(index, index)] += t.T @ m @ t
+            stiff[np.ix_(index, index)] += t.T @ k @ t
+            rows.append({a[0]: -c, a[1]: -s, b[0]: c, b[1]: s})
+        for a, b, m in self.bars:
+            e, _ = self._direction(a, b)
+            for axis in (0, 1):
+                i, j = a[axis], b[axis]
+                mass[np.ix_([i, j], [i, j])] += m / 6 * np.array([[2.0, 1.0], [1.0, 2.0]])
+            rows.append({a[0]: -e[0], a[1]: -e[1], b[0]: e[0], b[1]: e[1]})
+        for dof, m in self.masses + self.inertias:
+            mass[dof, dof] += m
+        for index, block in self.rotors:
+            mass[np.ix_(index, index)] += block
+        members = len(rows)
+        rows += self.rows + self.locks
+        constraints = np.zeros((len(rows), n))
+        for r, row in enumerate(rows):
+            for d, c in row.items():
+                constraints[r, d] += c
+        return mass, stiff, constraints, members
+
+    def geometric_stiffness(self, tension):
+        """Σ N_e·(second variation of each member's length), members in the order of :meth:`assemble`."""
+        kg = np.zeros((self.size, self.size))
+        for (a, ra, b, rb, angle, h, rho_a, ei), force in zip(self.beams, tension):
+            c, s = np.cos(angle), np.sin(angle)
+            rot = np.array([[c, s, 0], [-s, c, 0], [0, 0, 1.0]])
+            t = la.block_diag(rot, rot)
+            index = [a[0], a[1], ra, b[0], b[1], rb]
+            _, _, g = _element(h, rho_a, 0.0, force, force)
+            kg[np.ix_(index, index)] += t.T @ g @ t
+        for (a, b, _), force in zip(self.bars, tension[len(self.beams):]):
+            e, length = self._direction(a, b)
+            normal = np.array([-e[1], e[0]])
+            index = [a[0], a[1], b[0], b[1]]
+            kg[np.ix_(index, index)] += force / length * np.kron(np.array([[1.0, -1.0], [-1.0, 1.0]]),
+                                                                  np.outer(normal, normal))
+        return kg
+
+    def frequencies(self, gravity=0.0, release=()):
+        """Natural frequencies [Hz], signed, ascending: the statics under gravity with every
+        motor locked (its holding torque then a dead load), the vibration with the locks in
+        *release* let go."""
+        mass, stiff, constraints, members = self.assemble()
+        if gravity:
+            load = mass @ np.array([-gravity if d in self.ys else 0.0 for d in range(self.size)])
+            rank = constraints.shape[0]
+            saddle = np.block([[stiff, constraints.T], [constraints, np.zeros((rank, rank))]])
+            solution = np.linalg.solve(saddle, np.concatenate([load, np.zeros(rank)]))
+            stiff = stiff + self.geometric_stiffness(solution[self.size:self.size + members])
+        first = members + len(self.rows)
+        free = [r for r in range(constraints.shape[0]) if r < first or r - first not in release]
+        z = la.null_space(constraints[free])
+        k, m = z.T @ stiff @ z, z.T @ mass @ z
+        rough = la.eigh(k, m, eigvals_only=True, subset_by_index=[0, min(5, k.shape[0] - 1)])
+        shift = 1.0 + 2.0 * float(np.max(np.abs(rough)))
+        w2 = np.sort(1.0 / la.eigh(m, k + shift * m, eigvals_only=True) - shift)
+        return np.sign(w2) * np.sqrt(np.abs(w2)) / (2 * np.pi)

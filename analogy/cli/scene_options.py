@@ -194,7 +194,7 @@ def scene_from_args(args) -> Scene:
         scene_model(sc.replace(**changes))
     elif chosen:
         flag = "--" + next(iter(chosen)).replace("_", "-")
-        raise InputError(f"{flag} applies to the flexible arms: give --robot flex1 or flex2")
+        raise InputError(f"{flag} applies to the flexible arms: give --robot flex1, flex2 or flexpar")
     elif params:
         changes["parameters"] = dict(sc.parameters, **params)
     if args.q is not None:

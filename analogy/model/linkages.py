@@ -78,6 +78,19 @@ class ClosedChainModel(Model):
         Maps a dict of parameter values to (q_ref, p_ref) in the working mode.
     tree_mass : sympy Matrix, optional
         M_θ over (q, p), the chain cut open (needed for its nonlinear dynamics).
+    tree_gravity : sympy Matrix, optional
+        G_θ over (q, p), the cut-open chain's gravity load; :attr:`gravity` is then Sᵀ·G_θ.
+    branch : callable, optional
+        Maps (q, parameter values) to an exact assembly (q_b, p_b) of the working mode near
+        q, to continue from instead of the reference: for a mode known in closed form on
+        both sides of a singular pose (a parallelogram folding flat).
+
+    Notes
+    -----
+    Linearised at q, gravity's stiffness is the second derivative of U(θ(q)) along the
+    loop: ∂(Sᵀ·G_θ)/∂q = Sᵀ·(∂G_θ/∂θ)·S − Σ_c μ_c·Sᵀ·∇²Φ_c·S, with μ = Φ_p⁻ᵀ·G_p the
+    multipliers that hold gravity (from Φ_θ·S = 0 differentiated along the loop). It is
+    added to :attr:`stiffness` when the model is evaluated.
     """
 
     passive: Sequence = ()
@@ -85,6 +98,8 @@ class ClosedChainModel(Model):
     constraints: object = None
     reference: Callable | None = None
     tree_mass: object = None
+    tree_gravity: object = None
+    branch: Callable | None = None
 
     #: Largest first Newton correction (rad, or m) accepted in one continuation step.
     max_correction = 0.2
@@ -151,7 +166,7 @@ class ClosedChainModel(Model):
             full[:self.dof, :self.dof] = matrix
             return full
         return Model(f"{self.name} (cut open)", self.tree_mass, damping=padded(self.damping),
-                     stiffness=padded(self.stiffness), parameters=self.parameters,
+                     stiffness=padded(self.stiffness), gravity=self.tree_gravity, parameters=self.parameters,
                      coordinates=tuple(self.coordinates) + self.passive, topology="parallel")
 
     def loop_closure(self, thetas, parameters: Mapping[str, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -260,7 +275,12 @@ class ClosedChainModel(Model):
         full_args = q + p + g + params
         phi = self.constraints
         unknown = set(phi.free_symbols) - set(q + p + params)
-        parts = [self.mass_matrix, self.damping, self.stiffness, self.gravity]
+        load = self.gravity
+        if self.spring_rest is not None and self.stiffness is not None and any(self.stiffness):
+            # the springs' static load K·(q − rest), as Model.linear_parts adds it
+            elastic = self.stiffness * (sp.Matrix(q) - sp.Matrix(self.spring_rest))
+            load = elastic if load is None else load + elastic
+        parts = [self.mass_matrix, self.damping, self.stiffness, load]
         for part in parts:
             if part is not None:
                 unknown |= part.free_symbols - set(full_args)
@@ -274,6 +294,8 @@ class ClosedChainModel(Model):
         kin_args = q + p + params
         kin = (lam(phi, kin_args), lam(phi.jacobian(p), kin_args), lam(phi.jacobian(q), kin_args))
         fns = [None if part is None else lam(part, full_args) for part in parts]
+        if self.tree_gravity is not None:
+            fns[2] = _with_gravity_stiffness(fns[2], self, lam, len(q), len(p))
         n, pnames = len(q), list(self.parameters)
         solve = _AssemblySolver(self, kin, n, pnames)
 
@@ -340,7 +362,11 @@ class _AssemblySolver:
         if self.last[0] == key:
             return self.last[1]
         q, params = np.array(key[:self.n]), key[self.n:]
-        q0, p0 = self._reference(params)
+        if self.model.branch is not None:
+            q0, p0 = (np.asarray(a, dtype=float).reshape(-1)
+                      for a in self.model.branch(q, dict(zip(self.pnames, params))))
+        else:
+            q0, p0 = self._reference(params)
         near = self.last[0]
         if near is not None and near[self.n:] == params and np.max(np.abs(q - near[:self.n]), initial=0) <= _NEAR:
             q0, p0 = np.array(near[:self.n]), self.last[1][0]     # along a trajectory: from the last pose
@@ -428,6 +454,30 @@ class _AssemblySolver:
                              f"q = {_fmt(q0)} to follow the loop there in {_MAX_CONTINUATION_STEPS:,} steps: give "
                              "joint angles within a few turns of it", field="q")
         return p
+
+
+def _with_gravity_stiffness(stiffness, model: ClosedChainModel, lam, n: int, m: int):
+    """K(q) + ∂(Sᵀ·G_θ)/∂q along the loop (see :class:`ClosedChainModel`), on the compiled arguments."""
+    theta = list(model.coordinates) + list(model.passive)
+    args = theta + list(model.symbols.values())
+    load = sp.Matrix(list(model.tree_gravity))
+    hessian = lam(load.jacobian(theta), args)
+    phi = model.constraints
+    curvature = lam([phi[c].diff(a, b) for c in range(m) for a in theta for b in theta], args)
+    jac_p = lam(phi.jacobian(list(model.passive)), args)
+    gravity = lam(load, args)
+
+    def evaluate(*values):
+        th, rates, params = values[:n + m], values[n + m:n + m + m * n], values[n + m + m * n:]
+        s = np.vstack([np.eye(n), np.asarray(rates, dtype=float).reshape(m, n)])
+        g = np.asarray(gravity(*th, *params), dtype=float).reshape(-1)
+        mu = np.linalg.solve(np.asarray(jac_p(*th, *params), dtype=float).T, g[n:])
+        curv = np.asarray(curvature(*th, *params), dtype=float).reshape(m, n + m, n + m)
+        k = s.T @ (np.asarray(hessian(*th, *params), dtype=float) - np.tensordot(mu, curv, 1)) @ s
+        if stiffness is not None:
+            k = k + np.asarray(stiffness(*values), dtype=float).reshape(n, n)
+        return list(k.reshape(-1))
+    return evaluate
 
 
 def _fmt(q) -> str:

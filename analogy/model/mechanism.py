@@ -11,7 +11,8 @@ from .beams import beam_modes
 from .conventions import link_modes_for
 from .catalog import family_builder, robot_family
 
-__all__ = ["Outline", "planar_chain_outline", "five_bar_outline", "flexible_arm_outline", "mechanism_outline"]
+__all__ = ["Outline", "planar_chain_outline", "five_bar_outline", "flexible_arm_outline",
+           "flexible_parallel_outline", "mechanism_outline"]
 
 #: Links at each of F configurations: a list of link polylines per frame, each (k, 2) in metres.
 Outline = list[list[np.ndarray]]
@@ -127,6 +128,41 @@ def flexible_arm_outline(q: np.ndarray, parameters: Mapping[str, float], *, link
     return frames
 
 
+def flexible_parallel_outline(q: np.ndarray, parameters: Mapping[str, float], *, link_modes: str | None = None,
+                              exaggeration: float = 1.0, **conventions) -> Outline:
+    """The parallel-link flexible arm: its two flexible links bent by their modes, the crank AD,
+    the bracket BC behind the elbow and the closing link DC.
+
+    The forearm is drawn along θ3 from link AB's deformed tip, the loop's solution to first
+    order in the deflections (see :mod:`analogy.model.flexible_parallel`).
+
+    Parameters
+    ----------
+    q : ndarray, shape (F, dof)
+        θ1, θ3, then each link's modal coordinates, one row per frame.
+    parameters : mapping
+        flexpar's parameters (``FLEXPAR_DEFAULTS``).
+    link_modes : {"clamped-free", "clamped-mass"}, optional
+        The model's mode shapes.
+    exaggeration : float
+        Deflections are drawn this many times their size.
+    **conventions
+        The other conventions of a scene, not drawn.
+    """
+    q = np.atleast_2d(q)
+    serial = q.copy()
+    serial[:, 1] = q[:, 1] - q[:, 0]
+    arms = flexible_arm_outline(serial, {**parameters, "Jh2": 0.0}, links=2, link_modes=link_modes,
+                                exaggeration=exaggeration)
+    lc = parameters["lc"]
+    frames = []
+    for row, (lower, upper) in zip(q, arms):
+        back = -lc * np.array([np.cos(row[1]), np.sin(row[1])])
+        elbow = lower[-1]
+        frames.append([lower, upper, np.array([np.zeros(2), back, elbow + back, elbow])])
+    return frames
+
+
 def mechanism_outline(robot: str, q: np.ndarray, parameters: Mapping[str, float],
                       **options) -> Outline | None:
     """The outline of built-in robot *robot* at each row of *q*, or None where it has no drawing.
@@ -151,5 +187,5 @@ def mechanism_outline(robot: str, q: np.ndarray, parameters: Mapping[str, float]
         return None
     outline: Callable = family_builder(family.outline)
     # only a flexible arm's drawing has options: its mode shapes and how much its bending is enlarged
-    options = {**options, "links": family.args[0]} if family.flexible else {}
+    options = ({**options, "links": family.args[0]} if family.args else options) if family.flexible else {}
     return outline(np.atleast_2d(np.asarray(q, dtype=float)), parameters, **options)

@@ -336,7 +336,7 @@ def _model_fields(ctx: _Context, data: dict) -> dict:
         out["model"] = ModelSpec(robot=model["robot"], **chosen)
     elif any(k in model for k in CONVENTIONS):
         raise ctx.error(f"[model] {next(k for k in CONVENTIONS if k in model)}",
-                        "applies to the flexible arms: give robot = \"flex2\"")
+                        "applies to the flexible arms: give robot = \"flex2\" (or flex1, flexpar)")
     elif "urdf" in model:
         out["model"] = _urdf_spec(ctx, model)
     elif "mass" in model:
