@@ -15,7 +15,32 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator
 
-__all__ = ["worker_pool", "die_with_parent", "scratch_folder"]
+__all__ = ["worker_pool", "die_with_parent", "scratch_folder", "stop_requests"]
+
+
+class _StopRequests:
+    """SIGTERM's record: a handler that raises can be swallowed (it may run inside a
+    garbage-collector callback or a finalizer, whose exceptions Python only prints), so it
+    also notes the request here, and loops look at it where raising is safe."""
+
+    def __init__(self) -> None:
+        self._asked = threading.Event()
+
+    def ask(self) -> None:
+        """Note that the process was told to stop."""
+        self._asked.set()
+
+    def asked(self) -> bool:
+        """Whether a stop was asked since the last :meth:`clear`."""
+        return self._asked.is_set()
+
+    def clear(self) -> None:
+        """Forget earlier requests (a command starting afresh)."""
+        self._asked.clear()
+
+
+#: The process's one record of SIGTERM (set by the command's handler and the batch loop's).
+stop_requests = _StopRequests()
 
 
 def die_with_parent(parent: int) -> None:

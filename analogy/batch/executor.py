@@ -10,12 +10,15 @@ from concurrent.futures.process import BrokenProcessPool
 from typing import Callable, Iterable
 
 from ..errors import AnalogyError, SimulationError
-from ..processes import worker_pool
+from ..processes import stop_requests, worker_pool
 
 __all__ = ["InlineExecutor", "execute", "ATTEMPTS"]
 
 #: A group whose worker died is run this many times in all before it is given up.
 ATTEMPTS = 2
+
+#: The longest the loop waits between looks at :data:`~analogy.processes.stop_requests` [s].
+_POLL_SECONDS = 0.25
 
 
 class InlineExecutor(Executor):
@@ -137,10 +140,13 @@ def execute(groups: Iterable, payload: Callable, work: Callable, done: Callable,
         def _term(signum, frame):
             if not stopping:            # once: a second SIGTERM must not break the clean-up
                 stopping.append(signum)
+                stop_requests.ask()
                 raise _Stop()
         old_term = signal.signal(signal.SIGTERM, _term)
     try:
         while True:
+            if stop_requests.asked():   # a stop whose exception was swallowed, here or before the loop
+                raise _Stop()
             while len(inflight) < limit:
                 if solo and inflight:
                     break
@@ -166,7 +172,10 @@ def execute(groups: Iterable, payload: Callable, work: Callable, done: Callable,
             if not inflight:
                 break
             alone = len(inflight) == 1 or not local     # an outside executor reports each task's own death
-            finished, _ = wait(list(inflight), return_when=FIRST_COMPLETED)
+            while True:                 # what finished is handed over, even when a stop was asked
+                finished, _ = wait(list(inflight), timeout=_POLL_SECONDS, return_when=FIRST_COMPLETED)
+                if finished or stop_requests.asked():
+                    break
             broken = False
             for future in finished:
                 item = inflight.pop(future)
@@ -191,6 +200,7 @@ def execute(groups: Iterable, payload: Callable, work: Callable, done: Callable,
         stopped = signal.SIGINT
     except _Stop:
         stopped = signal.SIGTERM
+        stop_requests.clear()           # acted on: the caller hears of it below, or from the return
     except Exception as exc:
         # a group's own failure is its work's to report: what reaches here is the outside executor's
         if own or isinstance(exc, AnalogyError):

@@ -21,6 +21,7 @@ from ..model.expressions import (
     parse_number,
 )
 from ..presets import PRESETS
+from ..processes import stop_requests
 from ..progress import Heartbeat
 from ..presets import preset as get_preset
 from ..results.output import check_plot_path
@@ -365,6 +366,7 @@ def main(argv=None) -> int:
     # SIGTERM ends a command as Ctrl-C does: every clean-up runs (workers, scratch folders, stores)
     old_term = signal.signal(signal.SIGTERM, _terminate) \
         if threading.current_thread() is threading.main_thread() else None
+    stop_requests.clear()
     try:
         with warnings.catch_warnings():
             # numpy's and scipy's warnings are counted here, and said in one sentence below
@@ -375,6 +377,8 @@ def main(argv=None) -> int:
             if args.command is None:
                 args = parser.parse_args(["compare"])
             code = _COMMANDS[args.command](args)
+        if stop_requests.asked():       # SIGTERM's exception was swallowed (a finalizer, say) and nothing acted on it
+            raise KeyboardInterrupt
         if caught:
             first = " ".join(next(iter(caught)).split())
             print(f"analogy: warning: the numerics gave {sum(caught.values())} warning(s) during the run, "
@@ -404,6 +408,7 @@ def main(argv=None) -> int:
 
 
 def _terminate(signum, frame):
+    stop_requests.ask()
     raise KeyboardInterrupt
 
 
