@@ -244,3 +244,34 @@ def test_the_charge_form_forgets_the_initial_condition_so_the_circuit_uses_a_fol
     moving = nonlinear("default", initial_rates=(0.5, -0.2))
     tr = analogy.solve_spice(moving, preset="accurate")
     np.testing.assert_allclose(tr.rates[1], [0.5, -0.2], atol=1e-3)     # its first step keeps r(0)
+
+
+def test_the_step_ladder_ends_in_gear_for_a_trapezoidal_run():
+    """A collapsed step is retried with looser absolute tolerances where there are any,
+    then with gear; a gear run has nothing further to try."""
+    from analogy.solvers.transient import RETRY_LOOSEN, transient_settings
+    linear = transient_settings("accurate", 1.0, None)
+    ladder = linear.retries()
+    assert [s.loosen for s in ladder] == [*RETRY_LOOSEN, 1.0]
+    assert [s.method for s in ladder] == ["trap"] * len(RETRY_LOOSEN) + ["gear"]
+    behavioural = transient_settings("accurate", 1.0, None, behavioural=True)     # no abstol to loosen
+    assert [s.method for s in behavioural.retries()] == ["trap", "gear"]
+    assert [s.method for s in ladder[-1].retries()] == ["gear"] * len(RETRY_LOOSEN)
+
+
+@pytest.mark.ngspice
+def test_a_trapezoidal_run_that_collapses_finishes_with_gear():
+    """serial4 swinging under gravity (q2 turning several radians a second): the trapezoidal
+    rule's undamped ringing in the charges' currents collapses the step at t = 1.05 s, a
+    shorter step cap only sooner. The gear retry finishes, says so, and at the accurate
+    preset's cap (40 times the fast preset's steps) keeps at least the fast preset's bound."""
+    from analogy.cli import build_parser, scene_from_args
+    args = build_parser().parse_args([
+        "compare", "--robot", "serial4", "--dynamics", "nonlinear", "--param", "g=9.81", "--t-stop", "4",
+        "--q=0.3,-0.5,0.8,0.2", "--r0=0,1,-1,0.5", "--force", "step(3)", "--force", "step(1)",
+        "--force", "step(0.5)", "--force", "step(0.2)"])
+    c = compare(scene_from_args(args).system(), "accurate", solvers=("spice", "reference"))
+    assert not c.failures
+    assert "retried with gear integration" in c.results["spice"].message
+    assert dict(c.results["spice"].settings.options)["method"] == "gear"
+    assert c.max_relative_error("spice") <= 1e-3

@@ -20,13 +20,10 @@ from ..results.trajectory import SolverStats, Trajectory
 from ..results.trajectory_stack import TrajectoryStack
 from .ngspice import NgspiceSession, library_path, run_netlist, session, vector_key
 from .registry import Solver, stacked_trajectories
-from .transient import batch_netlist, transient_settings
+from .transient import RETRY_LOOSEN, batch_netlist, transient_settings
 
 __all__ = ["NgspiceSession", "session", "run_netlist", "solve_spice", "library_path", "vector_key",
            "SpiceSolver", "SOLVER", "RETRY_LOOSEN"]     # the session's names, re-exported
-
-#: Factors on abstol and vntol of the first run and of the retries after "time step too small".
-RETRY_LOOSEN = (1.0, 1e3, 1e6)
 
 
 def _from_start(time: np.ndarray) -> tuple[np.ndarray, bool]:
@@ -66,8 +63,9 @@ def _limit(scales, t_stop: float, preset: Preset, dof: int) -> float | None:
 def solve_spice(system, times=None, *, preset="accurate", save=None) -> Trajectory:
     """Simulate *system*'s netlist in ngspice and recover joint rates from node voltages.
 
-    A run whose step collapses ("time step too small": rounding read as truncation error)
-    is run again with abstol and vntol :data:`RETRY_LOOSEN` times larger; the
+    A run whose step collapses ("time step too small") is run again as
+    :meth:`~analogy.solvers.transient.TransientSettings.retries` says (abstol and vntol
+    :data:`RETRY_LOOSEN` times larger, then gear instead of the trapezoidal rule); the
     trajectory's :attr:`~Trajectory.message` says so, and the bound judges the result.
 
     Parameters
@@ -92,19 +90,20 @@ def solve_spice(system, times=None, *, preset="accurate", save=None) -> Trajecto
     sess = session()
     start = _time.perf_counter()
     note = ""
-    for loosen in RETRY_LOOSEN:
+    ladder = settings.retries()
+    for k, settings in enumerate(ladder):
         stats: dict = {}
-        settings = settings.loosened(loosen)
         text = write_netlist(circ, settings, list(system.nodes) + names, printing=False)
         try:
             data = sess.run(text, vectors, stats, timeout=_limit(scales, system.t_stop, get_preset(preset), system.dof))
             break
         except SimulationError as exc:
-            # Rounding read as truncation error collapses the step: retry with looser
-            # absolute tolerances, say so, and let the bound judge the result.
-            if "time step too small" not in str(exc) or loosen == RETRY_LOOSEN[-1]:
+            # a collapsed step: the next settings of the ladder, said in the message; the bound judges the result
+            if "time step too small" not in str(exc) or k == len(ladder) - 1:
                 raise
-            note = f"retried with abstol and vntol × {RETRY_LOOSEN[RETRY_LOOSEN.index(loosen) + 1]:g} ({exc})"
+            after = ladder[k + 1]
+            note = (f"retried with gear integration ({exc})" if after.method != settings.method else
+                    f"retried with abstol and vntol × {after.loosen:g} ({exc})")
     elapsed = _time.perf_counter() - start
     v = np.column_stack([data[f"v({n})"] for n in system.nodes])
     x = np.column_stack([data[f"v({n})"] for n in circ.state_nodes]) if circ.state_nodes else None

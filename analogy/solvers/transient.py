@@ -18,7 +18,10 @@ from ..presets import Preset
 from ..presets import preset as get_preset
 
 __all__ = ["TransientSettings", "transient_settings", "netlist", "batch_netlist", "ROUNDING_STEPS",
-           "NGSPICE_FIRST_STEP"]
+           "NGSPICE_FIRST_STEP", "RETRY_LOOSEN"]
+
+#: Factors on abstol and vntol of the first run and of the retries after "time step too small".
+RETRY_LOOSEN = (1.0, 1e3, 1e6)
 
 #: ngspice's own first step is this fraction of the print step (ngspice 39 and later, measured);
 #: it takes it by backward Euler and never checks its truncation error.
@@ -73,6 +76,37 @@ class TransientSettings:
     loosen: float = 1.0
     horizons: tuple = ()
     impedance: float | None = None
+
+    def with_method(self, method: str) -> "TransientSettings":
+        """These settings with the integration method *method* (``trap`` or ``gear``).
+
+        Parameters
+        ----------
+        method : str
+            ngspice's ``method`` option.
+        """
+        opts = tuple((k, method if k == "method" else v) for k, v in self.options)
+        return replace(self, options=opts if any(k == "method" for k, _ in opts) else opts + (("method", method),))
+
+    @property
+    def method(self) -> str:
+        """The integration method the options ask for (ngspice's default: trap)."""
+        return next((v for k, v in self.options if k == "method"), "trap")
+
+    def retries(self) -> list["TransientSettings"]:
+        """The settings a run tries in turn while its step collapses ("time step too small").
+
+        First these, then abstol and vntol ``RETRY_LOOSEN`` times larger (rounding read as
+        truncation error), when the options have them; last, for a trapezoidal run, gear
+        at the first tolerances: the trapezoidal rule does not damp the step-to-step
+        ringing of a nonlinear charge's current, which can grow until Newton fails
+        (measured on a 4-DOF arm whose cap on the step only made it fail sooner).
+        """
+        ladder = [self.loosened(f) for f in RETRY_LOOSEN] \
+            if any(k in ("abstol", "vntol") for k, _ in self.options) else [self.loosened(1.0)]
+        if self.method == "trap":
+            ladder.append(self.loosened(1.0).with_method("gear"))
+        return ladder
 
     @property
     def breakpoint(self) -> float | None:
