@@ -221,14 +221,24 @@ def test_the_robot_option_says_that_a_robot_with_a_scene_starts_from_it():
     assert "A robot with a built-in scene of its name" in text and "forces and initial rates included" in text
 
 
-def test_a_csv_of_many_rows_is_announced_with_its_size_and_the_step_that_thins_it(tmp_path, monkeypatch, capsys):
+def test_a_csv_of_many_rows_holds_every_kth_computed_point_unless_all_are_asked(tmp_path, monkeypatch, capsys):
+    """Past CSV_ROWS time points the CSV holds every k-th of them and the last, as computed
+    (none interpolated), and says so; --csv-all writes them all, announced with its size."""
+    import numpy as np
     from analogy.cli import commands, main
     monkeypatch.setattr(commands, "CSV_ROWS", 50)
-    path = tmp_path / "r.csv"
-    assert main(["compare", "--solvers", "ode,exact", "--no-plot", "--csv", str(path)]) == 0
+    every, full = tmp_path / "every.csv", tmp_path / "all.csv"
+    assert main(["compare", "--solvers", "ode,exact", "--no-plot", "--csv", str(full), "--csv-all"]) == 0
     err = capsys.readouterr().err
-    rows = sum(1 for _ in path.open()) - 1
-    assert f"writing {rows:,} rows to {path}" in err and "--step 0.001 writes 10,001" in err
+    rows = np.loadtxt(full, delimiter=",", skiprows=1)
+    assert f"writing {len(rows):,} rows to {full}" in err and "--step 0.001 writes 10,001" in err
+    assert main(["compare", "--solvers", "ode,exact", "--no-plot", "--csv", str(every)]) == 0
+    err = capsys.readouterr().err
+    k = -(-len(rows) // 50)
+    assert f"holds one in every {k} of the {len(rows):,} time points" in err and "--csv-all" in err
+    thinned = np.loadtxt(every, delimiter=",", skiprows=1)
+    assert len(thinned) <= 51
+    np.testing.assert_array_equal(thinned, rows[np.unique(np.append(np.arange(0, len(rows), k), len(rows) - 1))])
 
 
 def test_the_flexible_arm_s_joint_frame_from_the_command_line():

@@ -113,11 +113,19 @@ def _written_and_judged(output, result, args) -> int:
         if args.csv:
             cols = output.columns()
             rows = len(next(iter(cols.values())))
-            if rows > CSV_ROWS:         # said before the time and disk go, with the way to fewer rows
-                span = float(output.time[-1]) if getattr(output, "time", None) is not None else 0.0
-                print(f"analogy: writing {rows:,} rows to {args.csv} (about {rows * len(cols) * 20 / 1e6:,.0f} MB);"
-                      f" --step {span / 10_000:.3g} writes 10,001", file=sys.stderr)
-            output.to_csv(args.csv)
+            every = 1
+            if rows > CSV_ROWS:         # said before the time and disk go, with the other way
+                size = f"about {rows * len(cols) * 20 / 1e6:,.0f} MB"
+                if getattr(args, "step", None) is None and not getattr(args, "csv_all", False):
+                    every = -(-rows // CSV_ROWS)
+                    print(f"analogy: {args.csv} holds one in every {every} of the {rows:,} time points, as computed "
+                          f"({-(-rows // every) + 1:,} rows at most); --csv-all writes them all ({size})",
+                          file=sys.stderr)
+                else:
+                    span = float(output.time[-1]) if getattr(output, "time", None) is not None else 0.0
+                    print(f"analogy: writing {rows:,} rows to {args.csv} ({size}); --step {span / 10_000:.3g} "
+                          "writes 10,001", file=sys.stderr)
+            output.to_csv(args.csv, every=every)
             print(f"wrote {args.csv}")
         if args.plot:
             output.plot(args.plot)

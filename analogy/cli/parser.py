@@ -58,7 +58,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--budget", metavar="POINTS", help="most time points (and force segments) a run may "
                    "need, estimated before it starts (default: the preset's, 1e8 at accurate, 1e7 at fast); "
                    "the SPICE circuit's operation budget scales with it")
-    p.add_argument("--csv", metavar="FILE", help="write joint rates of every solver to CSV")
+    p.add_argument("--csv", metavar="FILE", help="write joint rates of every solver to CSV (past 100,000 "
+                   "time points, every k-th of them as computed, unless --step or --csv-all)")
+    p.add_argument("--csv-all", action="store_true", help="write every time point to the CSV, however many")
     p.add_argument("--plot", metavar="FILE.png", help="write a plot of rates and errors")
     p.add_argument("--no-plot", action="store_true", help="never import the plotting library")
     p = sub.add_parser("modes", help="natural frequencies and damping ratios of the linear system at q")

@@ -147,17 +147,25 @@ class Tabular:
         """Column name to values, the first column being the index (time, mode, scene)."""
         raise NotImplementedError
 
-    def to_csv(self, path) -> Path:
+    def to_csv(self, path, every: int = 1) -> Path:
         """Write the :meth:`columns`, one row per entry of the first; the header names each unit.
 
         Parameters
         ----------
         path : str or Path
             The file to write (its folder must exist).
+        every : int
+            Write every *every*-th row and the last: rows as computed, none interpolated.
         """
+        if every < 1:
+            raise ValueError(f"every must be a positive whole number, not {every}")
         system = getattr(self, "system", None)
         units = system.provenance.units if system is not None else None
         cols = self.columns()
+        if every > 1:
+            n = len(next(iter(cols.values())))
+            rows = np.unique(np.append(np.arange(0, n, every), n - 1)) if n else np.arange(0)
+            cols = {name: np.asarray(v)[rows] for name, v in cols.items()}
         return write_columns(path, {_with_unit(name, units): v for name, v in cols.items()})
 
     def to_frame(self) -> "pandas.DataFrame":
