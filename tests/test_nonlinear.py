@@ -261,10 +261,10 @@ def test_the_step_ladder_ends_in_gear_for_a_trapezoidal_run():
 
 @pytest.mark.ngspice
 def test_a_trapezoidal_run_that_collapses_finishes_with_gear():
-    """serial4 swinging under gravity (q2 turning several radians a second): the trapezoidal
-    rule's undamped ringing in the charges' currents collapses the step at t = 1.05 s, a
-    shorter step cap only sooner. The gear retry finishes, says so, and at the accurate
-    preset's cap (40 times the fast preset's steps) keeps at least the fast preset's bound."""
+    """serial4 swinging under gravity (q2 turning several radians a second): under the
+    trapezoidal rule the step collapses at t = 1.05 s whatever the tolerances. The gear
+    retry finishes, says so, and at the accurate preset's cap (40 times the fast preset's
+    steps) keeps at least the fast preset's bound."""
     from analogy.cli import build_parser, scene_from_args
     args = build_parser().parse_args([
         "compare", "--robot", "serial4", "--dynamics", "nonlinear", "--param", "g=9.81", "--t-stop", "4",

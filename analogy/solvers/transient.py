@@ -98,9 +98,10 @@ class TransientSettings:
 
         First these, then abstol and vntol ``RETRY_LOOSEN`` times larger (rounding read as
         truncation error), when the options have them; last, for a trapezoidal run, gear
-        at the first tolerances: the trapezoidal rule does not damp the step-to-step
-        ringing of a nonlinear charge's current, which can grow until Newton fails
-        (measured on a 4-DOF arm whose cap on the step only made it fail sooner).
+        at the first tolerances. A nonlinear circuit has no absolute tolerance to loosen,
+        and one (serial4 swinging under gravity) collapses under the trapezoidal rule at
+        the same instant whatever its tolerances, while gear at the same step cap
+        finishes; gear damps what the trapezoidal rule carries from step to step.
         """
         ladder = [self.loosened(f) for f in RETRY_LOOSEN] \
             if any(k in ("abstol", "vntol") for k, _ in self.options) else [self.loosened(1.0)]
