@@ -60,6 +60,7 @@ def test_the_two_link_mass_matrix_is_symmetric_positive_definite_and_its_velocit
         assert work == pytest.approx(half, rel=1e-10)
 
 
+@pytest.mark.deep                   # 10 s: in CI's deep pass
 def test_the_free_flexible_arm_conserves_energy():
     """No damping, no input, gravity on: T + U stays constant to 1e-9 of the energy over 2 s."""
     s = nonlinear_system(arm(), [0.3, 0.5, 0, 0, 0, 0], forces=[0.0] * 6,

@@ -208,6 +208,7 @@ def test_a_scene_file_names_its_urdf_relative_to_itself(tmp_path):
         load_scene(scene_file)
 
 
+@pytest.mark.deep                   # 7 s: in CI's deep pass
 def test_a_chain_of_two_thousand_links_loads_without_recursion():
     links = "".join(f'<link name="l{k}"><inertial><mass value="1"/><inertia ixx="0.01" ixy="0" ixz="0" '
                     f'iyy="0.01" iyz="0" izz="0.01"/></inertial></link>' for k in range(2001))
