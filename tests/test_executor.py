@@ -67,3 +67,24 @@ def test_sigterm_whose_exception_is_swallowed_still_stops_the_loop(tmp_path):
     assert interrupted and results == {n: n * n for n in range(6)} and died == []
     results, died, interrupted = _run(tmp_path, 3, workers=1, in_process=True)
     assert not interrupted and results == {n: n * n for n in range(3)}
+
+
+def test_a_command_whose_sigterm_was_swallowed_ends_interrupted_and_leaves_no_record(tmp_path, monkeypatch):
+    """A command during which SIGTERM's exception was lost ends with exit 130 all the same, and
+    the record goes with it: a batch run later in the same process runs whole."""
+    from analogy.cli import commands
+    from analogy.errors import EXIT_INTERRUPTED
+    from analogy.processes import stop_requests
+
+    def swallowed(args):
+        try:
+            os.kill(os.getpid(), signal.SIGTERM)
+            sum(range(1000))
+        except BaseException:           # noqa: BLE001 - lost, as in a finalizer
+            pass
+        return 0
+    monkeypatch.setitem(commands._COMMANDS, "scenes", swallowed)
+    assert commands.main(["scenes"]) == EXIT_INTERRUPTED
+    assert not stop_requests.asked()
+    results, died, interrupted = _run(tmp_path, 3, workers=1, in_process=True)
+    assert not interrupted and results == {n: n * n for n in range(3)}

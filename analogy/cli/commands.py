@@ -372,9 +372,9 @@ def main(argv=None) -> int:
     parser = build_parser()
     caught: dict[str, int] = {}
     # SIGTERM ends a command as Ctrl-C does: every clean-up runs (workers, scratch folders, stores)
+    stop_requests.clear()               # before the handler: a request from here on is this command's
     old_term = signal.signal(signal.SIGTERM, _terminate) \
         if threading.current_thread() is threading.main_thread() else None
-    stop_requests.clear()
     try:
         with warnings.catch_warnings():
             # numpy's and scipy's warnings are counted here, and said in one sentence below
@@ -413,6 +413,7 @@ def main(argv=None) -> int:
     finally:
         if old_term is not None:
             signal.signal(signal.SIGTERM, old_term)
+        stop_requests.clear()           # answered (exit 130) or never asked: nothing for a later caller
 
 
 def _terminate(signum, frame):

@@ -131,6 +131,21 @@ def _entries(text: str | None, label: str):
         raise InputError(f"{label}: {exc}") from None
 
 
+def _fitted(sc: Scene, model) -> dict:
+    """The scene's joint values on *model*, where a changed mode count gives it other coordinates:
+    the joints' q, forces and rates kept (they come first), every modal coordinate at rest and undriven."""
+    if model.dof == len(sc.q):
+        return {}
+    joints = sum(kind != "modal" for kind in (model.joints or ("revolute",) * model.dof))
+
+    def fit(values, fill):
+        return tuple(values[:joints]) + (fill,) * (model.dof - joints)
+    out = {"q": fit(sc.q, 0.0), "forces": fit(sc.forces, 0.0)}
+    if sc.initial_rates is not None:
+        out["initial_rates"] = fit(sc.initial_rates, 0.0)
+    return out
+
+
 def scene_from_args(args) -> Scene:
     """The scene the CLI options describe: a built-in scene with the options' changes.
 
@@ -180,7 +195,7 @@ def scene_from_args(args) -> Scene:
     elif args.damping or args.stiffness or args.gravity:
         raise InputError("--damping, --stiffness and --gravity need --mass (built-in robots have their own; "
                          "the serial arms take --param g=9.81)")
-    elif args.robot is not None and (args.robot != sc.model.robot or chosen):
+    elif args.robot is not None and args.robot != sc.model.robot:
         spec = ModelSpec(robot=args.robot, **chosen)
         probe = Scene.of(args.robot, spec, parameters=params, source="command line")
         model = scene_model(probe)          # one sentence on an unknown name or parameter
@@ -189,14 +204,16 @@ def scene_from_args(args) -> Scene:
         forces = tuple(float(kind != "modal") for kind in joints)
         changes.update(model=spec, q=(0.0,) * len(model.coordinates), parameters=params,
                        forces=forces, initial_rates=None, topology=None)
-    elif chosen and sc.model.robot is not None:      # the scene's own arm, with these conventions
-        changes["model"] = replace(sc.model, **chosen)
-        scene_model(sc.replace(**changes))
-    elif chosen:
+    elif chosen and sc.model.robot is None:
         flag = "--" + next(iter(chosen)).replace("_", "-")
         raise InputError(f"{flag} applies to the flexible arms: give --robot flex1, flex2 or flexpar")
-    elif params:
-        changes["parameters"] = dict(sc.parameters, **params)
+    elif chosen or params:              # the scene's own arm, with these conventions and parameters
+        if chosen:
+            changes["model"] = replace(sc.model, **chosen)
+        if params:
+            changes["parameters"] = dict(sc.parameters, **params)
+        if sc.model.robot is not None and (chosen or any(k.startswith("modes") for k in params)):
+            changes.update(_fitted(sc, scene_model(sc.replace(**changes))))
     if args.q is not None:
         changes["q"] = tuple(_option("--q", parse_vector, args.q, numeric=True, dimension=COORDINATE))
     if coords:
