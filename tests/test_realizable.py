@@ -17,8 +17,8 @@ def element_values(text):
     return [float(m.group(2)) for m in map(_VALUE.match, text.splitlines()) if m]
 
 
-# flexpar misses 1e-6 of the largest peak at accurate in both circuits (measured 3.9e-6
-# signed, 6.6e-6 realizable: its undamped modes' trapezoidal phase error, flagged by compare
+# flexpar misses 1e-6 of the largest peak at accurate in both circuits (measured 7.9e-6
+# signed, 1.5e-5 realizable: its undamped modes' trapezoidal phase error, flagged by compare
 # with exit 3)
 class BoundMissed(AssertionError):
     """Both circuits ran, structurally right, but missed the accurate bound."""

@@ -21,7 +21,7 @@ def rel_err(a, b):
 
 # flexpar's undamped modes (up to 90 Hz over 1 s, excited by a step) give the trapezoidal
 # rule a phase error that the per-output judgement sees on the forearm's second modal rate
-# r6, whose own peak is small: measured 5.8e-4 (accurate) and 0.11 (fast), flagged by
+# r6, whose own peak is small: measured 2.3e-4 (accurate) and 0.11 (fast), flagged by
 # compare with exit 3, as for flex1 and flex2 at their defaults.
 class BoundMissed(AssertionError):
     """The preset's bound missed on some output (every other claim of the test held)."""

@@ -64,6 +64,8 @@ def _cmd_compare(args) -> int:
         raise InputError("--solvers names no solver: use spice, gnucap, ode, exact and/or reference")
     if args.no_plot and args.plot:
         raise InputError("--plot and --no-plot contradict each other")
+    if getattr(args, "csv_all", False) and not args.csv:
+        raise InputError("--csv-all says how much of the CSV to write: give the file with --csv FILE")
     # Output paths are checked before any work, so nothing computed is lost to a typo.
     if args.plot:
         check_plot_path(args.plot)

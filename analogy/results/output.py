@@ -157,8 +157,8 @@ class Tabular:
         every : int
             Write every *every*-th row and the last: rows as computed, none interpolated.
         """
-        if every < 1:
-            raise ValueError(f"every must be a positive whole number, not {every}")
+        if not isinstance(every, (int, np.integer)) or isinstance(every, bool) or every < 1:
+            raise ValueError(f"every must be a positive whole number, not {every!r}")
         system = getattr(self, "system", None)
         units = system.provenance.units if system is not None else None
         cols = self.columns()

@@ -44,11 +44,11 @@ SCENES = {
                     "b = 7e-3 N m s, k = 0.01 N m/rad, M/B about 0.5-0.7 s"),
     "flexpar": Scene.of(
         "flexpar", "flexpar", q=(0.3, 1.9, 0.0, 0.0, 0.0, 0.0), parameters={"g": 0.0},
-        forces=("step(0.2)", "sine(0, 0.1, 2)", 0.0, 0.0, 0.0, 0.0), t_stop=1.0,
+        forces=("step(0.2)", "step(0.1)", 0.0, 0.0, 0.0, 0.0), t_stop=1.0,
         description="the flexible-robot paper's parallel-link arm (Fig. 1.b) in a horizontal plane: "
                     "links AB and BC flexible (2 modes each), the forearm held along motor 2's angle "
-                    "by a parallelogram near a right angle (θ3 − θ1 stays 1.2 to 1.6 rad, far from "
-                    "the flat singular poses); a step on motor 1 and a 2 Hz sine on motor 2"),
+                    "by a parallelogram near a right angle (θ3 − θ1 stays 1.6 to 2.0 rad, far from "
+                    "the flat singular poses); a step on each motor"),
     "random10": Scene.of(
         "random10", ModelSpec(robot="random10", seed=1), topology="serial", forces=tuple(
             ["sine(0, 1, 0.7)"] + [f"step({1.0 / (k + 1)!r})" for k in range(1, 10)]),
