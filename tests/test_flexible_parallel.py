@@ -195,3 +195,11 @@ def test_the_nonlinear_circuit_converges_as_the_trapezoidal_rule():
         errors.append(c.errors()["spice"].relative)
         assert c.loop["spice"][0] <= 1e-8 and not c.singular
     assert errors[0] / errors[1] == pytest.approx(4.0, rel=1 / 3)
+
+
+def test_a_flat_parallelogram_is_refused_as_a_singular_pose(capsys):
+    """θ3 = θ1 folds the parallelogram flat: the loop's Jacobian in the passive joints is
+    singular there, and the command says so in one sentence (exit 2)."""
+    assert main(["modes", "--robot", "flexpar", "--q=0.3,0.3,0,0,0,0"]) == 2
+    err = capsys.readouterr().err
+    assert "singular pose" in err and "Traceback" not in err and len(err.strip().splitlines()) == 1

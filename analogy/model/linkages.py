@@ -445,6 +445,11 @@ class _AssemblySolver:
                 p, s, h = trial, s + h, 2.0 * h
                 continue
             h *= 0.5
+            if h < 1e-6 and np.linalg.cond(self._jp(qs, p, params)) > _SINGULAR:
+                raise InputError(f"model {self.model.name!r} does not assemble at q = {_fmt(q1)} in its working "
+                                 f"mode: the loop meets a singular pose near q = {_fmt(qs)}, where the active "
+                                 "joints do not determine the passive ones (links in line, a parallelogram folded "
+                                 "flat); choose a pose away from it", field="q")
             if h < 1e-6:
                 raise InputError(f"model {self.model.name!r} does not assemble at q = {_fmt(q1)} "
                                  f"in its working mode (continuation from q = {_fmt(q0)} fails "
@@ -454,6 +459,11 @@ class _AssemblySolver:
                              f"q = {_fmt(q0)} to follow the loop there in {_MAX_CONTINUATION_STEPS:,} steps: give "
                              "joint angles within a few turns of it", field="q")
         return p
+
+
+#: cond(Φ_p) past which a failed continuation is reported as a singular pose (1/√ε: the passive
+#: joints' solve has lost half its digits there).
+_SINGULAR = 1.0 / np.sqrt(np.finfo(float).eps)
 
 
 def _with_gravity_stiffness(stiffness, model: ClosedChainModel, lam, n: int, m: int):
