@@ -138,11 +138,11 @@ def _fitted(sc: Scene, model) -> dict:
         return {}
     joints = sum(kind != "modal" for kind in (model.joints or ("revolute",) * model.dof))
 
-    def fit(values, fill):
-        return tuple(values[:joints]) + (fill,) * (model.dof - joints)
-    out = {"q": fit(sc.q, 0.0), "forces": fit(sc.forces, 0.0)}
+    def fit(values):
+        return tuple(values[:joints]) + (0.0,) * (model.dof - joints)
+    out = {"q": fit(sc.q), "forces": fit(sc.forces)}
     if sc.initial_rates is not None:
-        out["initial_rates"] = fit(sc.initial_rates, 0.0)
+        out["initial_rates"] = fit(sc.initial_rates)
     return out
 
 

@@ -275,10 +275,8 @@ class ClosedChainModel(Model):
         full_args = q + p + g + params
         phi = self.constraints
         unknown = set(phi.free_symbols) - set(q + p + params)
-        load = self.gravity
-        if self.spring_rest is not None and self.stiffness is not None and any(self.stiffness):
-            # the springs' static load K·(q − rest), as Model.linear_parts adds it
-            elastic = self.stiffness * (sp.Matrix(q) - sp.Matrix(self.spring_rest))
+        load, elastic = self.gravity, self.spring_load()
+        if elastic is not None:
             load = elastic if load is None else load + elastic
         parts = [self.mass_matrix, self.damping, self.stiffness, load]
         for part in parts:
@@ -445,15 +443,13 @@ class _AssemblySolver:
                 p, s, h = trial, s + h, 2.0 * h
                 continue
             h *= 0.5
-            if h < 1e-6 and np.linalg.cond(self._jp(qs, p, params)) > _SINGULAR:
-                raise InputError(f"model {self.model.name!r} does not assemble at q = {_fmt(q1)} in its working "
-                                 f"mode: the loop meets a singular pose near q = {_fmt(qs)}, where the active "
-                                 "joints do not determine the passive ones (links in line, a parallelogram folded "
-                                 "flat); choose a pose away from it", field="q")
             if h < 1e-6:
+                why = (f": the loop meets a singular pose near q = {_fmt(qs)}, where the active joints do not "
+                       "determine the passive ones (links in line, a parallelogram folded flat); choose a pose "
+                       "away from it") if np.linalg.cond(self._jp(qs, p, params)) > _SINGULAR else \
+                    f" (continuation from q = {_fmt(q0)} fails near q = {_fmt(qs)})"
                 raise InputError(f"model {self.model.name!r} does not assemble at q = {_fmt(q1)} "
-                                 f"in its working mode (continuation from q = {_fmt(q0)} fails "
-                                 f"near q = {_fmt(qs)})", field="q")
+                                 f"in its working mode{why}", field="q")
         if s < 1.0:
             raise InputError(f"model {self.model.name!r}: q = {_fmt(q1)} is too far from its reference assembly "
                              f"q = {_fmt(q0)} to follow the loop there in {_MAX_CONTINUATION_STEPS:,} steps: give "

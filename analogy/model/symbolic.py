@@ -260,10 +260,16 @@ class Model:
         if load is not None and self.coordinates and load.free_symbols & set(self.coordinates):
             hessian = load.jacobian(q)
             stiffness = hessian if stiffness is None else stiffness + hessian
-        if self.spring_rest is not None and self.stiffness is not None and any(self.stiffness):
-            elastic = self.stiffness * (q - sp.Matrix(self.spring_rest))
+        elastic = self.spring_load()
+        if elastic is not None:
             load = elastic if load is None else load + elastic
         return self.mass_matrix, self.damping, stiffness, load
+
+    def spring_load(self) -> "sp.Matrix | None":
+        """The springs' static load K·(q − rest), symbolically; None without springs or a rest pose."""
+        if self.spring_rest is None or self.stiffness is None or not any(self.stiffness):
+            return None
+        return self.stiffness * (sp.Matrix(self.coordinates) - sp.Matrix(self.spring_rest))
 
     @property
     def dof(self) -> int:
