@@ -49,6 +49,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--dynamics", default="linear", choices=["linear", "nonlinear", "both"],
                    help="the circuit at q (linear), the full configuration-dependent motion, or both: "
                         "how long the linear circuit holds")
+    p.add_argument("--estimate", action="store_true", help="also estimate each solver's error without a "
+                   "reference: each runs again with every step halved (SPICE) or a 100 times tighter tolerance "
+                   "(ODE), and the difference, times Richardson's factor, is the estimate")
+    p.add_argument("--no-reference", action="store_true", help="run no reference solution: with --estimate, "
+                   "the estimate alone judges the bound")
     p.add_argument("--realizable", action="store_true", help="the circuit solvers (spice, gnucap) run the "
                    "realizable circuit: no negative values, negative elements behind 1:-1 couplings")
     p.add_argument("--step", metavar="SECONDS", help="output step of the shared time grid "

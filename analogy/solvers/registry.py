@@ -144,6 +144,18 @@ class Solver:
         tr = replace(tr, stats=replace(tr.stats, wall_time=elapsed))
         return tr if grid is None or not self.own_grid else tr.resampled(grid, system.joint_rates)
 
+    def refinement(self, preset: Preset) -> tuple[Preset, float] | None:
+        """Settings under which this solver errs a known fraction of what it errs under *preset*,
+        and the factor that turns the difference of the two runs into the first run's error
+        (Richardson's); None where the solver has no such estimate (a closed form, a reference).
+
+        Parameters
+        ----------
+        preset : Preset
+            The settings of the run to be judged.
+        """
+        return None
+
     def _solve(self, system, times, preset: Preset, *, save: Sequence[str] = (),
                positions: bool = False) -> Trajectory:
         """The solver's own work, which :meth:`solve` times, resamples and checks.

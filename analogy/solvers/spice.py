@@ -20,7 +20,7 @@ from ..results.trajectory import SolverStats, Trajectory
 from ..results.trajectory_stack import TrajectoryStack
 from .ngspice import NgspiceSession, library_path, run_netlist, session, vector_key
 from .registry import Solver, stacked_trajectories
-from .transient import RETRY_LOOSEN, batch_netlist, transient_settings
+from .transient import REFINE, RETRY_LOOSEN, batch_netlist, refined, transient_settings
 
 __all__ = ["NgspiceSession", "session", "run_netlist", "solve_spice", "library_path", "vector_key",
            "SpiceSolver", "SOLVER", "RETRY_LOOSEN"]     # the session's names, re-exported
@@ -158,6 +158,17 @@ class SpiceSolver(Solver):
             Unused: the circuit's states are node voltages.
         """
         return solve_spice(system, preset=preset, save=save)
+
+    def refinement(self, preset: Preset) -> tuple[Preset, float]:
+        """Every step :data:`~analogy.solvers.transient.REFINE` times shorter
+        (:func:`~analogy.solvers.transient.refined`): an error REFINE² times smaller.
+
+        Parameters
+        ----------
+        preset : Preset
+            The settings of the run to be judged.
+        """
+        return refined(preset), REFINE ** 2 / (REFINE ** 2 - 1)
 
     def solve_many(self, systems, times, preset: Preset, *, save=(), positions=False) -> list[Trajectory]:
         """One ngspice run for all systems, to the longest horizon; if it fails, one run each.

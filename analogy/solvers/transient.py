@@ -18,7 +18,7 @@ from ..presets import Preset
 from ..presets import preset as get_preset
 
 __all__ = ["TransientSettings", "transient_settings", "netlist", "batch_netlist", "ROUNDING_STEPS",
-           "NGSPICE_FIRST_STEP", "RETRY_LOOSEN"]
+           "NGSPICE_FIRST_STEP", "RETRY_LOOSEN", "REFINE", "refined", "STEP_TOLERANCES"]
 
 #: Factors on abstol and vntol of the first run and of the retries after "time step too small".
 RETRY_LOOSEN = (1.0, 1e3, 1e6)
@@ -37,6 +37,12 @@ NGSPICE_RELTOL = 1e-3
 #: its first step; 4·n leaves a factor of 1.9 to 11 over them. cond(M') does not predict them
 #: (98, 441, 1.5 and 79,000).
 ROUNDING_STEPS = 4.0
+
+#: The second run of an error estimate shortens the step cap and the first step this many times.
+REFINE = 2.0
+#: The options of ngspice's step control: its truncation error per step grows as h³ (trapezoidal
+#: rule and gear-2), so these REFINE³ times tighter halve the steps it chooses.
+STEP_TOLERANCES = ("reltol", "abstol", "vntol", "chgtol")
 
 _SCALE_NAMES = {"abstol": "current scale [A]", "vntol": "velocity scale [V]", "chgtol": "charge C·v [C]"}
 
@@ -209,6 +215,29 @@ def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | Non
         impedance = scales.peak_velocity / scales.current
     return TransientSettings(tuple((k, str(v)) for k, v in opts.items()), tstep, t_stop, tmax, first, loosen,
                              impedance=impedance)
+
+
+def refined(preset: str | Preset) -> Preset:
+    """*preset* with every step of ngspice :data:`REFINE` times shorter: the step cap, the first
+    step and the steps its truncation check chooses (:data:`STEP_TOLERANCES` REFINE³ times
+    tighter). The trapezoidal rule's error falls REFINE² times, so the difference of the two
+    runs is (1 − 1/REFINE²) of the first run's error: Richardson's estimate of it.
+
+    The behavioural circuits keep ngspice's default tolerances (see :class:`~analogy.presets.Preset`)
+    and take their accuracy from the step cap alone, so only their cap is shortened.
+
+    Parameters
+    ----------
+    preset : str or Preset
+        The preset of the run to be judged.
+    """
+    p = get_preset(preset)
+    tighter = {k: (f"{float(v) / REFINE ** 3:.3g}" if k in STEP_TOLERANCES else v) for k, v in p.spice_options.items()}
+    more = int(REFINE)
+    return replace(p, spice_options=tighter, phase_step=p.phase_step / REFINE,
+                   first_phase_step=p.first_phase_step / REFINE, max_steps=p.max_steps * more,
+                   behavioural_max_steps=p.behavioural_max_steps * more, step_budget=p.step_budget * more,
+                   work_budget=p.work_budget * more, operation_budget=p.operation_budget * more)
 
 
 def _settings_of(system, c: Circuit, preset, loosen: float = 1.0) -> TransientSettings:

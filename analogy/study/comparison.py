@@ -13,6 +13,7 @@ from ..errors import InputError
 from ..presets import Preset
 from ..presets import preset as get_preset
 from ..solvers.registry import SOLVER_NAMES, run_many, solver
+from .estimate import estimated_errors
 from .grid import output_grid
 from .work import check_works
 from ..results.metrics import OutputErrors, errors, output_errors, peak
@@ -71,6 +72,11 @@ class Comparison(Tabular):
         Per solver, measured on its own time points: every output (joint rate, element
         current asked for) against that output's own peak; indexed as a pair, (max |error|,
         the worst output's error over its peak).
+    estimated : dict of str to OutputErrors
+        Per solver, when asked for: its joint rates' errors estimated without a reference
+        (:func:`~analogy.study.estimate.estimated_errors`), each against its own peak.
+    unestimated : dict of str to str
+        Solvers whose estimate was asked for and could not be made, with the reason.
     """
 
     system: object
@@ -84,6 +90,8 @@ class Comparison(Tabular):
     energy: dict = field(default_factory=dict)
     skipped: dict = field(default_factory=dict)
     loop: dict = field(default_factory=dict)
+    estimated: dict = field(default_factory=dict)
+    unestimated: dict = field(default_factory=dict)
 
     @property
     def singular(self) -> str:
@@ -139,9 +147,16 @@ class Comparison(Tabular):
         return float(self.time[past[0]]) if past.size else math.inf
 
     def outside_bound(self) -> dict[str, float]:
-        """Solvers whose error / peak exceeds the preset's bound: a broken promise, flagged."""
-        return {name: e[1] for name, e in self.errors().items()
-                if name != self.reference and e[1] > self.bound}
+        """Solvers whose error / peak exceeds the preset's bound: a broken promise, flagged.
+
+        The error against the reference judges where one ran; else the estimate, where one was made.
+        """
+        out = {}
+        for name, e in self.errors().items():
+            judged = e[1] if not math.isnan(e[1]) else self.estimated.get(name, e)[1]
+            if name != self.reference and judged > self.bound:
+                out[name] = judged
+        return out
 
     def max_relative_error(self, solver: str) -> float:
         """The worst error of *solver*'s outputs, each relative to its own peak.
@@ -158,7 +173,7 @@ class Comparison(Tabular):
         for name in list(self.results) + [f for f in self.failures if f not in self.results]:
             tr = self.results.get(name)
             if tr is None:
-                rows.append([name, "failed", "", "", "", "", "", self.failures[name]])
+                rows.append([name, "failed", "", "", "", "", "", "", self.failures[name]])
                 continue
             err = self.errors()[name]
             st = tr.stats
@@ -167,27 +182,36 @@ class Comparison(Tabular):
                 note = f"loop residual {self.loop[name][0]:.2e}" + (f", {note}" if note else "")
             if name in self.energy:
                 note = f"energy residual {self.energy[name]:.2e}" + (f", {note}" if note else "")
+            if name in self.unestimated:
+                note = f"no estimate: {self.unestimated[name]}" + (f", {note}" if note else "")
             worst = "" if name == self.reference else err.worst
-            rows.append([name, tr.run_time * 1e3, err.absolute, worst, err.relative, err.whole,
+            if not self.reference and name in self.estimated:
+                worst = self.estimated[name].worst
+            est = self.estimated[name].relative if name in self.estimated else math.nan
+            rows.append([name, tr.run_time * 1e3, err.absolute, worst, err.relative, est, err.whole,
                          "" if st.steps is None else st.steps, note])
-        return rows + [[name, "skipped", "", "", "", "", "", why] for name, why in self.skipped.items()]
+        return rows + [[name, "skipped", "", "", "", "", "", "", why] for name, why in self.skipped.items()]
 
     def table(self) -> str:
         """A plain-text table of run time, error and steps per solver."""
         where = (f"errors against the {self.reference} solution, on each solver's own points, each output "
-                 "against its own peak" if self.reference else "no reference, so no errors measured")
+                 "against its own peak" if self.reference else
+                 "no reference: errors estimated by refined runs" if self.estimated else
+                 "no reference, so no errors measured")
         circuit = ", realizable circuit" if getattr(self.system, "realizable", False) else ""
         lines = [f"robot {self.system.provenance.robot}, topology {self.system.topology.name}{circuit}, "
                  f"preset {self.preset}, {self.time.size} time points; {where}",
                  f"{'solver':<10}{'run time [ms]':>15}{'max |error|':>14}{'worst output':>14}"
-                 f"{'error / peak':>14}{'all / peak':>12}{'steps':>8}"]
-        for name, ms, e, worst, r, whole, steps, note in self._rows():
+                 f"{'error / peak':>14}" + (f"{'estimated':>12}" if self.estimated else "")
+                 + f"{'all / peak':>12}{'steps':>8}"]
+        for name, ms, e, worst, r, est, whole, steps, note in self._rows():
             if ms in ("failed", "skipped"):
                 lines.append(f"{name:<10}  {'failed' if ms == 'failed' else 'does not apply'}: {note}")
                 continue
             tail = f"  ({note})" if note else ""
-            errs = (f"{e:>14.3e}{worst or '-':>14}{r:>14.3e}{whole:>12.2e}" if self.reference
-                    else f"{'-':>14}{'-':>14}{'-':>14}{'-':>12}")
+            guess = (f"{est:>12.2e}" if est == est else f"{'-':>12}") if self.estimated else ""
+            errs = (f"{e:>14.3e}{worst or '-':>14}{r:>14.3e}{guess}{whole:>12.2e}" if self.reference
+                    else f"{'-':>14}{worst or '-':>14}{'-':>14}{guess}{'-':>12}")
             lines.append(f"{name:<10}{ms:>15.3f}{errs}{steps!s:>8}{tail}")
         if getattr(getattr(self.system, "joint", None), "unstable", False):
             lines.append("unstable equilibrium: K + ∂G/∂q has a negative eigenvalue, so the motion grows")
@@ -207,7 +231,8 @@ class Comparison(Tabular):
 
     def _repr_html_(self) -> str:
         return html_table(["solver", "run time [ms]", "max |error|", "worst output", "error / its peak",
-                           "all / largest peak", "steps", "note"], self._rows(), self.caption)
+                           "estimated error / its peak", "all / largest peak", "steps", "note"], self._rows(),
+                          self.caption)
 
     @property
     def caption(self) -> str:
@@ -271,7 +296,7 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
                  solvers: Sequence[str] = DEFAULT_SOLVERS, times=None, *,
                  reference: str | None = "auto", step: float | None = None,
                  save: Sequence[str] = (), positions: bool = False,
-                 t_stop: float | None = None, forces=None,
+                 t_stop: float | None = None, forces=None, estimate: bool = False,
                  progress: Callable[[str | None], None] | None = None) -> list[Comparison]:
     """:func:`compare` for many systems, each solver running them together where it can.
 
@@ -305,6 +330,10 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
     progress : callable, optional
         Called with each solver's name as it starts and with None when it ends (a
         :class:`~analogy.progress.Heartbeat` prints lines on long runs).
+    estimate : bool
+        Also estimate each solver's error without the reference: each runs again under
+        refined settings (:func:`~analogy.study.estimate.estimated_errors`), which costs
+        about what the first run did, and twice that for SPICE.
     """
     if not systems:
         return []
@@ -376,6 +405,15 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
             progress(None)
     out = []
     measured = _measure(systems, runs, native, ref_name, p, tuple(save), resampled)
+    estimates, unestimated = [{} for _ in systems], {}
+    if estimate:
+        if progress is not None:
+            progress("estimates")
+        try:
+            estimates, unestimated = estimated_errors(systems, {n: native.get(n, runs[n]) for n in order}, p)
+        finally:
+            if progress is not None:
+                progress(None)
     columns = [(n, runs[n]) for n in order]
     for k, system in enumerate(systems):
         results, failures = {}, {}
@@ -401,7 +439,7 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
                     except InputError:      # a closed chain's run went where its loop does not close
                         energy[n] = math.nan
         out.append(Comparison(system, p.name, grid, results, failures, ref, measured[k] if ref else {},
-                              p.bound, energy, skipped, loop))
+                              p.bound, energy, skipped, loop, estimates[k], unestimated))
     return out
 
 
@@ -462,7 +500,7 @@ def _measure(systems, runs, native, ref_name, p, save=(), resampled=frozenset())
 def compare(system, preset: str | Preset = "accurate", solvers: Sequence[str] = DEFAULT_SOLVERS,
             times=None, *, reference: str | None = "auto", step: float | None = None,
             save: Sequence[str] = (), positions: bool = False,
-            t_stop: float | None = None, forces=None,
+            t_stop: float | None = None, forces=None, estimate: bool = False,
             progress: Callable[[str | None], None] | None = None) -> Comparison:
     """Run the requested solvers on *system* and compare them on shared time points.
 
@@ -493,6 +531,9 @@ def compare(system, preset: str | Preset = "accurate", solvers: Sequence[str] = 
         Joint forces, one entry per joint, instead of the system's (gravity is kept).
     progress : callable, optional
         Called with each solver's name as it starts and with None when it ends.
+    estimate : bool
+        Also estimate each solver's error without the reference (see :func:`compare_many`).
     """
     return compare_many([system], preset, solvers, times, reference=reference, step=step,
-                        save=save, positions=positions, t_stop=t_stop, forces=forces, progress=progress)[0]
+                        save=save, positions=positions, t_stop=t_stop, forces=forces, progress=progress,
+                        estimate=estimate)[0]
