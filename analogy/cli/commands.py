@@ -299,6 +299,8 @@ def _cmd_stress(args) -> int:
     if not args.timeout > 0:
         raise InputError(f"--timeout must be positive, got {args.timeout:g}")
     families = args.families.strip().lower()
+    if args.estimates:
+        return _estimates(args, out, families)
     report = stress(families, quick=args.quick, timeout=args.timeout,
                     progress=not args.no_progress)
     try:
@@ -306,6 +308,26 @@ def _cmd_stress(args) -> int:
         written = write_report(report, out)
     except OSError as exc:
         raise InputError(f"cannot write the stress report: {exc}") from None
+    print(report.summary())
+    print("wrote " + ", ".join(str(p) for p in written))
+    return EXIT_OK
+
+
+def _estimates(args, out: Path, families: str) -> int:
+    from ..stress.estimates import validate_estimates
+    from ..stress.families import FAMILY_TITLES
+    bad = sorted(set(families) - set(FAMILY_TITLES))
+    if bad:
+        raise InputError(f"unknown stress families {''.join(bad)}: use letters of {''.join(FAMILY_TITLES)}")
+    report = validate_estimates(args.quick, families, args.timeout, progress=not args.no_progress)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        written = [report.to_csv(out / "estimates.csv"), out / "estimates.md", out / "estimates.png"]
+        (out / "estimates.md").write_text("# Error estimates against true errors\n\n" + report.summary()
+                                          + "\n\n" + report.table() + "\n")
+        report.plot(out / "estimates.png")
+    except OSError as exc:
+        raise InputError(f"cannot write the estimates report: {exc}") from None
     print(report.summary())
     print("wrote " + ", ".join(str(p) for p in written))
     return EXIT_OK

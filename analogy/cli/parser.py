@@ -142,6 +142,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", default="stress", help="folder for stress.csv, stress.md and "
                    "stress_<family>.png (made if missing; default: stress)")
     p.add_argument("--timeout", type=float, default=10.0, help="wall-time limit of each ODE run [s] (default 10)")
+    p.add_argument("--estimates", action="store_true", help="validate the error estimates instead: each solver "
+                   "at both presets on the bench scenes and these families' cases, its estimate against its true "
+                   "error (estimates.csv, estimates.md, estimates.png)")
     p.add_argument("--no-progress", action="store_true", help="no progress (a bar on a terminal, "
                    "plain lines otherwise)")
     p = sub.add_parser("memory", help="resident memory grown per in-process solver run (kB/run)")
