@@ -358,6 +358,27 @@ def _cmd_memory(args) -> int:
     return EXIT_OK
 
 
+def _cmd_check(args) -> int:
+    from ..study.estimate import netlist_estimate
+    try:
+        text = Path(args.netlist).read_text(encoding="ascii")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"cannot read the netlist {args.netlist}: {exc}") from None
+    if args.plot:
+        check_plot_path(args.plot)
+    check_writable(args.csv)
+    result = netlist_estimate(text)
+    print(result.table())
+    if args.csv:
+        print(f"wrote {result.to_csv(args.csv)}")
+    if args.plot:
+        result.plot(args.plot)
+        print(f"wrote {args.plot}")
+    bound = PRESETS[args.preset].bound
+    name, worst = result.worst
+    return accuracy_exit({f"the netlist's {name}": worst} if worst > bound else {}, args.preset, bound)
+
+
 def _cmd_ac(args) -> int:
     from ..study.mobility import mobility_check
     sc = scene_from_args(args)
@@ -382,7 +403,7 @@ def _cmd_scenes(args) -> int:
 
 _COMMANDS = {"netlist": _cmd_netlist, "compare": _cmd_compare, "verify": _cmd_verify, "modes": _cmd_modes, "ac": _cmd_ac,
              "scenes": _cmd_scenes, "draw": _cmd_draw, "run": _cmd_run, "bench": _cmd_bench,
-             "throughput": _cmd_throughput, "stress": _cmd_stress, "batch": _cmd_batch, "memory": _cmd_memory,
+             "throughput": _cmd_throughput, "stress": _cmd_stress, "batch": _cmd_batch, "memory": _cmd_memory, "check": _cmd_check,
              "animate": _cmd_animate, "report": _cmd_report}
 
 

@@ -147,6 +147,13 @@ def build_parser() -> argparse.ArgumentParser:
                    "error (estimates.csv, estimates.md, estimates.png)")
     p.add_argument("--no-progress", action="store_true", help="no progress (a bar on a terminal, "
                    "plain lines otherwise)")
+    p = sub.add_parser("check", help="estimate the error of a netlist's saved vectors without a reference: "
+                       "it runs as written and again with every step halved (Richardson)")
+    p.add_argument("netlist", metavar="NETLIST", help="a transient netlist, e.g. one analogy netlist wrote")
+    p.add_argument("--preset", default="accurate", choices=list(PRESETS), help="the preset whose bound judges "
+                   "the estimate (default accurate, 1e-6 of each vector's peak)")
+    p.add_argument("--csv", metavar="FILE", help="write the saved vectors as they ran")
+    p.add_argument("--plot", metavar="FILE.png", help="write a plot of the saved vectors and their estimates")
     p = sub.add_parser("memory", help="resident memory grown per in-process solver run (kB/run)")
     p.add_argument("--runs", type=int, default=10_000, help="counted runs (default 10000)")
     p.add_argument("--solver", default="spice", help="registered solver: spice, ode, exact or reference "

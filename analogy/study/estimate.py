@@ -2,17 +2,22 @@
 
 from __future__ import annotations
 
+import re
+from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
 from scipy.interpolate import CubicSpline
 
+from ..errors import InputError
 from ..presets import Preset
 from ..results.metrics import OutputErrors, output_errors
+from ..results.output import Tabular
 from ..results.trajectory import Trajectory
 from ..solvers.registry import run, run_many, solver
+from ..solvers.transient import REFINE, STEP_TOLERANCES
 
-__all__ = ["estimated_errors", "on_points"]
+__all__ = ["estimated_errors", "on_points", "netlist_estimate", "NetlistEstimate", "refined_netlist", "spice_number"]
 
 
 def on_points(tr: Trajectory, times: np.ndarray, breakpoints: np.ndarray) -> np.ndarray:
@@ -108,3 +113,181 @@ def estimated_errors(systems: Sequence, runs: dict[str, Sequence[Trajectory]], p
             values = on_points(fine, coarse.time, systems[k].breakpoints()) if s.own_grid else fine.rates
             out[k][name] = _estimate(coarse.rates, values, factor, names)
     return out, missing
+
+
+_SUFFIX = {"t": 1e12, "g": 1e9, "meg": 1e6, "k": 1e3, "m": 1e-3, "u": 1e-6, "n": 1e-9, "p": 1e-12, "f": 1e-15}
+_NUMBER = re.compile(r"^([+-]?(?:\d+\.?\d*|\.\d+)(?:e[+-]?\d+)?)(meg|[tgkmunpf])?[a-z]*$", re.IGNORECASE)
+
+
+def spice_number(text: str) -> float:
+    """A SPICE number: ``1e-3``, ``1m``, ``10meg`` (a unit after the suffix is ignored, as SPICE does).
+
+    Parameters
+    ----------
+    text : str
+        The number as written in a netlist.
+    """
+    match = _NUMBER.match(text.strip())
+    if match is None:
+        raise InputError(f"{text!r} is not a SPICE number")
+    return float(match.group(1)) * _SUFFIX.get((match.group(2) or "").lower(), 1.0)
+
+
+def refined_netlist(text: str) -> str:
+    """*text* with every step of ngspice :data:`~analogy.solvers.transient.REFINE` times shorter:
+    the ``.tran`` step cap and the :data:`~analogy.solvers.transient.STEP_TOLERANCES` that its
+    ``.options`` set (REFINE³ times tighter), as :func:`~analogy.solvers.transient.refined` does
+    for a preset. ``.control`` blocks and ``.print`` lines are left out: they change what is
+    shown, not the steps.
+
+    Parameters
+    ----------
+    text : str
+        A netlist with one ``.tran``.
+    """
+    out, trans = [], 0
+    for line in _as_written(text).splitlines():
+        word = line.split()[0].lower() if line.split() else ""
+        if word == ".options":
+            parts = [line.split()[0]]
+            for token in line.split()[1:]:
+                key, eq, value = token.partition("=")
+                if eq and key.lower() in STEP_TOLERANCES:
+                    token = f"{key}={spice_number(value) / REFINE ** 3:.6g}"
+                parts.append(token)
+            line = " ".join(parts)
+        elif word == ".tran":
+            trans += 1
+            tokens = line.split()
+            flags = [t for t in tokens[1:] if not _NUMBER.match(t)]
+            values = [spice_number(t) for t in tokens[1:] if _NUMBER.match(t)]
+            if len(values) < 2:
+                raise InputError(f"the netlist's .tran line needs TSTEP and TSTOP: {line.strip()!r}")
+            step, stop = values[:2]
+            start = values[2] if len(values) > 2 else 0.0
+            cap = values[3] if len(values) > 3 else min(step, (stop - start) / 50)   # ngspice's default TMAX
+            line = " ".join([tokens[0]] + [f"{x!r}" for x in (step, stop, start, cap / REFINE)] + flags)
+        out.append(line)
+    if trans != 1:
+        raise InputError(f"analogy check judges a netlist with one .tran line, this one has {trans}")
+    return "\n".join(out) + "\n"
+
+
+def _saved(text: str) -> list[str]:
+    names = [t for line in text.splitlines() if line.split()[:1] and line.split()[0].lower() == ".save"
+             for t in line.split()[1:]]
+    if not names:
+        raise InputError("the netlist saves no vectors (.save): analogy check judges the saved vectors")
+    return names
+
+
+@dataclass(eq=False)
+class NetlistEstimate(Tabular):
+    """A netlist's saved vectors, each with its error estimated against its own peak.
+
+    Attributes
+    ----------
+    time : ndarray
+        The run's own time points.
+    values : dict of str to ndarray
+        The saved vectors as the netlist ran.
+    estimates : dict of str to float
+        Per vector, Richardson's estimate of max |error| over its own peak.
+    steps : tuple of int
+        Time points of the run and of its refined run.
+    """
+
+    time: np.ndarray
+    values: dict
+    estimates: dict
+    steps: tuple = (0, 0)
+
+    @property
+    def worst(self) -> tuple[str, float]:
+        """The vector with the largest estimate, and that estimate."""
+        name = max(self.estimates, key=lambda k: self.estimates[k])
+        return name, self.estimates[name]
+
+    def __repr__(self) -> str:
+        name, est = self.worst
+        return f"<NetlistEstimate: {len(self.estimates)} vectors on {self.steps[0]} points, worst {name} {est:.2e}>"
+
+    def table(self) -> str:
+        """One line per saved vector: its peak and its estimated error over that peak."""
+        lines = [f"{self.steps[0]} time points (refined run: {self.steps[1]}); errors estimated by the refined run, "
+                 "each vector against its own peak", f"{'vector':<20}{'peak':>14}{'estimated':>12}"]
+        for name, est in self.estimates.items():
+            lines.append(f"{name:<20}{float(np.max(np.abs(self.values[name]))):>14.4e}{est:>12.2e}")
+        return "\n".join(lines)
+
+    def columns(self) -> dict[str, np.ndarray]:
+        """``time`` and every saved vector."""
+        return {"time": self.time, **self.values}
+
+    def plot(self, path=None):
+        """The saved vectors against time, each labelled with its estimated error.
+
+        Parameters
+        ----------
+        path : str or Path, optional
+            Image file to write.
+        """
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+        fig, ax = plt.subplots(figsize=(7.5, 4), constrained_layout=True)
+        for name, y in self.values.items():
+            ax.plot(self.time, y, label=f"{name}: estimated error {self.estimates[name]:.1e} of its peak")
+        ax.set(xlabel="time [s]", ylabel="saved vector", title="the netlist as it ran")
+        ax.legend(fontsize=8)
+        if path is not None:
+            fig.savefig(path, dpi=120)
+        return fig
+
+
+def netlist_estimate(text: str, timeout: float | None = None) -> NetlistEstimate:
+    """Run a transient netlist in ngspice as written and again with every step halved
+    (:func:`refined_netlist`); Richardson's factor on their difference estimates each saved
+    vector's error over its own peak.
+
+    Both runs step onto every source corner, so the times they share bound the intervals
+    on which the refined run is read between its points (:func:`on_points`).
+
+    Parameters
+    ----------
+    text : str
+        The netlist (what ``ngspice -b`` runs).
+    timeout : float, optional
+        Wall-time limit of each run [s].
+    """
+    from ..solvers.spice import session
+    names = _saved(text)
+    sess = session()
+    first = sess.run(_as_written(text), names, timeout=timeout)
+    second = sess.run(refined_netlist(text), names, timeout=timeout)
+    t1, t2 = first["time"], second["time"]
+    shared = np.intersect1d(t1, t2)
+    factor = REFINE ** 2 / (REFINE ** 2 - 1)
+    values, estimates = {}, {}
+    for name in names:
+        y1, y2 = np.asarray(first[name], float), np.asarray(second[name], float)
+        fine = Trajectory("spice", t2, y2[:, None], y2[:, None])
+        there = on_points(fine, t1, shared)[:, 0]
+        top = float(np.max(np.abs(y2)))
+        values[name] = y1
+        estimates[name] = factor * float(np.max(np.abs(y1 - there))) / top if top > 0 else 0.0
+    return NetlistEstimate(t1, values, estimates, (int(t1.size), int(t2.size)))
+
+
+def _as_written(text: str) -> str:
+    """*text* without its ``.control`` blocks and ``.print`` lines: the same steps, no printing."""
+    out, control = [], False
+    for line in text.splitlines():
+        word = line.split()[0].lower() if line.split() else ""
+        if word == ".control":
+            control = True
+        if control or word == ".print":
+            control = control and word != ".endc"
+            continue
+        out.append(line)
+    return "\n".join(out) + "\n"

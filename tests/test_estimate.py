@@ -1,0 +1,151 @@
+"""Error estimates without a reference: Richardson's estimate from a refined run, on its own and on a netlist."""
+
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from analogy.results.trajectory import Trajectory
+from analogy.scenes.builtin import scene
+from analogy.solvers.transient import REFINE, refined
+from analogy.stress.estimates import AGREEMENT, validate_estimates
+from analogy.stress.families import cases
+from analogy.study.comparison import compare
+from analogy.study.estimate import netlist_estimate, on_points, refined_netlist, spice_number
+from analogy.solvers.transient import netlist
+
+
+def cli(*args):
+    return subprocess.run([sys.executable, "-m", "analogy", *args], capture_output=True, text=True, timeout=300)
+
+
+@pytest.mark.parametrize("preset", ["fast", "accurate"])
+def test_the_trapezoidal_error_falls_as_the_square_of_the_step_so_the_refined_run_errs_a_quarter(preset):
+    # Richardson's premise on the default arm: with every step halved, SPICE's error falls 4 times
+    # (h² of the trapezoidal rule); the measured ratio must lie within the factor the estimate allows.
+    system = scene("default").system()
+    first = compare(system, preset, ("spice",)).max_relative_error("spice")
+    second = compare(system, refined(preset), ("spice",)).max_relative_error("spice")
+    assert REFINE ** 2 / AGREEMENT < first / second < REFINE ** 2 * AGREEMENT
+
+
+@pytest.mark.parametrize("preset", ["fast", "accurate"])
+def test_the_estimate_lies_within_a_factor_of_three_of_the_true_error(preset):
+    c = compare(scene("default").system(), preset, estimate=True)
+    for solver in ("spice", "ode"):
+        true, est = c.measured[solver].relative, c.estimated[solver].relative
+        assert 1 / AGREEMENT <= est / true <= AGREEMENT, (solver, true, est)
+    assert "exact" not in c.estimated          # a closed form has no refinement
+    assert "estimated" in c.table()
+
+
+def test_without_a_reference_the_estimate_alone_judges_the_bound():
+    # ten undamped periods at fast: SPICE's phase error reaches 7e-2 of the peak (stress family c)
+    case = next(cases("c", quick=True))
+    c = compare(case.build(), "fast", ("spice",), reference=None, estimate=True)
+    assert c.reference is None and not c.measured
+    est = c.estimated["spice"].relative
+    assert est > 1e-3
+    assert c.outside_bound() == {"spice": est}
+    assert "no reference: errors estimated by refined runs" in c.table()
+
+
+def test_a_spline_between_breakpoints_reads_a_piecewise_cubic_exactly():
+    # a corner at t = 1 (a force's step): the spline must not span it
+    t = np.concatenate([np.linspace(0, 1, 7), np.linspace(1, 2, 9)[1:]])
+    f = np.where(t < 1, t ** 3, 1 + 3 * (t - 1) - (t - 1) ** 2)
+    tr = Trajectory("spice", t, f[:, None], f[:, None])
+    at = np.linspace(0, 2, 101)
+    want = np.where(at < 1, at ** 3, 1 + 3 * (at - 1) - (at - 1) ** 2)
+    got = on_points(tr, at, np.array([1.0]))[:, 0]
+    assert np.max(np.abs(got - want)) < 1e-14 * 16     # rounding of a 16-point spline solve
+    across = on_points(tr, at, np.array([]))[:, 0]      # spanning the corner: an O(h) error near it
+    assert np.max(np.abs(across - want)) > 1e-3
+
+
+def test_spice_numbers_take_their_suffixes():
+    assert spice_number("1m") == 1e-3
+    assert spice_number("10meg") == 1e7
+    assert spice_number("2.5uF") == pytest.approx(2.5e-6, rel=2.3e-16)     # one rounding of the product
+    assert spice_number("-1e-3") == -1e-3
+    with pytest.raises(Exception, match="not a SPICE number"):
+        spice_number("x1")
+
+
+def test_the_refined_netlist_halves_the_cap_and_tightens_the_step_control_eightfold():
+    text = netlist(scene("default").system(), "fast")
+    fine = refined_netlist(text)
+    opts = dict(t.split("=") for line in text.splitlines() if line.startswith(".options") for t in line.split()[1:])
+    finer = dict(t.split("=") for line in fine.splitlines() if line.startswith(".options") for t in line.split()[1:])
+    for key in ("reltol", "abstol", "vntol", "chgtol"):
+        assert float(finer[key]) == pytest.approx(float(opts[key]) / REFINE ** 3, rel=1e-5)
+    assert finer["trtol"] == opts["trtol"] and finer["method"] == opts["method"]
+    tran = [line.split() for line in text.splitlines() if line.startswith(".tran")][0]
+    tran2 = [line.split() for line in fine.splitlines() if line.startswith(".tran")][0]
+    assert float(tran2[4]) == pytest.approx(float(tran[4]) / REFINE)
+    assert ".control" not in fine and ".print" not in fine
+    # without TMAX, ngspice's own cap min(TSTEP, TSTOP/50) is halved
+    bare = refined_netlist("* t\nR1 n1 0 1\nC1 n1 0 1\n.tran 1m 1\n.save v(n1)\n.end\n")
+    assert ".tran 0.001 1.0 0.0 0.0005" in bare
+
+
+def test_a_netlist_s_estimate_agrees_with_its_true_error_on_the_node_voltages():
+    system = scene("default").system()
+    text = netlist(system, "fast")
+    est = netlist_estimate(text)
+    # in process, ngspice's output starts after its first step: the exact solver needs t = 0 too
+    exact = compare(system, "fast", ("exact",), times=np.concatenate([[0.0], est.time]),
+                    reference=None).results["exact"].voltages[1:]
+    for j, name in enumerate(("v(n1)", "v(n2)")):
+        true = np.max(np.abs(est.values[name] - exact[:, j])) / np.max(np.abs(exact[:, j]))
+        assert 1 / AGREEMENT <= est.estimates[name] / true <= AGREEMENT, (name, true, est.estimates[name])
+
+
+def test_check_flags_a_fast_netlist_against_the_accurate_bound(tmp_path):
+    fast, accurate = tmp_path / "fast.cir", tmp_path / "accurate.cir"
+    assert cli("netlist", "--preset", "fast", "-o", str(fast)).returncode == 0
+    assert cli("netlist", "-o", str(accurate)).returncode == 0
+    res = cli("check", str(accurate))
+    assert res.returncode == 0, res.stderr
+    assert "v(n2)" in res.stdout
+    res = cli("check", str(fast))
+    assert res.returncode == 3
+    assert "above the accurate preset's bound 1e-06" in res.stderr
+    assert cli("check", str(fast), "--preset", "fast").returncode == 0
+    res = cli("check", str(tmp_path / "missing.cir"))
+    assert res.returncode == 2 and "Traceback" not in res.stderr
+
+
+def test_the_estimates_agree_within_a_factor_of_three_and_never_claim_a_broken_bound_is_kept():
+    # the quick bench scenes (2 and 10 joints) at both presets; every stress family in the deep pass
+    report = validate_estimates(quick=True, families="", progress=False)
+    assert len(report.rows) == 8
+    assert not any(r.unsafe for r in report.rows)
+    resolved = [r for r in report.rows if r.verdict != "unresolved"]
+    assert resolved and all(r.verdict == "agrees" for r in resolved), report.table()
+
+
+#: Runs whose estimate may miss the factor of three, and why: their errors are rounding, which no refined
+#: run predicts (docs/estimates.md). On another processor they may agree; they may never be unsafe.
+ROUNDING_RUNS = {
+    # r4 ≡ 0 by symmetry (its exact peak is 1e-15 of the largest): both figures are rounding against the
+    # 1e-10 peak floor of the metric
+    ("a: serial cond 1e+00", "spice", "accurate"): "an identically zero output",
+    # n·ε·cond(M)·√steps = 6 · 2.2e-16 · 1e8 · √20000 ≈ 2e-5: rounding, which grows as the step shrinks
+    ("a: serial cond 1e+08", "spice", "accurate"): "rounding past the truncation error",
+    # SPICE integrates these step responses to 1e-11 of the peak at fast: rounding again
+    ("h: UR5 elbow, q3 = 1", "spice", "fast"): "rounding",
+    ("h: UR5 wrist, q5 = 1", "spice", "fast"): "rounding",
+}
+
+
+@pytest.mark.deep
+def test_on_every_quick_bench_and_stress_scene_the_estimates_agree_but_where_rounding_rules():
+    report = validate_estimates(quick=True, progress=False)
+    assert not any(r.unsafe for r in report.rows), report.table()
+    assert not any(r.verdict == "failed" for r in report.rows), report.table()
+    misses = [r for r in report.rows if r.verdict in ("over", "under")
+              and (r.scene, r.solver, r.preset) not in ROUNDING_RUNS]
+    assert not misses, report.table()
