@@ -149,3 +149,43 @@ def test_on_every_quick_bench_and_stress_scene_the_estimates_agree_but_where_rou
     misses = [r for r in report.rows if r.verdict in ("over", "under")
               and (r.scene, r.solver, r.preset) not in ROUNDING_RUNS]
     assert not misses, report.table()
+
+
+def test_the_sufficient_subset_s_maximum_is_within_bernstein_s_factor_of_the_maximum_over_all_points():
+    from analogy.study.grid import SUFFICIENT_PHASE, SUBSET_FROM, sufficient_points
+    rng = np.random.default_rng(1)
+    t = np.sort(np.concatenate([[0.0, 10.0], rng.uniform(0, 10, 3 * SUBSET_FROM)]))
+    omega = 40.0
+    rows = sufficient_points(t, omega, breakpoints=[2.5, 7.0])
+    assert rows is not None and rows[0] == 0 and rows[-1] == t.size - 1
+    assert np.any(t[rows] == t[np.searchsorted(t, 2.5) - 1])        # each corner's last point before it
+    own = float(np.max(np.diff(t)))
+    assert np.max(np.diff(t[rows])) <= SUFFICIENT_PHASE / omega + own
+    reach = omega * float(np.max(np.diff(t[rows])))
+    for phase in rng.uniform(0, 2 * np.pi, 20):        # content at rates up to ω: the worst case of the inequality
+        e = np.sin(omega * t + phase) + 0.5 * np.sin(0.3 * omega * t)
+        assert np.max(np.abs(e[rows])) >= (1 - reach / 2) * np.max(np.abs(e))
+    assert sufficient_points(t[:SUBSET_FROM], omega) is None          # a short run keeps every point
+    assert sufficient_points(t, 1e9) is None                          # no fewer points: kept whole
+
+
+def test_a_long_run_is_measured_on_its_sufficient_subset_within_bernstein_s_factor_of_all_its_points():
+    from dataclasses import replace
+    from analogy.circuit.scales import system_scales
+    from analogy.presets import PRESETS
+    from analogy.results.metrics import output_errors
+    from analogy.solvers.exact import solve_exact
+    from analogy.solvers.spice import solve_spice
+    from analogy.study.grid import SUBSET_FROM
+    # the default arm over 100 s with a step cap of 5e-4 s: 2·10⁵ SPICE points, the subset a tenth of them
+    system = scene("default").system().driven(None, 100.0)
+    p = replace(PRESETS["fast"], max_steps=200_000)
+    c = compare(system, p, ("spice", "exact"))
+    spice = c.results["spice"]
+    assert spice.stats.steps > SUBSET_FROM and spice.time.size < spice.stats.steps / 2
+    assert "measured on" in spice.message
+    whole = solve_spice(system, preset=p)
+    _, rel = output_errors(whole.rates, solve_exact(system, whole.time).rates)
+    reach = system_scales(system).fastest(p.bound) * float(np.max(np.diff(spice.time)))
+    sub = c.max_relative_error("spice")
+    assert (1 - reach / 2) * np.max(rel) <= sub <= np.max(rel) * (1 + 1e-12)

@@ -145,6 +145,23 @@ class Trajectory(Tabular):
                           self.success, f"interpolated from its {self.time.size} own time points",
                           self.stats, settings=self.settings)
 
+    def at(self, rows: np.ndarray, message: str = "") -> "Trajectory":
+        """This trajectory on a subset of its own points (every array's *rows*; no interpolation).
+
+        Parameters
+        ----------
+        rows : ndarray of int
+            Indices of the points kept, increasing.
+        message : str
+            Said in :attr:`message` (appended to the trajectory's own).
+        """
+        def pick(a):
+            return None if a is None else a[rows]
+        note = "; ".join(m for m in (self.message, message) if m)
+        return Trajectory(self.solver, self.time[rows], self.voltages[rows], self.rates[rows], pick(self.positions),
+                          {k: x[rows] for k, x in self.currents.items()}, self.success, note, self.stats,
+                          pick(self.work), self.settings)
+
     def columns(self) -> dict[str, np.ndarray]:
         """``time``, joint rates ``r1`` …, node voltages ``v_n1`` … and currents ``i_C1_2`` …"""
         cols = {"time": self.time}

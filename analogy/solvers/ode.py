@@ -100,6 +100,8 @@ class _SegmentForces:
         self.rows = np.array([j for j, _, _ in terms], dtype=int)
         self.c = np.array([c for _, c, _ in terms], dtype=complex)
         self.s = np.array([e for _, _, e in terms], dtype=complex)
+        #: No ramp or exponential on this segment: the forces are a.
+        self.constant = not self.rows.size and not np.any(self.b)
 
     def __call__(self, tt: float) -> np.ndarray:
         tau = tt - self.t0
@@ -116,7 +118,13 @@ def _linear(system, force):
     v0 = system.initial_voltages
     y0 = np.concatenate([np.zeros(system.dof), v0]) if springs else v0.copy()
 
+    held = [None, None]         # (the segment's a, g·a) on a segment of constant forces: most of a run's steps
+
     def rhs(tt, yy):
+        if force.constant:
+            if held[0] is not force.a:
+                held[:] = force.a, g @ force.a
+            return a @ yy + held[1]
         return a @ yy + g @ force(tt)
     return rhs, a, y0, springs
 

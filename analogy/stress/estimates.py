@@ -220,7 +220,12 @@ def validate_estimates(quick: bool = False, families: str = ALL_FAMILIES, timeou
         floor = reference_floor(system)
         for name in PRESETS:
             p = replace(PRESETS[name], timeout=timeout, step_budget=min(PRESETS[name].step_budget, 1_000_000))
-            c = compare(system, p, ("spice", "ode"), estimate=True)
+            try:
+                c = compare(system, p, ("spice", "ode"), estimate=True)
+            except AnalogyError as exc:         # refused before it ran (a work budget): a row, not a lost report
+                report.rows.extend(EstimateRow(label, solver, name, math.nan, math.nan, math.nan, floor, p.bound,
+                                               "failed", False, message=str(exc)[:200]) for solver in ("spice", "ode"))
+                continue
             for solver in ("spice", "ode"):
                 true = c.measured[solver].relative if solver in c.measured else math.nan
                 est = c.estimated[solver].relative if solver in c.estimated else math.nan
