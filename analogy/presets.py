@@ -1,14 +1,15 @@
-"""Named accuracy presets: SPICE step and tolerance options, ODE method and tolerances."""
+"""Accuracy presets, each a tolerance: SPICE step and tolerance options, ODE method and tolerances."""
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Literal
 
 from .errors import InputError
 
-__all__ = ["DEFAULT_T_STOP", "Preset", "PRESETS", "PresetName", "preset"]
+__all__ = ["DEFAULT_T_STOP", "Preset", "PRESETS", "PresetName", "preset", "tolerance_preset", "TOLERANCES",
+           "TOLERANCE_RANGE"]
 
 #: End of the simulated interval [s] when none is given: the same for scenes, systems and the CLI.
 DEFAULT_T_STOP = 10.0
@@ -124,17 +125,89 @@ PRESETS = {
 }
 
 
-def preset(name: str | Preset) -> Preset:
-    """Look up a preset by name.
+#: The tolerance each named preset stands for: its bound on every output's error over its own peak.
+TOLERANCES = {name: p.bound for name, p in PRESETS.items()}
+#: The tolerances a preset can be asked for: past 1e-2 the step cap no longer resolves a period,
+#: and under 1e-9 ngspice's reltol would have to go under 1e-15, where double precision ends.
+TOLERANCE_RANGE = (1e-9, 1e-2)
+#: reltol is kept above this: Newton's convergence test compares rounding with it.
+_RELTOL_FLOOR = 1e-14
+#: The ODE's rtol is kept above this (scipy's floor is 100·ε; DOP853 here errs about 1e-11 of the peak).
+_ODE_RTOL_FLOOR = 1e-13
+
+
+def _between(low, high, share: float):
+    """A setting on the power law through the fast (*low*) and accurate (*high*) values."""
+    if isinstance(low, str) or low == high:
+        return low if share < 0.5 else high
+    value = low * (high / low) ** share
+    return round(value) if isinstance(low, int) and isinstance(high, int) else float(value)
+
+
+def tolerance_preset(tol: float) -> Preset:
+    """The settings asked for by the tolerance *tol* on each output's error over its own peak.
+
+    ``fast`` and ``accurate`` are the tolerances 1e-3 and 1e-6, calibrated on the built-in
+    scenes (their settings above). Between and beyond them each setting follows the power
+    law through the two: the step cap as tol^0.5 (the trapezoidal rule's error grows as
+    (ω·h)²), the first step, reltol and the absolute tolerances, the print and budget counts
+    and the ODE's rtol likewise. The ODE method switches at the geometric middle (LSODA
+    above 3.2e-5, DOP853 under). reltol stays above 1e-14 and the ODE's rtol above 1e-13.
 
     Parameters
     ----------
-    name : str or Preset
-        ``"fast"`` or ``"accurate"`` (a Preset is returned as it is).
+    tol : float
+        The bound, within :data:`TOLERANCE_RANGE`.
+    """
+    low, high = TOLERANCE_RANGE
+    if not (isinstance(tol, (int, float)) and math.isfinite(tol) and low <= tol <= high):
+        raise InputError(f"the tolerance must be a number from {low:g} to {high:g}, got {tol!r}")
+    for name, bound in TOLERANCES.items():
+        if tol == bound:
+            return PRESETS[name]
+    fast, accurate = PRESETS["fast"], PRESETS["accurate"]
+    share = math.log(tol / fast.bound) / math.log(accurate.bound / fast.bound)
+
+    def options(a: dict, b: dict) -> dict:
+        out = {k: _between(float(a[k]) if k != "method" and _number(a[k]) else a[k],
+                           float(b[k]) if k != "method" and _number(b[k]) else b[k], share) for k in a if k in b}
+        if "reltol" in out:
+            out["reltol"] = max(out["reltol"], _RELTOL_FLOOR)
+        return {k: (f"{v:.3g}" if isinstance(v, float) else v) for k, v in out.items()}
+    values = {f.name: _between(getattr(fast, f.name), getattr(accurate, f.name), share) for f in fields(Preset)
+              if f.name not in ("name", "description", "bound", "spice_options", "behavioural_options")}
+    values["steps"] = int(values["steps"])
+    values["ode_rtol"] = max(values["ode_rtol"], _ODE_RTOL_FLOOR)
+    return Preset(f"{tol:g}", options(fast.spice_options, accurate.spice_options), description=(
+                  f"better than {tol:g} of the peak (settings on the power law through fast and accurate)"),
+                  bound=float(tol), behavioural_options=options(fast.behavioural_options, accurate.behavioural_options),
+                  **values)
+
+
+def _number(text) -> bool:
+    try:
+        float(text)
+        return True
+    except (TypeError, ValueError):
+        return False
+
+
+def preset(name: str | float | Preset) -> Preset:
+    """Look up a preset by name, or make the one of a tolerance.
+
+    Parameters
+    ----------
+    name : str, float or Preset
+        ``"fast"`` or ``"accurate"``, or a tolerance such as ``1e-5`` or ``"1e-5"``
+        (:func:`tolerance_preset`; ``1e-3`` is ``fast`` and ``1e-6`` ``accurate``). A Preset is
+        returned as it is.
     """
     if isinstance(name, Preset):
         return name
-    try:
+    if isinstance(name, str) and name in PRESETS:
         return PRESETS[name]
-    except (KeyError, TypeError):
-        raise InputError(f"unknown accuracy preset {name!r}: use {', '.join(PRESETS)}") from None
+    if isinstance(name, (int, float)) and not isinstance(name, bool):
+        return tolerance_preset(float(name))
+    if isinstance(name, str) and _number(name.strip()):
+        return tolerance_preset(float(name.strip()))
+    raise InputError(f"unknown accuracy preset {name!r}: use {', '.join(PRESETS)} or a tolerance such as 1e-5")

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..errors import InputError
-from ..presets import PRESETS
+from ..presets import preset as get_preset
 from ..scenes.paths import inside_folder
 from ..units import force_unit, rate_unit
 from .store import manifest, read
@@ -215,7 +215,13 @@ class BatchReport:
     def _bounds(self) -> dict[str, float]:
         """Each preset the sweep ran at, and its bound."""
         names = self.frame["preset"].unique() if "preset" in self.frame else [self.info.get("preset")]
-        return {str(n): PRESETS[n].bound for n in names if n in PRESETS}
+        out = {}
+        for n in names:
+            try:
+                out[str(n)] = get_preset(str(n)).bound
+            except InputError:          # a store written by another version: no bound to draw
+                continue
+        return out
 
     def plot_histogram(self, path=None) -> "Figure":
         """Histograms of each solver's error (log10).

@@ -20,7 +20,6 @@ from ..errors import AccuracyError, AnalogyError, InputError, SimulationError, o
 from ..model.expressions import (
     parse_number,
 )
-from ..presets import PRESETS
 from ..processes import stop_requests
 from ..progress import Heartbeat
 from ..presets import preset as get_preset
@@ -193,7 +192,7 @@ def _cmd_verify(args) -> int:
         flags.update({f"{name} {k}": v for k, v in c.outside_bound().items()})
     if code:
         return code
-    return accuracy_exit(flags, args.preset, PRESETS[args.preset].bound)
+    return accuracy_exit(flags, args.preset, get_preset(args.preset).bound)
 
 
 def _cmd_draw(args) -> int:
@@ -252,7 +251,7 @@ def _cmd_run(args) -> int:
             codes.append(EXIT_FAILED)
         elif result.comparison is not None:
             codes.append(accuracy_exit(result.comparison.outside_bound(), job.preset,
-                                        PRESETS[job.preset].bound))
+                                        get_preset(job.preset).bound))
     return EXIT_FAILED if EXIT_FAILED in codes else max(codes, default=EXIT_OK)
 
 
@@ -374,7 +373,7 @@ def _cmd_check(args) -> int:
     if args.plot:
         result.plot(args.plot)
         print(f"wrote {args.plot}")
-    bound = PRESETS[args.preset].bound
+    bound = get_preset(args.preset).bound
     name, worst = result.worst
     return accuracy_exit({f"the netlist's {name}": worst} if worst > bound else {}, args.preset, bound)
 
@@ -391,7 +390,7 @@ def _cmd_ac(args) -> int:
     if plot is not None:
         check.spice.plot(plot, check.exact)
         print(f"wrote {plot}")
-    bound = PRESETS[args.preset].bound
+    bound = get_preset(args.preset).bound
     return accuracy_exit({"spice mobility": check.error} if check.error > bound else {}, args.preset, bound)
 
 

@@ -17,6 +17,7 @@ from ..model.expressions import (
 )
 from ..model.quantities import ANY, COORDINATE, RATE
 from ..presets import PRESETS
+from ..presets import preset as get_preset
 from ..scenes.build import LABELS, scene_model
 from ..scenes.builtin import SCENES, scene
 from ..scenes.scene import Scene
@@ -38,7 +39,16 @@ LABELS["command line"] = CLI_KEYS
 
 
 #: The --preset help text: each preset and what it promises.
-PRESET_HELP = "accuracy preset: " + "; ".join(f"{k} ({p.description})" for k, p in PRESETS.items())
+PRESET_HELP = ("accuracy preset: " + "; ".join(f"{k} ({p.description})" for k, p in PRESETS.items())
+               + "; or a tolerance from 1e-9 to 1e-2 on each output's error over its own peak (--tol 1e-5)")
+
+
+def preset_name(text: str) -> str:
+    """The preset *text* names, checked (``fast``, ``accurate`` or a tolerance, as ``1e-05``)."""
+    try:
+        return get_preset(text).name
+    except InputError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def scene_options(p: argparse.ArgumentParser, preset: str = "accurate") -> None:
@@ -101,7 +111,7 @@ def scene_options(p: argparse.ArgumentParser, preset: str = "accurate") -> None:
                    "or the scene's), e.g. 2 or '500 ms'")
     g.add_argument("--equilibrium", action="store_true", help="settle the elastic (modal) coordinates "
                    "at the static equilibrium under gravity first, the joints held at --q")
-    p.add_argument("--preset", default=preset, choices=list(PRESETS), help=PRESET_HELP)
+    p.add_argument("--preset", "--tol", dest="preset", default=preset, type=preset_name, metavar="PRESET", help=PRESET_HELP)
 
 
 def _split_param(text: str) -> tuple[str, float]:

@@ -11,7 +11,8 @@ from typing import TYPE_CHECKING, Mapping
 
 from ..errors import InputError
 from ..model.dynamics import DYNAMICS, DynamicsKind
-from ..presets import DEFAULT_T_STOP, PRESETS, PresetName
+from ..presets import DEFAULT_T_STOP, PresetName
+from ..presets import preset as get_preset
 from .build import scene_model, scene_system, scene_systems, symbolic_model
 from .paths import inside_folder
 from .spec import ModelSpec, freeze
@@ -123,8 +124,7 @@ class Scene:
             raise InputError(f"scene {self.name!r}: model must be a ModelSpec")
         if self.dynamics not in DYNAMICS:
             raise InputError(f"unknown dynamics {self.dynamics!r}: use {', '.join(DYNAMICS)}")
-        if self.preset not in PRESETS:
-            raise InputError(f"unknown accuracy preset {self.preset!r}: use {', '.join(PRESETS)}")
+        get_preset(self.preset)         # a name, or a tolerance (one clear sentence if neither)
         if not (isinstance(self.t_stop, (int, float)) and math.isfinite(self.t_stop) and self.t_stop > 0):
             raise InputError(f"t_stop must be a positive time, got {self.t_stop!r}")
         try:
