@@ -189,3 +189,16 @@ def test_a_long_run_is_measured_on_its_sufficient_subset_within_bernstein_s_fact
     reach = system_scales(system).fastest(p.bound) * float(np.max(np.diff(spice.time)))
     sub = c.max_relative_error("spice")
     assert (1 - reach / 2) * np.max(rel) <= sub <= np.max(rel) * (1 + 1e-12)
+
+
+def test_an_output_on_a_decay_the_steps_do_not_resolve_gets_no_estimate_and_no_claim():
+    # a critically damped mode 10⁴ times faster than the slow one, 1.2e-4 of the peak velocity: fast's
+    # step cap leaves it to ngspice (under 10·bound), yet it is all of r2, whose own error is 130 times its
+    # peak; halving the steps repeats the same ringing, so Richardson's difference would say 4e-4
+    case = next(c for c in cases("b") if c.label == "ratio 1e+04 zeta 1")
+    c = compare(case.build(), "fast", ("spice",), reference=None, estimate=True)
+    assert math.isnan(c.estimated["spice"].relative)
+    assert "r2 moves on a decay" in c.unestimated["spice"]
+    assert c.outside_bound() == {"spice": math.inf}
+    resolved = compare(scene("default").system(), "fast", ("spice",), reference=None, estimate=True)
+    assert resolved.unestimated == {} and resolved.outside_bound() == {}

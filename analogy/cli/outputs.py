@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import os
 import sys
 from pathlib import Path
@@ -46,6 +47,10 @@ def accuracy_exit(flags: dict, preset: str, bound: float, result=None) -> int:
         Names each solver's worst output.
     """
     for solver, err in flags.items():
+        if err == math.inf and solver in getattr(result, "unestimated", {}):
+            print(f"analogy: accuracy: {solver}'s error cannot be estimated without a reference: "
+                  f"{result.unestimated[solver]}", file=sys.stderr)
+            continue
         worst = getattr(result, "worst_output", None)
         which = f" on {worst(solver)[0]}" if worst is not None and solver in result.results else ""
         print(f"analogy: accuracy: {solver} error{which} {err:.3g} of its own peak is above the {preset} "

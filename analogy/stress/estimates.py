@@ -51,7 +51,8 @@ class EstimateRow:
 
     ``verdict`` is ``agrees`` (within :data:`AGREEMENT` of the true error), ``over`` or
     ``under`` (outside it, by ``ratio``), ``unresolved`` (the true error is under the
-    reference's own, ``floor``) or ``failed``. ``unsafe`` marks an estimate that says the
+    reference's own, ``floor``), ``no estimate`` (the estimator says it cannot see an output,
+    :func:`~analogy.study.estimate.unresolved_outputs`) or ``failed``. ``unsafe`` marks an estimate that says the
     bound is kept while the true error is more than AGREEMENT times past it.
     """
 
@@ -85,7 +86,8 @@ class EstimateValidation(Tabular):
     rows: list = field(default_factory=list)
 
     def __repr__(self) -> str:
-        count = {v: sum(r.verdict == v for r in self.rows) for v in ("agrees", "over", "under", "unresolved", "failed")}
+        count = {v: sum(r.verdict == v for r in self.rows) for v in ("agrees", "over", "under", "unresolved",
+                                                                   "no estimate", "failed")}
         return (f"EstimateValidation({len(self.rows)} runs: " + ", ".join(f"{n} {k}" for k, n in count.items() if n)
                 + f", {sum(r.unsafe for r in self.rows)} unsafe)")
 
@@ -120,18 +122,20 @@ class EstimateValidation(Tabular):
 
     def summary(self) -> str:
         """Counts per solver and preset, and the largest ratios either way among the resolved runs."""
-        lines = [f"| solver | preset | runs | agree (within {AGREEMENT:g}×) | over | under | unresolved | failed | "
-                 "unsafe | ratio range |", "|---|---|---|---|---|---|---|---|---|---|"]
+        lines = [f"| solver | preset | runs | agree (within {AGREEMENT:g}×) | over | under | unresolved | no estimate | "
+                 "failed | unsafe | ratio range |", "|---|---|---|---|---|---|---|---|---|---|---|"]
         for solver in dict.fromkeys(r.solver for r in self.rows):
             for preset in dict.fromkeys(r.preset for r in self.rows):
                 rs = [r for r in self.rows if r.solver == solver and r.preset == preset]
                 if not rs:
                     continue
-                n = {v: sum(r.verdict == v for r in rs) for v in ("agrees", "over", "under", "unresolved", "failed")}
+                n = {v: sum(r.verdict == v for r in rs) for v in ("agrees", "over", "under", "unresolved",
+                                                                  "no estimate", "failed")}
                 ratios = [r.ratio for r in rs if r.verdict in ("agrees", "over", "under")]
                 span = f"{min(ratios):.2f} to {max(ratios):.2f}" if ratios else "-"
                 lines.append(f"| {solver} | {preset} | {len(rs)} | {n['agrees']} | {n['over']} | {n['under']} | "
-                             f"{n['unresolved']} | {n['failed']} | {sum(r.unsafe for r in rs)} | {span} |")
+                             f"{n['unresolved']} | {n['no estimate']} | {n['failed']} | {sum(r.unsafe for r in rs)} | "
+                             f"{span} |")
         return "\n".join(lines)
 
     def __str__(self) -> str:
@@ -231,7 +235,10 @@ def validate_estimates(quick: bool = False, families: str = ALL_FAMILIES, timeou
                 est = c.estimated[solver].relative if solver in c.estimated else math.nan
                 why = c.failures.get(solver) or c.unestimated.get(solver, "") or c.skipped.get(solver, "")
                 verdict = _verdict(true, est, floor)
-                unsafe = verdict != "failed" and est <= p.bound < true / AGREEMENT
+                if verdict == "failed" and solver in c.estimated and solver in c.results and math.isfinite(true):
+                    verdict = "no estimate"     # it says it cannot see an output: no claim made
+                # unsafe: an estimate within the bound where the truth, resolved, is past it
+                unsafe = verdict in ("agrees", "over", "under") and est <= p.bound < true / AGREEMENT
                 ratio = est / true if verdict in ("agrees", "over", "under") else math.nan
                 report.rows.append(EstimateRow(label, solver, name, true, est, ratio, floor, p.bound, verdict,
                                                unsafe, c.estimated[solver].worst if solver in c.estimated else "",

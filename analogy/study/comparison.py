@@ -155,6 +155,8 @@ class Comparison(Tabular):
         out = {}
         for name, e in self.errors().items():
             judged = e[1] if not math.isnan(e[1]) else self.estimated.get(name, e)[1]
+            if math.isnan(judged) and name in self.estimated and name in self.unestimated:
+                judged = math.inf           # asked for and not to be had: no promise can be said kept
             if name != self.reference and judged > self.bound:
                 out[name] = judged
         return out

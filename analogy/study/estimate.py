@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass
 from typing import Sequence
@@ -11,13 +12,13 @@ from scipy.interpolate import CubicSpline
 
 from ..errors import InputError
 from ..presets import Preset
-from ..results.metrics import OutputErrors, output_errors
+from ..results.metrics import PEAK_FLOOR, OutputErrors, output_errors
 from ..results.output import Tabular
 from ..results.trajectory import Trajectory
 from ..solvers.registry import run, run_many, solver
 from ..solvers.transient import REFINE, STEP_TOLERANCES
 
-__all__ = ["estimated_errors", "on_points", "netlist_estimate", "NetlistEstimate", "refined_netlist", "spice_number"]
+__all__ = ["estimated_errors", "unresolved_outputs", "on_points", "netlist_estimate", "NetlistEstimate", "refined_netlist", "spice_number"]
 
 
 def on_points(tr: Trajectory, times: np.ndarray, breakpoints: np.ndarray) -> np.ndarray:
@@ -62,6 +63,50 @@ def _estimate(coarse: np.ndarray, fine: np.ndarray, factor: float, names: Sequen
     top = float(np.max(np.abs(fine))) if fine.size else np.nan
     whole = float(np.max(err)) / top if top > 0 else np.nan
     return OutputErrors(float(np.max(err)), float(rel[worst]), names[worst], dict(zip(names, rel.tolist())), whole)
+
+
+def unresolved_outputs(system, time: np.ndarray, rates: np.ndarray, bound: float) -> dict[str, str]:
+    """Outputs of a SPICE run that move on a decay its steps do not resolve, and why.
+
+    A preset's step cap leaves a decay to ngspice's truncation check, and ignores one under
+    ten times the bound of the largest peak (:meth:`~analogy.circuit.scales.Scales.fastest`).
+    An output whose own peak is as small as such a decay's share can still be all of it;
+    stepped at β·h > 1 the trapezoidal rule turns the decay into a ringing that a run with
+    twice shorter steps repeats, so Richardson's difference cannot see it. Such an output
+    has no estimate: where a decay's share of the peak exceeds the bound of that output's
+    own peak, every step while it lasts must keep β·h ≤ 1.
+
+    Parameters
+    ----------
+    system : NodeDynamics
+        The system (its :class:`~analogy.circuit.scales.Scales` give the decays and their shares).
+    time : ndarray
+        The run's own time points.
+    rates : ndarray, shape (N, n)
+        Its joint rates (their peaks, relative to the largest).
+    bound : float
+        The preset's bound.
+    """
+    from ..circuit.scales import system_scales
+    scales = system_scales(system)
+    own = np.max(np.abs(rates), axis=0)
+    top = float(np.max(own)) if own.size else 0.0
+    if not top > 0 or time.size < 2:
+        return {}
+    out: dict[str, str] = {}
+    steps = np.diff(time)
+    for beta, share in zip(scales.decays, scales.shares):
+        for j, peak in enumerate(own / top):
+            allowed = bound * max(float(peak), PEAK_FLOOR)
+            if not (beta > 0 and share > allowed) or f"r{j + 1}" in out:
+                continue
+            lasts = math.log(share / allowed) / beta         # until the decay is under the allowance
+            reach = int(np.searchsorted(time, lasts)) + 1
+            h = float(np.max(steps[:max(reach, 1)]))
+            if beta * h > 1:
+                out[f"r{j + 1}"] = (f"r{j + 1} moves on a decay of {beta:.3g}/s ({share:.2g} of the peak velocity) "
+                                    f"that steps of {h:.3g} s do not resolve (β·h = {beta * h:.3g})")
+    return out
 
 
 def estimated_errors(systems: Sequence, runs: dict[str, Sequence[Trajectory]], preset: Preset) -> \
@@ -111,7 +156,13 @@ def estimated_errors(systems: Sequence, runs: dict[str, Sequence[Trajectory]], p
                 continue
             coarse = trs[k]
             values = on_points(fine, coarse.time, systems[k].breakpoints()) if s.own_grid else fine.rates
-            out[k][name] = _estimate(coarse.rates, values, factor, names)
+            est = _estimate(coarse.rates, values, factor, names)
+            blind = unresolved_outputs(systems[k], coarse.time, values, preset.bound) if s.own_grid else {}
+            if blind:               # no claim at all: the worst output is among those it cannot see
+                missing[name] = "; ".join(blind.values())
+                est = est._replace(relative=math.nan, worst=next(iter(blind)),
+                                   per_output={o: (math.nan if o in blind else e) for o, e in est.per_output.items()})
+            out[k][name] = est
     return out, missing
 
 
