@@ -136,11 +136,26 @@ _RELTOL_FLOOR = 1e-14
 _ODE_RTOL_FLOOR = 1e-13
 
 
-def _between(low, high, share: float):
-    """A setting on the power law through the fast (*low*) and accurate (*high*) values."""
+#: Beyond the calibrated presets each setting goes as tol to the power of its order: the
+#: trapezoidal rule's error grows as h², so a step as tol^½ and a step count as tol^-½; ngspice's
+#: truncation error per step as h³, so its tolerances as tol^{3/2}; the ODE's error as its rtol.
+_ORDERS = {"phase_step": 0.5, "first_phase_step": 0.5, "ode_rtol": 1.0, "steps": -0.5, "max_steps": -0.5,
+           "behavioural_max_steps": -0.5, "step_budget": -0.5, "work_budget": -0.5, "operation_budget": -0.5,
+           "reltol": 1.5, "abstol": 1.5, "vntol": 1.5, "chgtol": 1.5}
+
+
+def _setting(name: str, low, high, tol: float):
+    """Setting *name* at *tol*, from its fast (*low*) and accurate (*high*) values."""
+    fast, accurate = TOLERANCES["fast"], TOLERANCES["accurate"]
+    share = math.log(tol / fast) / math.log(accurate / fast)
     if isinstance(low, str) or low == high:
         return low if share < 0.5 else high
-    value = low * (high / low) ** share
+    if share < 0:
+        value = low * (tol / fast) ** _ORDERS[name]
+    elif share > 1:
+        value = high * (tol / accurate) ** _ORDERS[name]
+    else:
+        value = low * (high / low) ** share
     return round(value) if isinstance(low, int) and isinstance(high, int) else float(value)
 
 
@@ -148,11 +163,11 @@ def tolerance_preset(tol: float) -> Preset:
     """The settings asked for by the tolerance *tol* on each output's error over its own peak.
 
     ``fast`` and ``accurate`` are the tolerances 1e-3 and 1e-6, calibrated on the built-in
-    scenes (their settings above). Between and beyond them each setting follows the power
-    law through the two: the step cap as tol^0.5 (the trapezoidal rule's error grows as
-    (ω·h)²), the first step, reltol and the absolute tolerances, the print and budget counts
-    and the ODE's rtol likewise. The ODE method switches at the geometric middle (LSODA
-    above 3.2e-5, DOP853 under). reltol stays above 1e-14 and the ODE's rtol above 1e-13.
+    scenes (their settings above). Between them each setting follows the power law through
+    the two (the step cap as tol^0.50: the trapezoidal rule's error grows as (ω·h)²). Beyond
+    them each goes from the nearer preset as tol to its order (:data:`_ORDERS`). The ODE
+    method switches at the geometric middle (LSODA above 3.2e-5, DOP853 under). reltol stays
+    above 1e-14 and the ODE's rtol above 1e-13.
 
     Parameters
     ----------
@@ -166,20 +181,19 @@ def tolerance_preset(tol: float) -> Preset:
         if tol == bound:
             return PRESETS[name]
     fast, accurate = PRESETS["fast"], PRESETS["accurate"]
-    share = math.log(tol / fast.bound) / math.log(accurate.bound / fast.bound)
 
     def options(a: dict, b: dict) -> dict:
-        out = {k: _between(float(a[k]) if k != "method" and _number(a[k]) else a[k],
-                           float(b[k]) if k != "method" and _number(b[k]) else b[k], share) for k in a if k in b}
+        out = {k: _setting(k, float(a[k]) if k != "method" and _number(a[k]) else a[k],
+                           float(b[k]) if k != "method" and _number(b[k]) else b[k], tol) for k in a if k in b}
         if "reltol" in out:
             out["reltol"] = max(out["reltol"], _RELTOL_FLOOR)
         return {k: (f"{v:.3g}" if isinstance(v, float) else v) for k, v in out.items()}
-    values = {f.name: _between(getattr(fast, f.name), getattr(accurate, f.name), share) for f in fields(Preset)
+    values = {f.name: _setting(f.name, getattr(fast, f.name), getattr(accurate, f.name), tol) for f in fields(Preset)
               if f.name not in ("name", "description", "bound", "spice_options", "behavioural_options")}
     values["steps"] = int(values["steps"])
     values["ode_rtol"] = max(values["ode_rtol"], _ODE_RTOL_FLOOR)
     return Preset(f"{tol:g}", options(fast.spice_options, accurate.spice_options), description=(
-                  f"better than {tol:g} of the peak (settings on the power law through fast and accurate)"),
+                  f"better than {tol:g} of the peak (settings from the power laws of fast and accurate)"),
                   bound=float(tol), behavioural_options=options(fast.behavioural_options, accurate.behavioural_options),
                   **values)
 
