@@ -12,6 +12,7 @@ import numpy as np
 from ..errors import AnalogyError
 from ..presets import PRESETS
 from ..progress import Progress
+from ..results.metrics import PEAK_FLOOR
 from ..results.output import Tabular, write_rows
 from ..study.comparison import compare
 from .families import ALL_FAMILIES, cases
@@ -47,7 +48,9 @@ def reference_floor(system) -> float:
 
 @dataclass
 class EstimateRow:
-    """One solver at one preset on one scene: its true error, its estimate and the verdict.
+    """One solver at one preset on one scene: its true error, its estimate and the verdict, on the
+    worst output whose true error the reference resolves (``output``; ``floor`` is the reference's
+    own error there, over that output's own peak).
 
     ``verdict`` is ``agrees`` (within :data:`AGREEMENT` of the true error), ``over`` or
     ``under`` (outside it, by ``ratio``), ``unresolved`` (the true error is under the
@@ -68,15 +71,6 @@ class EstimateRow:
     unsafe: bool
     output: str = ""
     message: str = ""
-
-
-def _verdict(true: float, est: float, floor: float) -> str:
-    if not (math.isfinite(true) and math.isfinite(est)):
-        return "failed"
-    if true <= floor:
-        return "unresolved"
-    ratio = est / true
-    return "agrees" if 1 / AGREEMENT <= ratio <= AGREEMENT else ("over" if ratio > 1 else "under")
 
 
 @dataclass
@@ -231,18 +225,34 @@ def validate_estimates(quick: bool = False, families: str = ALL_FAMILIES, timeou
                                                "failed", False, message=str(exc)[:200]) for solver in ("spice", "ode"))
                 continue
             for solver in ("spice", "ode"):
-                true = c.measured[solver].relative if solver in c.measured else math.nan
-                est = c.estimated[solver].relative if solver in c.estimated else math.nan
-                why = c.failures.get(solver) or c.unestimated.get(solver, "") or c.skipped.get(solver, "")
-                verdict = _verdict(true, est, floor)
-                if verdict == "failed" and solver in c.estimated and solver in c.results and math.isfinite(true):
-                    verdict = "no estimate"     # it says it cannot see an output: no claim made
-                # unsafe: an estimate within the bound where the truth, resolved, is past it
-                unsafe = verdict in ("agrees", "over", "under") and est <= p.bound < true / AGREEMENT
-                ratio = est / true if verdict in ("agrees", "over", "under") else math.nan
-                report.rows.append(EstimateRow(label, solver, name, true, est, ratio, floor, p.bound, verdict,
-                                               unsafe, c.estimated[solver].worst if solver in c.estimated else "",
-                                               why[:200]))
+                report.rows.append(_row(label, solver, name, c, floor, p.bound))
         bar.update(1)
     bar.close()
     return report
+
+
+def _row(label: str, solver: str, preset: str, c, floor: float, bound: float) -> EstimateRow:
+    """One run judged output by output: the worst output whose true error the reference resolves
+    (above *floor* over that output's share of the largest peak), and its own estimate there."""
+    why = c.failures.get(solver) or c.unestimated.get(solver, "") or c.skipped.get(solver, "")
+    if solver not in c.measured or solver not in c.estimated:
+        return EstimateRow(label, solver, preset, math.nan, math.nan, math.nan, floor, bound, "failed", False,
+                           message=why[:200])
+    truth, guess = c.measured[solver].per_output, c.estimated[solver].per_output
+    own = np.max(np.abs(c.results[c.reference].rates), axis=0)
+    share = own / np.max(own) if np.max(own) > 0 else np.ones_like(own)
+    floors = {f"r{j + 1}": floor / max(float(s), PEAK_FLOOR) for j, s in enumerate(share)}
+    resolved = [o for o in guess if o in truth and truth[o] > floors[o]]
+    if not resolved:
+        return EstimateRow(label, solver, preset, c.measured[solver].relative, c.estimated[solver].relative, math.nan,
+                           floor, bound, "unresolved", False, c.measured[solver].worst, why[:200])
+    worst = max(resolved, key=lambda o: truth[o])
+    true, est = truth[worst], guess[worst]
+    if math.isnan(c.estimated[solver].relative):
+        return EstimateRow(label, solver, preset, true, math.nan, math.nan, floors[worst], bound, "no estimate",
+                           False, worst, why[:200])
+    ratio = est / true
+    verdict = "agrees" if 1 / AGREEMENT <= ratio <= AGREEMENT else ("over" if ratio > 1 else "under")
+    # unsafe: an output estimated within the bound whose resolved truth is more than AGREEMENT times past it
+    unsafe = any(guess[o] <= bound < truth[o] / AGREEMENT for o in resolved)
+    return EstimateRow(label, solver, preset, true, est, ratio, floors[worst], bound, verdict, unsafe, worst, why[:200])

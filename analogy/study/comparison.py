@@ -9,15 +9,15 @@ from typing import TYPE_CHECKING, Callable, Sequence
 import numpy as np
 
 from ..circuit.currents import trajectory_currents
-from ..circuit.scales import system_scales
 from ..errors import InputError
 from ..presets import Preset
 from ..presets import preset as get_preset
 from ..solvers.registry import SOLVER_NAMES, run_many, solver
 from .estimate import estimated_errors
-from .grid import SUBSET_FROM, output_grid, sufficient_points
+from .grid import output_grid
+from .measure import measure, subset, sufficient
 from .work import check_works
-from ..results.metrics import OutputErrors, errors, output_errors, peak
+from ..results.metrics import OutputErrors, peak
 from ..results.output import Tabular, html_table
 from ..results.trajectory import Trajectory
 from ..results.trajectory_stack import TrajectoryStack
@@ -282,11 +282,6 @@ def _reference(system, names: list[str], reference: str | None) -> str | None:
     return None
 
 
-def _subset(systems: Sequence, rows: list[int]) -> Sequence:
-    """The systems of *rows*: a sub-stack of a node stack, else a list."""
-    return systems.take(rows) if isinstance(systems, NodeStack) else [systems[k] for k in rows]
-
-
 def _by_grid(grids: Sequence[np.ndarray]) -> list[list[int]]:
     """Indices grouped by equal time grids (by value)."""
     groups: dict = {}
@@ -299,8 +294,8 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
                  solvers: Sequence[str] = DEFAULT_SOLVERS, times=None, *,
                  reference: str | None = "auto", step: float | None = None,
                  save: Sequence[str] = (), positions: bool = False,
-                 t_stop: float | None = None, forces=None, estimate: bool = False,
-                 progress: Callable[[str | None], None] | None = None) -> list[Comparison]:
+                 t_stop: float | None = None, forces=None,
+                 progress: Callable[[str | None], None] | None = None, estimate: bool = False) -> list[Comparison]:
     """:func:`compare` for many systems, each solver running them together where it can.
 
     SPICE runs the systems as one circuit to the longest horizon, each system's output
@@ -377,7 +372,7 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
             if s.own_grid:
                 trs = run_many(name, systems, None, p, save=save, positions=want_x)
                 if given is None:       # millions of own points: measured on their sufficient subset
-                    trs = TrajectoryStack([_sufficient(tr, systems[k], p) if tr.success and grids[k] is None
+                    trs = TrajectoryStack([sufficient(tr, systems[k], p) if tr.success and grids[k] is None
                                            else tr for k, tr in enumerate(trs)])
                 native[name] = trs
                 # Per system, the first own-grid solver that succeeds sets the shared grid; a later one
@@ -397,7 +392,7 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
                 else:
                     rows: list = [None] * count
                     for idx in groups:
-                        for k, tr in zip(idx, run_many(name, _subset(systems, idx), grids[idx[0]], p,
+                        for k, tr in zip(idx, run_many(name, subset(systems, idx), grids[idx[0]], p,
                                                        save=save, positions=want_x)):
                             rows[k] = tr
                     trs = TrajectoryStack(rows)
@@ -410,7 +405,7 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
         if progress is not None:
             progress(None)
     out = []
-    measured = _measure(systems, runs, native, ref_name, p, tuple(save), resampled)
+    measured = measure(systems, runs, native, ref_name, p, tuple(save), resampled)
     estimates, unestimated = [{} for _ in systems], {}
     if estimate:
         if progress is not None:
@@ -449,78 +444,11 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
     return out
 
 
-def _sufficient(tr: Trajectory, system, p: Preset) -> Trajectory:
-    """*tr* on the sufficient subset of its own points (:func:`~analogy.study.grid.sufficient_points`), or as it is."""
-    if tr.time.size <= SUBSET_FROM:
-        return tr
-    omega = system_scales(system).fastest(p.bound)
-    rows = sufficient_points(tr.time, omega, system.breakpoints())
-    if rows is None:
-        return tr
-    reach = omega * float(np.max(np.diff(tr.time[rows])))
-    return tr.at(rows, f"measured on {rows.size:,} of its {tr.time.size:,} points, ω_max·Δt ≤ {reach:.2g}: "
-                       f"the largest error within a factor {1 - reach / 2:.3g} of that over all")
-
-
-def _outputs(stack: TrajectoryStack, names: Sequence[str]) -> np.ndarray:
-    """Joint rates, then the element currents *names*, as one (count, N, outputs) stack."""
-    if not names:
-        return stack.rates
-    currents = np.stack([np.column_stack([tr.currents[c] for c in names]) for tr in stack])
-    return np.concatenate([stack.rates, currents], axis=2)
-
-
-def _measure(systems, runs, native, ref_name, p, save=(), resampled=frozenset()) -> list[dict]:
-    """Per system and solver, its :class:`OutputErrors`: on each solver's own points (*resampled*
-    names the solvers whose reported points are not their own)."""
-    out: list[dict] = [{} for _ in systems]
-    if ref_name is None:
-        return out
-    ref = runs[ref_name]
-    n = systems[0].dof
-    names = tuple(f"r{j + 1}" for j in range(n)) + tuple(f"i_{c}" for c in save)
-    for name, trs in runs.items():
-        own = native.get(name, trs)
-        for idx in own.by_grid():
-            ok = [k for k in idx if name == ref_name or ref[k].success]
-            if not ok:
-                continue
-            if name == ref_name:
-                for k in ok:
-                    out[k][name] = OutputErrors.zero(names)
-                continue
-            if name in resampled:      # measured on its own points, with the reference there
-                refs = run_many(ref_name, _subset(systems, ok), own[ok[0]].time, p)
-                if save:
-                    for j, k in enumerate(ok):
-                        if refs[j].success and not refs[j].currents:
-                            refs[j].currents = trajectory_currents(systems[k], refs[j], save)
-                        if not own[k].currents:
-                            own[k].currents = trajectory_currents(systems[k], own[k], save)
-            else:
-                refs = ref.take(ok)
-            shapes: dict = {}
-            for j, k in enumerate(ok):
-                if refs[j].success:
-                    shapes.setdefault(own[k].rates.shape, []).append(j)
-            for at in shapes.values():
-                group = [ok[j] for j in at]
-                a, b = _outputs(own.take(group), save), _outputs(refs.take(at), save)
-                err, rel = output_errors(a, b)
-                whole = np.atleast_1d(errors(a, b, axis=(1, 2))[1]).tolist()
-                worst = np.argmax(np.where(np.isnan(rel), -np.inf, rel), axis=1)
-                top, peaks, rows = np.max(err, axis=1).tolist(), rel[np.arange(len(group)), worst].tolist(), rel.tolist()
-                for row, k in enumerate(group):      # plain floats: one record per scene, built cheaply
-                    out[k][name] = OutputErrors(top[row], peaks[row], names[worst[row]],
-                                                dict(zip(names, rows[row])), whole[row])
-    return out
-
-
 def compare(system, preset: str | Preset = "accurate", solvers: Sequence[str] = DEFAULT_SOLVERS,
             times=None, *, reference: str | None = "auto", step: float | None = None,
             save: Sequence[str] = (), positions: bool = False,
-            t_stop: float | None = None, forces=None, estimate: bool = False,
-            progress: Callable[[str | None], None] | None = None) -> Comparison:
+            t_stop: float | None = None, forces=None,
+            progress: Callable[[str | None], None] | None = None, estimate: bool = False) -> Comparison:
     """Run the requested solvers on *system* and compare them on shared time points.
 
     A failing solver, or one that does not apply, is recorded in

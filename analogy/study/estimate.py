@@ -5,11 +5,12 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass
-from typing import Sequence
+from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 from scipy.interpolate import CubicSpline
 
+from ..circuit.scales import system_scales
 from ..errors import InputError
 from ..presets import Preset
 from ..results.metrics import PEAK_FLOOR, OutputErrors, output_errors
@@ -17,6 +18,9 @@ from ..results.output import Tabular
 from ..results.trajectory import Trajectory
 from ..solvers.registry import run, run_many, solver
 from ..solvers.transient import REFINE, STEP_TOLERANCES
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 __all__ = ["estimated_errors", "unresolved_outputs", "on_points", "netlist_estimate", "NetlistEstimate", "refined_netlist", "spice_number"]
 
@@ -87,7 +91,6 @@ def unresolved_outputs(system, time: np.ndarray, rates: np.ndarray, bound: float
     bound : float
         The preset's bound.
     """
-    from ..circuit.scales import system_scales
     scales = system_scales(system)
     own = np.max(np.abs(rates), axis=0)
     top = float(np.max(own)) if own.size else 0.0
@@ -275,7 +278,7 @@ class NetlistEstimate(Tabular):
         """``time`` and every saved vector."""
         return {"time": self.time, **self.values}
 
-    def plot(self, path=None):
+    def plot(self, path=None) -> "Figure":
         """The saved vectors against time, each labelled with its estimated error.
 
         Parameters
@@ -289,7 +292,7 @@ class NetlistEstimate(Tabular):
         fig, ax = plt.subplots(figsize=(7.5, 4), constrained_layout=True)
         for name, y in self.values.items():
             ax.plot(self.time, y, label=f"{name}: estimated error {self.estimates[name]:.1e} of its peak")
-        ax.set(xlabel="time [s]", ylabel="saved vector", title="the netlist as it ran")
+        ax.set(xlabel="time [s]", ylabel="saved vector (V for a node, A for a current)", title="the netlist as it ran")
         ax.legend(fontsize=8)
         if path is not None:
             fig.savefig(path, dpi=120)
