@@ -241,6 +241,7 @@ def test_a_csv_of_many_rows_holds_every_kth_computed_point_unless_all_are_asked(
     np.testing.assert_array_equal(thinned, rows[np.unique(np.append(np.arange(0, len(rows), k), len(rows) - 1))])
 
 
+@pytest.mark.deep
 def test_the_flexible_arm_s_joint_frame_from_the_command_line():
     """--joint-frame tip --locked 1,2 prints the clamped arm's modes, as the API gives them;
     on a rigid robot the flag is one sentence and exit 2."""

@@ -181,6 +181,7 @@ def test_modes_from_the_command_line_are_the_model_s(capsys):
 
 
 @pytest.mark.ngspice
+@pytest.mark.deep
 def test_the_nonlinear_circuit_converges_as_the_trapezoidal_rule():
     """flexpar's constrained circuit (every joint of the loop a node, the loop held by multiplier
     nodes) against the reduced reference over 0.05 s at the fast preset, at its step cap and at

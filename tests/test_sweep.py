@@ -157,7 +157,8 @@ def _wait_for_groups(store: Path, proc, groups: int, timeout=120.0):
 
 @pytest.mark.ngspice
 @pytest.mark.slow
-@pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGTERM])
+# SIGTERM's clean stop is also checked by test_orphans; its resume here is in the deep pass
+@pytest.mark.parametrize("sig", [signal.SIGKILL, pytest.param(signal.SIGTERM, marks=pytest.mark.deep)])
 def test_a_killed_then_resumed_sweep_holds_each_scene_once_with_uninterrupted_values(tmp_path, sig):
     path = sweep_file(tmp_path, count=3000, group=50)
     store = tmp_path / "killed"

@@ -167,6 +167,7 @@ def _pinocchio_rates(system, pm, hold, amplitudes, times):
 
 
 @pytest.mark.ngspice
+@pytest.mark.deep
 def test_the_ur5_s_nonlinear_circuit_keeps_the_accurate_bound_against_pinocchio():
     system, pm, hold, amplitudes = _swing("ur5")
     run = solve_spice(system, preset="accurate")
