@@ -13,8 +13,8 @@ __all__ = ["output_grid", "sufficient_points", "SUFFICIENT_PHASE", "SUBSET_FROM"
 #: Largest ω·H between the points on which a long run is measured. The error's content is at the
 #: system's rates (its modes, the forces' frequencies, ω ≤ ω_max), so by Bernstein's inequality
 #: |ė| ≤ ω_max·max|e|, and the maximum over points H apart falls short of the true one by at
-#: most a factor 1 − ω_max·H/2: 1 % here.
-SUFFICIENT_PHASE = 0.02
+#: most a factor 1 − ω_max·H/2: 2.5 % here, at 126 points a period of the fastest rate.
+SUFFICIENT_PHASE = 0.05
 #: A run with more own points than this is measured on its sufficient subset, where that is
 #: at least twice fewer points.
 SUBSET_FROM = 100_000
