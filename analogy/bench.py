@@ -13,7 +13,7 @@ import numpy as np
 
 from .solvers.transient import netlist
 from .errors import AnalogyError
-from .presets import PRESETS, Preset
+from .presets import PRESETS, Preset, tolerance_preset
 from .progress import Progress
 from .results.metrics import relative_error
 from .results.output import write_rows
@@ -23,11 +23,13 @@ from .scenes.spec import ModelSpec
 from .solvers.exact import solve_exact
 from .solvers.reference import NONLINEAR_RTOL, solve_reference
 from .solvers.spice import session
+from .study.work import check_work
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-__all__ = ["BenchRow", "BenchResult", "bench", "bench_scenes", "spice_grid", "ode_grid", "nonlinear_spice_grid"]
+__all__ = ["BenchRow", "BenchResult", "bench", "bench_scenes", "spice_grid", "ode_grid", "nonlinear_spice_grid",
+           "tolerance_grid", "BENCH_TOLERANCES"]
 
 ODE_BENCH_METHODS = ("LSODA", "Radau", "BDF", "RK45", "DOP853")
 
@@ -102,20 +104,32 @@ class BenchResult:
         return self.table()
 
     def cost_lines(self) -> list[str]:
-        """Per scene, the cheapest SPICE and ODE settings within 1e-6 of the peak, and their ratio."""
+        """Per scene and tolerance (1e-3, 1e-6, 1e-9): the cheapest SPICE and ODE settings within it,
+        their ratio, and what ``--tol`` costs beside the cheapest SPICE setting and whether it kept it."""
         lines = []
         for sc in dict.fromkeys(r.scene for r in self.rows):
-            best = {}
-            for solver in ("spice", "ode"):
-                ok = [r for r in self.rows if r.scene == sc and r.solver == solver and r.status == "ok"
-                      and r.error <= 1e-6]
-                if ok:
-                    best[solver] = min(ok, key=lambda r: r.median_s)
-            if len(best) == 2:
-                sp_, od = best["spice"], best["ode"]
-                lines.append(f"{sc}: cheapest within 1e-6: SPICE {sp_.median_s * 1e3:.2f} ms ({sp_.setting}), "
-                             f"ODE {od.median_s * 1e3:.2f} ms ({od.setting}), SPICE/ODE = "
-                             f"{sp_.median_s / od.median_s:.2f}")
+            for tol in BENCH_TOLERANCES:
+                best = {}
+                for solver in ("spice", "ode"):
+                    ok = [r for r in self.rows if r.scene == sc and r.solver == solver and r.status == "ok"
+                          and r.error <= tol]
+                    if ok:
+                        best[solver] = min(ok, key=lambda r: r.median_s)
+                chosen = next((r for r in self.rows if r.scene == sc and r.solver == "spice"
+                               and r.setting == f"tol={tol:g}"), None)
+                sp_, od = best.get("spice"), best.get("ode")
+                line = f"{sc} at {tol:g}: cheapest SPICE " + (
+                    f"{sp_.median_s * 1e3:.2f} ms ({sp_.setting})" if sp_ else "none within it")
+                line += ", ODE " + (f"{od.median_s * 1e3:.2f} ms ({od.setting})" if od else "none within it")
+                if sp_ and od:
+                    line += f", SPICE/ODE = {sp_.median_s / od.median_s:.2f}"
+                if chosen is not None and chosen.status == "ok":
+                    kept = "kept" if chosen.error <= tol else f"missed, {chosen.error:.2e}"
+                    line += (f"; --tol {tol:g}: {chosen.median_s * 1e3:.2f} ms ({kept})" +
+                             (f", {chosen.median_s / sp_.median_s:.1f}x the cheapest" if sp_ else ""))
+                elif chosen is not None:
+                    line += f"; --tol {tol:g}: {chosen.status}"
+                lines.append(line)
         return lines
 
     def plot(self, path=None) -> "Figure":
@@ -211,7 +225,23 @@ def spice_grid(full: bool = False, quick: bool = False) -> list[tuple]:
                     grid.append((f"{method} reltol={rt:g} trtol={tr} tmax=T/{ms}", opts, ms, rt))
     for name, p in PRESETS.items():
         grid.append((f"preset-{name}", dict(p.spice_options), p.max_steps, p.spice_options["reltol"]))
-    return grid
+    return grid + tolerance_grid(quick)
+
+
+#: The tolerances the bench asks for as a whole preset (its scale-based step caps included).
+BENCH_TOLERANCES = (1e-3, 1e-6, 1e-9)
+
+
+def tolerance_grid(quick: bool = False) -> list[tuple]:
+    """(label, preset, None, tolerance) per :data:`BENCH_TOLERANCES`: the settings ``--tol`` chooses,
+    step caps from the system's scales and first step included.
+
+    Parameters
+    ----------
+    quick : bool
+        Leave out 1e-9 (seconds a run).
+    """
+    return [(f"tol={t:g}", tolerance_preset(t), None, t) for t in BENCH_TOLERANCES if not (quick and t < 1e-6)]
 
 
 def nonlinear_spice_grid() -> list[tuple]:
@@ -224,7 +254,7 @@ def nonlinear_spice_grid() -> list[tuple]:
     grid.append(("trap reltol=1e-6 trtol=1 tmax=T/2000", {"method": "trap", "reltol": 1e-6, "trtol": 1}, 2000, 1e-6))
     grid += [(f"preset-{name}", dict(p.behavioural_options), p.behavioural_max_steps, 1e-3)
              for name, p in PRESETS.items()]
-    return grid
+    return grid + tolerance_grid()
 
 
 def ode_grid(quick: bool = False) -> list[tuple[str, float]]:
@@ -293,8 +323,12 @@ def bench(repeats: int = 5, full: bool = False, scenes=None, progress: bool = Tr
         try:
             if kind == "spice":
                 label, opts, ms, tol = g
-                text = netlist(system, Preset("bench", opts, steps=100, max_steps=ms, behavioural_options=opts,
-                                              behavioural_max_steps=ms), printing=False)
+                if isinstance(opts, Preset):         # a tolerance: the whole preset, its work guarded first
+                    check_work(system, opts, spice=True)
+                    text = netlist(system, opts, printing=False)
+                else:
+                    text = netlist(system, Preset("bench", opts, steps=100, max_steps=ms, behavioural_options=opts,
+                                                  behavioural_max_steps=ms), printing=False)
 
                 def run():
                     t0 = _time.perf_counter()

@@ -52,3 +52,14 @@ def test_a_scene_takes_a_tolerance_as_its_preset():
     assert sc.key != scene("default").replace(preset="accurate").key
     with pytest.raises(Exception, match="unknown accuracy preset"):
         scene("default").replace(preset="slow")
+
+
+def test_the_bench_times_what_tol_chooses_and_says_whether_it_kept_the_tolerance():
+    from analogy.bench import bench
+    result = bench(repeats=1, quick=True, scenes=[scene("default")], progress=False)
+    rows = {r.setting: r for r in result.rows if r.solver == "spice"}
+    for tol in (1e-3, 1e-6):
+        row = rows[f"tol={tol:g}"]
+        assert row.status == "ok" and row.error <= tol
+    lines = "\n".join(result.cost_lines())
+    assert "default at 0.001: cheapest SPICE" in lines and "--tol 1e-06:" in lines and "(kept)" in lines
