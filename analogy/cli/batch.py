@@ -10,8 +10,7 @@ from pathlib import Path
 from typing import Iterator
 
 from ..errors import EXIT_ACCURACY, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, InputError, SimulationError
-from .scene_options import preset_name
-from .scene_options import preset_name
+from .scene_options import preset_option
 from ..processes import scratch_folder
 
 __all__ = ["batch_command", "batch_options", "dask_executor", "scheduler_address", "CONNECT_SECONDS"]
@@ -45,7 +44,7 @@ def batch_options(sub) -> None:
                    help="one ngspice run per scene: each error exactly as alone, but slower")
     p.add_argument("--trajectories", type=int, default=0, metavar="N",
                    help="also store N evenly spaced points of every solver's joint rates")
-    p.add_argument("--preset", "--tol", dest="preset", type=preset_name, metavar="PRESET", help="override the sweep's accuracy preset (a name or a tolerance)")
+    preset_option(p, None, "override the sweep's accuracy preset (a name or a tolerance)")
     p.add_argument("--solvers", help="override the sweep's solvers, e.g. spice,exact")
     p.add_argument("--no-progress", action="store_true", help="no progress bar (plain lines stay)")
 

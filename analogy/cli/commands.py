@@ -402,7 +402,8 @@ def _cmd_scenes(args) -> int:
 
 _COMMANDS = {"netlist": _cmd_netlist, "compare": _cmd_compare, "verify": _cmd_verify, "modes": _cmd_modes, "ac": _cmd_ac,
              "scenes": _cmd_scenes, "draw": _cmd_draw, "run": _cmd_run, "bench": _cmd_bench,
-             "throughput": _cmd_throughput, "stress": _cmd_stress, "batch": _cmd_batch, "memory": _cmd_memory, "check": _cmd_check,
+             "throughput": _cmd_throughput, "stress": _cmd_stress, "batch": _cmd_batch, "memory": _cmd_memory,
+             "check": _cmd_check,
              "animate": _cmd_animate, "report": _cmd_report}
 
 

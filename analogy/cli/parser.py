@@ -8,7 +8,7 @@ from .. import __version__
 from ..circuit.netlist import DIALECTS
 from ..errors import InputError
 from .batch import batch_options
-from .scene_options import PRESET_HELP, preset_name, scene_options
+from .scene_options import preset_option, scene_options
 
 __all__ = ["build_parser"]
 
@@ -81,7 +81,7 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument(flag, metavar="FILE", help=f"write {what}")
     p = sub.add_parser("verify", help="check every built-in example: SPICE and ODE against exact, "
                                       "exact against a 40-digit mpmath solution")
-    p.add_argument("--preset", "--tol", dest="preset", default="accurate", type=preset_name, metavar="PRESET", help=PRESET_HELP)
+    preset_option(p)
     p.add_argument("--scenes", default=None, help="comma-separated scene names (default: all)")
     sub.add_parser("scenes", help="list the built-in scenes")
     p = sub.add_parser("draw", help="draw the equivalent circuit and the mechanical system (SVG and PNG)")
@@ -117,7 +117,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-animation", action="store_true", help="leave the animation out (a smaller page)")
     p = sub.add_parser("run", help="run scene files (TOML): exactly what each asks for")
     p.add_argument("scene_files", nargs="+", metavar="SCENE.toml", help="one or more .toml scenes")
-    p.add_argument("--preset", "--tol", dest="preset", type=preset_name, metavar="PRESET", help="override each scene's accuracy preset (a name or a tolerance)")
+    preset_option(p, None, "override each scene's accuracy preset (a name or a tolerance)")
     p.add_argument("--solvers", help="override each scene's solvers, e.g. spice,exact")
     p.add_argument("--output-dir", help="folder for the scene's output files (default: next to it)")
     p.add_argument("--no-plot", action="store_true", help="skip plots even if the scene asks for one")
@@ -149,15 +149,15 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("check", help="estimate the error of a netlist's saved vectors without a reference: "
                        "it runs as written and again with every step halved (Richardson)")
     p.add_argument("netlist", metavar="NETLIST", help="a transient netlist, e.g. one analogy netlist wrote")
-    p.add_argument("--preset", "--tol", dest="preset", default="accurate", type=preset_name, metavar="PRESET", help="the preset whose bound judges "
-                   "the estimate (default accurate, 1e-6 of each vector's peak)")
+    preset_option(p, "accurate", "the preset (or tolerance) whose bound judges the estimate "
+                  "(default accurate, 1e-6 of each vector's peak)")
     p.add_argument("--csv", metavar="FILE", help="write the saved vectors as they ran")
     p.add_argument("--plot", metavar="FILE.png", help="write a plot of the saved vectors and their estimates")
     p = sub.add_parser("memory", help="resident memory grown per in-process solver run (kB/run)")
     p.add_argument("--runs", type=int, default=10_000, help="counted runs (default 10000)")
     p.add_argument("--solver", default="spice", help="registered solver: spice, ode, exact or reference "
                    "(default spice)")
-    p.add_argument("--preset", "--tol", dest="preset", default="accurate", type=preset_name, metavar="PRESET", help=PRESET_HELP)
+    preset_option(p)
     p.add_argument("--scene", default="default", help="built-in scene (default: default)")
     p = sub.add_parser("throughput", help="scenes per second: batched ngspice runs against per-scene loops")
     p.add_argument("-n", type=int, default=10_000, help="number of 2-DOF scenes (default 10000)")
@@ -165,7 +165,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--group-size", type=int, default=100, help="scenes per ngspice run (default 100)")
     p.add_argument("--baseline", type=int, default=500, help="scenes for the per-scene loops (default 500)")
     p.add_argument("--repeats", type=int, default=3, help="turns of every path; medians are reported (default 3)")
-    p.add_argument("--preset", "--tol", dest="preset", default="fast", type=preset_name, metavar="PRESET", help=PRESET_HELP)
+    preset_option(p, "fast")
     p.add_argument("--no-progress", action="store_true", help="no progress lines")
     p.add_argument("--sweep", metavar="SWEEP.toml", help="instead: this sweep into the store -o DIR, "
                    "beside the in-memory batched path on its first --baseline scenes, with peak memory")

@@ -43,6 +43,21 @@ PRESET_HELP = ("accuracy preset: " + "; ".join(f"{k} ({p.description})" for k, p
                + "; or a tolerance from 1e-9 to 1e-2 on each output's error over its own peak (--tol 1e-5)")
 
 
+def preset_option(p: argparse.ArgumentParser, default: str | None = "accurate", help: str = PRESET_HELP) -> None:
+    """``--preset`` (or ``--tol``): a preset's name or a tolerance, checked as it is parsed.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        The subcommand's parser.
+    default : str or None
+        The preset when none is given (None: the scene's own).
+    help : str
+        What the option does for this command.
+    """
+    p.add_argument("--preset", "--tol", dest="preset", default=default, type=preset_name, metavar="PRESET", help=help)
+
+
 def preset_name(text: str) -> str:
     """The preset *text* names, checked (``fast``, ``accurate`` or a tolerance, as ``1e-05``)."""
     try:
@@ -111,7 +126,7 @@ def scene_options(p: argparse.ArgumentParser, preset: str = "accurate") -> None:
                    "or the scene's), e.g. 2 or '500 ms'")
     g.add_argument("--equilibrium", action="store_true", help="settle the elastic (modal) coordinates "
                    "at the static equilibrium under gravity first, the joints held at --q")
-    p.add_argument("--preset", "--tol", dest="preset", default=preset, type=preset_name, metavar="PRESET", help=PRESET_HELP)
+    preset_option(p, preset)
 
 
 def _split_param(text: str) -> tuple[str, float]:

@@ -22,7 +22,8 @@ from ..solvers.transient import REFINE, STEP_TOLERANCES
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-__all__ = ["estimated_errors", "unresolved_outputs", "on_points", "netlist_estimate", "NetlistEstimate", "refined_netlist", "spice_number"]
+__all__ = ["estimated_errors", "unresolved_outputs", "on_points", "netlist_estimate", "NetlistEstimate",
+           "refined_netlist", "spice_number"]
 
 
 def on_points(tr: Trajectory, times: np.ndarray, breakpoints: np.ndarray) -> np.ndarray:
