@@ -16,6 +16,9 @@ from analogy.study.comparison import compare
 from analogy.study.estimate import netlist_estimate, on_points, refined_netlist, spice_number
 from analogy.solvers.transient import netlist
 
+#: Every check here runs SPICE: the engine pass (ngspice 46) runs them too.
+pytestmark = pytest.mark.ngspice
+
 
 def cli(*args):
     return subprocess.run([sys.executable, "-m", "analogy", *args], capture_output=True, text=True, timeout=300)

@@ -10,6 +10,9 @@ from analogy.presets import PRESETS, TOLERANCE_RANGE, preset, tolerance_preset
 from analogy.scenes.builtin import scene
 from analogy.study.comparison import compare
 
+#: Every check here runs SPICE: the engine pass (ngspice 46) runs them too.
+pytestmark = pytest.mark.ngspice
+
 
 def test_the_named_presets_are_the_tolerances_1e_3_and_1e_6():
     assert preset("1e-3") is PRESETS["fast"] and preset(1e-3) is PRESETS["fast"]
