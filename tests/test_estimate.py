@@ -41,6 +41,8 @@ def test_the_estimate_lies_within_a_factor_of_three_of_the_true_error(preset):
         true, est = c.measured[solver].relative, c.estimated[solver].relative
         assert 1 / AGREEMENT <= est / true <= AGREEMENT, (solver, true, est)
     assert "exact" not in c.estimated          # a closed form has no refinement
+    assert c.results["spice"].estimated is c.estimated["spice"]           # every trajectory carries its own
+    assert "estimated error" in repr(c.results["ode"]) and c.results["exact"].estimated is None
     assert "estimated" in c.table()
 
 

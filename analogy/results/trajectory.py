@@ -82,6 +82,9 @@ class Trajectory(Tabular):
         What the solver ran with, retries included (SPICE: its
         :class:`~analogy.solvers.transient.TransientSettings`, which
         :func:`~analogy.circuit.netlist.write_netlist` turns into the netlist that ran).
+    estimated : OutputErrors or None
+        Its joint rates' errors estimated without a reference, each over its own peak, where
+        asked for (:func:`~analogy.study.estimate.estimated_errors`).
     """
 
     solver: str
@@ -95,6 +98,7 @@ class Trajectory(Tabular):
     stats: SolverStats = field(default_factory=SolverStats)
     work: np.ndarray | None = None
     settings: object = None
+    estimated: object = None
 
     @classmethod
     def failed(cls, solver: str, message: str, wall_time: float = math.nan) -> "Trajectory":
@@ -121,8 +125,9 @@ class Trajectory(Tabular):
     def __repr__(self) -> str:
         if not self.success:
             return f"Trajectory({self.solver}: failed: {self.message})"
+        guess = "" if self.estimated is None else f", estimated error {self.estimated.relative:.2g} of its peak"
         return (f"Trajectory({self.solver}: {self.time.size} points to t = {self.time[-1]:g} s, "
-                f"{self.rates.shape[1]} joints, {self.run_time * 1e3:.3g} ms)")
+                f"{self.rates.shape[1]} joints, {self.run_time * 1e3:.3g} ms{guess})")
 
     def resampled(self, times: np.ndarray, joint_rates) -> "Trajectory":
         """This trajectory linearly interpolated onto *times* (an output grid, not a new solution).

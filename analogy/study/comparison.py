@@ -439,6 +439,9 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
                         energy[n] = float(np.max(np.abs(residual))) / scale
                     except InputError:      # a closed chain's run went where its loop does not close
                         energy[n] = math.nan
+        for n, tr in results.items():
+            if n in estimates[k]:
+                tr.estimated = estimates[k][n]
         out.append(Comparison(system, p.name, grid, results, failures, ref, measured[k] if ref else {},
                               p.bound, energy, skipped, loop, estimates[k], unestimated))
     return out
