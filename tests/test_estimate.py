@@ -209,3 +209,21 @@ def test_an_output_on_a_decay_the_steps_do_not_resolve_gets_no_estimate_and_no_c
     assert c.outside_bound() == {"spice": math.inf}
     resolved = compare(scene("default").system(), "fast", ("spice",), reference=None, estimate=True)
     assert resolved.unestimated == {} and resolved.outside_bound() == {}
+
+
+def test_a_scene_asks_for_estimates_and_keeps_its_key_when_it_does_not(tmp_path):
+    from analogy.batch.run import run_batch
+    from analogy.scenes.run import run_scene
+    from analogy.scenes.toml import load_scene
+    base = scene("default")
+    assert base.replace(estimate=False).key == base.key != base.replace(estimate=True).key
+    path = tmp_path / "s.toml"
+    path.write_text('name = "e"\n[model]\nrobot = "serial2"\n[configuration]\nq = [0.0, 0.3]\n'
+                    '[inputs]\nforces = ["step(1)", "step(0.5)"]\n'
+                    '[solvers]\nuse = ["spice"]\npreset = "fast"\nerrors = false\nestimate = true\n')
+    sc = load_scene(path)
+    assert sc.estimate and not sc.errors
+    result = run_scene(sc)
+    assert result.comparison.reference is None and "spice" in result.comparison.estimated
+    with pytest.raises(Exception, match="does not estimate"):
+        run_batch([sc], "fast")

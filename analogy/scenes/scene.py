@@ -32,6 +32,8 @@ SCENE_SCHEMA = "analogy-scene-2"
 # Where results are written changes no result: a renamed output file or folder re-solves nothing.
 _NOT_CONTENT = ("name", "description", "source", "netlist_file", "csv_file", "plot_file")
 _WHEN_SET = ("urdf", "joints", "joint_frame", "geometric_stiffness")
+#: Scene fields added after SCENE_SCHEMA, in its key only when not at these defaults: earlier keys stand.
+_SCENE_WHEN_SET = {"estimate": False}
 
 
 @dataclass(frozen=True)
@@ -81,6 +83,9 @@ class Scene:
         Accuracy preset.
     errors : bool
         Report errors against the reference (running it if need be).
+    estimate : bool
+        Also estimate each solver's error without the reference, by a refined second run
+        (:func:`~analogy.study.estimate.estimated_errors`); with *errors* off it alone judges the bound.
     step : float or None
         Output step; None keeps SPICE's own points.
     source : str or None
@@ -107,6 +112,7 @@ class Scene:
     solvers: tuple[SolverName, ...] = ("spice", "ode", "exact")
     preset: PresetName = "accurate"
     errors: bool = True
+    estimate: bool = False
     step: float | None = None
     description: str = ""
     source: str | None = None
@@ -281,7 +287,8 @@ def content_key(scene: Scene) -> str:
     # The text hashed is repr([SCENE_SCHEMA, sorted (name, canonical value) pairs]), built
     # field by field so that a model shared by many scenes is written out once.
     parts = ", ".join(f"({name!r}, {_model_text(value) if name == 'model' else repr(_canonical(value))})"
-                      for name, value in sorted((n, getattr(scene, n)) for n in _CONTENT))
+                      for name, value in sorted((n, getattr(scene, n)) for n in _CONTENT)
+                      if name not in _SCENE_WHEN_SET or value != _SCENE_WHEN_SET[name])
     return hashlib.sha256(f"[{SCENE_SCHEMA!r}, [{parts}]]".encode()).hexdigest()
 
 

@@ -59,7 +59,7 @@ _TABLES = {
     "configuration": ("q", "topology", "equilibrium"),
     "inputs": ("forces", "initial_rates", "t_stop"),
     "outputs": ("joint_rates", "node_voltages", "element_currents", "netlist", "csv", "plot"),
-    "solvers": ("use", "preset", "errors", "step"),
+    "solvers": ("use", "preset", "errors", "estimate", "step"),
 }
 _TOP = ("name", "description", "dynamics") + tuple(_TABLES)
 _BARE = re.compile(r"^[A-Za-z0-9_-]+$")
@@ -287,7 +287,8 @@ def scene_from_table(data: dict, source="scene.toml") -> Scene:
                     element_currents=ec if ec is True else tuple(ec or ()),
                     netlist=outputs["netlist"], netlist_file=outputs["netlist_file"],
                     csv_file=outputs["csv"], plot_file=outputs["plot"], solvers=tuple(use),
-                    preset=solvers["preset"], errors=solvers["errors"], step=solvers["step"], **fields)
+                    preset=solvers["preset"], errors=solvers["errors"], estimate=solvers["estimate"],
+                    step=solvers["step"], **fields)
 
 
 def _urdf_spec(ctx: _Context, model: dict) -> ModelSpec:
@@ -485,7 +486,7 @@ def _relative_file(ctx, key: str, value: str) -> str:
 
 
 def _solvers(ctx, data) -> dict:
-    out = {"use": None, "preset": "accurate", "errors": True, "step": None}
+    out = {"use": None, "preset": "accurate", "errors": True, "estimate": False, "step": None}
     raw = data.get("solvers")
     if raw is None:
         return out
@@ -504,12 +505,12 @@ def _solvers(ctx, data) -> dict:
     if "preset" in table:
         with ctx.key("[solvers] preset"):
             if not isinstance(table["preset"], str):
-                raise InputError(f"expected a preset name, got {_kind(table['preset'])}")
+                raise InputError(f"expected a preset name or a tolerance, got {_kind(table['preset'])}")
             out["preset"] = get_preset(table["preset"]).name
-    if "errors" in table:
-        if not isinstance(table["errors"], bool):
-            raise ctx.error("[solvers] errors", f"expected true or false, got {_kind(table['errors'])}")
-        out["errors"] = table["errors"]
+    for flag in ("errors", "estimate"):
+        if not isinstance(table.get(flag, False), bool):
+            raise ctx.error(f"[solvers] {flag}", f"expected true or false, got {_kind(table[flag])}")
+        out[flag] = table.get(flag, out[flag])
     if "step" in table:
         with ctx.key("[solvers] step"):
             step = _number(table["step"])
