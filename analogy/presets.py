@@ -52,6 +52,12 @@ class Preset:
         estimates them from the fastest rate and t_stop before any solver starts).
     segment_budget : int
         The most force segments (between pwl points, pulse edges) a run may walk.
+    refine : int
+        How many times every step of ngspice is halved against these settings (the second
+        run of an error estimate, :func:`~analogy.solvers.transient.refined`): the step cap
+        REFINE^refine times shorter and reltol, vntol and chgtol REFINE^(3·refine) times tighter.
+    refine_tolerances : bool
+        False: a refinement shortens the step cap alone (where tighter tolerances collapse the step).
     operation_budget : float
         The most operations a SPICE circuit may need: its time points times the
         work of one point, Σᵢ cᵢ² over its nodes' couplings
@@ -97,6 +103,8 @@ class Preset:
     work_budget: float = 1e8
     segment_budget: int = 100_000
     operation_budget: float = OPERATION_BUDGET
+    refine: int = 0
+    refine_tolerances: bool = True
 
 
 PRESETS = {

@@ -80,7 +80,7 @@ def test_a_scene_of_the_sweep_is_the_base_scene_with_its_axis_values():
     ({"q3": [0.0, 1.0]}, {}, "has 2 joints"),
     ({"q2": [0.0, 1.0]}, {"method": "random"}, "needs count"),
     ({"q2": {"low": 0.0, "high": 1.0}}, {}, "grid over a range needs count"),
-    ({"preset": ["fast", "sloppy"]}, {}, "unknown preset"),
+    ({"preset": ["fast", "sloppy"]}, {}, "unknown accuracy preset .sloppy."),
     ({"q2": [1.0, 0.0]}, {"method": "lhs", "count": 4}, "low <= high"),
 ])
 def test_bad_sweeps_are_refused_with_one_sentence(axes, design, message):

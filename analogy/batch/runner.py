@@ -11,7 +11,6 @@ from typing import TYPE_CHECKING, Sequence
 import numpy as np
 
 from ..errors import InputError
-from ..presets import PRESETS
 from ..presets import preset as get_preset
 from ..solvers.registry import SOLVER_NAMES
 from ..progress import Progress
@@ -163,9 +162,9 @@ def solve_points(sweep: Sweep, start: int, points: np.ndarray, todo: np.ndarray,
         tasks = [Group((k,), (s,)) for k, s in enumerate(group)] if isolated else plan_groups(group, len(group))
         for task in tasks:
             idx = task.rows
-            errs, secs, failed, invalid, refused, rates = solve_members(task, PRESETS[preset_name], solvers,
+            errs, secs, failed, invalid, refused, rates = solve_members(task, get_preset(preset_name), solvers,
                                                                         reference, trajectories > 0)
-            bound = PRESETS[preset_name].bound
+            bound = get_preset(preset_name).bound
             for local, k in enumerate(idx):
                 j = members[k]
                 for name in solvers:

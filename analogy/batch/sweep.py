@@ -11,7 +11,7 @@ from typing import Iterator, Literal
 import numpy as np
 
 from ..errors import InputError
-from ..presets import PRESETS
+from ..presets import preset as get_preset
 from .store import RESERVED_COLUMNS
 from ..scenes.build import scene_model
 from ..scenes.scene import Scene
@@ -191,8 +191,12 @@ class Sweep:
                 raise InputError(f"axis {axis.name}: the model has {n} joints")
             if kind in ("q", "rate", "t_stop") and not axis.numeric:
                 raise InputError(f"axis {axis.name}: needs numbers")
-            if kind == "preset" and (bad := [v for v in axis.values or (None,) if v not in PRESETS]):
-                raise InputError(f"axis preset: unknown preset {bad[0]!r} (use {', '.join(PRESETS)})")
+            if kind == "preset":
+                for v in axis.values or (None,):
+                    try:
+                        get_preset(v)       # a name or a tolerance
+                    except InputError as exc:
+                        raise InputError(f"axis preset: {exc}") from None
         object.__setattr__(self, "_kinds", kinds)
 
     @property

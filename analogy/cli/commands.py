@@ -251,7 +251,7 @@ def _cmd_run(args) -> int:
             codes.append(EXIT_FAILED)
         elif result.comparison is not None:
             codes.append(accuracy_exit(result.comparison.outside_bound(), job.preset,
-                                        get_preset(job.preset).bound))
+                                        get_preset(job.preset).bound, result.comparison))
     return EXIT_FAILED if EXIT_FAILED in codes else max(codes, default=EXIT_OK)
 
 
@@ -358,9 +358,9 @@ def _cmd_memory(args) -> int:
 
 
 def _cmd_check(args) -> int:
-    from ..study.estimate import netlist_estimate
+    from ..study.netlist_check import netlist_estimate
     try:
-        text = Path(args.netlist).read_text(encoding="ascii")
+        text = Path(args.netlist).read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(f"cannot read the netlist {args.netlist}: {exc}") from None
     if args.plot:

@@ -130,7 +130,8 @@ class Scene:
             raise InputError(f"scene {self.name!r}: model must be a ModelSpec")
         if self.dynamics not in DYNAMICS:
             raise InputError(f"unknown dynamics {self.dynamics!r}: use {', '.join(DYNAMICS)}")
-        get_preset(self.preset)         # a name, or a tolerance (one clear sentence if neither)
+        # a name, or a tolerance written as its name ("1e-5", 1e-5 and "0.00001" are "1e-05": one key)
+        object.__setattr__(self, "preset", get_preset(self.preset).name)
         if not (isinstance(self.t_stop, (int, float)) and math.isfinite(self.t_stop) and self.t_stop > 0):
             raise InputError(f"t_stop must be a positive time, got {self.t_stop!r}")
         try:

@@ -504,7 +504,7 @@ def _solvers(ctx, data) -> dict:
         out["use"] = list(dict.fromkeys(use))
     if "preset" in table:
         with ctx.key("[solvers] preset"):
-            if not isinstance(table["preset"], str):
+            if isinstance(table["preset"], bool) or not isinstance(table["preset"], (str, int, float)):
                 raise InputError(f"expected a preset name or a tolerance, got {_kind(table['preset'])}")
             out["preset"] = get_preset(table["preset"]).name
     for flag in ("errors", "estimate"):

@@ -305,6 +305,7 @@ class ExactSolver(Solver):
     """The modal closed form of a linear system, segment by segment."""
 
     name = "exact"
+    yardstick = True
     linear_only = True
     label = "modal closed form"
 

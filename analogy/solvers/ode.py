@@ -328,7 +328,7 @@ class OdeSolver(Solver):
     name = "ode"
     label = "scipy.integrate"
 
-    def refinement(self, preset: Preset) -> tuple[Preset, float]:
+    def refinements(self, preset: Preset) -> list[tuple[Preset, float]]:
         """The same method at a tolerance :data:`REFINE_RTOL` times tighter (an error about that
         much smaller; scipy holds rtol above 100·ε, so at least 45 times at ``accurate``).
 
@@ -337,7 +337,7 @@ class OdeSolver(Solver):
         preset : Preset
             The settings of the run to be judged.
         """
-        return replace(preset, ode_rtol=preset.ode_rtol / REFINE_RTOL), REFINE_RTOL / (REFINE_RTOL - 1)
+        return [(replace(preset, ode_rtol=preset.ode_rtol / REFINE_RTOL), REFINE_RTOL / (REFINE_RTOL - 1))]
 
     def _solve(self, system, times, preset: Preset, *, save=(), positions=False) -> Trajectory:
         """Integrate with ``preset.ode_method`` at ``preset.ode_rtol``; see :meth:`Solver.solve`.

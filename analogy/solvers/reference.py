@@ -125,6 +125,7 @@ class ReferenceSolver(Solver):
     """The yardstick: 40-digit mpmath for linear systems, DOP853 at rtol 1e-13 for nonlinear ones."""
 
     name = "reference"
+    yardstick = True
     label = "mpmath matrix exponential (40 digits); DOP853 at rtol 1e-13 when nonlinear"
 
     def _solve(self, system, times, preset: Preset, *, save=(), positions=False) -> Trajectory:

@@ -73,6 +73,8 @@ class Solver:
         True if the solver applies only to linear node systems.
     own_grid : bool
         True if the solver chooses its own output times when none are given.
+    yardstick : bool
+        True for the references (exact, reference): no error estimate of their own.
     label : str
         A few words for reports.
     """
@@ -81,6 +83,9 @@ class Solver:
     linear_only: bool = False
     own_grid: bool = False
     label: str = ""
+    #: A yardstick (a closed form, the tight reference): the others' errors are measured against it,
+    #: and it has no estimate of its own.
+    yardstick: bool = False
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
@@ -144,17 +149,18 @@ class Solver:
         tr = replace(tr, stats=replace(tr.stats, wall_time=elapsed))
         return tr if grid is None or not self.own_grid else tr.resampled(grid, system.joint_rates)
 
-    def refinement(self, preset: Preset) -> tuple[Preset, float] | None:
+    def refinements(self, preset: Preset) -> list[tuple[Preset, float]]:
         """Settings under which this solver errs a known fraction of what it errs under *preset*,
-        and the factor that turns the difference of the two runs into the first run's error
-        (Richardson's); None where the solver has no such estimate (a closed form, a reference).
+        each with the factor that turns the difference of the two runs into the first run's error
+        (Richardson's), tried in turn while a refined run fails; empty where the solver has no
+        such estimate (a closed form, a reference).
 
         Parameters
         ----------
         preset : Preset
             The settings of the run to be judged.
         """
-        return None
+        return []
 
     def _solve(self, system, times, preset: Preset, *, save: Sequence[str] = (),
                positions: bool = False) -> Trajectory:

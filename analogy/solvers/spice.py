@@ -159,16 +159,19 @@ class SpiceSolver(Solver):
         """
         return solve_spice(system, preset=preset, save=save)
 
-    def refinement(self, preset: Preset) -> tuple[Preset, float]:
+    def refinements(self, preset: Preset) -> list[tuple[Preset, float]]:
         """Every step :data:`~analogy.solvers.transient.REFINE` times shorter
-        (:func:`~analogy.solvers.transient.refined`): an error REFINE² times smaller.
+        (:func:`~analogy.solvers.transient.refined`), an error REFINE² times smaller; then, where
+        the tighter tolerances collapse the step (reltol under rounding: serial12 at 1.25e-11),
+        the step cap alone, which refines a run whose steps the cap sets.
 
         Parameters
         ----------
         preset : Preset
             The settings of the run to be judged.
         """
-        return refined(preset), REFINE ** 2 / (REFINE ** 2 - 1)
+        factor = REFINE ** 2 / (REFINE ** 2 - 1)
+        return [(refined(preset), factor), (refined(preset, tolerances=False), factor)]
 
     def solve_many(self, systems, times, preset: Preset, *, save=(), positions=False) -> list[Trajectory]:
         """One ngspice run for all systems, to the longest horizon; if it fails, one run each.

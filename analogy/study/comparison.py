@@ -155,7 +155,7 @@ class Comparison(Tabular):
         out = {}
         for name, e in self.errors().items():
             judged = e[1] if not math.isnan(e[1]) else self.estimated.get(name, e)[1]
-            if math.isnan(judged) and name in self.estimated and name in self.unestimated:
+            if math.isnan(judged) and name in self.unestimated:
                 judged = math.inf           # asked for and not to be had: no promise can be said kept
             if name != self.reference and judged > self.bound:
                 out[name] = judged
@@ -199,7 +199,7 @@ class Comparison(Tabular):
         """A plain-text table of run time, error and steps per solver."""
         where = (f"errors against the {self.reference} solution, on each solver's own points, each output "
                  "against its own peak" if self.reference else
-                 "no reference: errors estimated by refined runs" if self.estimated else
+                 "no reference: errors estimated by refined runs" if self.estimated or self.unestimated else
                  "no reference, so no errors measured")
         circuit = ", realizable circuit" if getattr(self.system, "realizable", False) else ""
         lines = [f"robot {self.system.provenance.robot}, topology {self.system.topology.name}{circuit}, "
