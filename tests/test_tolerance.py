@@ -66,3 +66,37 @@ def test_the_bench_times_what_tol_chooses_and_says_whether_it_kept_the_tolerance
         assert row.status == "ok" and row.error <= tol
     lines = "\n".join(result.cost_lines())
     assert "default at 0.001: cheapest SPICE" in lines and "--tol 1e-06:" in lines and "(kept)" in lines
+
+
+def test_a_sweep_runs_at_a_tolerance_and_an_axis_may_sweep_tolerances(tmp_path):
+    import numpy as np
+    from analogy.batch import read
+    from analogy.cli import main
+    from sweep_text import HEAD
+    path = tmp_path / "sweep.toml"
+    path.write_text(HEAD + '[sweep]\nmethod = "grid"\ncount = 4\ngroup_size = 4\n[sweep.axes]\n'
+                    'q2 = [0.3, 1.0]\npreset = ["1e-4", "1e-5"]\n')
+    assert main(["batch", str(path), "-o", str(tmp_path / "store"), "--no-progress"]) == 0
+    frame = read(tmp_path / "store")
+    assert sorted(set(frame["preset"].astype(float))) == [1e-5, 1e-4]
+    assert np.all(frame["error_spice"] <= frame["preset"].astype(float))      # each kept its own tolerance
+    path.write_text(HEAD + '[sweep]\nmethod = "grid"\ncount = 2\ngroup_size = 2\n[sweep.axes]\nq2 = [0.3, 1.0]\n')
+    assert main(["batch", str(path), "-o", str(tmp_path / "store2"), "--tol", "1e-5", "--no-progress"]) == 0
+    errors = read(tmp_path / "store2")["error_spice"]
+    assert errors.max() <= 1e-5          # the sweep's own preset, fast, errs about 1e-4 here
+
+
+def test_a_refined_run_keeps_abstol_and_halves_the_cap_so_it_is_never_coarser():
+    from analogy.circuit.scales import system_scales
+    from analogy.solvers.transient import REFINE, refined, transient_settings
+    s = scene("default").system()
+    for name in ("fast", "accurate"):
+        base = transient_settings(name, s.t_stop, system_scales(s), breakpoints=s.breakpoints())
+        fine = transient_settings(refined(name), s.t_stop, system_scales(s), breakpoints=s.breakpoints())
+        a, b = dict(base.options), dict(fine.options)
+        assert b["abstol"] == a["abstol"] and fine.first_step == base.first_step
+        assert fine.max_step == pytest.approx(base.max_step / REFINE)
+        assert float(b["reltol"]) == pytest.approx(float(a["reltol"]) / REFINE ** 3, rel=1e-2)
+        cap_only = transient_settings(refined(name, tolerances=False), s.t_stop, system_scales(s),
+                                      breakpoints=s.breakpoints())
+        assert dict(cap_only.options) == a and cap_only.max_step == fine.max_step
