@@ -170,6 +170,15 @@ def plot_comparison(comparison, path=None) -> Figure:
             f"worst of the {n} joints, each relative to its own peak"
         axe.set_title(f"error against {comparison.reference}: {which} (largest in each time window)",
                       fontsize="small")
+    else:           # no reference: each solver's estimate, a worst over the run, as a level
+        estimated = {k: e.relative for k, e in getattr(comparison, "estimated", {}).items()
+                     if k in ok and np.isfinite(e.relative) and e.relative > 0}
+        for name, level in estimated.items():
+            axe.axhline(level, color="k", label=f"{name} (estimated)", **solver_style(name))
+        if estimated:
+            axe.set_yscale("log")
+        axe.set_title("no reference: each solver's estimated worst error over its own peak (a refined run)"
+                      if estimated else "no reference, so no errors measured", fontsize="small")
     axe.set_xlabel("time [s]")
     axe.set_ylabel("|error| / own peak rate [1]")
     if axe.lines:
