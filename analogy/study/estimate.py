@@ -124,7 +124,9 @@ REFINED_STEPS = 0.75
 
 def _not_refined(coarse: Trajectory, fine: Trajectory) -> str:
     """Why *fine* is no refinement of *coarse* (too few steps, another method), or ``""``."""
-    if fine.message.startswith("retried"):
+    ran = [(getattr(tr.settings, "loosen", None), getattr(tr.settings, "method", None)) for tr in (coarse, fine)]
+    if fine.message.startswith("retried") and (ran[0] != ran[1] or ran[0][0] is None):
+        # a retry that the first run did not need changes abstol or the method, not only the step
         return f"its refined run had to be retried, so it is no refinement ({fine.message})"
     steps, more = coarse.stats.steps, fine.stats.steps
     if steps and more is not None and more < REFINED_STEPS * REFINE * steps:
