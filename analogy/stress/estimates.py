@@ -54,8 +54,9 @@ class EstimateRow:
 
     ``verdict`` is ``agrees`` (within :data:`AGREEMENT` of the true error), ``over`` or
     ``under`` (outside it, by ``ratio``), ``unresolved`` (the true error is under the
-    reference's own, ``floor``), ``no estimate`` (the estimator says it cannot see an output,
-    :func:`~analogy.study.estimate.unresolved_outputs`) or ``failed``. ``unsafe`` marks an estimate that says the
+    reference's own, ``floor``), ``no estimate`` (the estimator declines: it cannot see an
+    output, :func:`~analogy.study.estimate.unresolved_outputs`, or its refined run failed or
+    was no refinement) or ``failed`` (the run itself). ``unsafe`` marks an estimate that says the
     bound is kept while the true error is more than AGREEMENT times past it.
     """
 
@@ -236,8 +237,11 @@ def _row(label: str, solver: str, preset: str, c, floor: float, bound: float) ->
     (above *floor* over that output's share of the largest peak), and its own estimate there."""
     why = c.failures.get(solver) or c.unestimated.get(solver, "") or c.skipped.get(solver, "")
     if solver not in c.measured or solver not in c.estimated:
-        return EstimateRow(label, solver, preset, math.nan, math.nan, math.nan, floor, bound, "failed", False,
-                           message=why[:200])
+        # the run itself failed, or it ran and the estimator declined (its refined run failed or was
+        # no refinement): a failure, or no claim
+        declined = solver in c.measured and solver in c.unestimated
+        return EstimateRow(label, solver, preset, c.measured[solver].relative if declined else math.nan, math.nan,
+                           math.nan, floor, bound, "no estimate" if declined else "failed", False, message=why[:200])
     truth, guess = c.measured[solver].per_output, c.estimated[solver].per_output
     own = np.max(np.abs(c.results[c.reference].rates), axis=0)
     share = own / np.max(own) if np.max(own) > 0 else np.ones_like(own)
