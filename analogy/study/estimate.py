@@ -155,8 +155,8 @@ def estimated_errors(systems: Sequence, runs: dict[str, Sequence[Trajectory]], p
         tuple[list[dict[str, OutputErrors]], dict[str, str]]:
     """Per system and solver, the estimated error of its joint rates, each against its own peak.
 
-    Each solver with a :meth:`~analogy.solvers.registry.Solver.refinement` runs again under
-    it; the difference of the two runs on the first run's own points, times the refinement's
+    Each solver with :meth:`~analogy.solvers.registry.Solver.refinements` runs again under the
+    first of them that refines its run (the next where one fails or is no refinement); the difference of the two runs on the first run's own points, times the refinement's
     factor, is the estimate (Richardson's). A solver with its own points (SPICE) is read
     between the second run's points by :func:`on_points`.
 
