@@ -10,7 +10,7 @@ from ..units import quantity_label, rate_label, rate_unit
 from .metrics import PEAK_FLOOR
 from .output import check_plot_path
 
-__all__ = ["solver_style", "shown_joints", "error_envelope", "plot_trajectory", "plot_comparison",
+__all__ = ["save_figure", "solver_style", "shown_joints", "error_envelope", "plot_trajectory", "plot_comparison",
            "plot_quantities", "plot_linear_horizon", "plot_bode", "MANY_JOINTS"]
 
 
@@ -29,7 +29,16 @@ def solver_style(name: str) -> dict:
     return dict(_STYLES.get(name, dict(ls="-.", lw=1.2)))
 
 
-def _save(fig: Figure, path) -> Figure:
+def save_figure(fig: Figure, path) -> Figure:
+    """*fig*, written to *path* first if one is given (its kind checked).
+
+    Parameters
+    ----------
+    fig : Figure
+        A figure made without pyplot.
+    path : str or Path or None
+        Image file to write.
+    """
     if path is not None:
         check_plot_path(path)
         fig.savefig(path, dpi=110)
@@ -117,7 +126,7 @@ def plot_trajectory(trajectory, path=None, units=None) -> Figure:
     ax.set_title(f"{trajectory.solver}" + (f": {len(joints)} of {n} joints (largest peaks)" if len(joints) < n
                                            else ""), fontsize="medium")
     _legends(ax, joints, units, [trajectory.solver])
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_comparison(comparison, path=None) -> Figure:
@@ -188,7 +197,7 @@ def plot_comparison(comparison, path=None) -> Figure:
         axe.annotate(f"{comparison.preset} bound {comparison.bound:g}", (0.99, comparison.bound),
                      xycoords=("axes fraction", "data"), ha="right", va="top", fontsize="x-small",
                      color="tab:red")
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_quantities(time: np.ndarray, groups: list, errors: dict, title: str, path=None,
@@ -257,7 +266,7 @@ def plot_quantities(time: np.ndarray, groups: list, errors: dict, title: str, pa
         if ax.lines:
             ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False, fontsize="small")
     axes[-1].set_xlabel("time [s]")
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_linear_horizon(time: np.ndarray, nonlinear: np.ndarray, linear: np.ndarray, deviation: np.ndarray,
@@ -301,7 +310,7 @@ def plot_linear_horizon(time: np.ndarray, nonlinear: np.ndarray, linear: np.ndar
     axe.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
     axe.set_xlabel("time [s]")
     axe.set_ylabel("|linear − nonlinear| / peak [1]")
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_bode(response, reference=None, path=None) -> Figure:
@@ -343,4 +352,4 @@ def plot_bode(response, reference=None, path=None) -> Figure:
     marks = "; grey lines: resonances" if len(response.resonances()) else "; no resonance in the band"
     mag.set_title(f"driving-point mobilities, {solvers}{marks}")
     mag.legend(fontsize="small", loc="center left", bbox_to_anchor=(1.0, 0.5))
-    return _save(fig, path)
+    return save_figure(fig, path)

@@ -144,10 +144,10 @@ class EstimateValidation(Tabular):
         path : str or Path, optional
             Image file to write.
         """
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-        fig, ax = plt.subplots(figsize=(6.5, 6), constrained_layout=True)
+        from matplotlib.figure import Figure
+        from ..results.plots import save_figure
+        fig = Figure(figsize=(6.5, 6), layout="constrained")
+        ax = fig.subplots()
         ok = [r for r in self.rows if r.verdict != "failed" and r.true_error > 0 and r.estimate > 0]
         if ok:
             lo = min(min(r.true_error, r.estimate) for r in ok) / 3
@@ -173,9 +173,7 @@ class EstimateValidation(Tabular):
                ylabel="estimated error / peak (refined run, Richardson)",
                title="Error estimates without a reference, worst output per run")
         ax.legend(fontsize=8, loc="upper left")
-        if path is not None:
-            fig.savefig(path, dpi=120)
-        return fig
+        return save_figure(fig, path)
 
 
 def _items(quick: bool, families: str) -> list[tuple[str, object]]:

@@ -230,17 +230,15 @@ class NetlistEstimate(Tabular):
         path : str or Path, optional
             Image file to write.
         """
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-        fig, ax = plt.subplots(figsize=(7.5, 4), constrained_layout=True)
+        from matplotlib.figure import Figure
+        from ..results.plots import save_figure
+        fig = Figure(figsize=(7.5, 4), layout="constrained")
+        ax = fig.subplots()
         for name, y in self.values.items():
             ax.plot(self.time, y, label=f"{name}: estimated error {self.estimates[name]:.1e} of its peak")
         ax.set(xlabel="time [s]", ylabel="saved vector (V for a node, A for a current)", title="the netlist as it ran")
         ax.legend(fontsize=8)
-        if path is not None:
-            fig.savefig(path, dpi=120)
-        return fig
+        return save_figure(fig, path)
 
 
 def netlist_estimate(text: str, timeout: float | None = None) -> NetlistEstimate:
