@@ -313,6 +313,9 @@ def bench(repeats: int = 5, full: bool = False, scenes=None, progress: bool = Tr
         system = sc.system()
         linear = system.kind == "linear"
         jobs += [("spice", sc, system, g) for g in (spice_grid(full, quick) if linear else nonlinear_spice_grid())]
+        if linear:      # the same physics with one node per mode: n grounded capacitors for n(n-1)/2 floating ones
+            modal = sc.replace(topology="modal").system()
+            jobs += [("spice", sc, modal, (f"modal {g[0]}",) + tuple(g[1:])) for g in spice_grid(full, quick)]
         jobs += [("ode", sc, system, g) for g in ode_grid(quick)]
         jobs.append(("exact" if linear else "reference", sc, system, None))
     bar = Progress(len(jobs), unit="setting", enabled=progress)

@@ -12,7 +12,7 @@ from .errors import InputError
 from .model.expressions import parse_call, parse_number
 from .model.quantities import FORCE
 
-__all__ = ["Waveform", "Step", "PWL", "Pulse", "Sine", "Piece", "parse_waveform"]
+__all__ = ["Waveform", "Step", "PWL", "Pulse", "Sine", "Piece", "parse_waveform", "pwl_sum"]
 
 
 def _num(x: float) -> str:
@@ -164,6 +164,21 @@ class Step(PWL):
 
     def label(self) -> str:
         return _call("step", (self.amplitude, self.delay, self.rise), 1)
+
+
+def pwl_sum(terms: Sequence[tuple["PWL", float]]) -> PWL:
+    """Σ scale·f of piecewise-linear waveforms, itself piecewise linear through the union of their times.
+
+    Parameters
+    ----------
+    terms : sequence of (PWL, float)
+        Each waveform with its factor.
+    """
+    times = np.unique(np.concatenate([w.times for w, _ in terms]))
+    values = np.zeros_like(times)
+    for w, scale in terms:
+        values += float(scale) * np.interp(times, w.times, w.values)
+    return PWL(np.column_stack([times, values]))
 
 
 class Pulse(Waveform):

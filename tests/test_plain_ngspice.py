@@ -25,6 +25,9 @@ QUICK = [f"--robot serial{n}" for n in range(2, 13)] + [
     "--robot serial2 --realizable", "--robot serial3 --realizable", "--robot parallel2 --realizable",
     "--robot serial2 --dynamics nonlinear", "--robot serial3 --dynamics nonlinear",
     "--robot serial2 --dynamics nonlinear --topology parallel",
+    # one node per mode; the sources into one node written as their sum
+    "--robot random10 --topology modal", "--robot serial4 --topology modal",
+    "--robot serial2 --dynamics nonlinear --topology modal",
     # closed chains' constrained circuits, swinging far from their singular poses
     "--robot parallel2 --dynamics nonlinear --t-stop 4 --force sine(0,0.02,0.5) --force sine(0,0.02,0.5,0,0,90)",
     "--robot parallel3 --dynamics nonlinear --t-stop 4 --force sine(0,0.005,0.5) --force sine(0,0.005,0.5,0,0,120) "

@@ -7,6 +7,7 @@ import re
 from typing import Iterable, Literal, Sequence
 
 from ..errors import InputError
+from ..waveforms import PWL, pwl_sum
 from .description import (
     BehaviouralCurrent,
     BehaviouralVoltage,
@@ -119,18 +120,35 @@ def circuit_lines(c: Circuit, prefix: str = "", memo: dict | None = None) -> lis
         elif isinstance(p, BehaviouralCurrent):
             lines.append(f"B{prefix}{p.name} {b} {a} I={{{_prefixed(spice_expression(p.current), prefix)}}}")
     # 'I n+ n- value' drives current out of n+ and into n-: into a, out of b.
-    if memo is None:
-        values = [s.waveform.spice(s.scale, c.t_stop) for s in c.sources]
-    else:                   # one waveform drives many circuits of a batch: its text is made once
-        values = []
-        for s in c.sources:
-            value = memo.setdefault(s.waveform, {}).get((s.scale, c.t_stop))
-            if value is None:
-                value = memo[s.waveform][s.scale, c.t_stop] = s.waveform.spice(s.scale, c.t_stop)
-            values.append(value)
-    lines += [f"I{prefix}{s.name[1:]} {_node(s.b, prefix)} {_node(s.a, prefix)} {v}"
-              for s, v in zip(c.sources, values)]
+    lines += [f"I{prefix}{name[1:]} {_node(b, prefix)} {_node(a, prefix)} {v}"
+              for name, a, b, v in _source_values(c.sources, c.t_stop, memo)]
     return lines
+
+
+def _source_values(sources, t_stop: float, memo: dict | None) -> list[tuple[str, int, int, str]]:
+    """(name, a, b, value) of each source device: the grounded piecewise-linear sources into one
+    node are one device ``In<k>`` whose PWL is their sum (under a custom map T⁻ᵀ every joint
+    drives every node, and ngspice evaluates n² sources at every step otherwise); the rest as given."""
+    merged: dict[int, list] = {}
+    for s in sources:
+        if s.b == 0 and isinstance(s.waveform, PWL):
+            merged.setdefault(s.a, []).append(s)
+    merged = {k: group for k, group in merged.items() if len(group) > 1}
+    out, written = [], set()
+    for s in sources:
+        group = merged.get(s.a) if s.b == 0 else None
+        if group is None or s not in group:
+            key = (s.scale, t_stop)
+            value = None if memo is None else memo.setdefault(s.waveform, {}).get(key)
+            if value is None:
+                value = s.waveform.spice(s.scale, t_stop)
+                if memo is not None:        # one waveform drives many circuits of a batch: its text is made once
+                    memo[s.waveform][key] = value
+            out.append((s.name, s.a, s.b, value))
+        elif s.a not in written:
+            written.add(s.a)
+            out.append((f"In{s.a}", s.a, 0, pwl_sum([(g.waveform, g.scale) for g in group]).spice(1.0, t_stop)))
+    return out
 
 
 def analysis_lines(settings, ic: Iterable[tuple[str, float]], save: Iterable[str],

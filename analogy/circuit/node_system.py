@@ -229,7 +229,7 @@ class NodeSystem(NodeCoordinates):
         # T can be well conditioned yet scale M', B' or K' out of floating-point range. The
         # joint matrices passed their own checks, so a node form that fails concerns a T
         # given as a matrix, and otherwise the joint matrices it was made from.
-        custom = topology.name not in ("serial", "parallel")
+        custom = topology.name not in ("serial", "parallel", "modal")
         for field, label, part in (("mass", "node mass matrix M'", mass), ("damping", "node damping matrix B'", damping),
                                    ("stiffness", "node stiffness matrix K'", stiffness),
                                    ("topology", "current map T^-T", topology.current_map)):
@@ -351,7 +351,7 @@ def node_system(model: Evaluable | JointSpace, q: Sequence[float] | None = None,
         Configuration, for models that depend on it.
     parameters : mapping, optional
         Parameter overrides.
-    topology : {"serial", "parallel"}, Topology or array_like, optional
+    topology : {"serial", "parallel", "modal"}, Topology or array_like, optional
         Joint-to-node map T; defaults to the model's own.
     forces : sequence, optional
         One entry per joint: a number (step at t = 0), a waveform, a waveform
@@ -388,7 +388,7 @@ def _mapped(joint, top_spec, base_info, forces, initial_rates, t_stop, info) -> 
     """A joint space mapped to node coordinates, with its forces and initial rates."""
     n = joint.dof
     with concerning("topology"):
-        top = make_topology(top_spec, n)
+        top = make_topology(top_spec, n, (joint.mass_matrix, joint.damping, joint.stiffness))
     with concerning("forces"):
         ws = waveforms(forces, n)
     if joint.gravity is not None:
@@ -447,6 +447,8 @@ def node_systems(model, qs, *, parameters: Mapping[str, float] | None = None,
         raise InputError(f"configuration 1: {exc}") from None
     first = _mapped(*evaluated, forces, initial_rates, t_stop, info)    # checks what the rows share
     try:
+        if first.topology.name == "modal":      # each row has its own modes
+            raise InputError("modal")
         stack = model.joint_stack(q, parameters)
         top = first.topology
         m, b, kk = (None if x is None else symmetric_part(x) for x in stack[:3])

@@ -262,8 +262,9 @@ def nonlinear_system(model, q: Sequence[float], *, parameters: Mapping[str, floa
         Configuration at t = 0.
     parameters : mapping, optional
         Parameter overrides.
-    topology : {"serial", "parallel"}, Topology or array_like, optional
-        Joint-to-node map T; defaults to the model's own.
+    topology : {"serial", "parallel", "modal"}, Topology or array_like, optional
+        Joint-to-node map T; defaults to the model's own. ``"modal"``: the modes of the
+        dynamics linearised at *q*, so that M'(x) is the identity at the start.
     forces : sequence, optional
         One entry per joint, as for :func:`~analogy.circuit.node_system.node_system`.
     initial_rates : sequence of float, optional
@@ -278,7 +279,12 @@ def nonlinear_system(model, q: Sequence[float], *, parameters: Mapping[str, floa
                          "nonlinear dynamics need a symbolic model")
     functions = model.mechanical_functions(parameters)
     n = model.dof
-    top = make_topology(model.topology if topology is None else topology, n)
+    spec = model.topology if topology is None else topology
+    at_start = None
+    if isinstance(spec, str) and spec == "modal":     # the modes of the dynamics linearised at q
+        j = model.joint_space(list(q), parameters)
+        at_start = (j.mass_matrix, j.damping, j.stiffness)
+    top = make_topology(spec, n, at_start)
     if hasattr(model, "passive") and not np.array_equal(top.matrix, np.eye(n)):
         # its circuit has a node per joint of the loop, the active ones first: v = r
         raise InputError(f"{model.name} is a closed chain: its nonlinear circuit takes the parallel "

@@ -9,7 +9,8 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["Topology", "serial", "parallel", "custom", "topology", "TOPOLOGIES", "congruence", "symmetric_part"]
+__all__ = ["Topology", "serial", "parallel", "custom", "modal", "topology", "TOPOLOGIES", "TOPOLOGY_NAMES", "congruence",
+           "symmetric_part"]
 
 
 @dataclass(frozen=True)
@@ -19,7 +20,7 @@ class Topology:
     Attributes
     ----------
     name : str
-        ``"serial"``, ``"parallel"`` or ``"custom"``.
+        ``"serial"``, ``"parallel"``, ``"modal"`` or ``"custom"``.
     matrix : ndarray, shape (n, n)
         The invertible map T from joint rates to node velocities.
     """
@@ -96,6 +97,8 @@ class Topology:
             return "serial (v_k = r_1 + ... + r_k)"
         if self.name == "parallel":
             return "parallel (v = r)"
+        if self.name == "modal":
+            return "modal (v = T r: one node per mode, T = Phi^T M with Phi^T M Phi = I)"
         return "custom (v = T r)"
 
 
@@ -162,25 +165,69 @@ def custom(matrix) -> Topology:
     return Topology("custom", matrix)
 
 
+def modal(mass, damping, stiffness=None) -> Topology:
+    """One node per mode: T = Φᵀ·M, where Φᵀ·M·Φ = I and Φᵀ·A·Φ = Λ for A = K (the undamped
+    modes) or, without springs, A = B.
+
+    Then M' = I, one 1 F capacitor per mode, and A' = Λ: the circuit's n(n−1)/2 floating
+    capacitors become n grounded ones. B' (with springs) is diagonal only for proportional
+    damping; otherwise its off-diagonal terms stay as floating resistors, so the circuit is
+    exact either way. Each mode's sign makes its largest entry of Φ positive, which fixes
+    T where the eigenvalues are distinct.
+
+    Parameters
+    ----------
+    mass : array_like, shape (n, n)
+        The joint mass matrix M (symmetric positive definite).
+    damping : array_like, shape (n, n)
+        The joint damping B.
+    stiffness : array_like, shape (n, n), optional
+        The joint stiffness K.
+    """
+    m = np.asarray(mass, dtype=float)
+    springs = stiffness is not None and np.any(np.asarray(stiffness) != 0)
+    a = np.asarray(stiffness if springs else damping, dtype=float)
+    try:        # M = L·Lᵀ; the symmetric L⁻¹·A·L⁻ᵀ = V·Λ·Vᵀ; Φ = L⁻ᵀ·V
+        low = np.linalg.cholesky(symmetric_part(m))
+        c = np.linalg.solve(low, np.linalg.solve(low, symmetric_part(a)).T)
+        _, vectors = np.linalg.eigh(symmetric_part(c))
+        phi = np.linalg.solve(low.T, vectors)
+    except np.linalg.LinAlgError:
+        raise InputError("the modal topology needs a positive definite mass matrix") from None
+    pivot = np.argmax(np.abs(phi), axis=0)
+    phi = phi * np.sign(phi[pivot, np.arange(phi.shape[1])])
+    return Topology("modal", phi.T @ m)
+
+
 TOPOLOGIES = {"serial": serial, "parallel": parallel}
+#: The topologies a scene names: ``modal`` is built from the system's own M, B and K.
+TOPOLOGY_NAMES = ("serial", "parallel", "modal")
 
 
-def topology(spec, n: int) -> Topology:
-    """Build a topology from a name (``serial``, ``parallel``), a Topology or a matrix.
+def topology(spec, n: int, matrices: tuple | None = None) -> Topology:
+    """Build a topology from a name (``serial``, ``parallel``, ``modal``), a Topology or a matrix.
 
     Parameters
     ----------
     spec : str, Topology or array_like
-        ``"serial"``, ``"parallel"``, a Topology or a matrix T.
+        ``"serial"``, ``"parallel"``, ``"modal"``, a Topology or a matrix T.
     n : int
         Number of joints.
+    matrices : tuple, optional
+        The joint (M, B, K) the modal topology is built from (K may be None).
     """
     if isinstance(spec, Topology):
         top = spec
     elif isinstance(spec, str):
-        if spec not in TOPOLOGIES:
-            raise InputError(f"unknown topology {spec!r}: use serial, parallel or a matrix T")
-        top = TOPOLOGIES[spec](n)
+        if spec == "modal":
+            if matrices is None:
+                raise InputError("the modal topology is built from a linear system's M, B and K: "
+                                 "it needs the dynamics at one configuration")
+            top = modal(*matrices)
+        elif spec not in TOPOLOGIES:
+            raise InputError(f"unknown topology {spec!r}: use serial, parallel, modal or a matrix T")
+        else:
+            top = TOPOLOGIES[spec](n)
     else:
         top = custom(spec)
     if top.dof != n:

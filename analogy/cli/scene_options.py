@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from dataclasses import replace
 
+from ..circuit.topology import TOPOLOGY_NAMES
 from ..errors import InputError
 from ..model.catalog import MAX_SERIAL, ROBOT_NAMES
 from ..model.conventions import CONVENTIONS, JOINT_FRAMES, LINK_MODES
@@ -114,8 +115,8 @@ def scene_options(p: argparse.ArgumentParser, preset: str = "accurate") -> None:
                         "hanging link and softens an upright one (default: on in the tip frame, off in "
                         "the axis frame)")
     g.add_argument("--q", metavar="VALUES", help="configuration [rad or m], e.g. '0, 0.3' or '0, 30 deg'")
-    g.add_argument("--topology", metavar="serial|parallel|MATRIX",
-                   help="joint-to-node map: serial, parallel or a matrix T with v = T r")
+    g.add_argument("--topology", metavar="serial|parallel|modal|MATRIX",
+                   help="joint-to-node map: serial, parallel, modal (one node per mode) or a matrix T with v = T r")
     g.add_argument("--force", action="append", metavar="SPEC",
                    help="force on the next joint [N·m or N] (repeat once per joint): a number, step(a), "
                         "step(a, delay, rise), pulse(v1, v2, delay=0, rise=1e-6, fall=1e-6, width=1, "
@@ -254,10 +255,10 @@ def scene_from_args(args) -> Scene:
         t = args.topology.strip()
         if t.startswith("["):
             changes["topology"] = tuple(tuple(r) for r in parse_matrix(t, numeric=True))
-        elif t in ("serial", "parallel"):
+        elif t in TOPOLOGY_NAMES:
             changes["topology"] = t
         else:
-            raise InputError(f"unknown topology {t!r}: use serial, parallel or a matrix like [[1, 0], [1, 1]]")
+            raise InputError(f"unknown topology {t!r}: use serial, parallel, modal or a matrix like [[1, 0], [1, 1]]")
     if args.force:
         changes["forces"] = tuple(args.force)
     if args.r0 is not None:

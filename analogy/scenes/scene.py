@@ -56,7 +56,7 @@ class Scene:
     parameters : tuple of (str, float)
         Parameter values, sorted by name.
     topology : str, tuple of tuple of float, or None
-        ``"serial"``, ``"parallel"``, a matrix T, or None for the model's own.
+        ``"serial"``, ``"parallel"``, ``"modal"`` (one node per mode), a matrix T, or None for the model's own.
     forces : tuple
         One entry per joint: a number (a step at t = 0), a waveform string, or a tuple of these.
     initial_rates : tuple of float or None

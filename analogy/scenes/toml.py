@@ -11,7 +11,7 @@ the outputs wanted and the solvers that produce them. Example::
 
     [configuration]
     q = [0.0, 0.3]                 # joint coordinates q1 … qn
-    topology = "serial"            # "serial", "parallel" or a matrix T, v = T·r
+    topology = "serial"            # "serial", "parallel", "modal" or a matrix T, v = T·r
 
     [inputs]
     forces = [1.0, "sine(0, 0.5, 2)"]
@@ -368,7 +368,7 @@ def _model_fields(ctx: _Context, data: dict) -> dict:
             elif isinstance(spec, str):
                 out["topology"] = spec
             else:
-                raise InputError(f"expected \"serial\", \"parallel\" or a matrix, got {_kind(spec)}")
+                raise InputError(f"expected \"serial\", \"parallel\", \"modal\" or a matrix, got {_kind(spec)}")
     with ctx.key("[inputs] forces"):
         if "forces" not in inputs:
             raise InputError("missing: give one force per joint, e.g. forces = [1.0, \"sine(0, 1, 2)\"]")

@@ -1,0 +1,131 @@
+"""The modal topology: one node per mode, T = Φᵀ·M, and the sources into one node written as their sum."""
+
+import numpy as np
+import pytest
+
+from analogy import node_system, robot
+from analogy.circuit.node_system import node_systems
+from analogy.circuit.topology import modal
+from analogy.model.joint import JointSpace
+from analogy.presets import PRESETS
+from analogy.results.metrics import output_errors
+from analogy.scenes.builtin import scene
+from analogy.solvers.exact import solve_exact
+from analogy.solvers.registry import solver
+from analogy.solvers.transient import netlist
+from analogy.waveforms import PWL, Sine, Step, pwl_sum
+
+EPS = np.finfo(float).eps
+RNG = np.random.default_rng(11)
+
+
+def _spd(n, spread=1.0):
+    a = RNG.normal(size=(n, n))
+    return a @ a.T + spread * n * np.eye(n)
+
+
+@pytest.mark.parametrize("n", [1, 2, 5, 12])
+@pytest.mark.parametrize("springs", [False, True])
+def test_the_modal_map_makes_the_mass_the_identity_and_its_pair_diagonal(n, springs):
+    """Φᵀ·M·Φ = I and Φᵀ·A·Φ = Λ (A = K with springs, else B), so M' = I and A' = diag(Λ)."""
+    m, b = _spd(n), _spd(n, 0.5)
+    k = _spd(n, 2.0) if springs else None
+    s = node_system(JointSpace(m, b, k), topology="modal", forces=[1.0] * n)
+    a = s.stiffness if springs else s.damping
+    # the eigenproblem is solved through M's Cholesky factor: rounding n·ε·cond(M) on M',
+    # and n·ε·cond(M)·‖A‖ on A' (its eigenvalues' own scale)
+    cond = np.linalg.cond(m)
+    np.testing.assert_allclose(s.mass, np.eye(n), atol=10 * n * EPS * cond)
+    off = a - np.diag(np.diag(a))
+    assert np.max(np.abs(off)) <= 10 * n * EPS * cond * np.max(np.abs(np.diag(a)))
+    assert np.all(np.diff(np.diag(a)) >= -10 * n * EPS * cond * np.max(np.abs(np.diag(a))))   # slowest first
+    assert s.topology.name == "modal"
+
+
+def test_each_mode_s_sign_is_fixed_by_its_largest_entry():
+    """Eigenvectors are defined up to sign: the largest |Φ_jk| of each mode is made positive, so
+    the same matrices give the same T whatever LAPACK's choice."""
+    m, b = _spd(4), _spd(4, 0.5)
+    top = modal(m, b)
+    phi = np.linalg.solve(top.matrix, np.eye(4))        # T = Φᵀ·M = Φ⁻¹
+    pivots = phi[np.argmax(np.abs(phi), axis=0), np.arange(4)]
+    assert np.all(pivots > 0)
+    np.testing.assert_array_equal(modal(m, b).matrix, top.matrix)
+
+
+@pytest.mark.parametrize("name", ["default", "random10"])
+def test_the_modal_circuit_is_the_same_physics(name):
+    """Changing the node coordinates leaves the joint rates alone: the exact solutions of the
+    serial and modal systems agree to rounding (n·ε·cond(T), with a factor of 100 for the
+    modal solve's own sums)."""
+    sc = scene(name)
+    serial_, modal_ = sc.system(), sc.replace(topology="modal").system()
+    t = np.linspace(0.0, serial_.t_stop, 301)
+    a, b = solve_exact(serial_, t).rates, solve_exact(modal_, t).rates
+    cond = np.linalg.cond(modal_.topology.matrix) * np.linalg.cond(serial_.topology.matrix)
+    _, rel = output_errors(b, a)
+    assert np.max(rel) <= 100 * serial_.dof * EPS * cond
+
+
+def test_a_modal_circuit_has_one_grounded_capacitor_per_node_and_no_floating_one():
+    """n(n−1)/2 floating capacitors of the serial circuit become n grounded 1 F capacitors."""
+    n = 12
+    sc = scene("random10").replace(topology="modal")
+    system = sc.system()
+    text = netlist(system, "fast", printing=False)
+    caps = [line.split() for line in text.splitlines() if line.startswith("C")]
+    assert len(caps) == system.dof and all(c[2] == "0" for c in caps)
+    np.testing.assert_allclose([float(c[3]) for c in caps], 1.0, atol=10 * n * EPS * np.linalg.cond(
+        system.joint.mass_matrix))
+
+
+def test_the_piecewise_linear_sources_into_one_node_are_one_device():
+    """Under a dense T⁻ᵀ every force drives every node: the PWL terms of one node are written
+    as one PWL source (their sum), the others (a sine) as they are."""
+    sc = scene("random10").replace(topology="modal")
+    system = sc.system()
+    text = netlist(system, "fast", printing=False)
+    sources = [line.split()[0] for line in text.splitlines() if line.startswith("I")
+               and not line.startswith("Ifirst")]
+    kinds = {type(w).__name__ for ws in system.forces for w in ws}
+    sines = sum(isinstance(w, Sine) for ws in system.forces for w in ws)
+    assert "Sine" in kinds and len(sources) == system.dof * (1 + sines)
+    assert all(f"In{k}" in sources for k in range(1, system.dof + 1))
+
+
+def test_a_sum_of_piecewise_linear_waveforms_is_their_pointwise_sum():
+    """Σ cₖ·fₖ(t) of PWL waveforms is PWL through the union of their times: equal everywhere,
+    corners and the ends included, to the rounding of the sum (ε·Σ|cₖ·fₖ|)."""
+    terms = [(Step(2.0), 0.5), (Step(-1.0, delay=0.3, rise=0.1), -3.0),
+             (PWL([(0.0, 1.0), (0.2, -1.0), (0.7, 4.0)]), 0.25), (PWL([(0.5, 2.0)]), 1.0)]
+    total = pwl_sum(terms)
+    t = np.unique(np.concatenate([np.linspace(0.0, 1.0, 1001), [0.2, 0.3, 0.4, 0.5, 0.7]]))
+    want = sum(c * w(t) for w, c in terms)
+    scale = sum(abs(c) * np.max(np.abs(w.values)) for w, c in terms)
+    np.testing.assert_allclose(total(t), want, rtol=0, atol=4 * EPS * scale)
+    assert total.spice(1.0, 1.0).startswith("PWL(")
+    assert pwl_sum([(Step(1.0), 2.0), (Step(3.0), -1.0)]).spice(1.0, 1.0) == "DC -1.0"
+
+
+def test_a_stack_of_configurations_gets_each_row_s_own_modes():
+    """node_systems at many q gives each row the modes of its own M(q), as node_system does."""
+    model = robot("serial3")
+    qs = [[0.0, 0.3, 0.2], [0.4, -0.2, 1.0]]
+    stack = node_systems(model, qs, topology="modal", forces=[1.0, 0.0, 0.5])
+    assert not np.allclose(stack[0].topology.matrix, stack[1].topology.matrix)
+    for k, q in enumerate(qs):
+        one = node_system(model, q, topology="modal", forces=[1.0, 0.0, 0.5])
+        np.testing.assert_array_equal(stack[k].topology.matrix, one.topology.matrix)
+
+
+@pytest.mark.ngspice
+@pytest.mark.parametrize("name", ["default", "random10"])
+@pytest.mark.parametrize("preset", ["fast", "accurate"])
+def test_the_modal_circuit_in_ngspice_keeps_the_preset_s_bound(name, preset):
+    """The modal circuit's joint rates against the exact solution, each against its own peak."""
+    system = scene(name).replace(topology="modal").system()
+    p = PRESETS[preset]
+    tr = solver("spice").solve(system, None, p)
+    ref = solve_exact(system, tr.time).rates
+    _, rel = output_errors(tr.rates, ref)
+    assert np.max(rel) <= p.bound
