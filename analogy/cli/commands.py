@@ -85,14 +85,14 @@ def _cmd_compare(args) -> int:
     if args.realizable and args.dynamics != "linear":
         raise InputError("--realizable applies to the linear circuit, not to --dynamics nonlinear or both")
     if args.dynamics == "both":
-        if args.estimate or args.no_reference:
+        if args.estimate or args.refine or args.no_reference:
             raise InputError("--dynamics both measures the linear circuit against the nonlinear reference: "
-                             "--estimate and --no-reference apply to one dynamics")
+                             "--estimate, --refine and --no-reference apply to one dynamics")
         return _compare_both(sc, args, solvers, step)
     system = sc.system().realized() if args.realizable else sc.system()
     reference = None if args.no_reference else "auto"
     result = compare(system, preset, solvers, step=step, progress=Heartbeat(), reference=reference,
-                     estimate=args.estimate)
+                     estimate=args.estimate, refine=args.refine)
     print(result.table())
     return _written_and_judged(result, result, args)
 

@@ -147,7 +147,8 @@ class Trajectory(Tabular):
         volts = interp(self.voltages)
         currents = {k: np.interp(t, self.time, x) for k, x in self.currents.items()}
         return Trajectory(self.solver, t, volts, joint_rates(volts), interp(self.positions), currents,
-                          self.success, f"interpolated from its {self.time.size} own time points",
+                          self.success, "; ".join(m for m in (self.message, f"interpolated from its {self.time.size} "
+                                                                               "own time points") if m),
                           self.stats, settings=self.settings)
 
     def at(self, rows: np.ndarray, message: str = "") -> "Trajectory":

@@ -13,7 +13,7 @@ from ..errors import InputError
 from ..presets import Preset
 from ..presets import preset as get_preset
 from ..solvers.registry import SOLVER_NAMES, run_many, solver
-from .estimate import estimated_errors
+from .estimate import MAX_REFINEMENTS, estimated_errors
 from .grid import output_grid
 from .measure import measure, subset, sufficient
 from .work import check_works
@@ -262,6 +262,13 @@ class Comparison(Tabular):
         return plot_comparison(self, path)
 
 
+def _noted(tr: Trajectory, level: int, seconds: float) -> Trajectory:
+    """*tr* with a note of how many times it was refined to meet its bound, and what every run cost."""
+    note = f"refined {level} time{'s' if level > 1 else ''} to meet the bound, {seconds:.3g} s for all runs"
+    tr.message = f"{tr.message}; {note}" if tr.message else note
+    return tr
+
+
 def _names(solvers: Sequence[str]) -> list[str]:
     names = list(dict.fromkeys(solvers))
     if not names:
@@ -295,7 +302,8 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
                  reference: str | None = "auto", step: float | None = None,
                  save: Sequence[str] = (), positions: bool = False,
                  t_stop: float | None = None, forces=None,
-                 progress: Callable[[str | None], None] | None = None, estimate: bool = False) -> list[Comparison]:
+                 progress: Callable[[str | None], None] | None = None, estimate: bool = False,
+                 refine: bool = False) -> list[Comparison]:
     """:func:`compare` for many systems, each solver running them together where it can.
 
     SPICE runs the systems as one circuit to the longest horizon, each system's output
@@ -332,6 +340,10 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
         Also estimate each solver's error without the reference: each runs again under
         refined settings (:func:`~analogy.study.estimate.estimated_errors`), which costs
         about what the first run did, and twice that for SPICE.
+    refine : bool
+        Estimate; where an estimate exceeds the bound, take the refined run and refine that in
+        turn (at most :data:`MAX_REFINEMENTS` times): the run reported is the first whose estimate
+        meets the bound, or the finest tried (flagged). Its note says how many times.
     """
     if not systems:
         return []
@@ -405,16 +417,32 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
         if progress is not None:
             progress(None)
     out = []
-    measured = measure(systems, runs, native, ref_name, p, tuple(save), resampled)
     estimates, unestimated = [{} for _ in systems], {}
-    if estimate:
+    if estimate or refine:
         if progress is not None:
             progress("estimates")
         try:
-            estimates, unestimated = estimated_errors(systems, {n: native.get(n, runs[n]) for n in order}, p)
+            estimates, unestimated, better = estimated_errors(systems, {n: native.get(n, runs[n]) for n in order}, p,
+                                                              MAX_REFINEMENTS if refine else 0)
         finally:
             if progress is not None:
                 progress(None)
+        for n in order:         # a refined run replaces the first: measured on its own points, shown on the grid
+            first = native.get(n, runs[n])
+            swap = {k: _noted(tr, level, first[k].run_time + spent) for k, got in enumerate(better) if n in got
+                    for tr, level, spent in [got[n]]}
+            if not swap:
+                continue
+            if solver(n).own_grid:
+                own = [sufficient(swap[k], systems[k], p) if k in swap and given is None else swap.get(k, tr)
+                       for k, tr in enumerate(native[n])]
+                native[n] = TrajectoryStack(own)
+                runs[n] = TrajectoryStack([tr.resampled(grids[k], systems[k].joint_rates) if k in swap else runs[n][k]
+                                           for k, tr in enumerate(own)])
+                resampled.add(n)
+            else:
+                runs[n] = TrajectoryStack([swap.get(k, tr) for k, tr in enumerate(runs[n])])
+    measured = measure(systems, runs, native, ref_name, p, tuple(save), resampled)
     columns = [(n, runs[n]) for n in order]
     for k, system in enumerate(systems):
         results, failures = {}, {}
@@ -451,7 +479,8 @@ def compare(system, preset: str | Preset = "accurate", solvers: Sequence[str] = 
             times=None, *, reference: str | None = "auto", step: float | None = None,
             save: Sequence[str] = (), positions: bool = False,
             t_stop: float | None = None, forces=None,
-            progress: Callable[[str | None], None] | None = None, estimate: bool = False) -> Comparison:
+            progress: Callable[[str | None], None] | None = None, estimate: bool = False,
+            refine: bool = False) -> Comparison:
     """Run the requested solvers on *system* and compare them on shared time points.
 
     A failing solver, or one that does not apply, is recorded in
@@ -483,7 +512,9 @@ def compare(system, preset: str | Preset = "accurate", solvers: Sequence[str] = 
         Called with each solver's name as it starts and with None when it ends.
     estimate : bool
         Also estimate each solver's error without the reference (see :func:`compare_many`).
+    refine : bool
+        Refine a run whose estimate exceeds the bound until it meets it (see :func:`compare_many`).
     """
     return compare_many([system], preset, solvers, times, reference=reference, step=step,
                         save=save, positions=positions, t_stop=t_stop, forces=forces, progress=progress,
-                        estimate=estimate)[0]
+                        estimate=estimate, refine=refine)[0]

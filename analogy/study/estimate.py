@@ -15,7 +15,7 @@ from ..results.trajectory import Trajectory
 from ..solvers.registry import run, run_many, solver
 from ..solvers.transient import REFINE
 
-__all__ = ["estimated_errors", "unresolved_outputs", "on_points", "REFINED_STEPS"]
+__all__ = ["estimated_errors", "unresolved_outputs", "on_points", "REFINED_STEPS", "MAX_REFINEMENTS"]
 
 
 def on_points(tr: Trajectory, times: np.ndarray, breakpoints: np.ndarray) -> np.ndarray:
@@ -117,6 +117,10 @@ def unresolved_outputs(system, time: np.ndarray, rates: np.ndarray, bound: float
     return out
 
 
+#: The most refinements past the first estimate when a run must meet its bound: 2³ times the steps
+#: (SPICE) and 1 + 2 + 4 + 8 = 15 times the first run's cost in all, or rtol 10⁶ times tighter (ODE).
+MAX_REFINEMENTS = 3
+
 #: A refined run must take at least this share of REFINE times the first run's steps: Richardson's
 #: factor assumes every step was shortened.
 REFINED_STEPS = 0.75
@@ -151,14 +155,21 @@ def _judged(system, coarse: Trajectory, fine: Trajectory, factor: float, names, 
                         per_output={o: (math.nan if o in blind else e) for o, e in est.per_output.items()})
 
 
-def estimated_errors(systems: Sequence, runs: dict[str, Sequence[Trajectory]], preset: Preset) -> \
-        tuple[list[dict[str, OutputErrors]], dict[str, str]]:
-    """Per system and solver, the estimated error of its joint rates, each against its own peak.
+def estimated_errors(systems: Sequence, runs: dict[str, Sequence[Trajectory]], preset: Preset,
+                     refine: int = 0) -> tuple[list[dict[str, OutputErrors]], dict[str, str], list[dict]]:
+    """Per system and solver, the estimated error of its joint rates, each against its own peak;
+    with *refine*, the run refined until its estimate meets the bound.
 
     Each solver with :meth:`~analogy.solvers.registry.Solver.refinements` runs again under the
-    first of them that refines its run (the next where one fails or is no refinement); the difference of the two runs on the first run's own points, times the refinement's
-    factor, is the estimate (Richardson's). A solver with its own points (SPICE) is read
-    between the second run's points by :func:`on_points`.
+    first of them that refines its run (the next where one fails or is no refinement); the
+    difference of the two runs on the first run's own points, times the refinement's factor,
+    is the estimate (Richardson's). A solver with its own points (SPICE) is read between the
+    second run's points by :func:`on_points`.
+
+    Where the estimate exceeds the bound and *refine* allows, the refined run becomes the run
+    to judge, and it is refined once more (the same rung again) for its own estimate: at most
+    *refine* times, each halving SPICE's steps (or the ODE's rtol a hundred times tighter).
+    The run handed back is always one whose error was estimated, never a prediction.
 
     Parameters
     ----------
@@ -168,6 +179,8 @@ def estimated_errors(systems: Sequence, runs: dict[str, Sequence[Trajectory]], p
         Each solver's trajectories, one per system, on the solver's own points.
     preset : Preset
         The settings they ran with.
+    refine : int
+        The most refinements past the first estimate, for a run estimated past the bound.
 
     Returns
     -------
@@ -176,8 +189,12 @@ def estimated_errors(systems: Sequence, runs: dict[str, Sequence[Trajectory]], p
     missing : dict of str to str
         Solvers with no estimate, and why (no refined settings; the refined run failed; an
         output its steps cannot see). The yardsticks (exact, reference) are in neither.
+    refined : list of dict of str to (Trajectory, int, float)
+        One dict per system: each solver whose run was replaced by a refined one, with how
+        many times it was refined and the seconds its refined runs took.
     """
     out: list[dict] = [{} for _ in systems]
+    better: list[dict] = [{} for _ in systems]
     missing: dict[str, str] = {}
     names = tuple(f"r{j + 1}" for j in range(systems[0].dof)) if len(systems) else ()
     for name, trs in runs.items():
@@ -189,13 +206,10 @@ def estimated_errors(systems: Sequence, runs: dict[str, Sequence[Trajectory]], p
             continue
         todo = [k for k, tr in enumerate(trs) if tr.success]
         why = ""
-        for finer, factor in ladder:           # each rung for the systems the one before could not refine
+        for rung, (finer, factor) in enumerate(ladder):     # each rung for the systems the one before could not refine
             if not todo:
                 break
-            if s.own_grid:
-                fines = run_many(name, [systems[k] for k in todo], None, finer)
-            else:
-                fines = [run(name, systems[k], trs[k].time, finer) for k in todo]
+            fines = _runs(s, name, [systems[k] for k in todo], [trs[k] for k in todo], finer)
             left = []
             for k, fine in zip(todo, fines):
                 coarse = trs[k]
@@ -206,7 +220,38 @@ def estimated_errors(systems: Sequence, runs: dict[str, Sequence[Trajectory]], p
                     left.append(k)
                     continue
                 out[k][name] = _judged(systems[k], coarse, fine, factor, names, preset, s.own_grid, missing, name)
+                if refine:
+                    _refine(s, name, systems[k], fine, finer, factor, rung, preset, refine, names, out[k], better[k],
+                            missing)
             todo = left
         if todo:                               # no rung refined these: no estimate, the last reason said
             missing[name] = why
-    return out, missing
+    return out, missing, better
+
+
+def _runs(s, name: str, systems: Sequence, coarse: Sequence[Trajectory], finer: Preset) -> list[Trajectory]:
+    """*systems* run again under *finer*: together where the solver chooses its points, else on the coarse runs' points."""
+    if s.own_grid:
+        return list(run_many(name, systems, None, finer))
+    return [run(name, system, tr.time, finer) for system, tr in zip(systems, coarse)]
+
+
+def _refine(s, name: str, system, fine: Trajectory, finer: Preset, factor: float, rung: int, preset: Preset,
+            most: int, names, estimates: dict, better: dict, missing: dict) -> None:
+    """While *name*'s estimate exceeds the bound, take its refined run as the run and refine that
+    once more by the same rung (at most *most* times); the last run estimated replaces the first."""
+    spent = fine.run_time
+    for level in range(1, most + 1):
+        est = estimates.get(name)
+        if est is None or not est.relative > preset.bound:      # met, or no claim (NaN): stop
+            return
+        for finest, factor in s.refinements(finer)[rung:]:     # the same rung, or the next where it does not refine
+            again = _runs(s, name, [system], [fine], finest)[0]
+            if again.success and not (s.own_grid and _not_refined(fine, again)):
+                break
+        else:
+            return          # no refinement of the run: the last estimate stands, past the bound (flagged)
+        spent += again.run_time
+        estimates[name] = _judged(system, fine, again, factor, names, finer, s.own_grid, missing, name)
+        better[name] = (fine, level, spent)
+        fine, finer = again, finest
