@@ -9,6 +9,8 @@ import pytest
 
 from analogy.results.trajectory import Trajectory
 from analogy.scenes.builtin import scene
+from analogy.scenes.scene import Scene
+from analogy.scenes.spec import ModelSpec
 from analogy.solvers.transient import REFINE, refined
 from analogy.stress.estimates import AGREEMENT, validate_estimates
 from analogy.stress.families import cases
@@ -269,3 +271,33 @@ def test_refine_leaves_a_run_within_its_bound_as_it_was():
 def test_refine_applies_to_one_dynamics_only():
     r = cli("compare", "--dynamics", "both", "--refine", "--no-plot")
     assert r.returncode == 2 and "Traceback" not in r.stderr and "--refine" in r.stderr
+
+
+def _large_motions():
+    """serial2 and serial3 under gravity, step and sine torques at three poses, and three joints spun
+    by a constant torque without gravity (18.8 to 32 rad): 15 motions of 10 s at `accurate`."""
+    poses = {"serial2": [(0.0, 0.0), (0.5, -0.8), (1.5708, 0.0)],
+             "serial3": [(0.0, 0.0, 0.0), (0.5, -0.8, 0.3), (1.5708, 0.0, 0.0)]}
+    torques = {"serial2": {"step": ("step(3)", "step(1)"), "sine": ("sine(0, 3, 0.5)", "sine(0, 1, 0.3)")},
+               "serial3": {"step": ("step(3)", "step(1)", "step(0.3)"),
+                           "sine": ("sine(0, 3, 0.5)", "sine(0, 1, 0.3)", "sine(0, 0.3, 0.7)")}}
+    out = [(f"{r} {kind} q={q}", Scene.of(r, ModelSpec(robot=r), q=q, forces=f, dynamics="nonlinear",
+                                          parameters={"g": 9.81}))
+           for r in poses for kind, f in torques[r].items() for q in poses[r]]
+    spins = [("serial2", (0.0, 0.0), ("step(0)", "step(2)")), ("serial2", (0.5, -0.8), ("step(0)", "step(2)")),
+             ("serial3", (0.0, 0.0, 0.0), ("step(0)", "step(0)", "step(1)"))]
+    return out + [(f"{r} spin q={q}", Scene.of(r, ModelSpec(robot=r), q=q, forces=f, dynamics="nonlinear"))
+                  for r, q, f in spins]
+
+
+@pytest.mark.deep
+@pytest.mark.parametrize("label, sc", _large_motions(), ids=[label for label, _ in _large_motions()])
+def test_a_large_motion_holds_the_bound_once_refined_or_its_estimate_says_it_does_not(label, sc):
+    """At `accurate` these miss 1e-6 against the DOP853 reference (measured: 2.3e-6 to 1.8e-5). Refined,
+    it meets the bound, or its estimate (which the nonlinear circuit's error floor stops from falling
+    as h²) still exceeds it and says so; the estimate never claims the bound where the truth is 3 times it."""
+    c = compare(sc.system(), "accurate", ("spice",), reference="reference", refine=True)
+    true, est = c.max_relative_error("spice"), c.estimated["spice"].relative
+    assert true <= c.bound or (est > c.bound and "still exceeds the bound" in c.results["spice"].message)
+    assert not (est <= c.bound and true > AGREEMENT * c.bound)
+    assert true / AGREEMENT <= est        # on the safe side of the factor

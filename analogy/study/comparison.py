@@ -262,10 +262,10 @@ class Comparison(Tabular):
         return plot_comparison(self, path)
 
 
-def _noted(tr: Trajectory, level: int, seconds: float) -> Trajectory:
-    """*tr* with a note of how many times it was refined to meet its bound, and what every run cost."""
-    note = f"refined {level} time{'s' if level > 1 else ''} to meet the bound, {seconds:.3g} s for all runs"
-    tr.message = f"{tr.message}; {note}" if tr.message else note
+def _noted(tr: Trajectory, level: int, seconds: float, met: bool) -> Trajectory:
+    """*tr* with a note of how many times it was refined for its bound, and what every run cost."""
+    tr.message = "; ".join(m for m in (tr.message, f"refined {level} time{'s' if level > 1 else ''} " + (
+        "to meet the bound" if met else "(its estimate still exceeds the bound)") + f", {seconds:.3g} s for all runs") if m)
     return tr
 
 
@@ -429,8 +429,8 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
                 progress(None)
         for n in order:         # a refined run replaces the first: measured on its own points, shown on the grid
             first = native.get(n, runs[n])
-            swap = {k: _noted(tr, level, first[k].run_time + spent) for k, got in enumerate(better) if n in got
-                    for tr, level, spent in [got[n]]}
+            swap = {k: _noted(tr, level, first[k].run_time + spent, estimates[k][n].relative <= p.bound)
+                    for k, got in enumerate(better) if n in got for tr, level, spent in [got[n]]}
             if not swap:
                 continue
             if solver(n).own_grid:

@@ -239,7 +239,8 @@ def _runs(s, name: str, systems: Sequence, coarse: Sequence[Trajectory], finer: 
 def _refine(s, name: str, system, fine: Trajectory, finer: Preset, factor: float, rung: int, preset: Preset,
             most: int, names, estimates: dict, better: dict, missing: dict) -> None:
     """While *name*'s estimate exceeds the bound, take its refined run as the run and refine that
-    once more by the same rung (at most *most* times); the last run estimated replaces the first."""
+    once more by the same rung (at most *most* times), as long as each estimate falls at least
+    REFINE times (REFINE² expected); the last run so estimated replaces the first."""
     spent = fine.run_time
     for level in range(1, most + 1):
         est = estimates.get(name)
@@ -252,6 +253,11 @@ def _refine(s, name: str, system, fine: Trajectory, finer: Preset, factor: float
         else:
             return          # no refinement of the run: the last estimate stands, past the bound (flagged)
         spent += again.run_time
-        estimates[name] = _judged(system, fine, again, factor, names, finer, s.own_grid, missing, name)
+        new = _judged(system, fine, again, factor, names, finer, s.own_grid, missing, name)
+        if not new.relative <= est.relative / REFINE:
+            # not falling as the step's square: past the range where Richardson's premise holds (a
+            # nonlinear circuit's Newton tolerance), so the run before stands with its estimate
+            return
+        estimates[name] = new
         better[name] = (fine, level, spent)
         fine, finer = again, finest
