@@ -293,7 +293,7 @@ def _large_motions():
 @pytest.mark.deep
 @pytest.mark.parametrize("label, sc", _large_motions(), ids=[label for label, _ in _large_motions()])
 def test_a_large_motion_holds_the_bound_once_refined_or_its_estimate_says_it_does_not(label, sc):
-    """At `accurate` these miss 1e-6 against the DOP853 reference (measured: 2.3e-6 to 1.8e-5). Refined,
+    """At `accurate` these miss 1e-6 against the DOP853 reference (measured: 2.2e-6 to 1.8e-5). Refined,
     it meets the bound, or its estimate (which the nonlinear circuit's error floor stops from falling
     as h²) still exceeds it and says so; the estimate never claims the bound where the truth is 3 times it."""
     c = compare(sc.system(), "accurate", ("spice",), reference="reference", refine=True)
