@@ -85,8 +85,11 @@ def test_spice_numbers_take_their_suffixes():
 def test_the_refined_netlist_halves_the_cap_and_tightens_the_step_control_eightfold():
     text = netlist(scene("default").system(), "fast")
     fine = refined_netlist(text)
-    opts = dict(t.split("=") for line in text.splitlines() if line.startswith(".options") for t in line.split()[1:])
-    finer = dict(t.split("=") for line in fine.splitlines() if line.startswith(".options") for t in line.split()[1:])
+    opts = dict(t.partition("=")[::2] for line in text.splitlines() if line.startswith(".options")
+                for t in line.split()[1:])
+    finer = dict(t.partition("=")[::2] for line in fine.splitlines() if line.startswith(".options")
+                 for t in line.split()[1:])
+    assert finer.get("klu") == opts.get("klu") == ""          # a flag, kept as written
     for key in ("reltol", "vntol", "chgtol"):
         assert float(finer[key]) == pytest.approx(float(opts[key]) / REFINE ** 3, rel=1e-5)
     # abstol stays: where it binds it is the rounding floor, under which the step collapses
@@ -234,6 +237,14 @@ def test_a_scene_asks_for_estimates_and_keeps_its_key_when_it_does_not(tmp_path)
     assert sc.estimate and not sc.errors
     result = run_scene(sc)
     assert result.comparison.reference is None and "spice" in result.comparison.estimated
+    with pytest.raises(Exception, match="does not estimate"):
+        run_batch([sc], "fast")
+    # refine = true: a key of its own, run by itself, refused by a batch
+    assert base.replace(refine=False).key == base.key != base.replace(refine=True).key
+    path.write_text(path.read_text().replace("estimate = true", "refine = true"))
+    sc = load_scene(path)
+    assert sc.refine and not sc.estimate
+    assert "spice" in run_scene(sc).comparison.estimated
     with pytest.raises(Exception, match="does not estimate"):
         run_batch([sc], "fast")
 

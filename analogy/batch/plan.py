@@ -139,9 +139,9 @@ def plan_groups(items: Sequence, group_size: int) -> list[Group]:
     """
     kinds: dict = {}
     for k, item in enumerate(items):
-        if getattr(item, "estimate", False):
+        if getattr(item, "estimate", False) or getattr(item, "refine", False):
             raise InputError("a batch measures errors against the reference and does not estimate them: "
-                             "run a scene with estimate = true by itself (analogy run)")
+                             "run a scene with estimate = true or refine = true by itself (analogy run)")
         family = item.family() if isinstance(item, Scene) else None
         key = ("family", family) if family is not None else \
             ("single", item.dynamics if isinstance(item, Scene) else item.kind)

@@ -99,7 +99,9 @@ def circuit(system, zero_tol: float = ZERO_TOL, realizable: bool = False, descri
         for c in couplings:
             e = c.element
             across = (v0[e.b - 1] if e.b else 0.0) - v0[e.a - 1]
-            initial += [(node, float(across)) for node in c.auxiliary_nodes]
+            # the VCVS output x holds its value by itself; KLU (ngspice 46) refuses an .ic on a
+            # node with no diagonal entry in its matrix, and x has none
+            initial.append((c.auxiliary_nodes[1], float(across)))
     return Circuit(system.dof, tuple(parts), current_sources(system, zero_tol), tuple(initial),
                    system.t_stop, couplings, (), comments(system) if describe else (),
                    system.provenance.robot)

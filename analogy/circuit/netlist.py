@@ -170,7 +170,7 @@ def analysis_lines(settings, ic: Iterable[tuple[str, float]], save: Iterable[str
         what is printed, not the steps taken.
     """
     save = list(save)
-    options = " ".join(f"{k}={v}" for k, v in settings.options)
+    options = " ".join(f"{k}={v}" if v != "" else k for k, v in settings.options)      # "": a flag
     lines = [
         ".ic " + " ".join(f"v({n})={_num(v)}" for n, v in ic),
         ".options " + options,

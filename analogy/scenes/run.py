@@ -81,7 +81,8 @@ def run_scene(scene: Scene, output_dir=None, progress=None) -> "SceneResult":
     reference = "auto" if scene.errors else ("exact" if "exact" in scene.solvers else None)
     currents = list(scene.element_currents)
     comparison = compare(system, p, scene.solvers, reference=reference, step=scene.step,
-                         save=currents, positions=bool(currents), progress=progress, estimate=scene.estimate)
+                         save=currents, positions=bool(currents), progress=progress, estimate=scene.estimate,
+                         refine=scene.refine)
     ran = getattr(comparison.results.get("spice"), "settings", None)
     if scene.netlist and ran is not None and ran.loosen != 1.0:
         write_netlist(ran.loosen)   # the settings of the retry that ran, not those that collapsed

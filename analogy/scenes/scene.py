@@ -33,7 +33,7 @@ SCENE_SCHEMA = "analogy-scene-2"
 _NOT_CONTENT = ("name", "description", "source", "netlist_file", "csv_file", "plot_file")
 _WHEN_SET = ("urdf", "joints", "joint_frame", "geometric_stiffness")
 #: Scene fields added after SCENE_SCHEMA, in its key only when not at these defaults: earlier keys stand.
-_SCENE_WHEN_SET = {"estimate": False}
+_SCENE_WHEN_SET = {"estimate": False, "refine": False}
 
 
 @dataclass(frozen=True)
@@ -86,6 +86,9 @@ class Scene:
     estimate : bool
         Also estimate each solver's error without the reference, by a refined second run
         (:func:`~analogy.study.estimate.estimated_errors`); with *errors* off it alone judges the bound.
+    refine : bool
+        Estimate, and refine a run whose estimate exceeds the bound until it meets it
+        (``compare(..., refine=True)``).
     step : float or None
         Output step; None keeps SPICE's own points.
     source : str or None
@@ -113,6 +116,7 @@ class Scene:
     preset: PresetName = "accurate"
     errors: bool = True
     estimate: bool = False
+    refine: bool = False
     step: float | None = None
     description: str = ""
     source: str | None = None

@@ -59,7 +59,7 @@ _TABLES = {
     "configuration": ("q", "topology", "equilibrium"),
     "inputs": ("forces", "initial_rates", "t_stop"),
     "outputs": ("joint_rates", "node_voltages", "element_currents", "netlist", "csv", "plot"),
-    "solvers": ("use", "preset", "errors", "estimate", "step"),
+    "solvers": ("use", "preset", "errors", "estimate", "refine", "step"),
 }
 _TOP = ("name", "description", "dynamics") + tuple(_TABLES)
 _BARE = re.compile(r"^[A-Za-z0-9_-]+$")
@@ -288,7 +288,7 @@ def scene_from_table(data: dict, source="scene.toml") -> Scene:
                     netlist=outputs["netlist"], netlist_file=outputs["netlist_file"],
                     csv_file=outputs["csv"], plot_file=outputs["plot"], solvers=tuple(use),
                     preset=solvers["preset"], errors=solvers["errors"], estimate=solvers["estimate"],
-                    step=solvers["step"], **fields)
+                    refine=solvers["refine"], step=solvers["step"], **fields)
 
 
 def _urdf_spec(ctx: _Context, model: dict) -> ModelSpec:
@@ -486,7 +486,7 @@ def _relative_file(ctx, key: str, value: str) -> str:
 
 
 def _solvers(ctx, data) -> dict:
-    out = {"use": None, "preset": "accurate", "errors": True, "estimate": False, "step": None}
+    out = {"use": None, "preset": "accurate", "errors": True, "estimate": False, "refine": False, "step": None}
     raw = data.get("solvers")
     if raw is None:
         return out
@@ -507,7 +507,7 @@ def _solvers(ctx, data) -> dict:
             if isinstance(table["preset"], bool) or not isinstance(table["preset"], (str, int, float)):
                 raise InputError(f"expected a preset name or a tolerance, got {_kind(table['preset'])}")
             out["preset"] = get_preset(table["preset"]).name
-    for flag in ("errors", "estimate"):
+    for flag in ("errors", "estimate", "refine"):
         if not isinstance(table.get(flag, False), bool):
             raise ctx.error(f"[solvers] {flag}", f"expected true or false, got {_kind(table[flag])}")
         out[flag] = table.get(flag, out[flag])

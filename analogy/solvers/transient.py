@@ -193,6 +193,8 @@ def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | Non
     if p.refine and p.refine_tolerances:  # abstol too: the rounding floor below keeps it where it binds
         opts.update({k: f"{float(opts[k]) / REFINE ** (3 * p.refine):.3g}" for k in (*STEP_TOLERANCES, "abstol")
                      if k in opts})
+    if not behavioural:     # a flag: KLU where ngspice has it (46; 39 ignores it). ngspice 46 aborts a
+        opts["klu"] = ""    # behavioural circuit under KLU ("out of memory": an .ic on a node with no diagonal entry)
     if coupled:
         opts["method"] = "gear"
     if constrained:

@@ -7,6 +7,7 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
+from ..circuit.elements import laplacian_split
 from ..circuit.scales import combined_scales, stack_scales, system_scales
 from ..errors import InputError
 from ..presets import Preset
@@ -29,7 +30,7 @@ class WorkEstimate(NamedTuple):
 def point_operations(system) -> float:
     """The operations of one SPICE time point of *system*'s circuit: Σᵢ cᵢ².
 
-    cᵢ counts the nonzeros of row i of M', B' and K' together, the nodes that node i's
+    cᵢ counts the floating elements at node i, from M', B' and K' together, the nodes that node i's
     parts couple it to: a sparse LU whose fill stays inside that pattern costs Σᵢ cᵢ²
     (n³ for a dense M', n for a diagonal one), and it is refactored at every Newton
     step. A nonlinear circuit couples every node through M'(x) and counts as dense.
@@ -42,9 +43,10 @@ def point_operations(system) -> float:
     n = system.dof
     if system.kind != "linear":
         return float(n) ** 3
-    pattern = (system.mass != 0) | (system.damping != 0) | np.eye(n, dtype=bool)
-    if system.stiffness is not None:
-        pattern |= system.stiffness != 0
+    pattern = np.eye(n, dtype=bool)
+    for x in (system.mass, system.damping, system.stiffness):
+        if x is not None:       # the floating elements the circuit keeps: rounding is no coupling
+            pattern |= laplacian_split(x)[1] != 0
     couplings = pattern.sum(axis=1, dtype=float)
     return float(couplings @ couplings)
 
