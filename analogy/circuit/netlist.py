@@ -120,15 +120,18 @@ def circuit_lines(c: Circuit, prefix: str = "", memo: dict | None = None) -> lis
         elif isinstance(p, BehaviouralCurrent):
             lines.append(f"B{prefix}{p.name} {b} {a} I={{{_prefixed(spice_expression(p.current), prefix)}}}")
     # 'I n+ n- value' drives current out of n+ and into n-: into a, out of b.
-    lines += [f"I{prefix}{name[1:]} {_node(b, prefix)} {_node(a, prefix)} {v}"
-              for name, a, b, v in _source_values(c.sources, c.t_stop, memo)]
+    for name, a, b, v, terms in _source_values(c.sources, c.t_stop, memo):
+        if terms:       # the description's sources it stands for, by their names
+            lines.append(f"* I{prefix}{name[1:]} is the sum of " + ", ".join(f"I{prefix}{t[1:]}" for t in terms))
+        lines.append(f"I{prefix}{name[1:]} {_node(b, prefix)} {_node(a, prefix)} {v}")
     return lines
 
 
-def _source_values(sources, t_stop: float, memo: dict | None) -> list[tuple[str, int, int, str]]:
-    """(name, a, b, value) of each source device: the grounded piecewise-linear sources into one
+def _source_values(sources, t_stop: float, memo: dict | None) -> list[tuple[str, int, int, str, tuple]]:
+    """(name, a, b, value, terms) of each source device: the grounded piecewise-linear sources into one
     node are one device ``In<k>`` whose PWL is their sum (under a custom map T⁻ᵀ every joint
-    drives every node, and ngspice evaluates n² sources at every step otherwise); the rest as given."""
+    drives every node, and ngspice evaluates n² sources at every step otherwise), with the names of
+    the sources it sums as *terms*; the rest as given."""
     merged: dict[int, list] = {}
     for s in sources:
         if s.b == 0 and isinstance(s.waveform, PWL):
@@ -144,10 +147,11 @@ def _source_values(sources, t_stop: float, memo: dict | None) -> list[tuple[str,
                 value = s.waveform.spice(s.scale, t_stop)
                 if memo is not None:        # one waveform drives many circuits of a batch: its text is made once
                     memo[s.waveform][key] = value
-            out.append((s.name, s.a, s.b, value))
+            out.append((s.name, s.a, s.b, value, ()))
         elif s.a not in written:
             written.add(s.a)
-            out.append((f"In{s.a}", s.a, 0, pwl_sum([(g.waveform, g.scale) for g in group]).spice(1.0, t_stop)))
+            out.append((f"In{s.a}", s.a, 0, pwl_sum([(g.waveform, g.scale) for g in group]).spice(1.0, t_stop),
+                        tuple(g.name for g in group)))
     return out
 
 
