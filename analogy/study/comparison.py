@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Callable, Sequence
 
 import numpy as np
@@ -434,11 +434,11 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
             if not swap:
                 continue
             if solver(n).own_grid:
-                own = [sufficient(swap[k], systems[k], p) if k in swap and given is None else swap.get(k, tr)
-                       for k, tr in enumerate(native[n])]
-                native[n] = TrajectoryStack(own)
-                runs[n] = TrajectoryStack([tr.resampled(grids[k], systems[k].joint_rates) if k in swap else runs[n][k]
-                                           for k, tr in enumerate(own)])
+                native[n] = TrajectoryStack([sufficient(swap[k], systems[k], p) if k in swap and given is None
+                                             else swap.get(k, tr) for k, tr in enumerate(native[n])])
+                runs[n] = TrajectoryStack([replace(swap[k].resampled(grids[k], systems[k].joint_rates),  # all its points
+                                                   message=native[n][k].message) if k in swap else tr
+                                           for k, tr in enumerate(runs[n])])
                 resampled.add(n)
             else:
                 runs[n] = TrajectoryStack([swap.get(k, tr) for k, tr in enumerate(runs[n])])
