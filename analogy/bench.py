@@ -145,22 +145,26 @@ class BenchResult:
         fig = Figure(figsize=(4.6 * len(scenes), 5.2), layout="constrained")
         axes = np.atleast_1d(fig.subplots(1, len(scenes), sharex=True, sharey=True))
         markers = {"spice": "o", "ode": "s", "exact": "*", "reference": "P"}
-        # One colour per solver setting family in every panel, so a family reads across scenes.
-        families = list(dict.fromkeys((r.solver, r.setting.split(" ")[0]) for r in self.rows))
-        colour = {f: f"C{k % 10}" for k, f in enumerate(f for f in families if f[0] != "reference")}
+        # One colour per solver setting family in every panel, so a family reads across scenes; the
+        # modal circuit's settings are dashed, in the colour of the same settings on the scene's own.
+        families = list(dict.fromkeys((r.solver, _family(r.setting)) for r in self.rows))
+        bases = list(dict.fromkeys((sv, f.removeprefix("modal ")) for sv, f in families if sv != "reference"))
+        colour = {f: f"C{bases.index((f[0], f[1].removeprefix('modal '))) % 10}" for f in families
+                  if f[0] != "reference"}
         colour.update({f: "k" for f in families if f[0] == "reference"})
         handles: dict = {}
         for ax, sc in zip(axes, scenes):
             rows = [r for r in self.rows if r.scene == sc]
             for solver, family in families:
-                sel = [r for r in rows if r.solver == solver and r.setting.split(" ")[0] == family
+                sel = [r for r in rows if r.solver == solver and _family(r.setting) == family
                        and r.status == "ok" and np.isfinite(r.error)]
                 if not sel:
                     continue
                 sel.sort(key=lambda r: r.error)
                 (line,) = ax.loglog([max(r.error, 1e-17) for r in sel], [r.median_s for r in sel],
                                     marker=markers[solver], ms=8 if solver == "exact" else 4,
-                                    color=colour[(solver, family)], ls="-" if solver != "exact" else "none",
+                                    color=colour[(solver, family)],
+                                    ls="none" if solver == "exact" else "--" if family.startswith("modal ") else "-",
                                     label=f"{solver} {family}")
                 handles.setdefault(line.get_label(), line)
             unref = [r for r in rows if r.solver == "exact" and r.status == "ok" and not np.isfinite(r.error)]
@@ -184,6 +188,12 @@ class BenchResult:
         if path is not None:
             fig.savefig(path, dpi=110)
         return fig
+
+
+def _family(setting: str) -> str:
+    """A setting's family in the plot: its method or preset, ``modal`` before it on the modal circuit."""
+    words = setting.split(" ")
+    return " ".join(words[:2]) if words[0] == "modal" and len(words) > 1 else words[0]
 
 
 def bench_scenes(quick: bool = False) -> list[Scene]:

@@ -260,11 +260,12 @@ def test_a_run_past_its_bound_is_refined_until_its_estimate_meets_it_and_the_tru
     system = _stiff_light_pair()
     plain = compare(system, "fast", ("spice",))
     assert plain.max_relative_error("spice") > plain.bound           # the premise: the first run misses
-    c = compare(system, "fast", ("spice",), refine=True)
+    c = compare(system, "fast", ("spice",), refine=True, save=("C1",), positions=True)
     true, est = c.max_relative_error("spice"), c.estimated["spice"].relative
+    tr = c.results["spice"]     # the refined run keeps what the first was asked for
+    assert tr.currents["C1"].shape == tr.time.shape
     assert est <= c.bound and true <= c.bound
     assert true / AGREEMENT <= est <= true * AGREEMENT
-    tr = c.results["spice"]
     assert "to meet the bound" in tr.message and tr.stats.steps > REFINE * plain.results["spice"].stats.steps
     assert not c.outside_bound()
 
@@ -312,3 +313,24 @@ def test_a_large_motion_holds_the_bound_once_refined_or_its_estimate_says_it_doe
     assert true <= c.bound or (est > c.bound and "still exceeds the bound" in c.results["spice"].message)
     assert not (est <= c.bound and true > AGREEMENT * c.bound)
     assert true / AGREEMENT <= est        # on the safe side of the factor
+
+
+def test_a_scene_s_netlist_file_is_the_refined_run_it_reports(tmp_path):
+    """With refine = true the written netlist is the run reported: its step cap, not the preset's."""
+    from analogy.scenes.run import run_scene
+    from analogy.scenes.toml import load_scene
+    path = tmp_path / "pair.toml"        # the stiff, lightly damped pair above, as a scene file
+    path.write_text('name = "pair"\n[model]\nmass = [[1.0, 0.2], [0.2, 1.0]]\ndamping = [0.02, 2.0]\n'
+                    'stiffness = [1.0, 10000.0]\n[configuration]\ntopology = "parallel"\n'
+                    '[inputs]\nforces = [1.0, 1.0]\nt_stop = 10\n[outputs]\njoint_rates = true\nnetlist = "pair.cir"\n'
+                    '[solvers]\nuse = ["spice", "exact"]\npreset = "fast"\nrefine = true\n')
+    result = run_scene(load_scene(path), output_dir=tmp_path)
+    tr = result.comparison.results["spice"]
+    assert "refined" in tr.message
+    tran = next(line.split() for line in (tmp_path / "pair.cir").read_text().splitlines() if line.startswith(".tran"))
+    assert float(tran[4]) == pytest.approx(tr.settings.max_step, rel=1e-12)
+    assert tr.settings.max_step < netlist_cap(load_scene(path).system(), "fast")
+
+
+def netlist_cap(system, preset):
+    return float(next(line.split() for line in netlist(system, preset).splitlines() if line.startswith(".tran"))[4])

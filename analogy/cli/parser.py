@@ -53,7 +53,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "(ODE), and the difference, times Richardson's factor, is the estimate")
     p.add_argument("--refine", action="store_true", help="estimate (as --estimate), and where a solver's "
                    "estimate exceeds the bound, take its refined run and refine that in turn, at most 3 times "
-                   "(every step halved each time), until its estimated error meets the bound")
+                   "(SPICE: every step halved; ODE: rtol 100 times tighter), until its estimated error meets the bound")
     p.add_argument("--no-reference", action="store_true", help="run no reference solution: with --estimate, "
                    "the estimate alone judges the bound")
     p.add_argument("--realizable", action="store_true", help="the circuit solvers (spice, gnucap) run the "

@@ -68,8 +68,8 @@ def run_scene(scene: Scene, output_dir=None, progress=None) -> "SceneResult":
     save = save_names(scene, system)
     title = f"analogy scene {scene.name}" + (f": {scene.description}" if scene.description else "")
 
-    def write_netlist(loosen: float = 1.0) -> None:
-        result.netlist = make_netlist(system, p, save=save, title=title, loosen=loosen)
+    def write_netlist(settings=None) -> None:
+        result.netlist = make_netlist(system, p, save=save, title=title, settings=settings)
         if scene.netlist_file:
             path = _write_text(scene.path(scene.netlist_file, output_dir), result.netlist)
             if path not in result.written:
@@ -83,9 +83,10 @@ def run_scene(scene: Scene, output_dir=None, progress=None) -> "SceneResult":
     comparison = compare(system, p, scene.solvers, reference=reference, step=scene.step,
                          save=currents, positions=bool(currents), progress=progress, estimate=scene.estimate,
                          refine=scene.refine)
-    ran = getattr(comparison.results.get("spice"), "settings", None)
-    if scene.netlist and ran is not None and ran.loosen != 1.0:
-        write_netlist(ran.loosen)   # the settings of the retry that ran, not those that collapsed
+    spice = comparison.results.get("spice")
+    if scene.netlist and spice is not None and spice.settings is not None and (
+            "retried" in spice.message or "refined" in spice.message):
+        write_netlist(spice.settings)   # what ran: a retry's settings, or the refined run's
     result.time = comparison.time
     result.failures = dict(comparison.failures)
     result.reference = comparison.reference

@@ -265,7 +265,8 @@ def _settings_of(system, c: Circuit, preset, loosen: float = 1.0) -> TransientSe
 
 def netlist(system, preset: str | Preset = "accurate", save: Iterable[str] | None = None,
             zero_tol: float = ZERO_TOL, title: str | None = None, realizable: bool | None = None,
-            printing: bool = True, loosen: float = 1.0, dialect: Dialect = "ngspice") -> str:
+            printing: bool = True, loosen: float = 1.0, dialect: Dialect = "ngspice",
+            settings: TransientSettings | None = None) -> str:
     """The netlist the spice solver runs for *system*; ``ngspice -b`` runs and prints it unchanged.
 
     Parameters
@@ -291,6 +292,9 @@ def netlist(system, preset: str | Preset = "accurate", save: Iterable[str] | Non
     dialect : {"ngspice", "gnucap"}
         The engine that reads it: ngspice's language, or gnucap's for a linear circuit
         (:func:`~analogy.circuit.netlist.gnucap_lines`).
+    settings : TransientSettings, optional
+        The settings a run took (:attr:`Trajectory.settings`: a retry's, a refined run's),
+        instead of those *preset* gives.
     """
     if isinstance(system, Circuit):
         settings = transient_settings(preset, system.t_stop, None, behavioural=bool(system.behavioural),
@@ -299,7 +303,7 @@ def netlist(system, preset: str | Preset = "accurate", save: Iterable[str] | Non
         return write_netlist(system, settings, save, title, printing, dialect)
     c = describe(system, zero_tol, getattr(system, "realizable", False) if realizable is None else realizable)
     try:
-        settings = _settings_of(system, c, preset, loosen)
+        settings = settings or _settings_of(system, c, preset, loosen)
     except SimulationError as exc:      # no netlist can be written for it: the input's scale
         raise InputError(str(exc)) from None
     return write_netlist(c, settings, save, title, printing, dialect)

@@ -13,7 +13,7 @@ from ..errors import InputError
 from ..presets import Preset
 from ..presets import preset as get_preset
 from ..solvers.registry import SOLVER_NAMES, run_many, solver
-from .estimate import MAX_REFINEMENTS, estimated_errors
+from .estimate import MAX_REFINEMENTS, estimated_errors, refined_run
 from .grid import output_grid
 from .measure import measure, subset, sufficient
 from .work import check_works
@@ -262,13 +262,6 @@ class Comparison(Tabular):
         return plot_comparison(self, path)
 
 
-def _noted(tr: Trajectory, level: int, seconds: float, met: bool) -> Trajectory:
-    """*tr* with a note of how many times it was refined for its bound, and what every run cost."""
-    tr.message = "; ".join(m for m in (tr.message, f"refined {level} time{'s' if level > 1 else ''} " + (
-        "to meet the bound" if met else "(its estimate still exceeds the bound)") + f", {seconds:.3g} s for all runs") if m)
-    return tr
-
-
 def _names(solvers: Sequence[str]) -> list[str]:
     names = list(dict.fromkeys(solvers))
     if not names:
@@ -423,14 +416,14 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
             progress("estimates")
         try:
             estimates, unestimated, better = estimated_errors(systems, {n: native.get(n, runs[n]) for n in order}, p,
-                                                              MAX_REFINEMENTS if refine else 0)
+                                                              MAX_REFINEMENTS if refine else 0, save, want_x)
         finally:
             if progress is not None:
                 progress(None)
         for n in order:         # a refined run replaces the first: measured on its own points, shown on the grid
             first = native.get(n, runs[n])
-            swap = {k: _noted(tr, level, first[k].run_time + spent, estimates[k][n].relative <= p.bound)
-                    for k, got in enumerate(better) if n in got for tr, level, spent in [got[n]]}
+            swap = {k: refined_run(tr, level, first[k].run_time + spent, estimates[k][n].relative <= p.bound,
+                              systems[k], save) for k, got in enumerate(better) if n in got for tr, level, spent in [got[n]]}
             if not swap:
                 continue
             if solver(n).own_grid:

@@ -8,6 +8,7 @@ from typing import Sequence
 import numpy as np
 from scipy.interpolate import CubicSpline
 
+from ..circuit.currents import trajectory_currents
 from ..circuit.scales import system_scales
 from ..presets import Preset
 from ..results.metrics import PEAK_FLOOR, OutputErrors, output_errors
@@ -15,7 +16,7 @@ from ..results.trajectory import Trajectory
 from ..solvers.registry import run, run_many, solver
 from ..solvers.transient import REFINE
 
-__all__ = ["estimated_errors", "unresolved_outputs", "on_points", "REFINED_STEPS", "MAX_REFINEMENTS"]
+__all__ = ["estimated_errors", "unresolved_outputs", "on_points", "refined_run", "REFINED_STEPS", "MAX_REFINEMENTS"]
 
 
 def on_points(tr: Trajectory, times: np.ndarray, breakpoints: np.ndarray) -> np.ndarray:
@@ -117,8 +118,9 @@ def unresolved_outputs(system, time: np.ndarray, rates: np.ndarray, bound: float
     return out
 
 
-#: The most refinements past the first estimate when a run must meet its bound: 2³ times the steps
-#: (SPICE) and 1 + 2 + 4 + 8 = 15 times the first run's cost in all, or rtol 10⁶ times tighter (ODE).
+#: The most refinements past the first estimate when a run must meet its bound: a reported run of up
+#: to 2³ times the steps (SPICE), estimated by one of 2⁴, so 1 + 2 + 4 + 8 + 16 = 31 times the first
+#: run's cost in all; or rtol up to 10⁶ times tighter (ODE).
 MAX_REFINEMENTS = 3
 
 #: A refined run must take at least this share of REFINE times the first run's steps: Richardson's
@@ -156,7 +158,8 @@ def _judged(system, coarse: Trajectory, fine: Trajectory, factor: float, names, 
 
 
 def estimated_errors(systems: Sequence, runs: dict[str, Sequence[Trajectory]], preset: Preset,
-                     refine: int = 0) -> tuple[list[dict[str, OutputErrors]], dict[str, str], list[dict]]:
+                     refine: int = 0, save: Sequence[str] = (), positions: bool = False) -> \
+        tuple[list[dict[str, OutputErrors]], dict[str, str], list[dict]]:
     """Per system and solver, the estimated error of its joint rates, each against its own peak;
     with *refine*, the run refined until its estimate meets the bound.
 
@@ -181,6 +184,9 @@ def estimated_errors(systems: Sequence, runs: dict[str, Sequence[Trajectory]], p
         The settings they ran with.
     refine : int
         The most refinements past the first estimate, for a run estimated past the bound.
+    save, positions :
+        What a refined run that may replace the first must keep (element currents, node
+        positions), as the first run was asked for.
 
     Returns
     -------
@@ -191,12 +197,13 @@ def estimated_errors(systems: Sequence, runs: dict[str, Sequence[Trajectory]], p
         output its steps cannot see). The yardsticks (exact, reference) are in neither.
     refined : list of dict of str to (Trajectory, int, float)
         One dict per system: each solver whose run was replaced by a refined one, with how
-        many times it was refined and the seconds its refined runs took.
+        many times it was refined and the seconds every refined run took (those refused too).
     """
     out: list[dict] = [{} for _ in systems]
     better: list[dict] = [{} for _ in systems]
     missing: dict[str, str] = {}
     names = tuple(f"r{j + 1}" for j in range(systems[0].dof)) if len(systems) else ()
+    keep = {"save": tuple(save), "positions": positions} if refine else {}
     for name, trs in runs.items():
         s = solver(name)
         ladder = s.refinements(preset)
@@ -209,7 +216,7 @@ def estimated_errors(systems: Sequence, runs: dict[str, Sequence[Trajectory]], p
         for rung, (finer, factor) in enumerate(ladder):     # each rung for the systems the one before could not refine
             if not todo:
                 break
-            fines = _runs(s, name, [systems[k] for k in todo], [trs[k] for k in todo], finer)
+            fines = _runs(s, name, [systems[k] for k in todo], [trs[k] for k in todo], finer, keep)
             left = []
             for k, fine in zip(todo, fines):
                 coarse = trs[k]
@@ -222,42 +229,79 @@ def estimated_errors(systems: Sequence, runs: dict[str, Sequence[Trajectory]], p
                 out[k][name] = _judged(systems[k], coarse, fine, factor, names, preset, s.own_grid, missing, name)
                 if refine:
                     _refine(s, name, systems[k], fine, finer, factor, rung, preset, refine, names, out[k], better[k],
-                            missing)
+                            missing, keep)
             todo = left
         if todo:                               # no rung refined these: no estimate, the last reason said
             missing[name] = why
     return out, missing, better
 
 
-def _runs(s, name: str, systems: Sequence, coarse: Sequence[Trajectory], finer: Preset) -> list[Trajectory]:
-    """*systems* run again under *finer*: together where the solver chooses its points, else on the coarse runs' points."""
+def _runs(s, name: str, systems: Sequence, coarse: Sequence[Trajectory], finer: Preset,
+          keep: dict) -> list[Trajectory]:
+    """*systems* run again under *finer* (keeping what *keep* asks): together where the solver
+    chooses its points, else on the coarse runs' points."""
     if s.own_grid:
-        return list(run_many(name, systems, None, finer))
-    return [run(name, system, tr.time, finer) for system, tr in zip(systems, coarse)]
+        return list(run_many(name, systems, None, finer, **keep))
+    return [run(name, system, tr.time, finer, **keep) for system, tr in zip(systems, coarse)]
 
 
 def _refine(s, name: str, system, fine: Trajectory, finer: Preset, factor: float, rung: int, preset: Preset,
-            most: int, names, estimates: dict, better: dict, missing: dict) -> None:
+            most: int, names, estimates: dict, better: dict, missing: dict, keep: dict) -> None:
     """While *name*'s estimate exceeds the bound, take its refined run as the run and refine that
     once more by the same rung (at most *most* times), as long as each estimate falls at least
     REFINE times (REFINE² expected); the last run so estimated replaces the first."""
-    spent = fine.run_time
+    spent = _seconds(fine)
     for level in range(1, most + 1):
         est = estimates.get(name)
         if est is None or not est.relative > preset.bound:      # met, or no claim (NaN): stop
-            return
+            break
         for finest, factor in s.refinements(finer)[rung:]:     # the same rung, or the next where it does not refine
-            again = _runs(s, name, [system], [fine], finest)[0]
+            again = _runs(s, name, [system], [fine], finest, keep)[0]
+            spent += _seconds(again)
             if again.success and not (s.own_grid and _not_refined(fine, again)):
                 break
         else:
-            return          # no refinement of the run: the last estimate stands, past the bound (flagged)
-        spent += again.run_time
-        new = _judged(system, fine, again, factor, names, finer, s.own_grid, missing, name)
+            break           # no refinement of the run: the last estimate stands, past the bound (flagged)
+        blind: dict = {}
+        new = _judged(system, fine, again, factor, names, finer, s.own_grid, blind, name)
         if not new.relative <= est.relative / REFINE:
             # not falling as the step's square: past the range where Richardson's premise holds (a
             # nonlinear circuit's Newton tolerance), so the run before stands with its estimate
-            return
+            break
+        missing.update(blind)
         estimates[name] = new
         better[name] = (fine, level, spent)
         fine, finer = again, finest
+    if name in better:                  # every refined run counted, those refused too
+        better[name] = better[name][:2] + (spent,)
+
+
+def _seconds(tr: Trajectory) -> float:
+    return tr.run_time if math.isfinite(tr.run_time) else 0.0
+
+
+def refined_run(tr: Trajectory, level: int, seconds: float, met: bool, system, save: Sequence[str]) -> Trajectory:
+    """*tr*, a refined run that replaces the first, with a note of how many times it was refined
+    for its bound and what every run cost, and the element currents *save* asks for.
+
+    Parameters
+    ----------
+    tr : Trajectory
+        The refined run.
+    level : int
+        How many times it was refined past the first estimate.
+    seconds : float
+        What the first run and every refined run took.
+    met : bool
+        Its estimate meets the bound.
+    system : NodeDynamics
+        Its system (element currents from its node voltages).
+    save : sequence of str
+        Element currents to report, as the first runs got them.
+    """
+    if save and not tr.currents:
+        tr.currents = trajectory_currents(system, tr, save)
+    note = f"refined {level} time{'s' if level > 1 else ''} " + ("to meet the bound" if met else
+                                                                "(its estimate still exceeds the bound)")
+    tr.message = "; ".join(m for m in (tr.message, f"{note}, {seconds:.3g} s for all runs") if m)
+    return tr

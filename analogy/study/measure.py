@@ -100,7 +100,7 @@ def measure(systems, runs, native, ref_name, p, save=(), resampled=frozenset()) 
                     out[k][name] = OutputErrors.zero(names)
                 continue
             if name in resampled:      # measured on its own points, with the reference there
-                refs = run_many(ref_name, subset(systems, ok), own[ok[0]].time, p)
+                refs = run_many(ref_name, subset(systems, ok), own[ok[0]].time, p, positions=bool(save))
                 if save:
                     for j, k in enumerate(ok):
                         if refs[j].success and not refs[j].currents:
