@@ -1,4 +1,4 @@
-"""Joint-to-node maps v = T·r: serial, parallel or any invertible T."""
+"""Joint-to-node maps v = T·r: serial, parallel, modal (one node per mode) or any invertible T."""
 
 from __future__ import annotations
 
