@@ -137,10 +137,10 @@ def _source_values(sources, t_stop: float, memo: dict | None) -> list[tuple[str,
         if s.b == 0 and isinstance(s.waveform, PWL):
             merged.setdefault(s.a, []).append(s)
     merged = {k: group for k, group in merged.items() if len(group) > 1}
+    summed = {id(s) for group in merged.values() for s in group}
     out, written = [], set()
     for s in sources:
-        group = merged.get(s.a) if s.b == 0 else None
-        if group is None or s not in group:
+        if id(s) not in summed:
             key = (s.scale, t_stop)
             value = None if memo is None else memo.setdefault(s.waveform, {}).get(key)
             if value is None:
@@ -150,6 +150,7 @@ def _source_values(sources, t_stop: float, memo: dict | None) -> list[tuple[str,
             out.append((s.name, s.a, s.b, value, ()))
         elif s.a not in written:
             written.add(s.a)
+            group = merged[s.a]
             out.append((f"In{s.a}", s.a, 0, pwl_sum([(g.waveform, g.scale) for g in group]).spice(1.0, t_stop),
                         tuple(g.name for g in group)))
     return out

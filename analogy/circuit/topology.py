@@ -201,7 +201,7 @@ def modal(mass, damping, stiffness=None) -> Topology:
 
 TOPOLOGIES = {"serial": serial, "parallel": parallel}
 #: The topologies a scene names: ``modal`` is built from the system's own M, B and K.
-TOPOLOGY_NAMES = ("serial", "parallel", "modal")
+TOPOLOGY_NAMES = (*TOPOLOGIES, "modal")
 
 
 def topology(spec, n: int, matrices: tuple | None = None) -> Topology:

@@ -69,7 +69,10 @@ def run_scene(scene: Scene, output_dir=None, progress=None) -> "SceneResult":
     title = f"analogy scene {scene.name}" + (f": {scene.description}" if scene.description else "")
 
     def write_netlist(settings=None) -> None:
-        result.netlist = make_netlist(system, p, save=save, title=title, settings=settings)
+        text = make_netlist(system, p, save=save, title=title, settings=settings)
+        if text == result.netlist:
+            return
+        result.netlist = text
         if scene.netlist_file:
             path = _write_text(scene.path(scene.netlist_file, output_dir), result.netlist)
             if path not in result.written:
@@ -84,9 +87,8 @@ def run_scene(scene: Scene, output_dir=None, progress=None) -> "SceneResult":
                          save=currents, positions=bool(currents), progress=progress, estimate=scene.estimate,
                          refine=scene.refine)
     spice = comparison.results.get("spice")
-    if scene.netlist and spice is not None and spice.settings is not None and (
-            "retried" in spice.message or "refined" in spice.message):
-        write_netlist(spice.settings)   # what ran: a retry's settings, or the refined run's
+    if scene.netlist and spice is not None and spice.settings is not None:
+        write_netlist(spice.settings)   # what ran, where it differs: a retry's settings, or a refined run's
     result.time = comparison.time
     result.failures = dict(comparison.failures)
     result.reference = comparison.reference

@@ -421,9 +421,12 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
             if progress is not None:
                 progress(None)
         for n in order:         # a refined run replaces the first: measured on its own points, shown on the grid
-            first = native.get(n, runs[n])
-            swap = {k: refined_run(tr, level, first[k].run_time + spent, estimates[k][n].relative <= p.bound,
-                              systems[k], save) for k, got in enumerate(better) if n in got for tr, level, spent in [got[n]]}
+            first, swap = native.get(n, runs[n]), {}
+            for k, got in enumerate(better):
+                if n in got:
+                    tr, level, spent = got[n]
+                    swap[k] = refined_run(tr, level, first[k].run_time + spent, estimates[k][n].relative <= p.bound,
+                                          systems[k], save)
             if not swap:
                 continue
             if solver(n).own_grid:
