@@ -198,7 +198,7 @@ def test_a_long_run_is_measured_on_its_sufficient_subset_within_bernstein_s_fact
     from analogy.study.grid import SUBSET_FROM
     # the default arm over 100 s with a step cap of 5e-4 s: 2·10⁵ SPICE points, the subset a tenth of them
     system = scene("default").system().driven(None, 100.0)
-    p = replace(PRESETS["fast"], max_steps=200_000)
+    p = replace(PRESETS["fast"], max_steps=200_000, calibrated=False)     # the cap as given
     c = compare(system, p, ("spice", "exact"))
     spice = c.results["spice"]
     assert spice.stats.steps > SUBSET_FROM and spice.time.size < spice.stats.steps / 2

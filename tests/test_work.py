@@ -17,7 +17,7 @@ from analogy.study.work import check_work, estimate_work
 
 
 @pytest.mark.parametrize("args, fragment", [
-    (["--t-stop", "1e9"], "about 1.2e+11 time points"),
+    (["--t-stop", "1e9"], "about 3.83e+09 time points"),   # the 1.91/s decay at β·h = 0.5
     (["--force", "sine(0, 1, 1e9)", "--force", "1"], "the fastest rate, 6.28e+09 rad/s"),
     (["--force", "pulse(0, 1, 0, 1e-6, 1e-6, 5e-5, 1e-4)", "--force", "1"], "400,001 segments"),
     (["--mass", "[[1, 0], [0, 1]]", "--stiffness", "[1e15, 1]", "--preset", "fast"], "budget of 1e+07"),
@@ -86,17 +86,18 @@ def test_a_spice_point_costs_the_sum_of_squared_couplings(pattern, operations):
 
 
 def test_a_circuit_too_large_for_spice_is_refused_and_runs_without_it():
-    """A dense 200-node circuit over the preset's 20,000-point step cap is 200³·2e4 = 1.6e11
-    operations, past the budget of 5e10, whatever its t_stop; the ODE and exact solvers still take it."""
-    n = 200
+    """A dense 400-node circuit at accurate takes at least 2,000 points whatever its t_stop (two per print
+    step t_stop/1000): 400³·2004 = 1.3e11 operations, past the budget of 5e10; the ODE and exact solvers
+    still take it."""
+    n = 400
     mass = np.full((n, n), 0.5) + np.eye(n)
     system = analogy.node_system(JointSpace(mass, np.eye(n)), t_stop=0.01)
     p = PRESETS["accurate"]
-    with pytest.raises(InputError, match=r"200 nodes\) would need about 1.6e\+11 operations") as caught:
+    with pytest.raises(InputError, match=r"400 nodes\) would need about 1.28e\+11 operations") as caught:
         check_work(system, p)
     assert "shorten t_stop" not in str(caught.value) and caught.value.field == "budget"
-    assert check_work(system, p, spice=False).points == p.max_steps + 4     # 4 points for its one force segment
-    assert check_work(system, replace(p, operation_budget=2e11)).operations == pytest.approx(1.6e11, rel=1e-3)
+    assert check_work(system, p, spice=False).points == 2 * p.steps + 4     # 4 points for its one force segment
+    assert check_work(system, replace(p, operation_budget=2e11)).operations == pytest.approx(n ** 3 * 2004, rel=1e-3)
 
 
 def test_every_built_in_scene_is_far_inside_the_operation_budget():

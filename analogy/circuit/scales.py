@@ -48,6 +48,10 @@ class Scales:
     decays, shares : ndarray
         Per overdamped or free mode: its decay rate β_k [1/s], and its velocity over the
         peak velocity (see :meth:`fastest`).
+    phases : ndarray
+        Per mode, the radians it rings through, weighted by what is left of it: the largest
+        ω_dk·t·e^(-β_k·t/2) for t ≤ t_stop (at t = 2/β_k, or t_stop if sooner) for an underdamped
+        mode, σ_k·t_stop for one that grows at σ_k, zero otherwise (see :meth:`ringing`).
     nodes : int or None
         The node count n (None: the length of *velocity*).
     top_velocity, top_position : float
@@ -61,6 +65,7 @@ class Scales:
     charge: float
     decays: np.ndarray = field(default_factory=lambda: np.zeros(0))
     shares: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    phases: np.ndarray = field(default_factory=lambda: np.zeros(0))
     nodes: int | None = None
     top_velocity: float = math.nan
     top_position: float = math.nan
@@ -112,6 +117,36 @@ class Scales:
         """
         big = self.decays[self.shares > 10 * bound]
         return max(self.omega_max, float(np.max(big)) if big.size else 0.0)
+
+    def ringing(self, bound: float) -> float:
+        """Φ: the most radians a mode larger than *bound* of the peak rings through within t_stop.
+
+        The trapezoidal rule's phase error grows with each radian a mode turns, and counts as much as
+        the mode has left (its amplitude falls as e^(-β·t/2)), so the error of a run at a set reltol
+        grows with Φ (:mod:`analogy.solvers.error_constants`).
+
+        Parameters
+        ----------
+        bound : float
+            The preset's promised error over the peak: a smaller mode cannot break it.
+        """
+        alive = self.phases[self.shares[:self.phases.size] > bound] if self.phases.size else self.phases
+        return float(np.max(alive)) if alive.size else 0.0
+
+    def decay_limit(self, product: float, bound: float) -> float:
+        """The step at which the fastest decay larger than 10·*bound* of the peak reaches β·h = *product*
+        (inf without one).
+
+        Parameters
+        ----------
+        product : float
+            β·h.
+        bound : float
+            The preset's bound.
+        """
+        big = self.decays[self.shares[:self.decays.size] > 10 * bound]
+        rate = float(np.max(big)) if big.size else 0.0
+        return product / rate if rate > 0 else math.inf
 
     def step_limit(self, phase: float, bound: float = math.inf) -> float:
         """The step at which the fastest rate advances by *phase* radians (inf without one).
@@ -247,10 +282,15 @@ def _estimated_scales(first, m, b, k, v0) -> list[Scales]:
     # overdamped or free modes decay at up to β_k; their share of the peak velocity
     share = np.max(np.abs(phi), axis=1) * (drive * span + start) * growth / np.max(velocity, axis=1, keepdims=True)
     decays = np.where((beta > 0) & (beta >= 2 * np.sqrt(np.maximum(mu, 0.0))), beta, 0.0)
+    # a mode's phase error grows as t while its amplitude falls as e^(-β·t/2): their product peaks at 2/β
+    lives = np.minimum(t_stop, np.where(beta > 0, 2 / np.maximum(np.abs(beta), 1e-300), np.inf))
+    phases = damped * lives * np.exp(-np.abs(beta) * lives / 2)
+    # a mode that grows at σ (an unstable equilibrium) carries its relative error as a phase does: σ·t_stop
+    phases = np.where(mu < 0, omega * t_stop, phases)
     tops = np.max(velocity, axis=1).tolist() if n else [1.0] * count
     reaches = np.max(position, axis=1).tolist() if n else [t_stop] * count
     return [Scales(float(fastest[j]), velocity[j], position[j], current, float(charge[j]), decays[j], share[j],
-                   None, tops[j], reaches[j]) for j in range(count)]
+                   phases[j], None, tops[j], reaches[j]) for j in range(count)]
 
 
 def combined_scales(scales: Sequence[Scales]) -> Scales:
@@ -265,4 +305,4 @@ def combined_scales(scales: Sequence[Scales]) -> Scales:
     return Scales(max(s.omega_max for s in scales), np.array([top]), np.array([reach]),
                   max(s.current for s in scales), max(s.charge for s in scales),
                   np.concatenate([s.decays for s in scales]), np.concatenate([s.shares for s in scales]),
-                  max(s.size for s in scales), top, reach)
+                  np.concatenate([s.phases for s in scales]), max(s.size for s in scales), top, reach)

@@ -278,6 +278,8 @@ def _positive(value: int, what: str) -> int:
 
 def _cmd_bench(args) -> int:
     from ..bench import bench
+    if args.calibrate is not None:
+        return _calibrate(args)
     check_plot_path(args.plot)
     check_writable(args.csv)
     check_writable(args.plot)
@@ -287,6 +289,24 @@ def _cmd_bench(args) -> int:
     result.to_csv(args.csv)
     result.plot(args.plot)
     print(f"wrote {args.csv} and {args.plot}")
+    return EXIT_OK
+
+
+def _calibrate(args) -> int:
+    from ..calibration import calibration_runs, error_constants_of, write_runs
+    from ..solvers.error_constants import CALIBRATION, write_constants
+    path = Path(args.calibrate or CALIBRATION)
+    beside = path.with_name(f"{path.stem}_runs.csv")
+    check_writable(path)
+    check_writable(beside)
+    runs = calibration_runs(progress=not args.no_progress)
+    rungs = error_constants_of(runs)
+    for r in rungs:
+        print(f"reltol {r.reltol:.0e}: error ≤ {r.c0:.3g}·reltol^(2/3) = {r.error:.2e} over {r.circuits} circuits "
+              f"(worst: {r.worst})")
+    write_constants(rungs, path)
+    write_runs(runs, beside)
+    print(f"wrote {path} and {beside}")
     return EXIT_OK
 
 

@@ -133,6 +133,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--full", action="store_true", help="the full ngspice grid (method x reltol x trtol x max step)")
     p.add_argument("--csv", default="bench.csv", help="CSV output (default: bench.csv)")
     p.add_argument("--plot", default="bench.png", help="work-precision plot (default: bench.png)")
+    p.add_argument("--calibrate", nargs="?", const="", metavar="FILE", help="instead, measure ngspice's error "
+                   "constants again (every calibration circuit at reltol 1e-5 to 1e-13, minutes) and write them to "
+                   "FILE (default: the package's own, which --tol and the presets read), the runs beside it")
     p.add_argument("--no-progress", action="store_true", help="no progress (a bar on a terminal, "
                    "plain lines otherwise)")
     p = sub.add_parser("stress", help="stress-test numerical stability: families of hard cases, each run by "

@@ -14,11 +14,12 @@ from ..circuit.elements import ZERO_TOL
 from ..circuit.netlist import Dialect, write_batch, write_netlist
 from ..circuit.scales import Scales, combined_scales, stack_scales, system_scales
 from ..errors import InputError, SimulationError
+from .error_constants import CALIBRATED_MAX_STEPS, CALIBRATED_TOPOLOGIES, calibrated_options, calibrated_reltol
 from ..presets import Preset
 from ..presets import preset as get_preset
 
 __all__ = ["TransientSettings", "transient_settings", "netlist", "batch_netlist", "ROUNDING_STEPS",
-           "NGSPICE_FIRST_STEP", "RETRY_LOOSEN", "REFINE", "refined", "STEP_TOLERANCES",
+           "NGSPICE_FIRST_STEP", "RETRY_LOOSEN", "REFINE", "refined", "STEP_TOLERANCES", "custom_topology",
            "NGSPICE_STEP_TOLERANCES"]
 
 #: Factors on abstol and vntol of the first run and of the retries after "time step too small".
@@ -154,7 +155,8 @@ def _shortest_gap(breakpoints: np.ndarray, t_stop: float) -> float:
 
 def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | None, *,
                        behavioural: bool = False, coupled: bool = False, constrained: bool = False,
-                       breakpoints: np.ndarray | None = None, loosen: float = 1.0) -> TransientSettings:
+                       breakpoints: np.ndarray | None = None, loosen: float = 1.0,
+                       custom: bool = False) -> TransientSettings:
     """The transient settings of a circuit with *scales* over *t_stop* at *preset*.
 
     The absolute tolerances are the preset's relative ones times the circuit's current,
@@ -187,9 +189,18 @@ def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | Non
         The forces' breakpoints.
     loosen : float
         Factor on abstol and vntol: the retry of a run whose step collapsed.
+    custom : bool
+        The circuit's node map T is none of :data:`~analogy.solvers.error_constants.CALIBRATED_TOPOLOGIES`:
+        the preset's own settings, as for a circuit the error constants do not speak for.
     """
     p = get_preset(preset)
     opts = dict(p.behavioural_options if behavioural else p.spice_options)
+    reltol = None       # the error constants measured trap alone, without couplings or multipliers
+    if p.calibrated and scales is not None and not (behavioural or coupled or constrained or custom):
+        reltol = calibrated_reltol(p.bound, scales.ringing(p.bound))
+    calibrated = reltol is not None
+    if calibrated:
+        opts.update(calibrated_options(reltol))
     if p.refine and p.refine_tolerances:  # abstol too: the rounding floor below keeps it where it binds
         opts.update({k: f"{float(opts[k]) / REFINE ** (3 * p.refine):.3g}" for k in (*STEP_TOLERANCES, "abstol")
                      if k in opts})
@@ -199,8 +210,11 @@ def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | Non
         opts["method"] = "gear"
     if constrained:
         opts["reltol"] = f"{min(float(opts.get('reltol', NGSPICE_RELTOL)), 10 * p.bound):.3g}"
-    tmax = t_stop / (p.behavioural_max_steps if behavioural else p.max_steps)
+    tmax = t_stop / (p.behavioural_max_steps if behavioural else CALIBRATED_MAX_STEPS if calibrated else p.max_steps)
     tstep = t_stop / p.steps
+    # ngspice -b's `interp` rows fall behind once steps near the print step: at tmax = 0.99·tstep the default
+    # scene's printed rows lagged by up to a row (1e-3 of the peak), at tstep/2 they held 9e-8
+    tmax = min(tmax, tstep / 2)
     first = NGSPICE_FIRST_STEP * tstep
     if scales is not None:
         need = scales.step_limit(p.first_phase_step, p.bound / 10)
@@ -208,7 +222,9 @@ def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | Non
             raise InputError(f"the circuit's fastest rate ({scales.omega_max:.3g} rad/s) leaves the range "
                              "ngspice can step: rescale the masses, dampers or springs")
         first = min(first, need)
-        tmax = min(tmax, max(scales.step_limit(p.phase_step, p.bound), t_stop / p.step_budget))
+        cap = min(scales.step_limit(math.inf if calibrated else p.phase_step, p.bound),
+                  scales.decay_limit(p.decay_step, p.bound))
+        tmax = min(tmax, max(cap, t_stop / p.step_budget))
         shortest = min(first, 0.1 * _shortest_gap(np.zeros(0) if breakpoints is None else breakpoints, t_stop))
         rounding = ROUNDING_STEPS * scales.rounding_current(shortest)
         for key, size in (("abstol", scales.current), ("vntol", scales.peak_velocity),
@@ -257,10 +273,21 @@ def refined(preset: str | Preset, tolerances: bool = True) -> Preset:
                    operation_budget=p.operation_budget * more)
 
 
+def custom_topology(system) -> bool:
+    """Whether *system*'s node map T is one the error constants were not measured on.
+
+    Parameters
+    ----------
+    system : NodeDynamics
+        The system.
+    """
+    return getattr(getattr(system, "topology", None), "name", "serial") not in CALIBRATED_TOPOLOGIES
+
+
 def _settings_of(system, c: Circuit, preset, loosen: float = 1.0) -> TransientSettings:
     return transient_settings(preset, system.t_stop, system_scales(system), behavioural=bool(c.behavioural),
                               coupled=bool(c.couplings), constrained=bool(c.constraints),
-                              breakpoints=system.breakpoints(), loosen=loosen)
+                              breakpoints=system.breakpoints(), loosen=loosen, custom=custom_topology(system))
 
 
 def netlist(system, preset: str | Preset = "accurate", save: Iterable[str] | None = None,
@@ -330,7 +357,8 @@ def batch_netlist(systems: Sequence, preset: str | Preset = "fast", scales: Scal
     ends = sorted({s.t_stop for s in systems})
     scales = scales or combined_scales(stack_scales(systems))
     points = [s.breakpoints() for s in systems if s.forces is not systems[0].forces] + [systems[0].breakpoints()]
-    settings = transient_settings(preset, ends[0], scales, breakpoints=np.concatenate(points))
+    settings = transient_settings(preset, ends[0], scales, breakpoints=np.concatenate(points),
+                                  custom=any(custom_topology(s) for s in systems))
     if len(ends) > 1:
         settings = replace(settings, stop=ends[-1], horizons=tuple(ends[:-1]))
     return write_batch(circuits(systems), settings)

@@ -11,6 +11,8 @@ from ..circuit.elements import laplacian_split
 from ..circuit.scales import combined_scales, stack_scales, system_scales
 from ..errors import InputError
 from ..presets import Preset
+from ..solvers.error_constants import CALIBRATED_MAX_STEPS, calibrated_reltol, step_phase
+from ..solvers.transient import custom_topology
 
 __all__ = ["WorkEstimate", "check_work", "check_works", "estimate_work", "point_operations"]
 
@@ -56,7 +58,9 @@ def estimate_work(system, preset: Preset, scales=None, stacked: int = 1) -> Work
 
     The points follow the fastest rate the preset resolves (one step per
     ``preset.phase_step`` radians of it, the SPICE step cap and the ODE's step size
-    alike) and no fewer than the preset's ``max_steps``, plus a few per force breakpoint. The SPICE circuit's operations are the
+    alike) and no fewer than the preset's ``max_steps``, plus a few per force breakpoint. A linear
+    system at a calibrated preset takes the steps of its reltol on its fastest oscillation
+    (:func:`~analogy.solvers.error_constants.step_phase`) or of the decay cap, whichever are more. The SPICE circuit's operations are the
     points times :func:`point_operations`.
 
     Parameters
@@ -78,11 +82,31 @@ def estimate_work(system, preset: Preset, scales=None, stacked: int = 1) -> Work
         units = getattr(getattr(system, "provenance", None), "units", None) or ("rad",) * system.dof
         turning = [abs(float(r)) for r, u in zip(system.initial_rates, units) if u == "rad"]
         rate = max([rate, *turning])
-    phase = preset.phase_step if math.isfinite(preset.phase_step) else 1.0
-    # at least t_stop/max_steps: the SPICE step cap
-    points = max(system.t_stop * rate / phase, preset.max_steps) + _POINTS_PER_SEGMENT * segments
+    reltol = _reltol(system, preset, scales)
+    if reltol is not None:      # the steps the truncation check takes on the fastest oscillation, the decay cap
+        points = max(system.t_stop * scales.omega_max / step_phase(reltol),
+                     system.t_stop / scales.decay_limit(preset.decay_step, preset.bound))
+    else:
+        phase = preset.phase_step if math.isfinite(preset.phase_step) else 1.0
+        points = system.t_stop * rate / phase
+    points = max(points, _fewest(system, preset, reltol is not None)) + _POINTS_PER_SEGMENT * segments
     points = points if math.isfinite(points) else math.inf
     return WorkEstimate(points, segments, rate, points * stacked * point_operations(system))
+
+
+def _reltol(system, preset: Preset, scales) -> float | None:
+    """The calibrated reltol the SPICE run takes, or None where the preset's own settings run."""
+    if preset.calibrated and system.kind == "linear" and not custom_topology(system):
+        return calibrated_reltol(preset.bound, scales.ringing(preset.bound))
+    return None
+
+
+def _fewest(system, preset: Preset, calibrated: bool | None = None) -> int:
+    """The points any t_stop takes: the SPICE step cap's (t_stop/50 where calibrated, else t_stop/max_steps),
+    and at least two per print step (the cap is half of it, see :func:`~analogy.solvers.transient.transient_settings`)."""
+    if calibrated is None:
+        calibrated = _reltol(system, preset, system_scales(system)) is not None
+    return max(CALIBRATED_MAX_STEPS if calibrated else preset.max_steps, 2 * preset.steps)
 
 
 def check_work(system, preset: Preset, scales=None, *, stacked: int = 1, spice: bool = True) -> WorkEstimate:
@@ -114,7 +138,8 @@ def check_work(system, preset: Preset, scales=None, *, stacked: int = 1, spice: 
                          field="budget")
     if spice and work.operations > preset.operation_budget:
         size = f"{stacked} circuits of {system.dof} nodes" if stacked > 1 else f"{system.dof} nodes"
-        shorter = ", shorten t_stop" if work.points > preset.max_steps + _POINTS_PER_SEGMENT * work.segments else ""
+        shorter = ", shorten t_stop" if work.points > _fewest(system, preset) + _POINTS_PER_SEGMENT * work.segments \
+            else ""
         raise InputError(f"the SPICE circuit ({size}) would need about {work.operations:.3g} operations "
                          f"({work.points:.3g} time points of {work.operations / work.points:.3g}), more than "
                          f"the budget of {preset.operation_budget:.3g}: solve it without spice{shorter}, "
