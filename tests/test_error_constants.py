@@ -99,7 +99,7 @@ def test_a_calibrated_preset_takes_its_reltol_from_the_constants_and_the_cap_the
         opts = dict(s.options)
         assert float(opts["reltol"]) == pytest.approx(spice_reltol(p.bound), rel=5e-3)
         assert opts["trtol"] == "1" and opts["method"] == "trap"
-        assert s.max_step == pytest.approx(min(10.0 / CALIBRATED_MAX_STEPS, s.print_step / 2))
+        assert s.max_step == pytest.approx(10.0 / CALIBRATED_MAX_STEPS)
     accurate = str(PRESETS["accurate"].spice_options["reltol"])
     for kind in ("coupled", "custom"):     # not measured: the preset's own options
         s = transient_settings(PRESETS["accurate"], 10.0, sc, **{kind: True})
@@ -107,3 +107,15 @@ def test_a_calibrated_preset_takes_its_reltol_from_the_constants_and_the_cap_the
     ringing = node_system(JointSpace(np.eye(1), np.zeros((1, 1)), np.array([[4.0]])), forces=[1.0], t_stop=10.0)
     s = transient_settings(PRESETS["accurate"], 10.0, system_scales(ringing))
     assert dict(s.options)["reltol"] == accurate and s.max_step < 10.0 / PRESETS["accurate"].max_steps * 1.0001
+
+
+def test_a_rounding_floor_past_the_calibrations_leaves_the_preset_s_own_settings(monkeypatch):
+    """Where abstol's rounding floor passes FLOOR_LIMIT of the current scale, the floor judges each
+    step, not reltol: the constants do not speak for the circuit."""
+    from analogy.solvers import transient
+    system = node_system(JointSpace(np.eye(2), np.diag([1.0, 2.0])), forces=[1.0, 0.5], t_stop=10.0)
+    p = PRESETS["accurate"]
+    assert dict(transient_settings(p, 10.0, system_scales(system)).options)["reltol"] != "1e-10"
+    monkeypatch.setattr(transient, "FLOOR_LIMIT", 0.0)
+    s = transient_settings(p, 10.0, system_scales(system))
+    assert dict(s.options)["reltol"] == "1e-10" and s.max_step <= 10.0 / p.max_steps

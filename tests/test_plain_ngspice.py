@@ -1,10 +1,9 @@
 """Every built-in robot's netlist, as `analogy netlist` writes it, runs in plain `ngspice -b`.
 
-Two claims per robot. (1) What is written is what runs in process: the printed table, on
-the print step, is the in-process run of the same text linearly interpolated there (the
-``option interp`` of the printing block), to the 15 printed digits. (2) That run, on its
-own points, keeps the preset's bound on every output against the exact solution (linear
-circuits) or the DOP853 reference (nonlinear ones), each output against its own peak.
+Two claims per robot. (1) What is written is what runs in process: the printed table is the
+in-process run of the same text, at the same time points, to the 15 printed digits. (2) That
+run keeps the preset's bound on every output against the exact solution (linear circuits) or
+the DOP853 reference (nonlinear ones), each output against its own peak.
 """
 
 import shutil
@@ -47,8 +46,7 @@ _FLEX = pytest.mark.xfail(strict=True, raises=BoundMissed,
 DEEP = [f"--robot serial{n}" for n in range(13, 21)] + [
     pytest.param(args, marks=_FLEX) for args in ("--robot flex1", "--robot flex2", "--robot flex2 --realizable")]
 
-#: Printed with 15 significant digits, interpolated alike: agreement to 1e-12 of the peak
-#: leaves a factor of 1000 over the printing and n·ε of the interpolation.
+#: Printed with 15 significant digits: agreement to 1e-12 of the peak leaves a factor of 1000 over the printing.
 PRINTED = 1e-12
 
 
@@ -69,10 +67,11 @@ def _check(args: str, tmp_path):
     preset = PRESETS["accurate"]          # the netlist command's default
     t = printed["time"]
     assert t.size < 100_000 and t[-1] == pytest.approx(system.t_stop, rel=1e-12)
-    # (1) the printed table is the in-process run of this very text, interpolated
+    # (1) the printed table is the in-process run of this very text, at its own points
     data = session().run(text, list(system.nodes))
     own = data["time"]
-    here = np.column_stack([np.interp(t, own, data[n]) for n in system.nodes])
+    assert own.size == t.size and np.max(np.abs(own - t)) <= PRINTED * t[-1]
+    here = np.column_stack([data[n] for n in system.nodes])
     there = np.column_stack([printed[n] for n in system.nodes])
     scale = np.max(np.abs(there))
     assert np.max(np.abs(here - there)) <= PRINTED * scale

@@ -102,9 +102,9 @@ def test_names_cannot_smuggle_spice_control_lines():
     s = node_system(js, forces=[1.0, 0.0], info={"robot": "evil\n.control\nshell rm -rf /\n.endc"})
     text = netlist(s, title="x\r\n.include /etc/passwd")
     directives = [ln.split()[0] for ln in text.splitlines() if ln.startswith(".")]
-    # the one control block is the printing one: numdgt and interp, which a run in process leaves out
+    # the one control block is the printing one: 15 digits, which a run in process leaves out
     assert directives == [".ic", ".options", ".tran", ".save", ".print", ".control", ".endc", ".end"]
-    assert text.split(".control\n")[1].split(".endc")[0] == "set numdgt=15\noption interp\n"
+    assert text.split(".control\n")[1].split(".endc")[0] == "set numdgt=15\n"
     with pytest.raises(InputError, match="unknown node"):
         netlist(s, save=["n1\n.control"])
 

@@ -9,7 +9,7 @@ from functools import lru_cache
 from pathlib import Path
 
 __all__ = ["ErrorConstant", "CALIBRATION", "CALIBRATED_MAX_STEPS", "CALIBRATED_TOPOLOGIES", "RELTOL_LIMITS",
-           "RINGING_LIMIT", "SAFETY", "calibrated_options",
+           "RINGING_LIMIT", "FLOOR_LIMIT", "SAFETY", "calibrated_options",
            "calibrated_reltol", "error_constants", "predicted_error", "spice_reltol", "read_constants",
            "step_phase", "write_constants"]
 
@@ -24,9 +24,14 @@ RELTOL_LIMITS = (1e-14, 1e-3)
 #: preset's own settings, with their phase cap, run those and are judged.
 RINGING_LIMIT = 1.0
 #: The room a chosen reltol leaves under the bound: its calibrated error is at most tol/SAFETY. Each
-#: constant is the worst of its calibration circuits, which that reltol would leave just on the bound;
-#: 1.25 costs 12 % more steps (steps go as error^-1/2).
+#: constant is the worst of its calibration circuits, which that reltol would leave just on the bound,
+#: and a circuit outside them can err more: the Panda's r3 (7 DOF, a peak 5 % of the largest) erred
+#: 2.1 times its calibrated error. 2.5 costs 58 % more steps than none (steps go as error^-1/2).
 SAFETY = 1.25
+#: The largest rounding floor of abstol (4·n·ε·charge over the first step), over the current scale, that
+#: the constants speak for: up to 3.6e-8 on the calibration circuits (random50). Past it the floor, not
+#: reltol, judges each step: the Panda's 3.2e-7 left its small r3 at 1.7e-6 at the accurate reltol.
+FLOOR_LIMIT = 5e-8
 #: The node maps the constants were measured on (a custom T erred 3e-6 at the accurate reltol).
 CALIBRATED_TOPOLOGIES = ("serial", "parallel", "modal")
 #: The step cap t_stop/50 (ngspice's own default) the constants are measured at and hold for.

@@ -146,7 +146,7 @@ _CONTROL = re.compile(r"^\s*\.control", re.I | re.M)
 
 def _without_control(lines: list[str]) -> list[str]:
     """*lines* without their ``.control`` … ``.endc`` blocks: a run in process is driven from
-    here, and what such a block sets (``option interp`` of a printed netlist) would stay set
+    here, and what such a block sets (``numdgt`` of a printed netlist) would stay set
     for every later circuit of the library."""
     out, inside = [], False
     for line in lines:

@@ -14,7 +14,8 @@ from ..circuit.elements import ZERO_TOL
 from ..circuit.netlist import Dialect, write_batch, write_netlist
 from ..circuit.scales import Scales, combined_scales, stack_scales, system_scales
 from ..errors import InputError, SimulationError
-from .error_constants import CALIBRATED_MAX_STEPS, CALIBRATED_TOPOLOGIES, calibrated_options, calibrated_reltol
+from .error_constants import (CALIBRATED_MAX_STEPS, CALIBRATED_TOPOLOGIES, FLOOR_LIMIT, calibrated_options,
+                              calibrated_reltol)
 from ..presets import Preset
 from ..presets import preset as get_preset
 
@@ -191,7 +192,9 @@ def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | Non
         Factor on abstol and vntol: the retry of a run whose step collapsed.
     custom : bool
         The circuit's node map T is none of :data:`~analogy.solvers.error_constants.CALIBRATED_TOPOLOGIES`:
-        the preset's own settings, as for a circuit the error constants do not speak for.
+        the preset's own settings, as for every circuit the error constants do not speak for (see
+        :data:`~analogy.presets.Preset.calibrated`; also one whose abstol's rounding floor passes
+        :data:`~analogy.solvers.error_constants.FLOOR_LIMIT` times its current scale).
     """
     p = get_preset(preset)
     opts = dict(p.behavioural_options if behavioural else p.spice_options)
@@ -212,9 +215,6 @@ def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | Non
         opts["reltol"] = f"{min(float(opts.get('reltol', NGSPICE_RELTOL)), 10 * p.bound):.3g}"
     tmax = t_stop / (p.behavioural_max_steps if behavioural else CALIBRATED_MAX_STEPS if calibrated else p.max_steps)
     tstep = t_stop / p.steps
-    # ngspice -b's `interp` rows fall behind once steps near the print step: at tmax = 0.99·tstep the default
-    # scene's printed rows lagged by up to a row (1e-3 of the peak), at tstep/2 they held 9e-8
-    tmax = min(tmax, tstep / 2)
     first = NGSPICE_FIRST_STEP * tstep
     if scales is not None:
         need = scales.step_limit(p.first_phase_step, p.bound / 10)
@@ -227,6 +227,11 @@ def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | Non
         tmax = min(tmax, max(cap, t_stop / p.step_budget))
         shortest = min(first, 0.1 * _shortest_gap(np.zeros(0) if breakpoints is None else breakpoints, t_stop))
         rounding = ROUNDING_STEPS * scales.rounding_current(shortest)
+        if calibrated and rounding > FLOOR_LIMIT * scales.current:
+            # a rounding floor past the calibration's judges each step, not reltol: the Panda's (3.2e-7) left
+            # its small r3 at 1.7e-6 at the accurate reltol, in 731 steps whatever the reltol
+            return transient_settings(preset, t_stop, scales, behavioural=behavioural, coupled=coupled,
+                                      constrained=constrained, breakpoints=breakpoints, loosen=loosen, custom=True)
         for key, size in (("abstol", scales.current), ("vntol", scales.peak_velocity),
                           ("chgtol", scales.charge)):
             if key not in opts:
@@ -312,8 +317,8 @@ def netlist(system, preset: str | Preset = "accurate", save: Iterable[str] | Non
         Build negative elements from positive ones behind inverting couplings (default:
         as the system says, :meth:`~analogy.circuit.node_system.NodeSystem.realized`).
     printing : bool
-        Print the saved vectors on the print step (``.print tran``, ``interp`` and 15
-        digits), which ``ngspice -b`` shows; the steps taken are the same without it.
+        Print the saved vectors at ngspice's own points (``.print tran`` and 15 digits),
+        which ``ngspice -b`` shows; the steps taken are the same without it.
     loosen : float
         Factor on abstol and vntol (see :class:`TransientSettings`).
     dialect : {"ngspice", "gnucap"}
