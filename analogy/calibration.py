@@ -72,10 +72,9 @@ def calibration_circuits() -> Iterator[tuple[str, object]]:
 
 
 def _rung(reltol: float) -> Preset:
-    # the fast preset's print step, the coarsest a preset has: its cap tstep/2 binds the loosest rungs
+    # the accurate preset's print step and first step, whose abstol floor the runs share
     return replace(PRESETS["accurate"], name=f"reltol {reltol:g}", spice_options=calibrated_options(reltol),
-                   steps=PRESETS["fast"].steps, max_steps=CALIBRATED_MAX_STEPS, phase_step=math.inf,
-                   calibrated=False)
+                   max_steps=CALIBRATED_MAX_STEPS, phase_step=math.inf, calibrated=False)
 
 
 def calibration_runs(reltols=CALIBRATION_RELTOLS, progress: bool = True) -> list[CalibrationRun]:
