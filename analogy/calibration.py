@@ -16,14 +16,16 @@ from .presets import PRESETS, Preset
 from .progress import Progress
 from .results.metrics import output_errors
 from .scenes.builtin import SCENES, scene
+from .scenes.scene import Scene
+from .scenes.spec import ModelSpec
 from .solvers.error_constants import CALIBRATED_MAX_STEPS, RINGING_LIMIT, ErrorConstant, calibrated_options
 from .solvers.exact import solve_exact
 from .solvers.spice import session
-from .solvers.transient import netlist
+from .solvers.transient import beyond_calibration, netlist
 from .circuit.scales import system_scales
 from .stress.families import cases
 
-__all__ = ["CalibrationRun", "CALIBRATION_RELTOLS", "calibration_circuits", "calibration_runs", "error_constants_of",
+__all__ = ["CalibrationRun", "CALIBRATION_RELTOLS", "SERIAL_CHAINS", "calibration_circuits", "calibration_runs", "error_constants_of",
            "write_runs"]
 
 #: The rungs, a decade apart: from the fast preset's reltol to past what 1e-9 asks for.
@@ -32,6 +34,8 @@ CALIBRATION_RELTOLS = tuple(10.0 ** -k for k in range(5, 14))
 #: past 1e4 sets a rounding floor over any reltol, and ratio 1e4 or 1e4 periods ask for 10^8 steps.
 _LEFT_OUT = ("cond 1e+00", "cond 1e+06", "cond 1e+08", "cond 1e+1", "ratio 1e+04", "ratio 1e+06", "ratio 1e+08",
              "100 periods", "1000 periods", "10000 periods")
+#: The serial chains measured, beside the built-in scenes (serial2, serial3).
+SERIAL_CHAINS = (6, 12)
 #: Φ is read at the accurate preset's bound: the modes that can reach 1e-6 of the peak.
 _BOUND = PRESETS["accurate"].bound
 
@@ -50,8 +54,8 @@ class CalibrationRun:
 
 def calibration_circuits() -> Iterator[tuple[str, object]]:
     """(name, linear node system): the bench's linear scenes (serial and modal), the built-in linear
-    scenes, and the stress families a (conditioning), b (time scales) and c (undamped runs), each that
-    does not ring (Φ ≤ :data:`~analogy.solvers.error_constants.RINGING_LIMIT`)."""
+    scenes, the serial chains :data:`SERIAL_CHAINS`, and the stress families a (conditioning), b (time
+    scales) and c (undamped runs), each that does not ring (Φ ≤ :data:`~analogy.solvers.error_constants.RINGING_LIMIT`)."""
     seen = set()
     found = []
     for sc in bench_scenes()[:3] + [scene(name) for name in SCENES]:
@@ -64,10 +68,14 @@ def calibration_circuits() -> Iterator[tuple[str, object]]:
         found.append((sc.name, system))
         if sc.name in ("default", "random10", "random50"):
             found.append((f"{sc.name} modal", sc.replace(topology="modal").system()))
+    # serial chains up to the longest the constants speak for (SERIAL_NODE_LIMIT)
+    for n in SERIAL_CHAINS:
+        sc = Scene.of(f"serial{n}", ModelSpec(robot=f"serial{n}"), q=(0.0,) * n, forces=(1.0,) * n)
+        found.append((sc.name, sc.system()))
     found += [(f"stress {case.family}: {case.label}", case.build()) for case in cases("abc")
               if not any(word in case.label for word in _LEFT_OUT)]
     for name, system in found:
-        if system_scales(system).ringing(_BOUND) <= RINGING_LIMIT:
+        if system_scales(system).ringing(_BOUND) <= RINGING_LIMIT and not beyond_calibration(system):
             yield name, system
 
 

@@ -119,3 +119,19 @@ def test_a_rounding_floor_past_the_calibrations_leaves_the_preset_s_own_settings
     monkeypatch.setattr(transient, "FLOOR_LIMIT", 0.0)
     s = transient_settings(p, 10.0, system_scales(system))
     assert dict(s.options)["reltol"] == "1e-10" and s.max_step <= 10.0 / p.max_steps
+
+
+@pytest.mark.deep
+@pytest.mark.ngspice
+@pytest.mark.parametrize("name", ["fast", "accurate", "1e-4"])
+def test_every_calibration_circuit_keeps_the_bound_its_tolerance_chose_a_reltol_for(name):
+    """Through the solver as a user runs it: each circuit the constants were measured on holds the
+    bound of the tolerance at the reltol the constants chose for it, per output."""
+    from analogy.calibration import calibration_circuits
+    from analogy.presets import preset
+    from analogy.study.comparison import compare
+    p = preset(name)
+    for label, system in calibration_circuits():
+        c = compare(system, p, ["spice", "exact"])
+        assert dict(c.results["spice"].settings.options)["reltol"] == f"{spice_reltol(p.bound):.3g}", label
+        assert c.errors()["spice"][1] <= p.bound, label

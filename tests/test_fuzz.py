@@ -102,7 +102,8 @@ def check_netlist(text: str) -> None:
     """Every line (split as the loader splits it) is one the writer meant; values are finite."""
     assert text.isascii()
     # the one control block allowed is the printing one, word for word, before .end
-    text = text.replace("\n.control\nset numdgt=15\n.endc\n.end\n", "\n.end\n")
+    for block in ("\n.control\nset numdgt=15\n.endc\n.end\n", "\n.control\nset numdgt=15\noption interp\n.endc\n.end\n"):
+        text = text.replace(block, "\n.end\n")
     for line in text.splitlines():      # splitlines also breaks at \r, \x0b, \x0c, \x1c-\x1e
         assert _LINE.match(line), f"unexpected netlist line {line!r}"
         if not line.startswith(("*", ".")):

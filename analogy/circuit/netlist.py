@@ -171,9 +171,8 @@ def analysis_lines(settings, ic: Iterable[tuple[str, float]], save: Iterable[str
         Vectors to save (``v(n1)``, ``@c1_2[i]``).
     printing : bool
         Add ``.print tran`` of the saved vectors with 15 significant digits, so that
-        ``ngspice -b`` prints them at its own time points: the values it computed, not an
-        interpolation onto the print step (linear interpolation between steps that the
-        truncation check lets grow errs more than the bound).
+        ``ngspice -b`` prints them: on the print step (``option interp``) where
+        ``settings.interpolate``, else at its own time points.
     """
     save = list(save)
     options = " ".join(f"{k}={v}" if v != "" else k for k, v in settings.options)      # "": a flag
@@ -185,7 +184,8 @@ def analysis_lines(settings, ic: Iterable[tuple[str, float]], save: Iterable[str
     ]
     if printing:
         # in a .control block, which a run in process leaves out (see analogy.solvers.ngspice)
-        lines += [".print tran " + " ".join(save), ".control", "set numdgt=15", ".endc"]
+        interp = ["option interp"] if getattr(settings, "interpolate", True) else []
+        lines += [".print tran " + " ".join(save), ".control", "set numdgt=15", *interp, ".endc"]
     return lines
 
 

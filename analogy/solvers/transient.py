@@ -14,13 +14,13 @@ from ..circuit.elements import ZERO_TOL
 from ..circuit.netlist import Dialect, write_batch, write_netlist
 from ..circuit.scales import Scales, combined_scales, stack_scales, system_scales
 from ..errors import InputError, SimulationError
-from .error_constants import (CALIBRATED_MAX_STEPS, CALIBRATED_TOPOLOGIES, FLOOR_LIMIT, calibrated_options,
-                              calibrated_reltol)
+from .error_constants import (CALIBRATED_MAX_STEPS, CALIBRATED_TOPOLOGIES, FLOOR_LIMIT, SERIAL_NODE_LIMIT,
+                              calibrated_options, calibrated_reltol)
 from ..presets import Preset
 from ..presets import preset as get_preset
 
 __all__ = ["TransientSettings", "transient_settings", "netlist", "batch_netlist", "ROUNDING_STEPS",
-           "NGSPICE_FIRST_STEP", "RETRY_LOOSEN", "REFINE", "refined", "STEP_TOLERANCES", "custom_topology",
+           "NGSPICE_FIRST_STEP", "RETRY_LOOSEN", "REFINE", "refined", "STEP_TOLERANCES", "beyond_calibration",
            "NGSPICE_STEP_TOLERANCES"]
 
 #: Factors on abstol and vntol of the first run and of the retries after "time step too small".
@@ -80,6 +80,11 @@ class TransientSettings:
     impedance : float or None
         The circuit's impedance scale [Ω]: its velocity scale over its current scale
         (gnucap's dialect sizes the resistance of its voltage sources from it).
+    interpolate : bool
+        ``ngspice -b`` prints on the print step, linearly interpolated (``option interp``):
+        where the step cap is far under the print step (the preset's own settings). A
+        calibrated run's steps grow as its truncation check allows, so it prints its own
+        points: interpolated, serial2's rows erred 7.6e-6 where its points held 2.7e-7.
     """
 
     options: tuple
@@ -90,6 +95,7 @@ class TransientSettings:
     loosen: float = 1.0
     horizons: tuple = ()
     impedance: float | None = None
+    interpolate: bool = True
 
     def with_method(self, method: str) -> "TransientSettings":
         """These settings with the integration method *method* (``trap`` or ``gear``).
@@ -191,8 +197,8 @@ def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | Non
     loosen : float
         Factor on abstol and vntol: the retry of a run whose step collapsed.
     custom : bool
-        The circuit's node map T is none of :data:`~analogy.solvers.error_constants.CALIBRATED_TOPOLOGIES`:
-        the preset's own settings, as for every circuit the error constants do not speak for (see
+        The circuit is beyond the calibration (:func:`beyond_calibration`): the preset's own settings,
+        as for every circuit the error constants do not speak for (see
         :data:`~analogy.presets.Preset.calibrated`; also one whose abstol's rounding floor passes
         :data:`~analogy.solvers.error_constants.FLOOR_LIMIT` times its current scale).
     """
@@ -247,7 +253,7 @@ def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | Non
     if scales is not None and scales.current > 0 and math.isfinite(scales.peak_velocity / scales.current):
         impedance = scales.peak_velocity / scales.current
     return TransientSettings(tuple((k, str(v)) for k, v in opts.items()), tstep, t_stop, tmax, first, loosen,
-                             impedance=impedance)
+                             impedance=impedance, interpolate=not calibrated)
 
 
 def refined(preset: str | Preset, tolerances: bool = True) -> Preset:
@@ -278,21 +284,23 @@ def refined(preset: str | Preset, tolerances: bool = True) -> Preset:
                    operation_budget=p.operation_budget * more)
 
 
-def custom_topology(system) -> bool:
-    """Whether *system*'s node map T is one the error constants were not measured on.
+def beyond_calibration(system) -> bool:
+    """Whether *system*'s circuit is of a kind the error constants were not measured on: a custom node
+    map T, or a serial chain of more than :data:`~analogy.solvers.error_constants.SERIAL_NODE_LIMIT` nodes.
 
     Parameters
     ----------
     system : NodeDynamics
         The system.
     """
-    return getattr(getattr(system, "topology", None), "name", "serial") not in CALIBRATED_TOPOLOGIES
+    name = getattr(getattr(system, "topology", None), "name", "serial")
+    return name not in CALIBRATED_TOPOLOGIES or (name == "serial" and system.dof > SERIAL_NODE_LIMIT)
 
 
 def _settings_of(system, c: Circuit, preset, loosen: float = 1.0) -> TransientSettings:
     return transient_settings(preset, system.t_stop, system_scales(system), behavioural=bool(c.behavioural),
                               coupled=bool(c.couplings), constrained=bool(c.constraints),
-                              breakpoints=system.breakpoints(), loosen=loosen, custom=custom_topology(system))
+                              breakpoints=system.breakpoints(), loosen=loosen, custom=beyond_calibration(system))
 
 
 def netlist(system, preset: str | Preset = "accurate", save: Iterable[str] | None = None,
@@ -363,7 +371,7 @@ def batch_netlist(systems: Sequence, preset: str | Preset = "fast", scales: Scal
     scales = scales or combined_scales(stack_scales(systems))
     points = [s.breakpoints() for s in systems if s.forces is not systems[0].forces] + [systems[0].breakpoints()]
     settings = transient_settings(preset, ends[0], scales, breakpoints=np.concatenate(points),
-                                  custom=any(custom_topology(s) for s in systems))
+                                  custom=any(beyond_calibration(s) for s in systems))
     if len(ends) > 1:
         settings = replace(settings, stop=ends[-1], horizons=tuple(ends[:-1]))
     return write_batch(circuits(systems), settings)

@@ -12,7 +12,7 @@ from ..circuit.scales import combined_scales, stack_scales, system_scales
 from ..errors import InputError
 from ..presets import Preset
 from ..solvers.error_constants import CALIBRATED_MAX_STEPS, calibrated_reltol, step_phase
-from ..solvers.transient import custom_topology
+from ..solvers.transient import beyond_calibration
 
 __all__ = ["WorkEstimate", "check_work", "check_works", "estimate_work", "point_operations"]
 
@@ -96,7 +96,7 @@ def estimate_work(system, preset: Preset, scales=None, stacked: int = 1) -> Work
 
 def _reltol(system, preset: Preset, scales) -> float | None:
     """The calibrated reltol the SPICE run takes, or None where the preset's own settings run."""
-    if preset.calibrated and system.kind == "linear" and not custom_topology(system):
+    if preset.calibrated and system.kind == "linear" and not beyond_calibration(system):
         return calibrated_reltol(preset.bound, scales.ringing(preset.bound))
     return None
 
