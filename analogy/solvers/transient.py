@@ -234,8 +234,8 @@ def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | Non
         shortest = min(first, 0.1 * _shortest_gap(np.zeros(0) if breakpoints is None else breakpoints, t_stop))
         rounding = ROUNDING_STEPS * scales.rounding_current(shortest)
         if calibrated and rounding > FLOOR_LIMIT * scales.current:
-            # a rounding floor past the calibration's judges each step, not reltol: the Panda's (3.2e-7) left
-            # its small r3 at 1.7e-6 at the accurate reltol, in 731 steps whatever the reltol
+            # a rounding floor past the calibration's may judge each step, not reltol: the Panda's (3.2e-7)
+            # left its small r3 at 1.7e-6 at the accurate reltol, in 731 steps whatever the reltol
             return transient_settings(preset, t_stop, scales, behavioural=behavioural, coupled=coupled,
                                       constrained=constrained, breakpoints=breakpoints, loosen=loosen, custom=True)
         for key, size in (("abstol", scales.current), ("vntol", scales.peak_velocity),
