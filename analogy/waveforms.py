@@ -84,9 +84,12 @@ class Waveform:
 
     def key(self) -> tuple:
         """The waveform's value as a hashable tuple: equal keys, equal waveforms (caches left out)."""
-        return (type(self).__name__,) + tuple(
-            (v.shape, v.tobytes()) if isinstance(v, np.ndarray) else v
-            for k, v in sorted(vars(self).items()) if not k.startswith("_"))
+        key = self.__dict__.get("_key")
+        if key is None:         # a waveform does not change once built (its arrays are read-only)
+            key = self._key = (type(self).__name__,) + tuple(
+                (v.shape, v.tobytes()) if isinstance(v, np.ndarray) else v
+                for k, v in sorted(vars(self).items()) if not k.startswith("_"))
+        return key
 
 
 def _call(name: str, values, keep: int) -> str:
@@ -108,6 +111,7 @@ class PWL(Waveform):
             raise InputError("pwl points must be finite")
         if pts[0, 0] < 0 or np.any(np.diff(pts[:, 0]) <= 0):
             raise InputError("pwl times must start at 0 or later and strictly increase")
+        pts.setflags(write=False)
         self.times = pts[:, 0]
         self.values = pts[:, 1]
 

@@ -184,3 +184,36 @@ def test_throughput_reports_the_ngspice_floor_beside_the_batched_path():
     assert share is not None and float(share.group(1)) > 0
     worst = [float(x) for x in re.findall(r"worst error/peak (\S+?),?\s", text + " ")]
     assert len(worst) == 4 and max(worst) <= 1e-3
+
+
+def test_a_stop_asked_of_the_process_halts_a_circuit_running_in_another_thread():
+    """The in-process batch runs groups on threads, so a stop reaches a running circuit through
+    the process's stop record: ngspice is halted, the run raises KeyboardInterrupt (no result),
+    and the session runs the next circuit soundly."""
+    import threading
+
+    from analogy.processes import stop_requests
+    from analogy.solvers.ngspice import session
+
+    # an undamped LC over 1e4 s at steps of at most 1e-5 s: 1e9 steps, far longer than the test
+    endless = "* endless\nL1 n1 0 1\nC1 n1 0 1\nI1 0 n1 DC 1\n.tran 1e-3 1e4 0 1e-5 uic\n.end\n"
+    raised: list = []
+
+    def run():
+        try:
+            session().run(endless, None, None, timeout=600.0)
+        except BaseException as exc:    # noqa: BLE001 - the test reads which
+            raised.append(type(exc))
+    worker = threading.Thread(target=run)
+    worker.start()
+    try:
+        worker.join(0.5)
+        assert worker.is_alive()        # still running: the stop below is what ends it
+        stop_requests.ask()
+        worker.join(60.0)
+    finally:
+        stop_requests.clear()
+    assert not worker.is_alive() and raised == [KeyboardInterrupt]
+    data = session().run("* after\nR1 n1 0 1\nC1 n1 0 1\nI1 0 n1 DC 1\n.tran 0.01 1 uic\n.end\n", ["n1"])
+    # v = 1 − e^(−t) on ngspice's points, within its default reltol (1e-3) of the peak, 1 V
+    assert np.allclose(data["n1"], 1 - np.exp(-data["time"]), rtol=0, atol=1e-3)

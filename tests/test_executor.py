@@ -4,7 +4,8 @@ import os
 import signal
 from pathlib import Path
 
-from analogy.batch.executor import ATTEMPTS, execute
+from analogy.batch import executor
+from analogy.batch.executor import ATTEMPTS, PIPELINE, execute
 
 
 def square_or_die(payload):
@@ -53,16 +54,22 @@ def test_a_dead_worker_s_group_is_run_again_and_one_that_always_kills_it_fails_a
     assert ATTEMPTS >= 2
 
 
-def test_sigterm_in_this_process_stops_the_loop_and_keeps_what_was_handed_over(tmp_path):
+def test_sigterm_in_this_process_stops_the_loop_and_keeps_every_finished_group(tmp_path):
+    """In this process the groups run on PIPELINE threads: SIGTERM (sent from group 5) stops the
+    loop, the groups in flight finish, and every finished group is handed over, in order from 0."""
     before = signal.getsignal(signal.SIGTERM)
-    results, died, interrupted = _run(tmp_path, 5 + 3, workers=1, in_process=True)
-    assert interrupted and results == {n: n * n for n in range(5)} and died == []
+    results, died, interrupted = _run(tmp_path, 5 + 3 + PIPELINE, workers=1, in_process=True)
+    assert interrupted and died == []
+    assert set(range(6)) <= set(results) <= set(range(5 + PIPELINE))
+    assert results == {n: n * n for n in range(len(results))}
     assert signal.getsignal(signal.SIGTERM) is before       # the caller's handler is back
 
 
-def test_sigterm_whose_exception_is_swallowed_still_stops_the_loop(tmp_path):
+def test_sigterm_whose_exception_is_swallowed_still_stops_the_loop(tmp_path, monkeypatch):
     """The handler's exception can be lost; its record is not: the loop stops at its next look,
-    after the group it was running, and the record is consumed (a later batch runs whole)."""
+    after the group it was running, and the record is consumed (a later batch runs whole). The
+    handler runs in the thread that runs the group only without the pipeline's threads."""
+    monkeypatch.setattr(executor, "PIPELINE", 1)
     results, died, interrupted = _run(tmp_path, 5 + 3, work=square_swallowing_sigterm, workers=1, in_process=True)
     assert interrupted and results == {n: n * n for n in range(6)} and died == []
     results, died, interrupted = _run(tmp_path, 3, workers=1, in_process=True)

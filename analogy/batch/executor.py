@@ -5,7 +5,7 @@ from __future__ import annotations
 import signal
 import sys
 import threading
-from concurrent.futures import FIRST_COMPLETED, CancelledError, Executor, Future, wait
+from concurrent.futures import FIRST_COMPLETED, CancelledError, Executor, Future, ThreadPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from typing import Callable, Iterable
 
@@ -19,6 +19,10 @@ ATTEMPTS = 2
 
 #: The longest the loop waits between looks at :data:`~analogy.processes.stop_requests` [s].
 _POLL_SECONDS = 0.25
+
+#: Groups in flight in this process (its :data:`in_process` worker): while one group's circuit
+#: runs in ngspice's own thread, which holds no Python lock, the next group's Python work goes on.
+PIPELINE = 2
 
 
 class InlineExecutor(Executor):
@@ -59,6 +63,22 @@ def _end_pool(pool) -> None:
         p.join(timeout=5)
 
 
+def _end_threads(pool, inflight: dict, done: Callable, threads: bool) -> None:
+    """Stop this process's group threads: a circuit in ngspice halted (its run raises, as a timed-out
+    one does), the groups in flight waited for, and those that finished handed over."""
+    if not threads:
+        return
+    asked = stop_requests.asked()
+    stop_requests.ask()             # what a running circuit's wait looks at
+    pool.shutdown(wait=True, cancel_futures=True)
+    if not asked:                   # Ctrl-C: no SIGTERM is left pending for the caller
+        stop_requests.clear()
+    for future, item in inflight.items():
+        if not future.cancelled() and future.exception() is None:
+            done(item[1], future.result())
+    inflight.clear()
+
+
 def _death_types() -> tuple:
     """Dask's report of a dead worker, when Dask is in use (never imported for it: a quarter second)."""
     scheduler = sys.modules.get("distributed.scheduler")
@@ -85,8 +105,9 @@ def execute(groups: Iterable, payload: Callable, work: Callable, done: Callable,
 
     Groups are submitted lazily, a few per worker, and each result is handed over as it
     arrives. Without *executor*, *workers* local processes run them (one: this process).
-    With *in_process*, one worker is this process itself; otherwise every group runs in a
-    worker process, so that a crash in one is that group's own. A group whose worker
+    With *in_process*, one worker is this process itself, with :data:`PIPELINE` groups in
+    flight on threads; otherwise every group runs in a worker process, so that a crash in one
+    is that group's own. A group whose worker
     died is retried, then given to ``died(group)``. SIGINT and
     SIGTERM stop the loop cleanly: what was handed over stays, workers are ended; with
     *pass_signals* the signal then goes on to the caller (KeyboardInterrupt, or SIGTERM
@@ -124,9 +145,11 @@ def execute(groups: Iterable, payload: Callable, work: Callable, done: Callable,
     local = own and (workers > 1 or not in_process)
 
     def new_pool():
-        return worker_pool(workers) if local else InlineExecutor()
+        if local:
+            return worker_pool(workers)
+        return ThreadPoolExecutor(PIPELINE, thread_name_prefix="analogy-group") if PIPELINE > 1 else InlineExecutor()
     pool = new_pool() if own else executor
-    limit = 4 * workers if local else 1 if own else 64     # in this process: each handed over at once
+    limit = 4 * workers if local else PIPELINE if own else 64
     pending = enumerate(groups)         # numbered: a retried group keeps its number
     inflight: dict = {}
     attempts: dict = {}
@@ -198,8 +221,10 @@ def execute(groups: Iterable, payload: Callable, work: Callable, done: Callable,
                 pool = new_pool()
     except KeyboardInterrupt:
         stopped = signal.SIGINT
+        _end_threads(pool, inflight, done, own and not local)
     except _Stop:
         stopped = signal.SIGTERM
+        _end_threads(pool, inflight, done, own and not local)
         stop_requests.clear()           # acted on: the caller hears of it below, or from the return
     except Exception as exc:
         # a group's own failure is its work's to report: what reaches here is the outside executor's
@@ -215,6 +240,8 @@ def execute(groups: Iterable, payload: Callable, work: Callable, done: Callable,
             signal.signal(signal.SIGTERM, old_term)
         if local:
             _end_pool(pool)
+        elif own:
+            pool.shutdown(wait=True, cancel_futures=True)
     if pass_signals:
         if stopped == signal.SIGINT:
             raise KeyboardInterrupt

@@ -124,6 +124,7 @@ def write_constants(rows, path) -> Path:
         for r in sorted(rows, key=lambda r: r.reltol):
             out.writerow([f"{r.reltol:.3g}", f"{r.c0:.4g}", r.circuits, r.worst])
     error_constants.cache_clear()
+    _shipped_reltol.cache_clear()
     return path
 
 
@@ -170,6 +171,18 @@ def spice_reltol(tol: float, rungs=None) -> float:
     rungs : sequence of ErrorConstant, optional
         The calibration (default :func:`error_constants`).
     """
+    if rungs is None:
+        return _shipped_reltol(float(tol))
+    return _bisected_reltol(tol, rungs)
+
+
+@lru_cache(maxsize=64)
+def _shipped_reltol(tol: float) -> float:
+    """:func:`spice_reltol` on the shipped calibration: a batch asks it once per group."""
+    return _bisected_reltol(tol, error_constants())
+
+
+def _bisected_reltol(tol: float, rungs) -> float:
     low, high = (math.log(v) for v in RELTOL_LIMITS)
     tol = tol / SAFETY
     if predicted_error(math.exp(high), rungs) <= tol:

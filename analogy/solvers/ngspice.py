@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import ctypes.util
-import itertools
 import locale
 import logging
 import os
@@ -12,17 +11,22 @@ import shutil
 import sys
 import tempfile
 import threading
+import time as _time
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import SpiceError
+from ..processes import stop_requests
 
 __all__ = ["NgspiceSession", "session", "run_netlist", "library_path", "vector_key"]
 
 _INFO_PREFIXES = ("warning", "note", "using", "doing analysis", "reference value",
                   "circuit:", "no. of data rows")
 _CDEF_DONE = False
+#: The longest a running circuit goes between looks at :data:`~analogy.processes.stop_requests` [s].
+_STOP_POLL = 0.05
+
 _CANARY = "* canary\nI1 0 n1 DC 1\nR1 n1 0 1\nC1 n1 0 1\n.tran 0.1 1 uic\n.end\n"
 
 
@@ -222,12 +226,15 @@ class NgspiceSession:
         lines = netlist.splitlines()
         if _CONTROL.search(netlist):
             lines = _without_control(lines)
-        raw = [line.encode("ascii", "replace") for line in lines if line]
-        # One buffer of NUL-terminated lines and pointers into it: one allocation, not one per line.
-        buf = ffi.new("char[]", b"\0".join(raw) + b"\0")
-        array = ffi.new("char *[]", len(raw) + 1)       # zero-filled: the last pointer is NULL
-        for i, off in zip(range(len(raw)), itertools.accumulate((len(r) + 1 for r in raw), initial=0)):
-            array[i] = buf + off
+        kept = [line for line in lines if line]
+        # One buffer of NUL-terminated lines and the pointers into it, computed as one array:
+        # 'replace' writes one byte per character, so a line's length in bytes is its length.
+        buf = ffi.new("char[]", "\0".join(kept).encode("ascii", "replace") + b"\0")
+        starts = np.zeros(len(kept) + 1, dtype=np.uintp)       # the last pointer is NULL
+        if kept:
+            starts[1:-1] = np.cumsum(np.fromiter(map(len, kept), dtype=np.uintp, count=len(kept)) + 1)[:-1]
+            starts[:-1] += int(ffi.cast("uintptr_t", buf))
+        array = ffi.cast("char **", ffi.from_buffer(starts))
         self._ng.lines = []
         rc = self._lib.ngSpice_Circ(array)
         lines = self._ng.lines
@@ -286,7 +293,8 @@ class NgspiceSession:
             Return only these, keyed as given; each is looked up by :func:`vector_key`,
             so ``n1``, ``v(n1)`` and ``@c1_2[i]`` all work.
         stats : dict, optional
-            Filled with ngspice's ``iterations`` and ``rejected`` time points.
+            Filled with ngspice's ``iterations`` and ``rejected`` time points, and the seconds
+            ``waited`` for another thread's run to end.
         analysis : {"tran", "ac"}
             The netlist's analysis; an AC run returns ``"frequency"`` and complex vectors.
         timeout : float, optional
@@ -298,7 +306,10 @@ class NgspiceSession:
         SpiceError
             With one sentence naming the failure and, where ngspice says, the node.
         """
+        asked = _time.perf_counter()
         with self._lock:
+            if stats is not None:       # another thread's run held the library: not this run's time
+                stats["waited"] = stats.get("waited", 0.0) + _time.perf_counter() - asked
             try:
                 return self._run(netlist, vectors, stats, analysis, timeout)
             except SpiceError:
@@ -313,10 +324,18 @@ class NgspiceSession:
         self._ng.finished.clear()
         if self._lib.ngSpice_Command(b"bg_run"):
             raise SpiceError("ngspice rejected the command 'bg_run'")
+        end = _time.perf_counter() + timeout
         try:
-            finished = self._ng.finished.wait(timeout)
+            # in slices: a stop asked of the process (a batch's other thread, SIGTERM) halts the run
+            while not (finished := self._ng.finished.wait(min(_STOP_POLL, max(end - _time.perf_counter(), 0.0)))):
+                if stop_requests.asked():       # a stop, as SIGTERM's handler makes one: no result at all
+                    self._halt()
+                    raise KeyboardInterrupt
+                if _time.perf_counter() >= end:
+                    break
         except BaseException:           # a signal (Ctrl-C, SIGTERM) while ngspice runs: halt it first
-            self._halt()
+            if not self._ng.finished.is_set():
+                self._halt()
             raise
         if not finished:
             self._halt()

@@ -91,6 +91,7 @@ def solve_spice(system, times=None, *, preset="accurate", save=None) -> Trajecto
     start = _time.perf_counter()
     note = ""
     ladder = settings.retries()
+    waited = 0.0
     for k, settings in enumerate(ladder):
         stats: dict = {}
         text = write_netlist(circ, settings, list(system.nodes) + names, printing=False)
@@ -98,13 +99,14 @@ def solve_spice(system, times=None, *, preset="accurate", save=None) -> Trajecto
             data = sess.run(text, vectors, stats, timeout=_limit(scales, system.t_stop, get_preset(preset), system.dof))
             break
         except SimulationError as exc:
+            waited += stats.get("waited", 0.0)
             # a collapsed step: the next settings of the ladder, said in the message; the bound judges the result
             if "time step too small" not in str(exc) or k == len(ladder) - 1:
                 raise
             after = ladder[k + 1]
             note = (f"retried with gear integration ({exc})" if after.method != settings.method else
                     f"retried with abstol and vntol × {after.loosen:g} ({exc})")
-    elapsed = _time.perf_counter() - start
+    elapsed = _time.perf_counter() - start - waited - stats.get("waited", 0.0)
     v = np.column_stack([data[f"v({n})"] for n in system.nodes])
     x = np.column_stack([data[f"v({n})"] for n in circ.state_nodes]) if circ.state_nodes else None
     # node voltages past the system's own (a closed chain's passive positions and multipliers) are kept
@@ -204,7 +206,7 @@ class SpiceSolver(Solver):
                                                                    sum(x.dof for x in systems)))
         except SimulationError:
             return super().solve_many(systems, times, preset)
-        elapsed = (_time.perf_counter() - start) / len(systems)
+        elapsed = (_time.perf_counter() - start - stats.get("waited", 0.0)) / len(systems)
         time, prepended = _from_start(data["time"])
         n = systems[0].dof
         try:

@@ -8,6 +8,7 @@ from typing import NamedTuple, Sequence
 import numpy as np
 
 from ..circuit.elements import laplacian_split
+from ..circuit.node_stack import NodeStack
 from ..circuit.scales import combined_scales, stack_scales, system_scales
 from ..errors import InputError
 from ..presets import Preset
@@ -161,6 +162,9 @@ def check_works(systems: Sequence, preset: Preset, *, spice: bool = True) -> Non
     spice : bool
         Whether SPICE is among the solvers (one circuit per stack).
     """
+    if isinstance(systems, NodeStack) and len(systems) > 1 and systems.shares_inputs:
+        check_work(systems[0], preset, combined_scales(stack_scales(systems)), stacked=len(systems), spice=spice)
+        return
     groups: dict = {}
     for s in systems:
         if s.kind == "linear":
