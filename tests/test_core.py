@@ -26,7 +26,7 @@ from analogy.model.robots import planar_serial, robot
 from analogy.model.symbolic import christoffel_symbols, velocity_terms
 from analogy.presets import preset
 from analogy.study.comparison import compare
-from analogy.results.metrics import relative_error
+from analogy.results.metrics import output_errors, relative_error, stack_errors
 from analogy.scenes.builtin import scene
 from analogy.scenes.toml import parse_toml
 from analogy.solvers.ode import solve_ode
@@ -165,6 +165,24 @@ def test_the_error_metric_is_max_error_over_peak_with_an_explicit_zero_peak():
     noisy = stack + 1e-3 * np.random.default_rng(2).normal(size=stack.shape)
     np.testing.assert_allclose(relative_error(noisy, stack, axis=(1, 2)),
                                [relative_error(a, b) for a, b in zip(noisy, stack)], rtol=1e-15)
+
+
+def test_a_stack_s_errors_per_output_and_over_the_largest_peak_are_those_of_each_row():
+    """stack_errors is output_errors per row and, per row, relative_error over all its outputs:
+    the same divisions of the same maxima, so equal exactly; zero and empty rows as there."""
+    stack = np.random.default_rng(1).normal(size=(5, 7, 3))
+    noisy = stack + 1e-3 * np.random.default_rng(2).normal(size=stack.shape)
+    stack[3], noisy[3] = 0.0, 0.0           # a still reference, matched: 0
+    noisy[4] = stack[4] = 0.0
+    noisy[4, 2, 1] = 1.0                    # a still reference, missed: inf
+    err, rel, whole = stack_errors(noisy, stack)
+    for k in range(5):
+        e, r = output_errors(noisy[k], stack[k])
+        np.testing.assert_array_equal(err[k], e)
+        np.testing.assert_array_equal(rel[k], r)
+        assert whole[k] == relative_error(noisy[k], stack[k])
+    assert whole[3] == 0.0 and whole[4] == math.inf
+    assert np.isnan(stack_errors(np.empty((2, 0, 3)), np.empty((2, 0, 3)))[2]).all()
 
 
 # ---------------------------------------------------------------- circuit description

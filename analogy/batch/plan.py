@@ -204,7 +204,8 @@ def solve_group(group: Group, preset: Preset, solvers: Sequence[str], reference:
     invalid, refused = set(failures), set()
     spice = "spice" in solvers
     try:
-        check_works([s for s in members if s is not None], preset, spice=spice)
+        check_works(built if isinstance(built, NodeStack) else [s for s in members if s is not None], preset,
+                    spice=spice)
     except InputError:                  # some member is past the work budget: find which, and refuse it alone
         for k, s in enumerate(members):
             if s is not None:

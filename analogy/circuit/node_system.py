@@ -473,19 +473,21 @@ def node_systems(model, qs, *, parameters: Mapping[str, float] | None = None,
     shared_forces = first.forces if stack.gravity is None else waveforms(forces, first.dof)
     coords = [str(c) for c in model.coordinates]
     r0, t_end = first.initial_rates, first.t_stop
-    all_stiff = kk is not None and all(np.any(r) for r in kk)
+    # per row: any spring, any gravity load (rows without keep the shared forces)
+    springy = np.zeros(len(q), bool) if kk is None else np.any(kk, axis=(1, 2))
+    loaded = np.zeros(len(q), bool) if stack.gravity is None else np.any(stack.gravity, axis=1)
     v0 = np.broadcast_to(first.initial_voltages, (len(q), first.dof))
     arrays = {"mass": node_mass, "damping": node_damping, "initial_voltages": v0}
-    if all_stiff:
+    if springy.all():
         arrays["stiffness"] = node_stiffness
     out = []
     for k, qk in enumerate(q):
-        stiff = None if kk is None or not np.any(kk[k]) else kk[k]
-        grav = None if stack.gravity is None or not np.any(stack.gravity[k]) else stack.gravity[k]
+        stiff = kk[k] if springy[k] else None
+        grav = stack.gravity[k] if loaded[k] else None
         ws = shared_forces if grav is None else \
             tuple(w + (Step(-x),) if x else w for w, x in zip(shared_forces, grav))
         joint = JointSpace.from_checked(m[k], b[k], stiff, grav)
         item_info = first.provenance.at(dict(zip(coords, qk.tolist())), row(k) if varying else None)
         out.append(NodeSystem.from_checked(joint, top, ws, r0.copy(), t_end, item_info, node_mass[k],
                                            node_damping[k], None if stiff is None else node_stiffness[k]))
-    return NodeStack(out, arrays, shared_inputs=stack.gravity is None)
+    return NodeStack(out, arrays, shared_inputs=not loaded.any())

@@ -73,4 +73,5 @@ class Provenance:
             Parameter values that change (the others are kept).
         """
         params = {**self.parameters, **(parameters or {})}
-        return replace(self, parameters=params, configuration=dict(configuration))
+        # built directly, not by dataclasses.replace: a stack makes one record per row
+        return Provenance(self.robot, self.scene, params, dict(configuration), self.units)

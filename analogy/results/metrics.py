@@ -6,7 +6,7 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
-__all__ = ["relative_error", "absolute_error", "peak", "errors", "output_errors", "OutputErrors", "PEAK_FLOOR"]
+__all__ = ["relative_error", "absolute_error", "peak", "errors", "output_errors", "stack_errors", "OutputErrors", "PEAK_FLOOR"]
 
 #: An output whose own peak is under this fraction of the largest output's is judged against
 #: this fraction instead: below it the reference itself is rounding (the exact and reference
@@ -115,9 +115,33 @@ def output_errors(values: np.ndarray, reference: np.ndarray) -> tuple[np.ndarray
     own = np.max(np.abs(ref), axis=-2)
     top = np.max(own, axis=-1, keepdims=True) if own.shape[-1] else own
     floor = np.maximum(own, PEAK_FLOOR * top)
+    return err, _over(err, floor)
+
+
+def stack_errors(values: np.ndarray, reference: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`output_errors` of a stack (count, N, m) and, per row, the largest error over the largest
+    output's peak (:func:`relative_error` over each row's times and outputs), from one pass.
+
+    Parameters
+    ----------
+    values : array_like, shape (count, N, m)
+        Values of the solver under test.
+    reference : array_like
+        Reference values, of the same shape.
+    """
+    x, ref = np.asarray(values, dtype=float), np.asarray(reference, dtype=float)
+    err, rel = output_errors(x, ref)
+    if x.shape[-2] == 0 or x.shape[-1] == 0:
+        return err, rel, np.full(x.shape[0], np.nan)
+    # the maxima over times, then over outputs, are the maxima over both
+    return err, rel, _over(np.max(err, axis=-1), np.max(np.abs(ref), axis=(-2, -1)))
+
+
+def _over(err: np.ndarray, peak_: np.ndarray) -> np.ndarray:
+    """err / peak; where the peak is 0, 0 for no error and inf otherwise; NaN where err is NaN."""
     with np.errstate(divide="ignore", invalid="ignore"):
-        rel = np.where(floor > 0, err / np.where(floor > 0, floor, 1.0), np.where(err == 0, 0.0, np.inf))
-    return err, np.where(np.isnan(err), np.nan, rel)
+        rel = np.where(peak_ > 0, err / np.where(peak_ > 0, peak_, 1.0), np.where(err == 0, 0.0, np.inf))
+    return np.where(np.isnan(err), np.nan, rel)
 
 
 class OutputErrors(NamedTuple):

@@ -10,7 +10,7 @@ from ..circuit.currents import trajectory_currents
 from ..circuit.node_stack import NodeStack
 from ..circuit.scales import system_scales
 from ..presets import Preset
-from ..results.metrics import OutputErrors, errors, output_errors
+from ..results.metrics import OutputErrors, stack_errors
 from ..results.trajectory import Trajectory
 from ..results.trajectory_stack import TrajectoryStack
 from ..solvers.registry import run_many
@@ -116,8 +116,8 @@ def measure(systems, runs, native, ref_name, p, save=(), resampled=frozenset()) 
             for at in shapes.values():
                 group = [ok[j] for j in at]
                 a, b = _outputs(own.take(group), save), _outputs(refs.take(at), save)
-                err, rel = output_errors(a, b)
-                whole = np.atleast_1d(errors(a, b, axis=(1, 2))[1]).tolist()
+                err, rel, whole = stack_errors(a, b)
+                whole = whole.tolist()
                 worst = np.argmax(np.where(np.isnan(rel), -np.inf, rel), axis=1)
                 top, peaks, rows = np.max(err, axis=1).tolist(), rel[np.arange(len(group)), worst].tolist(), rel.tolist()
                 for row, k in enumerate(group):      # plain floats: one record per scene, built cheaply
