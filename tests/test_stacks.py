@@ -8,7 +8,10 @@ import analogy
 from analogy.batch import run_batch
 from analogy.circuit.description import circuit
 from analogy.circuit.elements import element_table, elements
-from analogy.circuit.netlist import circuit_lines
+from analogy.circuit.description import circuits
+from analogy.circuit.netlist import circuit_lines, write_batch, write_stack
+from analogy.circuit.scales import combined_scales, stack_scales
+from analogy.solvers.transient import transient_settings
 from analogy.solvers.transient import batch_netlist
 from analogy.circuit.node_system import node_system, node_systems
 from analogy.model.robots import robot
@@ -144,6 +147,30 @@ def test_batch_netlist_is_each_systems_own_circuit_under_a_prefix():
         expected += circuit_lines(circuit(s), prefix=f"x{k}_")
     body = [ln for ln in text.splitlines()[1:] if not ln.startswith(".")]
     assert body == expected
+
+
+@pytest.mark.parametrize("name, topology, forces", [
+    ("default", None, None),
+    ("random10", None, None),
+    ("flexpar", None, None),                                # springs: L lines
+    ("serial2", [[1.0, 0.5], [-0.3, 1.0]], ("pwl(0, 0, 1, 2, 3, -1)", "step(1)")),    # summed PWL sources
+])
+def test_a_shared_stack_is_written_from_its_columns_as_from_its_circuits(name, topology, forces):
+    """write_stack, which a batch uses for a stack sharing its inputs, writes the text that
+    write_batch writes from each row's circuit: the same netlist, character for character."""
+    base = scene(name)
+    q0 = np.array(base.q, dtype=float)
+    qs = np.tile(q0, (6, 1))
+    qs[:, :2] += 0.3 * np.random.default_rng(3).uniform(-1, 1, qs[:, :2].shape)     # the motors: flexpar's links stay straight
+    systems = base.systems(qs) if topology is None else node_systems(
+        base.numeric_model(), qs, topology=topology, forces=forces, t_stop=4.0)
+    assert len(systems.partition()) == 1
+    settings = transient_settings("fast", systems[0].t_stop, combined_scales(stack_scales(systems)),
+                                  breakpoints=systems[0].breakpoints())
+    text = write_stack(systems, settings)
+    assert text == write_batch(circuits(systems), settings)
+    assert ("is the sum of" in text) == (topology is not None)
+    assert (" x5_n1 0 " in text) and (name != "flexpar" or "\nLx0_" in text)
 
 
 @pytest.mark.ngspice

@@ -23,7 +23,8 @@ from .parts import (
 )
 
 __all__ = ["CurrentSource", "Coupling", "ChargeCapacitor", "BehaviouralCurrent", "BehaviouralVoltage", "Integrator",
-           "Circuit", "circuit", "circuits", "current_sources", "describe_forces", "comments"]
+           "Circuit", "circuit", "circuits", "element_columns", "row_elements", "current_sources", "describe_forces",
+           "comments"]
 
 
 def _check_dropped(mass: np.ndarray, kept: list[Element], zero_tol: float):
@@ -126,20 +127,49 @@ def circuits(systems: Sequence, zero_tol: float = ZERO_TOL) -> list[Circuit]:
     sources: dict = {}
     for (_, no_springs), idx in kinds.items():
         group = NodeStack.of(systems) if len(idx) == len(systems) else NodeStack([systems[k] for k in idx])
-        table, dropped = element_table(group.mass, group.damping, None if no_springs else group.stiffness,
-                                       zero_tol, report=True)
-        columns = [(kind, a, b, spice_value(kind, c).tolist(), c.tolist()) for kind, a, b, c in table]
+        columns = element_columns(group, zero_tol)
         names = [f"n{i + 1}" for i in range(group.dof)]
         shared = group.shares_inputs
         for j, k in enumerate(idx):
             s = systems[k]
-            parts = tuple([Element(kind, a, b, values[j], coef[j])
-                           for kind, a, b, values, coef in columns if coef[j] != 0.0])
             key = (group.dof, no_springs) if shared else inputs_key(s)[:2]
             src = sources.get(key)
             if src is None:
                 src = sources[key] = current_sources(s, zero_tol)
-            if dropped[j]:                  # a capacitor under the tolerance: is the rest singular?
-                _check_dropped(s.mass, list(parts), zero_tol)
-            out[k] = Circuit(s.dof, parts, src, tuple(zip(names, s.initial_voltages.tolist())), s.t_stop)
+            out[k] = Circuit(s.dof, row_elements(columns, j), src, tuple(zip(names, s.initial_voltages.tolist())),
+                             s.t_stop)
     return out
+
+
+def element_columns(stack: NodeStack, zero_tol: float = ZERO_TOL) -> list[tuple]:
+    """A stack's elements as columns, one per element position in netlist order: (kind, a, b, SPICE
+    values, coefficients), the last two one per row (coefficient exactly 0 where the row has no such
+    element). A row whose capacitors, without those under the tolerance, are singular is refused.
+
+    Parameters
+    ----------
+    stack : NodeStack
+        Systems of one size, all with springs or none.
+    zero_tol : float
+        Relative tolerance under which an element is left out.
+    """
+    table, dropped = element_table(stack.mass, stack.damping, None if stack.springless else stack.stiffness,
+                                   zero_tol, report=True)
+    columns = [(kind, a, b, spice_value(kind, c).tolist(), c.tolist()) for kind, a, b, c in table]
+    for j in np.flatnonzero(dropped):       # a capacitor under the tolerance: is the rest singular?
+        _check_dropped(stack[int(j)].mass, list(row_elements(columns, int(j))), zero_tol)
+    return columns
+
+
+def row_elements(columns: list[tuple], row: int) -> tuple[Element, ...]:
+    """Row *row*'s elements from :func:`element_columns`.
+
+    Parameters
+    ----------
+    columns : list of tuple
+        The stack's element columns.
+    row : int
+        The row.
+    """
+    return tuple([Element(kind, a, b, values[row], coef[row]) for kind, a, b, values, coef in columns
+                  if coef[row] != 0.0])

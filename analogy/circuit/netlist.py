@@ -14,11 +14,14 @@ from .description import (
     ChargeCapacitor,
     Circuit,
     Integrator,
+    current_sources,
+    element_columns,
 )
 from .description import circuit as describe
 from .elements import ZERO_TOL
+from .node_stack import NodeStack
 
-__all__ = ["Dialect", "DIALECTS", "write_netlist", "write_batch", "ac_netlist", "circuit_lines", "analysis_lines",
+__all__ = ["Dialect", "DIALECTS", "write_netlist", "write_batch", "write_stack", "ac_netlist", "circuit_lines", "analysis_lines",
            "first_step_lines", "save_vectors", "comment_text", "spice_expression", "gnucap_lines"]
 
 #: The SPICE engines a netlist is written for: ngspice's language, and gnucap's (linear circuits).
@@ -359,6 +362,44 @@ def write_batch(described: Sequence[Circuit], settings) -> str:
         lines += circuit_lines(c, prefix, memo)
         ic += [(prefix + n, v) for n, v in c.initial]
         save += [f"v({prefix}{n})" for n in c.node_names]
+    lines += first_step_lines(settings, "x0_n1")
+    return "\n".join(lines + analysis_lines(settings, ic, save) + [".end"]) + "\n"
+
+
+def write_stack(stack: NodeStack, settings, zero_tol: float = ZERO_TOL) -> str:
+    """:func:`write_batch` of a stack's :func:`~analogy.circuit.description.circuits`, written
+    from its element columns: the same text, with no object per row (a batch writes one per group).
+
+    Parameters
+    ----------
+    stack : NodeStack
+        Systems sharing their inputs and springs (one part of :meth:`NodeStack.partition`).
+    settings : TransientSettings
+        Their shared transient settings.
+    zero_tol : float
+        Relative tolerance under which an element is left out.
+    """
+    if len(stack.partition()) != 1:
+        raise ValueError("write_stack needs systems that share their inputs and springs: use write_batch")
+    columns = element_columns(stack, zero_tol)
+    first = stack[0]
+    count, names = len(stack), [f"n{i + 1}" for i in range(stack.dof)]
+    rows: list[list[str]] = [[] for _ in range(count)]
+    for kind, a, b, values, coefs in columns:      # values are floats: repr is exact
+        for k, (value, coef) in enumerate(zip(values, coefs)):
+            if coef != 0.0:
+                rows[k].append(f"{kind}x{k}_{a} x{k}_n{a} 0 {value!r}" if b == 0 else
+                               f"{kind}x{k}_{a}_{b} x{k}_n{a} x{k}_n{b} {value!r}")
+    sources = _source_values(current_sources(first, zero_tol), first.t_stop, None)
+    lines = [f"* analogy batch of {count} independent circuits"]
+    for k, row in enumerate(rows):
+        lines += row
+        for name, a, b, v, terms in sources:
+            if terms:
+                lines.append(f"* Ix{k}_{name[1:]} is the sum of " + ", ".join(f"Ix{k}_{t[1:]}" for t in terms))
+            lines.append(f"Ix{k}_{name[1:]} {_node(b, f'x{k}_')} {_node(a, f'x{k}_')} {v}")
+    ic = [(f"x{k}_{n}", v) for k, v0 in enumerate(stack.initial_voltages.tolist()) for n, v in zip(names, v0)]
+    save = [f"v(x{k}_{n})" for k in range(count) for n in names]
     lines += first_step_lines(settings, "x0_n1")
     return "\n".join(lines + analysis_lines(settings, ic, save) + [".end"]) + "\n"
 

@@ -11,7 +11,8 @@ import numpy as np
 from ..circuit.description import Circuit, circuits
 from ..circuit.description import circuit as describe
 from ..circuit.elements import ZERO_TOL
-from ..circuit.netlist import Dialect, write_batch, write_netlist
+from ..circuit.netlist import Dialect, write_batch, write_netlist, write_stack
+from ..circuit.node_stack import NodeStack
 from ..circuit.scales import Scales, combined_scales, stack_scales, system_scales
 from ..errors import InputError, SimulationError
 from .error_constants import (CALIBRATED_MAX_STEPS, CALIBRATED_TOPOLOGIES, FLOOR_LIMIT, SERIAL_NODE_LIMIT,
@@ -374,4 +375,6 @@ def batch_netlist(systems: Sequence, preset: str | Preset = "fast", scales: Scal
                                   custom=any(beyond_calibration(s) for s in systems))
     if len(ends) > 1:
         settings = replace(settings, stop=ends[-1], horizons=tuple(ends[:-1]))
+    if isinstance(systems, NodeStack) and len(systems.partition()) == 1:
+        return write_stack(systems, settings)
     return write_batch(circuits(systems), settings)
