@@ -248,15 +248,37 @@ def test_the_charge_form_forgets_the_initial_condition_so_the_circuit_uses_a_fol
 
 def test_the_step_ladder_ends_in_gear_for_a_trapezoidal_run():
     """A collapsed step is retried with looser absolute tolerances where there are any,
-    then with gear; a gear run has nothing further to try."""
-    from analogy.solvers.transient import RETRY_LOOSEN, transient_settings
+    then with gear; a nonlinear circuit, which has none, then at reltol RETRY_TIGHTEN times
+    tighter; a linear gear run has nothing further to try."""
+    from analogy.solvers.transient import RETRY_LOOSEN, RETRY_TIGHTEN, transient_settings
     linear = transient_settings("accurate", 1.0, None)
     ladder = linear.retries()
     assert [s.loosen for s in ladder] == [*RETRY_LOOSEN, 1.0]
     assert [s.method for s in ladder] == ["trap"] * len(RETRY_LOOSEN) + ["gear"]
+    assert len({s.reltol for s in ladder}) == 1
     behavioural = transient_settings("accurate", 1.0, None, behavioural=True)     # no abstol to loosen
-    assert [s.method for s in behavioural.retries()] == ["trap", "gear"]
+    rungs = behavioural.retries()
+    assert [s.method for s in rungs] == ["trap", "gear", "trap"]
+    assert behavioural.reltol == 1e-3 == rungs[1].reltol            # ngspice's default, which it keeps
+    assert rungs[2].reltol == pytest.approx(1e-3 / RETRY_TIGHTEN)
+    assert ("reltol", f"{1e-3 / RETRY_TIGHTEN:.3g}") in rungs[2].options
     assert [s.method for s in ladder[-1].retries()] == ["gear"] * len(RETRY_LOOSEN)
+
+
+@pytest.mark.ngspice
+@pytest.mark.deep                   # 80 s: three runs, the last at reltol 1e-5
+def test_a_circuit_that_collapses_under_both_methods_runs_at_a_tighter_reltol():
+    """flex2's nonlinear circuit under its motor steps at fast: the trapezoidal rule collapses at
+    t = 6.39 s and gear at 4.40 s; the trapezoidal rule at reltol 1e-5 runs to t_stop, and says so.
+    (Its undamped modes, up to 1588 rad/s over 10 s, leave it far past fast's bound, as they leave
+    the ODE at fast: the comparison flags both.)"""
+    from analogy.cli import build_parser, scene_from_args
+    from analogy.solvers.transient import RETRY_TIGHTEN
+    args = build_parser().parse_args(["compare", "--robot", "flex2", "--dynamics", "nonlinear"])
+    tr = analogy.solve_spice(scene_from_args(args).system(), preset="fast")
+    assert tr.success and tr.time[-1] == pytest.approx(10.0, rel=1e-12)
+    assert f"retried with reltol {1e-3 / RETRY_TIGHTEN:g} (" in tr.message and "4.40" in tr.message
+    assert dict(tr.settings.options)["method"] == "trap"
 
 
 @pytest.mark.ngspice

@@ -104,7 +104,8 @@ def solve_spice(system, times=None, *, preset="accurate", save=None) -> Trajecto
             if "time step too small" not in str(exc) or k == len(ladder) - 1:
                 raise
             after = ladder[k + 1]
-            note = (f"retried with gear integration ({exc})" if after.method != settings.method else
+            note = (f"retried with reltol {after.reltol:g} ({exc})" if after.reltol != settings.reltol else
+                    f"retried with gear integration ({exc})" if after.method != settings.method else
                     f"retried with abstol and vntol × {after.loosen:g} ({exc})")
     elapsed = _time.perf_counter() - start - waited - stats.get("waited", 0.0)
     v = np.column_stack([data[f"v({n})"] for n in system.nodes])
