@@ -9,6 +9,7 @@ import time as _time
 
 import numpy as np
 
+from .batch.executor import PIPELINE
 from .batch.plan import as_system
 from .batch.run import run_batch
 from .circuit.description import circuit
@@ -85,10 +86,10 @@ def _floor_loop(payload):
     texts = [batch_netlist(g, preset_name, combined_scales(stack_scales(g))) for g in groups]
     sess = session()
     sess.run(texts[0], None, {})            # warm-up, as on the other paths
-    start = _time.perf_counter()
+    start, cpu = _time.perf_counter(), _time.process_time()
     for text in texts:
         sess.run(text, None, {})
-    return _time.perf_counter() - start
+    return _time.perf_counter() - start, _time.process_time() - cpu
 
 
 #: Most scenes of one throughput measurement (all held in memory at once).
@@ -103,9 +104,10 @@ def throughput(n: int = 10_000, preset: str = "fast", group_size: int = 100, wor
     its systems, runs SPICE and compares with the exact solution. The per-scene paths
     run on *baseline_n* scenes in a fresh worker process each (timed after a warm-up
     pass); the batched path is timed whole, worker start-up included, on *workers*
-    processes and, for the speed per core, on one. The floor is ngspice alone loading and
-    running the same batch netlists in one process, written beforehand: the batched path on
-    one process is reported as a share of it. The paths take turns, *repeats* times, and the
+    processes and on one (whose threads keep a group's Python going while ngspice runs
+    another: its CPU time is printed beside the floor's). The floor is ngspice alone loading
+    and running the same batch netlists in one process, written beforehand: the batched path
+    on one process is reported as a share of it. The paths take turns, *repeats* times, and the
     figures are medians.
 
     Parameters
@@ -136,6 +138,7 @@ def throughput(n: int = 10_000, preset: str = "fast", group_size: int = 100, wor
     q2 = np.random.default_rng(seed).uniform(-np.pi, np.pi, n)
     items = [base.replace(q=(0.0, float(x))) for x in q2]
     rates: dict = {k: [] for k in ("batched", "one", "solo", "pyspice", "floor")}
+    cpus: dict = {"one": [], "floor": []}
     worst: dict = {k: 0.0 for k in rates}
     failed, solves = 0, []
     bar = Progress(5 * repeats, unit="path run", enabled=progress, every=0.0)
@@ -151,10 +154,15 @@ def throughput(n: int = 10_000, preset: str = "fast", group_size: int = 100, wor
         worst["pyspice"] = max(worst["pyspice"], err)
         bar.update(1)
         with worker_pool(1, fresh=True) as ex:
-            rates["floor"].append(n / ex.submit(_floor_loop, (items, preset, group_size)).result())
+            sec, cpu = ex.submit(_floor_loop, (items, preset, group_size)).result()
+        rates["floor"].append(n / sec)
+        cpus["floor"].append(cpu)
         bar.update(1)
         for key, w in (("batched", workers), ("one", 1)):
+            cpu = _time.process_time()
             res = run_batch(items, preset, group_size=group_size, workers=w)
+            if key == "one":            # this process's CPU, its threads and ngspice's included
+                cpus["one"].append(_time.process_time() - cpu)
             rates[key].append(res.throughput)
             # a run with no finite error (all failed) makes the worst error NaN, not hidden
             ok = res.errors[np.isfinite(res.errors)]
@@ -167,6 +175,9 @@ def throughput(n: int = 10_000, preset: str = "fast", group_size: int = 100, wor
     per_core = statistics.median(b / p for b, p in zip(rates["one"], rates["pyspice"]))
     of_floor = statistics.median(b / f for b, f in zip(rates["one"], rates["floor"]))
 
+    def cpu_per(key):
+        return f"CPU {statistics.median(cpus[key]) / n * 1e6:.0f} ms per 1,000 scenes"
+
     def spread(key):
         return f"{med[key]:,.0f} scenes/s (runs {', '.join(f'{r:,.0f}' for r in rates[key])})"
 
@@ -175,13 +186,14 @@ def throughput(n: int = 10_000, preset: str = "fast", group_size: int = 100, wor
         f"SPICE + comparison with the exact solution; medians of {repeats} turns",
         f"  batched, {workers} workers, {group_size} scenes per ngspice run, {n} scenes: "
         f"{spread('batched')}, worst error/peak {worst['batched']:.2e}",
-        f"  batched, 1 process: {spread('one')}, worst error/peak {worst['one']:.2e}",
+        f"  batched, 1 process ({PIPELINE} groups in flight on threads): {spread('one')}, "
+        f"{cpu_per('one')}, worst error/peak {worst['one']:.2e}",
         f"  one ngspice run per scene (1 process, {baseline_n} scenes): {spread('solo')}, "
         f"worst error/peak {worst['solo']:.2e}, median SPICE solve {statistics.median(solves) * 1e3:.3f} ms",
         f"  plain PySpice loop (Circuit + simulator().transient(), 1 process, {baseline_n} scenes): "
         f"{spread('pyspice')}, worst error/peak {worst['pyspice']:.2e}",
         f"  ngspice alone on the same batch netlists (1 process, {n} scenes, loading and running only): "
-        f"{spread('floor')}",
+        f"{spread('floor')}, {cpu_per('floor')}",
         f"  speed-up over the PySpice loop (median of per-turn ratios): batched {ratio:.1f}x, "
         f"batched on 1 process {per_core:.1f}x; batched on 1 process reaches {of_floor:.2f} of the ngspice "
         f"floor; {failed} scenes failed",

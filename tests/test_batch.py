@@ -184,6 +184,8 @@ def test_throughput_reports_the_ngspice_floor_beside_the_batched_path():
     assert share is not None and float(share.group(1)) > 0
     worst = [float(x) for x in re.findall(r"worst error/peak (\S+?),?\s", text + " ")]
     assert len(worst) == 4 and max(worst) <= 1e-3
+    cpu = [int(x) for x in re.findall(r"CPU (\d+) ms per 1,000 scenes", text)]     # one process, the floor
+    assert len(cpu) == 2 and min(cpu) > 0
 
 
 def test_a_stop_asked_of_the_process_halts_a_circuit_running_in_another_thread():

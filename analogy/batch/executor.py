@@ -107,9 +107,9 @@ def execute(groups: Iterable, payload: Callable, work: Callable, done: Callable,
     arrives. Without *executor*, *workers* local processes run them (one: this process).
     With *in_process*, one worker is this process itself, with :data:`PIPELINE` groups in
     flight on threads; otherwise every group runs in a worker process, so that a crash in one
-    is that group's own. A group whose worker
-    died is retried, then given to ``died(group)``. SIGINT and
-    SIGTERM stop the loop cleanly: what was handed over stays, workers are ended; with
+    is that group's own. A group whose worker died is retried, then given to ``died(group)``.
+    SIGINT and SIGTERM stop the loop cleanly: what was handed over stays (in this process,
+    with every group in flight that finished), workers are ended; with
     *pass_signals* the signal then goes on to the caller (KeyboardInterrupt, or SIGTERM
     raised again under the caller's own handler).
 

@@ -60,8 +60,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "realizable circuit: no negative values, negative elements behind 1:-1 couplings")
     p.add_argument("--step", metavar="SECONDS", help="output step of the shared time grid "
                    "(default: SPICE's own points); errors are measured on each solver's own points")
-    p.add_argument("--timeout", metavar="SECONDS", help="wall-time limit of each ODE integration "
-                   "(default: the preset's, 300 s); past it the solver fails with one sentence")
+    p.add_argument("--timeout", metavar="SECONDS", help="wall-time limit of each ODE integration and of each "
+                   "long ngspice run (default: the preset's, 300 s); past it the solver fails with one sentence")
     p.add_argument("--budget", metavar="POINTS", help="most time points (and force segments) a run may "
                    "need, estimated before it starts (default: the preset's, 1e8 at accurate, 1e7 at fast); "
                    "the SPICE circuit's operation budget scales with it")
