@@ -99,3 +99,25 @@ def test_the_written_netlist_runs_in_plain_ngspice_and_keeps_the_bound(args, tmp
 @pytest.mark.parametrize("args", DEEP)
 def test_the_large_and_flexible_netlists_run_in_plain_ngspice_and_keep_the_bound(args, tmp_path):
     _check(args, tmp_path)
+
+
+@pytest.mark.ngspice
+def test_gear_integrates_at_order_two_whatever_maxord_asks(tmp_path):
+    """ngspice raises the integration order from 1 to 2 only (dctran.c), so gear's maxord past 2
+    changes no step: a damped LC at reltol 1e-6 and 1e-9 takes the same accepted points at
+    maxord 2, 3 and 6. An order-p rule's local error goes as h^(p+1), so its steps grow as
+    reltol^(-1/(p+1)) per 1000: 10 at order 2, 5.6 at order 3 and 2.7 at order 6 (measured 8.8;
+    the bracket leaves a factor of 2 for the steps onto the breakpoints)."""
+    deck = ("* damped LC\nL1 a 0 1\nC1 a 0 1\nR1 a 0 100\nI1 0 a PWL(0 0 0.1 1)\n"
+            ".options method=gear maxord={order} reltol={tol}\n.tran 1e-3 20 0 0.5 uic\n"
+            ".control\nrun\nrusage accept\n.endc\n.end\n")
+    steps = {}
+    for tol in (1e-6, 1e-9):
+        for order in (2, 3, 6):
+            path = tmp_path / f"lc{order}.cir"
+            path.write_text(deck.format(order=order, tol=tol))
+            out = subprocess.run([shutil.which("ngspice") or "ngspice", "-b", str(path)], capture_output=True,
+                                 text=True, timeout=60).stdout
+            steps[tol, order] = int(out.split("Accepted timepoints = ")[1].split()[0])
+        assert steps[tol, 2] == steps[tol, 3] == steps[tol, 6]
+    assert 5 <= steps[1e-9, 2] / steps[1e-6, 2] <= 20
