@@ -15,13 +15,16 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator
 
-__all__ = ["worker_pool", "die_with_parent", "scratch_folder", "stop_requests"]
+__all__ = ["worker_pool", "die_with_parent", "scratch_folder", "stop_requests", "halt_requests"]
 
 
 class _StopRequests:
-    """SIGTERM's record: a handler that raises can be swallowed (it may run inside a
-    garbage-collector callback or a finalizer, whose exceptions Python only prints), so it
-    also notes the request here, and loops look at it where raising is safe."""
+    """A request to stop, noted where a loop or a wait can look at it.
+
+    SIGTERM's handler can be swallowed (it may run inside a garbage-collector callback or a
+    finalizer, whose exceptions Python only prints), so it also notes the request in
+    :data:`stop_requests`; a batch stopping its group threads notes one in :data:`halt_requests`.
+    """
 
     def __init__(self) -> None:
         self._asked = threading.Event()
@@ -41,6 +44,10 @@ class _StopRequests:
 
 #: The process's one record of SIGTERM (set by the command's handler and the batch loop's).
 stop_requests = _StopRequests()
+
+#: Set while a batch in this process stops its group threads: a circuit running in ngspice is
+#: halted and a new one is not started (each raises KeyboardInterrupt in its thread).
+halt_requests = _StopRequests()
 
 
 def die_with_parent(parent: int) -> None:

@@ -188,13 +188,13 @@ def test_throughput_reports_the_ngspice_floor_beside_the_batched_path():
     assert len(cpu) == 2 and min(cpu) > 0
 
 
-def test_a_stop_asked_of_the_process_halts_a_circuit_running_in_another_thread():
-    """The in-process batch runs groups on threads, so a stop reaches a running circuit through
-    the process's stop record: ngspice is halted, the run raises KeyboardInterrupt (no result),
+def test_a_halt_request_halts_a_circuit_running_in_another_thread():
+    """The in-process batch runs groups on threads, so its stop reaches a running circuit through
+    the process's halt record: ngspice is halted, the run raises KeyboardInterrupt (no result),
     and the session runs the next circuit soundly."""
     import threading
 
-    from analogy.processes import stop_requests
+    from analogy.processes import halt_requests as stop_requests
     from analogy.solvers.ngspice import session
 
     # an undamped LC over 1e4 s at steps of at most 1e-5 s: 1e9 steps, far longer than the test

@@ -1,11 +1,20 @@
 """The batch loop shared by run_batch and run_sweep: every group handed over once, deaths retried, clean stops."""
 
+import _thread
 import os
 import signal
+import threading
 from pathlib import Path
+
+import pytest
 
 from analogy.batch import executor
 from analogy.batch.executor import ATTEMPTS, PIPELINE, execute
+from analogy.processes import halt_requests, stop_requests
+from analogy.solvers.ngspice import session
+
+#: An undamped LC over 1e4 s at steps of at most 1e-5 s: 1e9 steps, far longer than any test.
+ENDLESS = "* endless\nL1 n1 0 1\nC1 n1 0 1\nI1 0 n1 DC 1\n.tran 1e-3 1e4 0 1e-5 uic\n.end\n"
 
 
 def square_or_die(payload):
@@ -34,6 +43,14 @@ def square_swallowing_sigterm(payload):
             sum(range(1000))            # bytecode to run the handler on, inside the block
         except BaseException:           # noqa: BLE001 - the point: the handler's exception is lost
             pass
+    return n * n
+
+
+def square_or_endless(payload):
+    """Group 2 runs a circuit that would outlast the test; the others are squares."""
+    n, folder, parent = payload
+    if n == 2:
+        session().run(ENDLESS, None, None, timeout=600.0)
     return n * n
 
 
@@ -95,3 +112,23 @@ def test_a_command_whose_sigterm_was_swallowed_ends_interrupted_and_leaves_no_re
     assert not stop_requests.asked()
     results, died, interrupted = _run(tmp_path, 3, workers=1, in_process=True)
     assert not interrupted and results == {n: n * n for n in range(3)}
+
+
+@pytest.mark.ngspice
+@pytest.mark.parametrize("stop", ["ctrl-c", "sigterm record"])
+def test_a_stop_in_this_process_halts_the_running_circuit_and_keeps_every_finished_group(tmp_path, stop):
+    """Groups 0, 1, 3 and 4 finish beside group 2's endless circuit; a Ctrl-C, or a SIGTERM
+    whose exception was lost (only its record set), stops the loop: the circuit is halted and
+    its group dropped, the others are kept, and neither record is left behind."""
+    asked = _thread.interrupt_main if stop == "ctrl-c" else stop_requests.ask
+    timer = threading.Timer(1.0, asked)
+    timer.start()
+    try:
+        results, died, interrupted = _run(tmp_path, 5, work=square_or_endless, workers=1, in_process=True)
+    finally:
+        timer.cancel()
+    assert interrupted and died == []
+    assert results == {n: n * n for n in (0, 1, 3, 4)}
+    assert not halt_requests.asked() and not stop_requests.asked()
+    data = session().run("* after\nR1 n1 0 1\nC1 n1 0 1\nI1 0 n1 DC 1\n.tran 0.01 1 uic\n.end\n", ["n1"])
+    assert abs(data["n1"][-1] - (1 - 2.718281828459045 ** -data["time"][-1])) <= 1e-3     # reltol 1e-3, 1 V

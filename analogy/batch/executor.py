@@ -10,7 +10,7 @@ from concurrent.futures.process import BrokenProcessPool
 from typing import Callable, Iterable
 
 from ..errors import AnalogyError, SimulationError
-from ..processes import stop_requests, worker_pool
+from ..processes import halt_requests, stop_requests, worker_pool
 
 __all__ = ["InlineExecutor", "execute", "ATTEMPTS"]
 
@@ -64,15 +64,16 @@ def _end_pool(pool) -> None:
 
 
 def _end_threads(pool, inflight: dict, done: Callable, threads: bool) -> None:
-    """Stop this process's group threads: a circuit in ngspice halted (its run raises, as a timed-out
-    one does), the groups in flight waited for, and those that finished handed over."""
+    """Stop this process's group threads: a circuit running in ngspice halted and none started
+    (:data:`~analogy.processes.halt_requests`: that group raises KeyboardInterrupt and is dropped),
+    the Python work in flight waited for, and the groups that finished handed over."""
     if not threads:
         return
-    asked = stop_requests.asked()
-    stop_requests.ask()             # what a running circuit's wait looks at
-    pool.shutdown(wait=True, cancel_futures=True)
-    if not asked:                   # Ctrl-C: no SIGTERM is left pending for the caller
-        stop_requests.clear()
+    halt_requests.ask()
+    try:
+        pool.shutdown(wait=True, cancel_futures=True)
+    finally:                        # whatever interrupts the wait, no later run is halted
+        halt_requests.clear()
     for future, item in inflight.items():
         if not future.cancelled() and future.exception() is None:
             done(item[1], future.result())

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import dataclass, field
 from typing import Sequence
 
@@ -170,13 +171,16 @@ def _force_peaks(system) -> tuple[np.ndarray, float]:
         t = np.union1d(system.time_points(), np.concatenate([[0.0], system.breakpoints()]))
         peaks = np.max(np.abs(joint_forces(system.forces, t)), axis=0) if t.size else np.zeros(system.dof)
         freq = max((float(getattr(w, "frequency", 0.0)) for ws in system.forces for w in ws), default=0.0)
-        if len(_PEAKS) >= 64:
-            _PEAKS.pop(next(iter(_PEAKS)))
-        hit = _PEAKS[key] = (peaks, 2 * math.pi * freq)
+        hit = (peaks, 2 * math.pi * freq)
+        with _PEAKS_LOCK:           # a batch in this process runs groups on two threads
+            if len(_PEAKS) >= 64:
+                _PEAKS.pop(next(iter(_PEAKS)))
+            _PEAKS[key] = hit
     return hit
 
 
 _PEAKS: dict = {}
+_PEAKS_LOCK = threading.Lock()
 
 
 def system_scales(system) -> Scales:

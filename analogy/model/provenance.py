@@ -74,4 +74,4 @@ class Provenance:
         """
         params = {**self.parameters, **(parameters or {})}
         # built directly, not by dataclasses.replace: a stack makes one record per row
-        return Provenance(self.robot, self.scene, params, dict(configuration), self.units)
+        return type(self)(self.robot, self.scene, params, dict(configuration), self.units)

@@ -17,14 +17,14 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SpiceError
-from ..processes import stop_requests
+from ..processes import halt_requests
 
 __all__ = ["NgspiceSession", "session", "run_netlist", "library_path", "vector_key"]
 
 _INFO_PREFIXES = ("warning", "note", "using", "doing analysis", "reference value",
                   "circuit:", "no. of data rows")
 _CDEF_DONE = False
-#: The longest a running circuit goes between looks at :data:`~analogy.processes.stop_requests` [s].
+#: The longest a running circuit goes between looks at :data:`~analogy.processes.halt_requests` [s].
 _STOP_POLL = 0.05
 
 _CANARY = "* canary\nI1 0 n1 DC 1\nR1 n1 0 1\nC1 n1 0 1\n.tran 0.1 1 uic\n.end\n"
@@ -307,6 +307,8 @@ class NgspiceSession:
             With one sentence naming the failure and, where ngspice says, the node.
         """
         asked = _time.perf_counter()
+        if halt_requests.asked():       # a batch is stopping its group threads: no new circuit
+            raise KeyboardInterrupt
         with self._lock:
             if stats is not None:       # another thread's run held the library: not this run's time
                 stats["waited"] = stats.get("waited", 0.0) + _time.perf_counter() - asked
@@ -326,9 +328,9 @@ class NgspiceSession:
             raise SpiceError("ngspice rejected the command 'bg_run'")
         end = _time.perf_counter() + timeout
         try:
-            # in slices: a stop asked of the process (a batch's other thread, SIGTERM) halts the run
+            # in slices: a batch stopping its group threads halts the run
             while not (finished := self._ng.finished.wait(min(_STOP_POLL, max(end - _time.perf_counter(), 0.0)))):
-                if stop_requests.asked():       # a stop, as SIGTERM's handler makes one: no result at all
+                if halt_requests.asked():       # a stop, as Ctrl-C makes one: no result at all
                     self._halt()
                     raise KeyboardInterrupt
                 if _time.perf_counter() >= end:

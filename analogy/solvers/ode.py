@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import threading
 import time as _time
 import warnings
 from dataclasses import replace
@@ -300,10 +301,15 @@ def _lsoda(rhs, jac, y0, t0: float, t1: float, times: np.ndarray, rtol, atol, st
     return values, (int(info["nst"][-1]), int(info["nfe"][-1]), int(info["nje"][-1]))
 
 
+_WARNINGS = threading.Lock()
+
+
 def _guarded(method: str, at: float, fn, *args, **kwargs):
     """*fn* with scipy's warnings silenced and its numeric errors turned into one sentence."""
     try:
-        with warnings.catch_warnings(), np.errstate(all="ignore"):
+        # warnings' filters are the process's: two threads entering and leaving catch_warnings
+        # interleaved would leave "ignore" behind (a batch in this process runs two groups at once)
+        with _WARNINGS, warnings.catch_warnings(), np.errstate(all="ignore"):
             warnings.simplefilter("ignore")     # scipy's notes become the sentences here and above
             return fn(*args, **kwargs)
     except (ValueError, ArithmeticError, np.linalg.LinAlgError):
