@@ -169,6 +169,8 @@ def test_a_shared_stack_is_written_from_its_columns_as_from_its_circuits(name, t
                                   breakpoints=systems[0].breakpoints())
     text = write_stack(systems, settings)
     assert text == write_batch(circuits(systems), settings)
+    if topology is None:                # (a custom T is beyond the calibration: other settings)
+        assert batch_netlist(systems, "fast") == text       # what a batch writes
     assert ("is the sum of" in text) == (topology is not None)
     assert (" x5_n1 0 " in text) and (name != "flexpar" or "\nLx0_" in text)
 
