@@ -25,8 +25,8 @@ from .solvers.transient import beyond_calibration, netlist
 from .circuit.scales import system_scales
 from .stress.families import cases
 
-__all__ = ["CalibrationRun", "CALIBRATION_RELTOLS", "SERIAL_CHAINS", "calibration_circuits", "calibration_runs", "error_constants_of",
-           "write_runs"]
+__all__ = ["CalibrationRun", "CALIBRATION_RELTOLS", "SERIAL_CHAINS", "calibration_circuits", "calibration_runs",
+           "error_constants_of", "write_runs"]
 
 #: The rungs, a decade apart: from the fast preset's reltol to past what 1e-9 asks for.
 CALIBRATION_RELTOLS = tuple(10.0 ** -k for k in range(5, 14))

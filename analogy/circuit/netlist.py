@@ -21,8 +21,8 @@ from .description import circuit as describe
 from .elements import ZERO_TOL
 from .node_stack import NodeStack
 
-__all__ = ["Dialect", "DIALECTS", "write_netlist", "write_batch", "write_stack", "ac_netlist", "circuit_lines", "analysis_lines",
-           "first_step_lines", "save_vectors", "comment_text", "spice_expression", "gnucap_lines"]
+__all__ = ["Dialect", "DIALECTS", "write_netlist", "write_batch", "write_stack", "ac_netlist", "circuit_lines",
+           "analysis_lines", "first_step_lines", "save_vectors", "comment_text", "spice_expression", "gnucap_lines"]
 
 #: The SPICE engines a netlist is written for: ngspice's language, and gnucap's (linear circuits).
 Dialect = Literal["ngspice", "gnucap"]

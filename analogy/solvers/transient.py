@@ -22,7 +22,7 @@ from ..presets import preset as get_preset
 
 __all__ = ["TransientSettings", "transient_settings", "netlist", "batch_netlist", "ROUNDING_STEPS",
            "NGSPICE_FIRST_STEP", "RETRY_LOOSEN", "RETRY_TIGHTEN", "REFINE", "refined", "STEP_TOLERANCES",
-           "beyond_calibration", "NGSPICE_STEP_TOLERANCES"]
+           "beyond_calibration", "spice_run_reltol", "NGSPICE_STEP_TOLERANCES"]
 
 #: Factors on abstol and vntol of the first run and of the retries after "time step too small".
 RETRY_LOOSEN = (1.0, 1e3, 1e6)
@@ -229,9 +229,7 @@ def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | Non
     """
     p = get_preset(preset)
     opts = dict(p.behavioural_options if behavioural else p.spice_options)
-    reltol = None       # the error constants measured trap alone, without couplings or multipliers
-    if p.calibrated and scales is not None and not (behavioural or coupled or constrained or custom):
-        reltol = calibrated_reltol(p.bound, scales.ringing(p.bound))
+    reltol = spice_run_reltol(p, scales, behavioural=behavioural or coupled or constrained or custom)
     calibrated = reltol is not None
     if calibrated:
         opts.update(calibrated_options(reltol))
@@ -244,7 +242,8 @@ def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | Non
         opts["method"] = "gear"
     if constrained:
         opts["reltol"] = f"{min(float(opts.get('reltol', NGSPICE_RELTOL)), 10 * p.bound):.3g}"
-    tmax = t_stop / (p.behavioural_max_steps if behavioural else CALIBRATED_MAX_STEPS if calibrated else p.max_steps)
+    tmax = t_stop / (p.behavioural_max_steps if behavioural else
+                     CALIBRATED_MAX_STEPS if calibrated else p.max_steps)
     tstep = t_stop / p.steps
     first = NGSPICE_FIRST_STEP * tstep
     if scales is not None:
@@ -307,6 +306,27 @@ def refined(preset: str | Preset, tolerances: bool = True) -> Preset:
     more = int(REFINE)
     return replace(p, refine=p.refine + 1, refine_tolerances=tolerances, step_budget=p.step_budget * more, work_budget=p.work_budget * more,
                    operation_budget=p.operation_budget * more)
+
+
+def spice_run_reltol(preset: str | Preset, scales: Scales | None, *, behavioural: bool = False) -> float | None:
+    """The reltol the error constants give a circuit with *scales* at *preset*, or None where the preset's
+    own settings run: a preset that is not calibrated, no scales, a circuit that rings or is *behavioural*
+    (nonlinear, coupled, constrained or beyond the calibration: the constants measured plain linear circuits
+    under the trapezoidal rule).
+
+    Parameters
+    ----------
+    preset : str or Preset
+        The accuracy preset.
+    scales : Scales or None
+        The circuit's scales.
+    behavioural : bool
+        The circuit is of a kind the constants do not speak for.
+    """
+    p = get_preset(preset)
+    if not p.calibrated or scales is None or behavioural:
+        return None
+    return calibrated_reltol(p.bound, scales.ringing(p.bound))
 
 
 def beyond_calibration(system) -> bool:

@@ -12,8 +12,8 @@ from ..circuit.node_stack import NodeStack
 from ..circuit.scales import combined_scales, stack_scales, system_scales
 from ..errors import InputError
 from ..presets import Preset
-from ..solvers.error_constants import CALIBRATED_MAX_STEPS, calibrated_reltol, step_phase
-from ..solvers.transient import beyond_calibration
+from ..solvers.error_constants import CALIBRATED_MAX_STEPS, step_phase
+from ..solvers.transient import beyond_calibration, spice_run_reltol
 
 __all__ = ["WorkEstimate", "check_work", "check_works", "estimate_work", "point_operations"]
 
@@ -61,8 +61,8 @@ def estimate_work(system, preset: Preset, scales=None, stacked: int = 1) -> Work
     ``preset.phase_step`` radians of it, the SPICE step cap and the ODE's step size
     alike) and no fewer than the preset's ``max_steps``, plus a few per force breakpoint. A linear
     system at a calibrated preset takes the steps of its reltol on its fastest oscillation
-    (:func:`~analogy.solvers.error_constants.step_phase`) or of the decay cap, whichever are more. The SPICE circuit's operations are the
-    points times :func:`point_operations`.
+    (:func:`~analogy.solvers.error_constants.step_phase`) or of the decay cap, whichever are more.
+    The SPICE circuit's operations are the points times :func:`point_operations`.
 
     Parameters
     ----------
@@ -97,9 +97,8 @@ def estimate_work(system, preset: Preset, scales=None, stacked: int = 1) -> Work
 
 def _reltol(system, preset: Preset, scales) -> float | None:
     """The calibrated reltol the SPICE run takes, or None where the preset's own settings run."""
-    if preset.calibrated and system.kind == "linear" and not beyond_calibration(system):
-        return calibrated_reltol(preset.bound, scales.ringing(preset.bound))
-    return None
+    other = system.kind != "linear" or getattr(system, "realizable", False) or beyond_calibration(system)
+    return spice_run_reltol(preset, scales, behavioural=other)
 
 
 def _fewest(system, preset: Preset, calibrated: bool | None = None) -> int:
