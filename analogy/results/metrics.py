@@ -111,8 +111,8 @@ def output_errors(values: np.ndarray, reference: np.ndarray) -> tuple[np.ndarray
     if x.shape[-2] == 0:
         nan = np.full(x.shape[:-2] + x.shape[-1:], np.nan)
         return nan, nan
-    err = np.max(np.abs(x - ref), axis=-2)
-    own = np.max(np.abs(ref), axis=-2)
+    err = _time_max(np.abs(x - ref))
+    own = _time_max(np.abs(ref))
     top = np.max(own, axis=-1, keepdims=True) if own.shape[-1] else own
     floor = np.maximum(own, PEAK_FLOOR * top)
     return err, _over(err, floor)
@@ -130,11 +130,21 @@ def stack_errors(values: np.ndarray, reference: np.ndarray) -> tuple[np.ndarray,
         Reference values, of the same shape.
     """
     x, ref = np.asarray(values, dtype=float), np.asarray(reference, dtype=float)
-    err, rel = output_errors(x, ref)
+    if x.shape != ref.shape:
+        raise ValueError(f"values of shape {x.shape} cannot be compared with a reference of shape {ref.shape}")
     if x.shape[-2] == 0 or x.shape[-1] == 0:
+        err, rel = output_errors(x, ref)
         return err, rel, np.full(x.shape[0], np.nan)
+    err, own = _time_max(np.abs(x - ref)), _time_max(np.abs(ref))
+    top = np.max(own, axis=-1)
     # the maxima over times, then over outputs, are the maxima over both
-    return err, rel, _over(np.max(err, axis=-1), np.max(np.abs(ref), axis=(-2, -1)))
+    return err, _over(err, np.maximum(own, PEAK_FLOOR * top[:, None])), _over(np.max(err, axis=-1), top)
+
+
+def _time_max(a: np.ndarray) -> np.ndarray:
+    """max over the time axis (−2) of (..., N, m), NaN kept: reduced along contiguous memory, which
+    for a few outputs is ten times faster than numpy's strided reduction."""
+    return np.ascontiguousarray(np.swapaxes(a, -1, -2)).max(axis=-1)
 
 
 def _over(err: np.ndarray, peak_: np.ndarray) -> np.ndarray:
