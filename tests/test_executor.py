@@ -3,6 +3,7 @@
 import _thread
 import os
 import signal
+import sys
 import threading
 from pathlib import Path
 
@@ -132,3 +133,20 @@ def test_a_stop_in_this_process_halts_the_running_circuit_and_keeps_every_finish
     assert not halt_requests.asked() and not stop_requests.asked()
     data = session().run("* after\nR1 n1 0 1\nC1 n1 0 1\nI1 0 n1 DC 1\n.tran 0.01 1 uic\n.end\n", ["n1"])
     assert abs(data["n1"][-1] - (1 - 2.718281828459045 ** -data["time"][-1])) <= 1e-3     # reltol 1e-3, 1 V
+
+
+def switch_interval(payload):
+    """Work that reports the interpreter's switch interval it runs under."""
+    return sys.getswitchinterval()
+
+
+def test_groups_on_threads_run_at_the_short_switch_interval_which_is_restored_after(tmp_path):
+    """ngspice's callbacks take the GIL from the thread running Python: while groups run on
+    threads here, that thread hands it over at least every SWITCH_INTERVAL; before and after,
+    the interpreter's own interval stands, a stop included."""
+    before = sys.getswitchinterval()
+    results, _, interrupted = _run(tmp_path, 4, switch_interval, workers=1, in_process=True)
+    assert not interrupted and set(results.values()) == {min(before, executor.SWITCH_INTERVAL)}
+    assert sys.getswitchinterval() == before
+    results, _, interrupted = _run(tmp_path, 8, square_or_die, workers=1, in_process=True)
+    assert interrupted and sys.getswitchinterval() == before            # group 5 sent SIGTERM

@@ -8,7 +8,10 @@ import numpy as np
 import pytest
 
 from analogy import SpiceError, elements, netlist, node_system, solve_exact
+from analogy.circuit.scales import system_scales
 from analogy.model.joint import JointSpace
+from analogy.presets import preset
+from analogy.solvers.spice import _limit
 from analogy.study.comparison import compare
 from analogy.scenes.builtin import SCENES, scene
 
@@ -222,3 +225,12 @@ def test_a_scene_writes_the_netlist_of_the_retry_that_ran(monkeypatch, tmp_path)
     assert written == result.netlist
     abstol = next(w for w in written.split() if w.startswith("abstol="))
     assert abstol == f"abstol={dict(ran.options)['abstol']}"
+
+
+def test_a_stack_of_small_circuits_runs_in_the_foreground_and_one_dense_circuit_of_its_size_does_not():
+    # A batch circuit is block diagonal: its work per step is the sum of its blocks' n³
+    # (100 × 2³ = 800), not the cube of its 200 nodes (8e6), so it needs no time limit.
+    s, p = scene("default").system(), preset("fast")
+    scales = system_scales(s)
+    assert _limit(scales, s.t_stop, p, 100 * 2.0 ** 3) is None
+    assert _limit(scales, s.t_stop, p, 200.0 ** 3) == p.timeout

@@ -106,6 +106,30 @@ def _shared_class():
     return _Shared, Shared.ffi
 
 
+class _VectorInfo(ctypes.Structure):
+    """ngspice's ``vector_info`` (sharedspice.h); complex data are (re, im) pairs of doubles."""
+
+    _fields_ = [("v_name", ctypes.c_char_p), ("v_type", ctypes.c_int), ("v_flags", ctypes.c_short),
+                ("v_realdata", ctypes.POINTER(ctypes.c_double)), ("v_compdata", ctypes.POINTER(ctypes.c_double)),
+                ("v_length", ctypes.c_int)]
+
+
+def _short_calls(path: str) -> ctypes.PyDLL:
+    """The library's short calls, through ctypes.PyDLL, which keeps the GIL during a call.
+
+    cffi releases the GIL around every call, and takes it back afterwards: while another thread
+    runs Python, each return waits up to the interpreter's switch interval (5 ms), so reading
+    200 vectors could wait a second. A run and a parse still go through cffi, releasing it.
+    dlopen of a loaded path returns the same library, with the same global state.
+    """
+    lib = ctypes.PyDLL(path)
+    lib.ngGet_Vec_Info.argtypes, lib.ngGet_Vec_Info.restype = [ctypes.c_char_p], ctypes.POINTER(_VectorInfo)
+    lib.ngSpice_AllVecs.argtypes, lib.ngSpice_AllVecs.restype = [ctypes.c_char_p], ctypes.POINTER(ctypes.c_char_p)
+    lib.ngSpice_CurPlot.argtypes, lib.ngSpice_CurPlot.restype = [], ctypes.c_char_p
+    lib.ngSpice_Command.argtypes, lib.ngSpice_Command.restype = [ctypes.c_char_p], ctypes.c_int
+    return lib
+
+
 def _is_error(text: str) -> bool:
     low = text.lower()
     if low.startswith(_INFO_PREFIXES):
@@ -187,6 +211,7 @@ class NgspiceSession:
         except OSError as exc:
             raise SpiceError(f"cannot load the ngspice shared library {path}: {exc}") from None
         self._lib = self._ng._ngspice_shared
+        self._short = _short_calls(path)
         self._command("set nomoremode")
 
     def _reload(self):
@@ -214,9 +239,11 @@ class NgspiceSession:
     def version(self) -> int | None:
         return self._ng.ngspice_version
 
-    def _command(self, cmd: str) -> list[tuple[str, str]]:
+    def _command(self, cmd: str, release: bool = False) -> list[tuple[str, str]]:
+        """Run *cmd* and return what ngspice printed; with *release*, other threads run meanwhile
+        (a run: its lines come back from ngspice's callbacks, which take the GIL themselves)."""
         self._ng.lines = []
-        rc = self._lib.ngSpice_Command(cmd.encode("ascii"))
+        rc = (self._lib if release else self._short).ngSpice_Command(cmd.encode("ascii"))
         if rc:
             raise SpiceError(f"ngspice rejected the command {cmd!r}")
         return self._ng.lines
@@ -243,28 +270,37 @@ class NgspiceSession:
         return lines
 
     def _vectors(self, plot: str) -> dict[str, np.ndarray]:
-        ffi = self._ffi
-        names = self._ng._convert_string_array(self._lib.ngSpice_AllVecs(plot.encode()))
+        lib = self._short
+        listed = lib.ngSpice_AllVecs(plot.encode())
+        names = []
+        while listed and listed[len(names)] is not None:
+            names.append(listed[len(names)].decode("utf-8", "replace"))
         out = {}
         for name in names:
-            info = self._lib.ngGet_Vec_Info(f"{plot}.{name}".encode())
-            if info == ffi.NULL:
+            found = lib.ngGet_Vec_Info(f"{plot}.{name}".encode())
+            if not found:
                 continue
-            if info.v_realdata != ffi.NULL:
-                data = np.frombuffer(ffi.buffer(info.v_realdata, info.v_length * 8), dtype=np.float64).copy()
-            elif info.v_compdata != ffi.NULL:      # an AC sweep: (re, im) pairs
-                pairs = np.frombuffer(ffi.buffer(info.v_compdata, info.v_length * 16), dtype=np.float64)
+            info = found.contents
+            if info.v_realdata:
+                data = np.ctypeslib.as_array(info.v_realdata, (info.v_length,)).copy()
+            elif info.v_compdata:      # an AC sweep: (re, im) pairs
+                pairs = np.ctypeslib.as_array(info.v_compdata, (2 * info.v_length,))
                 data = pairs[0::2] + 1j * pairs[1::2]
             else:
                 continue
             out[vector_key(name)] = data
         return out
 
+    def _plot(self) -> str:
+        """The current plot's name ("" when there is none)."""
+        name = self._short.ngSpice_CurPlot()
+        return name.decode() if name else ""
+
     def _free(self):
         self._command("destroy all")
         self._command("remcirc")
         # ngspice keeps every command it has parsed (about 0.2 kB each) until it is sent NULL.
-        self._lib.ngSpice_Command(self._ffi.NULL)
+        self._short.ngSpice_Command(None)
         # PySpice keeps every line ngspice prints; what a run said is read by then.
         for kept in (getattr(self._ng, "_stdout", None), getattr(self._ng, "_stderr", None)):
             if isinstance(kept, list):
@@ -272,10 +308,8 @@ class NgspiceSession:
 
     def _healthy(self) -> bool:
         try:
-            lines = self._load(_CANARY) + self._command("run")
-            ok = not any(_is_error(t) for s, t in lines) and not self._ng.exited
-            ok = ok and self._lib.ngSpice_CurPlot() != self._ffi.NULL and \
-                self._ffi.string(self._lib.ngSpice_CurPlot()).decode().startswith("tran")
+            lines = self._load(_CANARY) + self._command("run", release=True)
+            ok = not any(_is_error(t) for s, t in lines) and not self._ng.exited and self._plot().startswith("tran")
             self._free()
             return ok
         except SpiceError:
@@ -362,10 +396,9 @@ class NgspiceSession:
         if errors or self._ng.exited:
             self._free()
             raise SpiceError(_describe_failure([t for s, t in load], "could not parse the netlist"))
-        ran = self._command("run") if timeout is None else self._timed(timeout)
+        ran = self._command("run", release=True) if timeout is None else self._timed(timeout)
         failed = [t for s, t in ran if _is_error(t)]
-        plot_c = self._lib.ngSpice_CurPlot()
-        plot = self._ffi.string(plot_c).decode() if plot_c != self._ffi.NULL else ""
+        plot = self._plot()
         if failed or self._ng.exited or not plot.startswith(analysis):
             self._free()
             stage = "transient analysis failed" if analysis == "tran" else "AC analysis failed"

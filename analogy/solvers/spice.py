@@ -50,13 +50,15 @@ def _trajectory(system, time, prepended: bool, volts, currents, stats, elapsed,
                       stats=info)
 
 
-def _limit(scales, t_stop: float, preset: Preset, dof: int) -> float | None:
+def _limit(scales, t_stop: float, preset: Preset, cubes: float) -> float | None:
     """The preset's wall-time limit where the run may be long: its fastest rate times t_stop
-    past 10^4, or its step cap's points times the dense circuit's n³ past 10^8 (about half a
-    second); None runs in the foreground, which costs a quarter millisecond less."""
+    past 10^4, or its step cap's points times *cubes* past 10^8 (about half a second), *cubes*
+    being Σ n³ over the run's independent circuits (a stack's are blocks of its matrix); None
+    runs in the foreground, which costs a quarter millisecond less, and less waiting for the
+    GIL where other threads run Python (no background thread to hand back to)."""
     if scales is None or preset.timeout is None or not math.isfinite(preset.timeout):
         return None
-    short = scales.fastest(preset.bound) * t_stop <= 1e4 and preset.max_steps * float(dof) ** 3 <= 1e8
+    short = scales.fastest(preset.bound) * t_stop <= 1e4 and preset.max_steps * cubes <= 1e8
     return None if short else preset.timeout
 
 
@@ -96,7 +98,8 @@ def solve_spice(system, times=None, *, preset="accurate", save=None) -> Trajecto
         stats: dict = {}
         text = write_netlist(circ, settings, list(system.nodes) + names, printing=False)
         try:
-            data = sess.run(text, vectors, stats, timeout=_limit(scales, system.t_stop, get_preset(preset), system.dof))
+            data = sess.run(text, vectors, stats, timeout=_limit(scales, system.t_stop, get_preset(preset),
+                                                                            float(system.dof) ** 3))
             break
         except SimulationError as exc:
             waited += stats.get("waited", 0.0)
@@ -204,7 +207,7 @@ class SpiceSolver(Solver):
         start = _time.perf_counter()
         try:
             data = session().run(text, None, stats, timeout=_limit(scales, float(ends.max()), preset,
-                                                                   sum(x.dof for x in systems)))
+                                                                   sum(float(x.dof) ** 3 for x in systems)))
         except SimulationError:
             return super().solve_many(systems, times, preset)
         elapsed = (_time.perf_counter() - start - stats.get("waited", 0.0)) / len(systems)
