@@ -106,14 +106,6 @@ def _shared_class():
     return _Shared, Shared.ffi
 
 
-class _VectorInfo(ctypes.Structure):
-    """ngspice's ``vector_info`` (sharedspice.h); complex data are (re, im) pairs of doubles."""
-
-    _fields_ = [("v_name", ctypes.c_char_p), ("v_type", ctypes.c_int), ("v_flags", ctypes.c_short),
-                ("v_realdata", ctypes.POINTER(ctypes.c_double)), ("v_compdata", ctypes.POINTER(ctypes.c_double)),
-                ("v_length", ctypes.c_int)]
-
-
 def _short_calls(path: str) -> ctypes.PyDLL:
     """The library's short calls, through ctypes.PyDLL, which keeps the GIL during a call.
 
@@ -123,8 +115,9 @@ def _short_calls(path: str) -> ctypes.PyDLL:
     dlopen of a loaded path returns the same library, with the same global state.
     """
     lib = ctypes.PyDLL(path)
-    lib.ngGet_Vec_Info.argtypes, lib.ngGet_Vec_Info.restype = [ctypes.c_char_p], ctypes.POINTER(_VectorInfo)
-    lib.ngSpice_AllVecs.argtypes, lib.ngSpice_AllVecs.restype = [ctypes.c_char_p], ctypes.POINTER(ctypes.c_char_p)
+    # addresses, read through cffi's declarations of the structs (faster than ctypes' own)
+    lib.ngGet_Vec_Info.argtypes, lib.ngGet_Vec_Info.restype = [ctypes.c_char_p], ctypes.c_void_p
+    lib.ngSpice_AllVecs.argtypes, lib.ngSpice_AllVecs.restype = [ctypes.c_char_p], ctypes.c_void_p
     lib.ngSpice_CurPlot.argtypes, lib.ngSpice_CurPlot.restype = [], ctypes.c_char_p
     lib.ngSpice_Command.argtypes, lib.ngSpice_Command.restype = [ctypes.c_char_p], ctypes.c_int
     return lib
@@ -270,21 +263,19 @@ class NgspiceSession:
         return lines
 
     def _vectors(self, plot: str) -> dict[str, np.ndarray]:
-        lib = self._short
+        ffi, lib = self._ffi, self._short
         listed = lib.ngSpice_AllVecs(plot.encode())
-        names = []
-        while listed and listed[len(names)] is not None:
-            names.append(listed[len(names)].decode("utf-8", "replace"))
+        names = self._ng._convert_string_array(ffi.cast("char **", listed)) if listed else []
         out = {}
         for name in names:
             found = lib.ngGet_Vec_Info(f"{plot}.{name}".encode())
             if not found:
                 continue
-            info = found.contents
-            if info.v_realdata:
-                data = np.ctypeslib.as_array(info.v_realdata, (info.v_length,)).copy()
-            elif info.v_compdata:      # an AC sweep: (re, im) pairs
-                pairs = np.ctypeslib.as_array(info.v_compdata, (2 * info.v_length,))
+            info = ffi.cast("pvector_info", found)
+            if info.v_realdata != ffi.NULL:
+                data = np.frombuffer(ffi.buffer(info.v_realdata, info.v_length * 8), dtype=np.float64).copy()
+            elif info.v_compdata != ffi.NULL:      # an AC sweep: (re, im) pairs
+                pairs = np.frombuffer(ffi.buffer(info.v_compdata, info.v_length * 16), dtype=np.float64)
                 data = pairs[0::2] + 1j * pairs[1::2]
             else:
                 continue
