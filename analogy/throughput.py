@@ -21,7 +21,8 @@ from .results.metrics import relative_error
 from .scenes.builtin import scene
 from .solvers.exact import solve_exact
 from .circuit.scales import combined_scales, stack_scales
-from .solvers.spice import library_path, session, solve_spice
+from .solvers.quiet_ngspice import quiet_session
+from .solvers.spice import library_path, solve_spice
 from .solvers.transient import batch_netlist
 
 __all__ = ["throughput"]
@@ -79,12 +80,13 @@ def _solo_loop(payload):
 
 def _floor_loop(payload):
     """ngspice alone: the batch netlists of the batched path (groups of *group_size*), written
-    first and then loaded and run in the session, only that timed: what the batched path cannot beat."""
+    first and then loaded and run in the quiet session the batched path runs them in, only that
+    timed: what the batched path cannot beat."""
     items, preset_name, group_size = payload
     systems = [as_system(item) for item in items]
     groups = [systems[k:k + group_size] for k in range(0, len(systems), group_size)]
     texts = [batch_netlist(g, preset_name, combined_scales(stack_scales(g))) for g in groups]
-    sess = session()
+    sess = quiet_session()                  # the batched path's own library: nothing printed
     sess.run(texts[0], None, {})            # warm-up, as on the other paths
     start, cpu = _time.perf_counter(), _time.process_time()
     for text in texts:

@@ -8,10 +8,13 @@ import numpy as np
 import pytest
 
 from analogy import SpiceError, elements, netlist, node_system, solve_exact
-from analogy.circuit.scales import system_scales
 from analogy.model.joint import JointSpace
 from analogy.presets import preset
+from analogy.circuit.scales import combined_scales, stack_scales, system_scales
+from analogy.solvers.ngspice import session
+from analogy.solvers.quiet_ngspice import quiet_session, run_quietly
 from analogy.solvers.spice import _limit
+from analogy.solvers.transient import batch_netlist
 from analogy.study.comparison import compare
 from analogy.scenes.builtin import SCENES, scene
 
@@ -234,3 +237,20 @@ def test_a_stack_of_small_circuits_runs_in_the_foreground_and_one_dense_circuit_
     scales = system_scales(s)
     assert _limit(scales, s.t_stop, p, 100 * 2.0 ** 3) is None
     assert _limit(scales, s.t_stop, p, 200.0 ** 3) == p.timeout
+
+
+def test_the_quiet_library_runs_a_stack_to_the_same_bits_and_hands_a_failure_to_the_talking_one():
+    # Two copies of one library with one netlist and one set of options: the same numbers, to the bit.
+    s = [scene("default").replace(q=(0.0, q2)).system() for q2 in (0.3, -1.2, 2.5)]
+    text = batch_netlist(s, preset("fast"), combined_scales(stack_scales(s)))
+    quiet, talking = quiet_session().run(text), session().run(text)
+    assert quiet.keys() == talking.keys() and all(np.array_equal(quiet[k], talking[k]) for k in quiet)
+    # A malformed line leaves the quiet library with no transient plot, and no word of why;
+    # run_quietly runs it again in the talking library, whose message names the line.
+    bad = "* bad\nI1 0 n1 DC 1\nR1 n1 0 1\nZ1 n1 0 1\nC1 n1 0 1\n.tran 0.1 1 uic\n.end\n"
+    with pytest.raises(SpiceError, match="no output"):
+        quiet_session().run(bad)
+    with pytest.raises(SpiceError, match="line 4: z1"):
+        run_quietly(bad, 1.0)
+    with pytest.raises(ValueError, match="foreground"):
+        quiet_session().run(text, timeout=10.0)

@@ -57,6 +57,17 @@ def library_path() -> str:
     return path
 
 
+def declared_ffi():
+    """PySpice's one cffi object, with ngspice's declarations (taken once), the C locale set for ngspice."""
+    locale.setlocale(locale.LC_NUMERIC, "C")   # ngspice parses numbers with the C locale
+    from PySpice.Spice.NgSpice import Shared
+    global _CDEF_DONE
+    if not _CDEF_DONE:
+        Shared.ffi.cdef(Path(Shared.__file__).with_name("api.h").read_text())
+        _CDEF_DONE = True
+    return Shared.ffi
+
+
 def _shared_class():
     """A PySpice NgSpiceShared subclass that records output instead of judging it."""
     logging.getLogger("PySpice").setLevel(logging.CRITICAL)  # it logs harmless notes as errors
@@ -76,13 +87,7 @@ def _shared_class():
             return self._path
 
         def _load_library(self, verbose):
-            locale.setlocale(locale.LC_NUMERIC, "C")   # ngspice parses numbers with the C locale
-            global _CDEF_DONE
-            if not _CDEF_DONE:        # PySpice's one ffi object takes the declarations once
-                api = Path(Shared.__file__).with_name("api.h").read_text()
-                Shared.ffi.cdef(api)
-                _CDEF_DONE = True
-            self._ngspice_shared = Shared.ffi.dlopen(self._path)
+            self._ngspice_shared = declared_ffi().dlopen(self._path)
 
         def send_char(self, message, ngspice_id):
             stream, _, text = message.partition(" ")
@@ -191,11 +196,14 @@ class NgspiceSession:
     a private copy, since ngspice keeps global state that a fatal error can leave broken.
     """
 
-    def __init__(self, path: str | None = None):
+    def __init__(self, path: str | None = None, private: bool = False):
         self._lock = threading.Lock()
         self._source = path or library_path()
         self._generation = 0
-        self._open(self._source)
+        if private:         # a copy of its own: its global state shared with no other session
+            self._reload()
+        else:
+            self._open(self._source)
 
     def _open(self, path: str):
         cls, self._ffi = _shared_class()
