@@ -1,11 +1,13 @@
 """Memory: thousands of in-process SPICE runs leave resident memory and ngspice's buffers flat."""
 
+import os
 import subprocess
 import sys
 
 import pytest
 
 from analogy.memory import memory_per_run
+from analogy.solvers.quiet_ngspice import quiet_session
 from analogy.solvers.spice import session
 
 pytestmark = [pytest.mark.ngspice, pytest.mark.slow]
@@ -49,3 +51,18 @@ def test_freed_arrays_are_reused_without_new_page_faults():
     if out == "none":
         pytest.skip("the C library is not glibc: its own allocation policy stays")
     assert int(out) < 400, f"{out} page faults over 400 loops of two 59-page temporaries"
+
+
+def test_two_thousand_runs_in_the_quiet_library_grow_resident_memory_by_at_most_half_a_kilobyte_each():
+    # The quiet copy frees its circuits as the talking one does (destroy all, remcirc, NULL).
+    def resident_kb():
+        with open("/proc/self/statm") as f:
+            return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 1024
+    text = "* rc\nI1 0 n1 DC 1\nR1 n1 0 1\nC1 n1 0 1\n.tran 0.01 1 uic\n.end\n"
+    quiet = quiet_session()
+    for _ in range(200):
+        quiet.run(text, None, {})
+    before = resident_kb()
+    for _ in range(2000):
+        quiet.run(text, None, {})
+    assert (resident_kb() - before) / 2000 <= 0.5
