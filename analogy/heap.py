@@ -19,12 +19,15 @@ _LOCK = threading.Lock()
 def retain_freed_memory() -> bool:
     """Keep up to :data:`RETAINED` bytes of freed memory for reuse (glibc's ``mallopt``); once per process.
 
-    By default glibc maps every array past 128 kB afresh and trims freed memory back to the
-    system, so numpy's short-lived arrays of a batch group (a stack's states over time, some
-    200 kB each) page-fault on every use: measured here, 8,700 minor faults where 145 remain
-    with these thresholds, and ngspice running beside such a loop took 14 ms for a batch
-    circuit that takes 8 ms alone (8 ms with these thresholds). The cost is memory that stays
-    with the process until it ends, at most about :data:`RETAINED` per heap.
+    By default glibc maps an array past 128 kB afresh (raising that threshold only to the largest
+    mapped block freed so far) and trims freed memory back to the system, so numpy's short-lived
+    arrays of a batch group (a stack's states over SPICE's points, some 240 kB each, several alive
+    at once) page-faulted on every use: a loop of such arrays faulted 8,700 pages where 145 remain
+    with these thresholds, and ngspice running beside it took 12 to 15 ms for a batch circuit
+    that takes 8 ms when the loop keeps its memory. Setting the threshold ends glibc's own
+    adjustment of it, and each heap (one per thread that allocates) may keep up to
+    :data:`RETAINED` for good. So the ``analogy`` command calls this in its own process and in its
+    worker processes, and a program calling the package decides for itself.
 
     Returns
     -------

@@ -15,6 +15,8 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator
 
+from .heap import retain_freed_memory
+
 __all__ = ["worker_pool", "die_with_parent", "scratch_folder", "stop_requests", "halt_requests"]
 
 
@@ -51,7 +53,8 @@ halt_requests = _StopRequests()
 
 
 def die_with_parent(parent: int) -> None:
-    """Worker initialiser: end when *parent* does (Linux parent-death signal) or on SIGTERM, and leave Ctrl-C to it.
+    """Worker initialiser: end when *parent* does (Linux parent-death signal) or on SIGTERM, leave Ctrl-C to
+    it, and keep freed memory for reuse (:func:`~analogy.heap.retain_freed_memory`).
 
     Parameters
     ----------
@@ -68,6 +71,7 @@ def die_with_parent(parent: int) -> None:
             pass
     if os.getppid() != parent:          # the parent died before prctl
         os._exit(1)
+    retain_freed_memory()               # a worker of ours: its allocator is ours to set
 
 
 def worker_pool(workers: int, *, fresh: bool = False) -> ProcessPoolExecutor:

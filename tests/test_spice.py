@@ -1,6 +1,8 @@
 """ngspice in process: accuracy against the exact solution, failures, stderr notes and memory."""
 
 import os
+import subprocess
+import sys
 import tempfile
 from pathlib import Path
 
@@ -13,7 +15,7 @@ from analogy.presets import preset
 from analogy.circuit.scales import combined_scales, stack_scales, system_scales
 from analogy.solvers.ngspice import session
 from analogy.solvers.quiet_ngspice import quiet_session, run_quietly
-from analogy.solvers.spice import _limit
+from analogy.solvers.spice import _limit, run_size
 from analogy.solvers.transient import batch_netlist
 from analogy.study.comparison import compare
 from analogy.scenes.builtin import SCENES, scene
@@ -231,12 +233,15 @@ def test_a_scene_writes_the_netlist_of_the_retry_that_ran(monkeypatch, tmp_path)
 
 
 def test_a_stack_of_small_circuits_runs_in_the_foreground_and_one_dense_circuit_of_its_size_does_not():
-    # A batch circuit is block diagonal: its work per step is the sum of its blocks' n³
-    # (100 × 2³ = 800), not the cube of its 200 nodes (8e6), so it needs no time limit.
-    s, p = scene("default").system(), preset("fast")
+    # A batch circuit is block diagonal: its work per step is the sum over its blocks
+    # (100 × (2³ + 16·2) = 4,000 units), not that of a dense circuit of its 200 nodes (8e6).
+    s, fast, accurate = scene("default").system(), preset("fast"), preset("accurate")
     scales = system_scales(s)
-    assert _limit(scales, s.t_stop, p, 100 * 2.0 ** 3) is None
-    assert _limit(scales, s.t_stop, p, 200.0 ** 3) == p.timeout
+    assert _limit(scales, s.t_stop, fast, run_size([2] * 100)) is None
+    assert _limit(scales, s.t_stop, accurate, run_size([2] * 100)) is None
+    assert _limit(scales, s.t_stop, fast, run_size([200])) == fast.timeout
+    # each node counts: 600 such circuits took 1.6 s at accurate's 20,000 steps, past half a second
+    assert _limit(scales, s.t_stop, accurate, run_size([2] * 600)) == accurate.timeout
 
 
 def test_the_quiet_library_runs_a_stack_to_the_same_bits_and_hands_a_failure_to_the_talking_one():
@@ -254,3 +259,18 @@ def test_the_quiet_library_runs_a_stack_to_the_same_bits_and_hands_a_failure_to_
         run_quietly(bad, 1.0)
     with pytest.raises(ValueError, match="foreground"):
         quiet_session().run(text, timeout=10.0)
+
+
+def test_a_code_model_device_runs_in_the_talking_library_after_the_quiet_one_is_loaded():
+    # XSPICE code models keep one pointer back to the library that loaded them last; the quiet
+    # copy loads none, so an A device in the talking library still runs (it crashed the process).
+    code = ("from analogy.solvers.spice import session\n"
+            "from analogy.solvers.quiet_ngspice import quiet_session\n"
+            "net = '* a\\nV1 in 0 DC 1\\nR1 in 0 1\\na1 in out amp\\n.model amp gain(gain=2)\\nR2 out 0 1\\n"
+            ".tran 0.1 1\\n.end\\n'\n"
+            "alone = session().run(net)['out'][-1]\n"
+            "quiet_session()\n"
+            "print(alone, session().run(net)['out'][-1])\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr[-500:]
+    assert [float(x) for x in done.stdout.split()] == [2.0, 2.0]       # gain 2 on 1 V

@@ -1,13 +1,17 @@
 """A tolerance instead of a preset: the named presets are tolerances, and the settings between them keep theirs."""
 
+import dataclasses
 import math
 import subprocess
 import sys
 
 import pytest
 
+from analogy.errors import InputError
 from analogy.presets import PRESETS, TOLERANCE_RANGE, preset, tolerance_preset
 from analogy.scenes.builtin import scene
+from analogy.circuit.scales import system_scales
+from analogy.solvers.transient import REFINE, refined, transient_settings
 from analogy.study.comparison import compare
 
 #: Every check here runs SPICE: the engine pass (ngspice 46) runs them too.
@@ -87,8 +91,6 @@ def test_a_sweep_runs_at_a_tolerance_and_an_axis_may_sweep_tolerances(tmp_path):
 
 
 def test_a_refined_run_keeps_its_first_step_and_halves_the_cap_so_it_is_never_coarser():
-    from analogy.circuit.scales import system_scales
-    from analogy.solvers.transient import REFINE, refined, transient_settings
     s = scene("default").system()
     for name in ("fast", "accurate"):
         base = transient_settings(name, s.t_stop, system_scales(s), breakpoints=s.breakpoints())
@@ -103,3 +105,18 @@ def test_a_refined_run_keeps_its_first_step_and_halves_the_cap_so_it_is_never_co
         cap_only = transient_settings(refined(name, tolerances=False), s.t_stop, system_scales(s),
                                       breakpoints=s.breakpoints())
         assert dict(cap_only.options) == a and cap_only.max_step == fine.max_step
+
+
+@pytest.mark.parametrize("option", [{"reltol": "nan"}, {"abstol": float("inf")}, {"maxord": "abc"},
+                                    {"method": "euler"}, {"reltol; .control": "1e-6"}])
+def test_an_option_ngspice_cannot_read_is_refused_before_it_is_written(option):
+    # ngspice runs on after reltol=nan or maxord=abc, saying so only in print, with its default instead
+    custom = dataclasses.replace(preset("fast"), spice_options={**preset("fast").spice_options, **option})
+    with pytest.raises(InputError, match="SPICE option"):
+        transient_settings(custom, 1.0, None)           # no scales: the preset's options as they are
+
+
+def test_flags_words_and_finite_numbers_pass_as_written():
+    custom = dataclasses.replace(preset("fast"), spice_options={"method": "gear", "maxord": "2", "reltol": 1e-4})
+    options = dict(transient_settings(custom, 1.0, None).options)
+    assert options["method"] == "gear" and options["maxord"] == "2" and options["klu"] == ""

@@ -9,7 +9,6 @@ import numpy as np
 
 from ..circuit.node_stack import NodeStack
 from ..errors import AnalogyError, InputError
-from ..heap import retain_freed_memory
 from ..presets import Preset
 from ..scenes.scene import Scene
 from ..study.comparison import compare_many
@@ -254,7 +253,6 @@ def solve_group_isolated(group: Group, preset: Preset, solvers: Sequence[str], r
     keep : bool
         Keep every member's time points and joint rates.
     """
-    retain_freed_memory()       # wherever the group runs: this process, a worker, a Dask worker
     try:
         return solve_group(group, preset, solvers, reference, keep)
     except Exception:       # noqa: BLE001 - one member's bug must not lose the group's others

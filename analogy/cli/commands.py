@@ -15,6 +15,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from ..solvers.transient import netlist
+from ..heap import retain_freed_memory
 from ..errors import EXIT_ACCURACY, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE
 from ..errors import AccuracyError, AnalogyError, InputError, SimulationError, one_line
 from ..model.expressions import (
@@ -454,6 +455,8 @@ def main(argv=None) -> int:
             args = parser.parse_args(argv)
             if args.command is None:
                 args = parser.parse_args(["compare"])
+            if args.command != "memory":     # which measures what the allocator keeps per run
+                retain_freed_memory()        # the command's own process: no host to change it for
             code = _COMMANDS[args.command](args)
         if stop_requests.asked():       # SIGTERM's exception was swallowed (a finalizer, say) and nothing acted on it
             raise KeyboardInterrupt

@@ -128,6 +128,24 @@ def _short_calls(path: str) -> ctypes.PyDLL:
     return lib
 
 
+class _DlInfo(ctypes.Structure):
+    _fields_ = [("dli_fname", ctypes.c_char_p), ("dli_fbase", ctypes.c_void_p),
+                ("dli_sname", ctypes.c_char_p), ("dli_saddr", ctypes.c_void_p)]
+
+
+def _mapped_file(function) -> str | None:
+    """The file a loaded library's *function* (a ctypes function) came from, as the dynamic loader
+    found it (``dladdr``); None where that cannot be told."""
+    try:
+        dladdr = ctypes.CDLL(None).dladdr
+    except (OSError, AttributeError):
+        return None
+    info = _DlInfo()
+    if not dladdr(ctypes.cast(function, ctypes.c_void_p), ctypes.byref(info)) or not info.dli_fname:
+        return None
+    return os.fsdecode(info.dli_fname)
+
+
 def _is_error(text: str) -> bool:
     low = text.lower()
     if low.startswith(_INFO_PREFIXES):
@@ -196,14 +214,21 @@ class NgspiceSession:
     a private copy, since ngspice keeps global state that a fatal error can leave broken.
     """
 
+    #: Whether the library prints (the quiet copy does not, so it has no counts to read).
+    prints = True
+
     def __init__(self, path: str | None = None, private: bool = False):
         self._lock = threading.Lock()
         self._source = path or library_path()
         self._generation = 0
+        #: The file the library was first loaded from, as the dynamic loader found it: copies are
+        #: made of it (None where that cannot be told, or for a private copy).
+        self.origin: str | None = None
         if private:         # a copy of its own: its global state shared with no other session
             self._reload()
         else:
             self._open(self._source)
+            self.origin = _mapped_file(self._short.ngSpice_Init)
 
     def _open(self, path: str):
         cls, self._ffi = _shared_class()
@@ -219,12 +244,13 @@ class NgspiceSession:
         # A fresh copy has its own global state; dlopen of the same path would share it. The
         # copy is removed once loaded (the mapping stays), so even SIGKILL leaves no file behind.
         _remove_orphan_copies()
-        src = Path(self._resolve(self._source))
+        src = Path(self.origin or self._resolve(self._source))
         self._generation += 1
         with tempfile.TemporaryDirectory(prefix=f"analogy-ngspice-{os.getpid()}-") as folder:
             dst = Path(folder) / f"libngspice-{self._generation}.so"
             shutil.copy(src, dst)
             self._open(str(dst))
+
 
     @staticmethod
     def _resolve(name: str) -> str:
@@ -295,11 +321,16 @@ class NgspiceSession:
         name = self._short.ngSpice_CurPlot()
         return name.decode() if name else ""
 
-    def _free(self):
-        self._command("destroy all")
-        self._command("remcirc")
+    def _free(self, release: bool = False):
+        # with *release*, through cffi, which gives up the GIL: after a background run that would
+        # not halt, whose thread may be waiting for the GIL in a print callback
+        self._command("destroy all", release)
+        self._command("remcirc", release)
         # ngspice keeps every command it has parsed (about 0.2 kB each) until it is sent NULL.
-        self._short.ngSpice_Command(None)
+        if release:
+            self._lib.ngSpice_Command(self._ffi.NULL)
+        else:
+            self._short.ngSpice_Command(None)
         # PySpice keeps every line ngspice prints; what a run said is read by then.
         for kept in (getattr(self._ng, "_stdout", None), getattr(self._ng, "_stderr", None)):
             if isinstance(kept, list):
@@ -315,7 +346,7 @@ class NgspiceSession:
             return False
 
     def run(self, netlist: str, vectors=None, stats: dict | None = None,
-            analysis: str = "tran", timeout: float | None = None) -> dict[str, np.ndarray]:
+            analysis: str = "tran", timeout: float | None = None, until: float | None = None) -> dict[str, np.ndarray]:
         """Run a transient (or, with *analysis* ``"ac"``, an AC) netlist: ``{"time": …, node: …}``.
 
         Parameters
@@ -333,6 +364,8 @@ class NgspiceSession:
         timeout : float, optional
             Wall-time limit [s]: the run goes to ngspice's background thread and is
             halted past it (:class:`SpiceError`, "time limit").
+        until : float, optional
+            The time a transient run must reach (its t_stop): one that ends short fails.
 
         Raises
         ------
@@ -346,7 +379,12 @@ class NgspiceSession:
             if stats is not None:       # another thread's run held the library: not this run's time
                 stats["waited"] = stats.get("waited", 0.0) + _time.perf_counter() - asked
             try:
-                return self._run(netlist, vectors, stats, analysis, timeout)
+                data = self._run(netlist, vectors, stats, analysis, timeout)
+                end = data["time"][-1] if analysis == "tran" and data["time"].size else None
+                if until is not None and not (end is not None and end >= until * (1 - 1e-9)):
+                    raise SpiceError(f"ngspice transient analysis failed: it ended at t = {end} s, short of "
+                                     f"{until:g} s")
+                return data
             except SpiceError:
                 # Leave a clean instance for the next run, whatever state ngspice is in.
                 if self._ng.exited or not self._healthy():
@@ -381,8 +419,7 @@ class NgspiceSession:
     def _halt(self) -> None:
         """Stop a background run and free its circuit."""
         self._lib.ngSpice_Command(b"bg_halt")
-        self._ng.finished.wait(60.0)
-        self._free()
+        self._free(release=not self._ng.finished.wait(60.0))
 
     def _run(self, netlist, vectors, stats=None, analysis="tran", timeout=None):
         index = "time" if analysis == "tran" else "frequency"
@@ -403,7 +440,7 @@ class NgspiceSession:
             stage = "transient analysis failed" if analysis == "tran" else "AC analysis failed"
             raise SpiceError(_describe_failure([t for s, t in ran], stage))
         data = self._vectors(plot)
-        if stats is not None:
+        if stats is not None and self.prints:
             for _, text in self._command("rusage rejected"):
                 name, _, value = text.partition(" = ")
                 key = {"Transient iterations": "iterations", "Rejected timepoints": "rejected"}.get(name)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+import tempfile
 import threading
 
 import numpy as np
@@ -10,6 +12,9 @@ from ..errors import SpiceError
 from .ngspice import NgspiceSession, _short_calls, declared_ffi, session
 
 __all__ = ["QuietSession", "quiet_session", "run_quietly"]
+
+#: Guards the environment while a copy initialises, and the process's one quiet session.
+_LOCK = threading.Lock()
 
 
 class _Silent:
@@ -32,19 +37,27 @@ class _Silent:
 
 
 class QuietSession(NgspiceSession):
-    """A private copy of the ngspice library, initialised with no print, status, data or
-    background-thread callback (only the one for a requested exit).
+    """A private copy of the library the talking :func:`~analogy.solvers.ngspice.session` runs,
+    initialised with no print, status, data or background-thread callback (only the one for
+    a requested exit), and without ngspice's ``spinit``.
 
     Every line ngspice prints otherwise reaches Python through a callback, which must take the
-    GIL: alone, a batch circuit of 100 2-DOF arms ran in 7.0 ms here against 8.4 ms in the
-    talking session, and beside a thread running Python each callback waits for the GIL.
-    With nothing printed there is nothing to judge a run by but its outcome, so a run that
-    leaves no transient plot, or one short of its end, is run again in the talking session
-    (:func:`run_quietly`). It runs in the foreground only, and counts no rejected points.
+    GIL: beside a thread running Python, each waits for it. With nothing printed there is
+    nothing to judge a run by but its outcome, so :func:`run_quietly` runs again in the talking
+    session a run that leaves no transient plot or ends short of its t_stop. It runs in the
+    foreground only, and reads no counts of iterations or rejected points (ngspice prints them).
+
+    ``spinit`` is left out because it loads the XSPICE code models, whose one shared handle per
+    file points back to the copy that loaded it last: a code-model device in the talking library
+    then crashed the process. The circuits written here use none.
     """
 
-    def __init__(self, path: str | None = None):
-        super().__init__(path, private=True)
+    prints = False
+
+    def __init__(self):
+        talking = session()     # first: the system's library is opened by its soname, which the
+        # dynamic loader would match to this copy's if the copy were loaded before it
+        super().__init__(talking.origin or talking._source, private=True)
 
     def _open(self, path: str):
         ffi = declared_ffi()
@@ -56,14 +69,24 @@ class QuietSession(NgspiceSession):
             return status
         silent.on_exit = ffi.callback("int(int, bool, bool, int, void*)", exit_requested)    # kept alive
         null = ffi.NULL
-        if lib.ngSpice_Init(null, null, silent.on_exit, null, null, null, null):
+        with tempfile.TemporaryDirectory(prefix="analogy-spinit-") as empty:
+            before = os.environ.get("SPICE_SCRIPTS")
+            os.environ["SPICE_SCRIPTS"] = empty         # no spinit, so no code models
+            try:
+                failed = lib.ngSpice_Init(null, null, silent.on_exit, null, null, null, null)
+            finally:
+                if before is None:
+                    del os.environ["SPICE_SCRIPTS"]
+                else:
+                    os.environ["SPICE_SCRIPTS"] = before
+        if failed:
             raise SpiceError(f"cannot initialise the ngspice shared library {path}")
         self._ffi, self._lib, self._ng = ffi, lib, silent
         self._short = _short_calls(path)
         self._command("set nomoremode")
 
     def run(self, netlist: str, vectors=None, stats: dict | None = None, analysis: str = "tran",
-            timeout: float | None = None) -> dict[str, np.ndarray]:
+            timeout: float | None = None, until: float | None = None) -> dict[str, np.ndarray]:
         """:meth:`NgspiceSession.run`, in the foreground; a failure names no cause (nothing is printed).
 
         Parameters
@@ -78,35 +101,40 @@ class QuietSession(NgspiceSession):
             The netlist's analysis.
         timeout : None
             Must be None: a limited run needs the background thread and its callback.
+        until : float, optional
+            The time a transient run must reach.
         """
         if timeout is not None:
             raise ValueError("a quiet session runs in the foreground only: run a limited circuit in session()")
-        return super().run(netlist, vectors, stats, analysis)
+        return super().run(netlist, vectors, stats, analysis, until=until)
 
 
-_QUIET: QuietSession | None = None
-_QUIET_LOCK = threading.Lock()
+_QUIET: list = []           # the session, or None where it could not be loaded
 
 
-def quiet_session() -> QuietSession:
-    """The process's quiet session, loaded on first use (once, whichever thread asks)."""
-    global _QUIET
-    with _QUIET_LOCK:
-        if _QUIET is None:
-            # The talking library first: the system's is opened by its name (libngspice.so.0), which
-            # the dynamic loader would match to this copy's soname if the copy were loaded before it.
-            session()
-            _QUIET = QuietSession()
-        return _QUIET
+def quiet_session() -> QuietSession | None:
+    """The process's quiet session, loaded on first use (once, whichever thread asks); None where
+    the library could not be copied or initialised a second time."""
+    with _LOCK:
+        if not _QUIET:
+            try:
+                _QUIET.append(QuietSession())
+            except (SpiceError, OSError):
+                _QUIET.append(None)
+        return _QUIET[0]
 
 
 def run_quietly(netlist: str, t_stop: float, stats: dict | None = None) -> dict[str, np.ndarray]:
-    """A transient *netlist* run to *t_stop* in the quiet session; where it shows a failure (no transient
-    plot, or time short of *t_stop*), run again in the talking session, whose messages make the error.
+    """A transient *netlist* of this package's writing run to *t_stop* in the quiet session; where it
+    fails (no transient plot, or time short of *t_stop*), run again in the talking session, whose
+    messages make the error.
 
-    Every malformed netlist tried (an unknown device or parameter, a bad number, a duplicate
-    name, a bad ``.tran``, a line of prose) left the quiet library with no transient plot
-    where the talking one raised, and every netlist the talking one ran reached its end in both.
+    The netlist's element and analysis lines are judged by their outcome alone: every malformed
+    one tried (an unknown device or parameter, a bad number, a duplicate name, a bad ``.tran``, a
+    line of prose) left the quiet library with no transient plot where the talking one raised.
+    Its ``.options`` values are checked before they are written
+    (:func:`~analogy.solvers.transient.transient_settings`): ngspice runs on after an option it
+    cannot read, saying so only in print.
 
     Parameters
     ----------
@@ -117,10 +145,10 @@ def run_quietly(netlist: str, t_stop: float, stats: dict | None = None) -> dict[
     stats : dict, optional
         As :meth:`NgspiceSession.run`'s.
     """
-    try:
-        data = quiet_session().run(netlist, None, stats)
-        if data["time"].size and data["time"][-1] >= t_stop * (1 - 1e-9):
-            return data
-    except SpiceError:
-        pass
-    return session().run(netlist, None, stats)
+    quiet = quiet_session()
+    if quiet is not None:
+        try:
+            return quiet.run(netlist, None, stats, until=t_stop)
+        except SpiceError:
+            pass
+    return session().run(netlist, None, stats, until=t_stop)

@@ -56,6 +56,27 @@ STEP_TOLERANCES = ("reltol", "vntol", "chgtol")
 NGSPICE_STEP_TOLERANCES = {"reltol": 1e-3, "vntol": 1e-6, "chgtol": 1e-14}
 
 _SCALE_NAMES = {"abstol": "current scale [A]", "vntol": "velocity scale [V]", "chgtol": "charge C·v [C]"}
+#: The ``.options`` that take a word, and their words; every other option is a flag or a finite number.
+_OPTION_WORDS = {"method": ("trap", "trapezoidal", "gear")}
+
+
+def _checked_options(opts: dict) -> dict:
+    """*opts*, each a flag (""), one of its words or a finite number: ngspice runs on after an
+    option it cannot read (reltol=nan, maxord=abc), saying so only in print."""
+    for key, value in opts.items():
+        text = str(value).strip().lower()
+        if not (key.isascii() and key.isidentifier()):
+            raise InputError(f"{key!r} is not a SPICE option name")
+        if text == "" or text in _OPTION_WORDS.get(key, ()):
+            continue
+        try:
+            ok = key not in _OPTION_WORDS and math.isfinite(float(text))
+        except ValueError:
+            ok = False
+        if not ok:
+            words = " or ".join(_OPTION_WORDS.get(key, ())) or "a finite number"
+            raise InputError(f"the SPICE option {key}={value!r} must be {words}")
+    return opts
 
 
 @dataclass(frozen=True)
@@ -276,7 +297,8 @@ def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | Non
     impedance = None
     if scales is not None and scales.current > 0 and math.isfinite(scales.peak_velocity / scales.current):
         impedance = scales.peak_velocity / scales.current
-    return TransientSettings(tuple((k, str(v)) for k, v in opts.items()), tstep, t_stop, tmax, first, loosen,
+    return TransientSettings(tuple((k, str(v)) for k, v in _checked_options(opts).items()), tstep, t_stop, tmax,
+                             first, loosen,
                              impedance=impedance, interpolate=not calibrated)
 
 
