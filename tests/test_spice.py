@@ -269,8 +269,19 @@ def test_a_code_model_device_runs_in_the_talking_library_after_the_quiet_one_is_
             "net = '* a\\nV1 in 0 DC 1\\nR1 in 0 1\\na1 in out amp\\n.model amp gain(gain=2)\\nR2 out 0 1\\n"
             ".tran 0.1 1\\n.end\\n'\n"
             "alone = session().run(net)['out'][-1]\n"
-            "quiet_session()\n"
+            "assert quiet_session() is not None\n"
             "print(alone, session().run(net)['out'][-1])\n")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr[-500:]
     assert [float(x) for x in done.stdout.split()] == [2.0, 2.0]       # gain 2 on 1 V
+
+
+def test_a_quiet_run_that_stops_short_fails_and_the_talking_library_says_why():
+    # Floating capacitors: the step collapses at once. The quiet copy says nothing and leaves a
+    # plot that ends at 1e-5 s, which alone would pass for a run; only its end shows the failure.
+    floating = "* floating\nI1 0 n1 DC 1\nC1 n1 n2 1\nC2 n2 n3 1\n.tran 1e-3 1 uic\n.end\n"
+    assert quiet_session().run(floating)["time"][-1] < 1e-3
+    with pytest.raises(SpiceError, match="short of 1 s"):
+        quiet_session().run(floating, until=1.0)
+    with pytest.raises(SpiceError, match=r"time step too small .* node n2"):
+        run_quietly(floating, 1.0)

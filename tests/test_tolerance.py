@@ -108,7 +108,8 @@ def test_a_refined_run_keeps_its_first_step_and_halves_the_cap_so_it_is_never_co
 
 
 @pytest.mark.parametrize("option", [{"reltol": "nan"}, {"abstol": float("inf")}, {"maxord": "abc"},
-                                    {"method": "euler"}, {"reltol; .control": "1e-6"}])
+                                    {"method": "euler"}, {"reltol; .control": "1e-6"}, {"reltol": ""},
+                                    {"trtol": " "}, {"method": ""}, {"interp": "1"}, {"reltol": "1_000"}])
 def test_an_option_ngspice_cannot_read_is_refused_before_it_is_written(option):
     # ngspice runs on after reltol=nan or maxord=abc, saying so only in print, with its default instead
     custom = dataclasses.replace(preset("fast"), spice_options={**preset("fast").spice_options, **option})

@@ -27,6 +27,9 @@ _CDEF_DONE = False
 #: The longest a running circuit goes between looks at :data:`~analogy.processes.halt_requests` [s].
 _STOP_POLL = 0.05
 
+#: Held while a library copy initialises: ngspice reads its environment (SPICE_SCRIPTS) then.
+_LOADING = threading.RLock()
+
 _CANARY = "* canary\nI1 0 n1 DC 1\nR1 n1 0 1\nC1 n1 0 1\n.tran 0.1 1 uic\n.end\n"
 
 
@@ -227,8 +230,10 @@ class NgspiceSession:
         if private:         # a copy of its own: its global state shared with no other session
             self._reload()
         else:
-            self._open(self._source)
-            self.origin = _mapped_file(self._short.ngSpice_Init)
+            with _LOADING:
+                self._open(self._source)
+            found = _mapped_file(self._short.ngSpice_Init)
+            self.origin = os.path.abspath(found) if found else None
 
     def _open(self, path: str):
         cls, self._ffi = _shared_class()
@@ -246,9 +251,12 @@ class NgspiceSession:
         _remove_orphan_copies()
         src = Path(self.origin or self._resolve(self._source))
         self._generation += 1
-        with tempfile.TemporaryDirectory(prefix=f"analogy-ngspice-{os.getpid()}-") as folder:
+        with _LOADING, tempfile.TemporaryDirectory(prefix=f"analogy-ngspice-{os.getpid()}-") as folder:
             dst = Path(folder) / f"libngspice-{self._generation}.so"
-            shutil.copy(src, dst)
+            try:
+                shutil.copy(src, dst)
+            except OSError as exc:
+                raise SpiceError(f"cannot copy the ngspice shared library {src} to load it afresh: {exc}") from None
             self._open(str(dst))
 
 
@@ -321,16 +329,11 @@ class NgspiceSession:
         name = self._short.ngSpice_CurPlot()
         return name.decode() if name else ""
 
-    def _free(self, release: bool = False):
-        # with *release*, through cffi, which gives up the GIL: after a background run that would
-        # not halt, whose thread may be waiting for the GIL in a print callback
-        self._command("destroy all", release)
-        self._command("remcirc", release)
+    def _free(self):
+        self._command("destroy all")
+        self._command("remcirc")
         # ngspice keeps every command it has parsed (about 0.2 kB each) until it is sent NULL.
-        if release:
-            self._lib.ngSpice_Command(self._ffi.NULL)
-        else:
-            self._short.ngSpice_Command(None)
+        self._short.ngSpice_Command(None)
         # PySpice keeps every line ngspice prints; what a run said is read by then.
         for kept in (getattr(self._ng, "_stdout", None), getattr(self._ng, "_stderr", None)):
             if isinstance(kept, list):
@@ -375,12 +378,16 @@ class NgspiceSession:
         asked = _time.perf_counter()
         if halt_requests.asked():       # a batch is stopping its group threads: no new circuit
             raise KeyboardInterrupt
+        if until is not None and analysis != "tran":
+            raise ValueError("until is the end of a transient run")
         with self._lock:
+            if self._ng.exited:         # it asked to exit, or a halted run's thread never ended
+                self._reload()
             if stats is not None:       # another thread's run held the library: not this run's time
                 stats["waited"] = stats.get("waited", 0.0) + _time.perf_counter() - asked
             try:
                 data = self._run(netlist, vectors, stats, analysis, timeout)
-                end = data["time"][-1] if analysis == "tran" and data["time"].size else None
+                end = data["time"][-1] if until is not None and data["time"].size else None
                 if until is not None and not (end is not None and end >= until * (1 - 1e-9)):
                     raise SpiceError(f"ngspice transient analysis failed: it ended at t = {end} s, short of "
                                      f"{until:g} s")
@@ -419,7 +426,10 @@ class NgspiceSession:
     def _halt(self) -> None:
         """Stop a background run and free its circuit."""
         self._lib.ngSpice_Command(b"bg_halt")
-        self._free(release=not self._ng.finished.wait(60.0))
+        if self._ng.finished.wait(60.0):
+            self._free()
+        else:       # its thread still runs: nothing of it is touched; the next run loads a fresh copy
+            self._ng.exited = True
 
     def _run(self, netlist, vectors, stats=None, analysis="tran", timeout=None):
         index = "time" if analysis == "tran" else "frequency"

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import os
+import pwd
 import tempfile
 import threading
+from pathlib import Path
 
 import numpy as np
 
@@ -13,7 +15,7 @@ from .ngspice import NgspiceSession, _short_calls, declared_ffi, session
 
 __all__ = ["QuietSession", "quiet_session", "run_quietly"]
 
-#: Guards the environment while a copy initialises, and the process's one quiet session.
+#: Guards the process's one quiet session (a copy initialises under ngspice's own loading lock).
 _LOCK = threading.Lock()
 
 
@@ -39,7 +41,8 @@ class _Silent:
 class QuietSession(NgspiceSession):
     """A private copy of the library the talking :func:`~analogy.solvers.ngspice.session` runs,
     initialised with no print, status, data or background-thread callback (only the one for
-    a requested exit), and without ngspice's ``spinit``.
+    a requested exit), and without ngspice's ``spinit``; none is made where a ``.spiceinit``
+    would run.
 
     Every line ngspice prints otherwise reaches Python through a callback, which must take the
     GIL: beside a thread running Python, each waits for it. With nothing printed there is
@@ -55,6 +58,11 @@ class QuietSession(NgspiceSession):
     prints = False
 
     def __init__(self):
+        # ngspice runs a .spiceinit in the working or home folder whatever SPICE_SCRIPTS says, and
+        # one that loads code models would bring back the crash spinit is left out for
+        for folder in {Path.cwd(), Path.home(), Path(pwd.getpwuid(os.getuid()).pw_dir)}:
+            if (folder / ".spiceinit").exists():
+                raise SpiceError(f"{folder / '.spiceinit'} would run in the quiet copy too")
         talking = session()     # first: the system's library is opened by its soname, which the
         # dynamic loader would match to this copy's if the copy were loaded before it
         super().__init__(talking.origin or talking._source, private=True)

@@ -224,7 +224,7 @@ class SpiceSolver(Solver):
         try:
             # a short run in the quiet library: no line printed, so no callback waits for the GIL
             data = run_quietly(text, float(ends.max()), stats) if limit is None else \
-                session().run(text, None, stats, timeout=limit)
+                session().run(text, None, stats, timeout=limit, until=float(ends.max()))
         except SimulationError:
             return super().solve_many(systems, times, preset)
         elapsed = (_time.perf_counter() - start - stats.get("waited", 0.0)) / len(systems)

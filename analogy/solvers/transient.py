@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, replace
 from typing import Iterable, Sequence
 
@@ -56,26 +57,29 @@ STEP_TOLERANCES = ("reltol", "vntol", "chgtol")
 NGSPICE_STEP_TOLERANCES = {"reltol": 1e-3, "vntol": 1e-6, "chgtol": 1e-14}
 
 _SCALE_NAMES = {"abstol": "current scale [A]", "vntol": "velocity scale [V]", "chgtol": "charge C·v [C]"}
-#: The ``.options`` that take a word, and their words; every other option is a flag or a finite number.
+#: The ``.options`` that take a word, and their words; the flags (no value); every other option is a number.
 _OPTION_WORDS = {"method": ("trap", "trapezoidal", "gear")}
+_OPTION_FLAGS = ("klu", "sparse", "interp", "noopiter", "noinit", "nopage", "savecurrents")
+_NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
 
 
 def _checked_options(opts: dict) -> dict:
-    """*opts*, each a flag (""), one of its words or a finite number: ngspice runs on after an
-    option it cannot read (reltol=nan, maxord=abc), saying so only in print."""
+    """*opts*, each a flag with no value, one of its words or a finite number: ngspice runs on
+    after an option it cannot read (reltol=nan, maxord=abc, trtol=), saying so only in print."""
     for key, value in opts.items():
-        text = str(value).strip().lower()
+        text = str(value).strip()
         if not (key.isascii() and key.isidentifier()):
             raise InputError(f"{key!r} is not a SPICE option name")
-        if text == "" or text in _OPTION_WORDS.get(key, ()):
-            continue
-        try:
-            ok = key not in _OPTION_WORDS and math.isfinite(float(text))
-        except ValueError:
-            ok = False
+        if key.lower() in _OPTION_FLAGS:
+            ok = str(value) == ""
+        elif key.lower() in _OPTION_WORDS:
+            ok = text.lower() in _OPTION_WORDS[key.lower()]
+        else:
+            ok = _NUMBER.fullmatch(text) is not None and math.isfinite(float(text))
         if not ok:
-            words = " or ".join(_OPTION_WORDS.get(key, ())) or "a finite number"
-            raise InputError(f"the SPICE option {key}={value!r} must be {words}")
+            what = ("a flag, with no value" if key.lower() in _OPTION_FLAGS else
+                    " or ".join(_OPTION_WORDS.get(key.lower(), ())) or "a finite number")
+            raise InputError(f"the SPICE option {key}={value!r} must be {what}")
     return opts
 
 
