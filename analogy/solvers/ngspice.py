@@ -387,9 +387,9 @@ class NgspiceSession:
                 stats["waited"] = stats.get("waited", 0.0) + _time.perf_counter() - asked
             try:
                 data = self._run(netlist, vectors, stats, analysis, timeout)
-                end = data["time"][-1] if until is not None and data["time"].size else None
-                if until is not None and not (end is not None and end >= until * (1 - 1e-9)):
-                    raise SpiceError(f"ngspice transient analysis failed: it ended at t = {end} s, short of "
+                if until is not None and not (data["time"].size and data["time"][-1] >= until * (1 - 1e-9)):
+                    end = data["time"][-1] if data["time"].size else 0.0
+                    raise SpiceError(f"ngspice transient analysis failed: it ended at t = {end:g} s, short of "
                                      f"{until:g} s")
                 return data
             except SpiceError:

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SpiceError
-from .ngspice import NgspiceSession, _short_calls, declared_ffi, session
+from .ngspice import NgspiceSession, _shared_class, _short_calls, declared_ffi, session
 
 __all__ = ["QuietSession", "quiet_session", "run_quietly"]
 
@@ -24,18 +24,11 @@ class _Silent:
 
     ngspice_version = None
 
-    def __init__(self, ffi) -> None:
-        self.ffi = ffi
+    def __init__(self, convert_string_array) -> None:
         self.lines: list = []           # stays empty: nothing is printed
         self.exited = False
         self.finished = threading.Event()
-
-    def _convert_string_array(self, array) -> list[str]:
-        out, k = [], 0
-        while array[k] != self.ffi.NULL:
-            out.append(self.ffi.string(array[k]).decode("utf-8", "replace"))
-            k += 1
-        return out
+        self._convert_string_array = convert_string_array     # PySpice's own reading of a char**
 
 
 class QuietSession(NgspiceSession):
@@ -70,7 +63,7 @@ class QuietSession(NgspiceSession):
     def _open(self, path: str):
         ffi = declared_ffi()
         lib = ffi.dlopen(path)
-        silent = _Silent(ffi)
+        silent = _Silent(_shared_class()[0]._convert_string_array)
 
         def exit_requested(status, immediate, quit_, ident, user):
             silent.exited = True

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import re
 from dataclasses import dataclass, replace
 from typing import Iterable, Sequence
 
@@ -15,6 +14,7 @@ from ..circuit.elements import ZERO_TOL
 from ..circuit.netlist import Dialect, write_batch, write_netlist, write_stack
 from ..circuit.node_stack import NodeStack
 from ..circuit.scales import Scales, combined_scales, stack_scales, system_scales
+from ..circuit.spice_numbers import spice_number
 from ..errors import InputError, SimulationError
 from .error_constants import (CALIBRATED_MAX_STEPS, CALIBRATED_TOPOLOGIES, FLOOR_LIMIT, SERIAL_NODE_LIMIT,
                               calibrated_options, calibrated_reltol)
@@ -60,11 +60,10 @@ _SCALE_NAMES = {"abstol": "current scale [A]", "vntol": "velocity scale [V]", "c
 #: The ``.options`` that take a word, and their words; the flags (no value); every other option is a number.
 _OPTION_WORDS = {"method": ("trap", "trapezoidal", "gear")}
 _OPTION_FLAGS = ("klu", "sparse", "interp", "noopiter", "noinit", "nopage", "savecurrents")
-_NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
 
 
 def _checked_options(opts: dict) -> dict:
-    """*opts*, each a flag with no value, one of its words or a finite number: ngspice runs on
+    """*opts*, each a flag with no value, one of its words or a finite SPICE number: ngspice runs on
     after an option it cannot read (reltol=nan, maxord=abc, trtol=), saying so only in print."""
     for key, value in opts.items():
         text = str(value).strip()
@@ -75,7 +74,10 @@ def _checked_options(opts: dict) -> dict:
         elif key.lower() in _OPTION_WORDS:
             ok = text.lower() in _OPTION_WORDS[key.lower()]
         else:
-            ok = _NUMBER.fullmatch(text) is not None and math.isfinite(float(text))
+            try:
+                ok = math.isfinite(spice_number(text))
+            except InputError:
+                ok = False
         if not ok:
             what = ("a flag, with no value" if key.lower() in _OPTION_FLAGS else
                     " or ".join(_OPTION_WORDS.get(key.lower(), ())) or "a finite number")

@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..circuit.spice_numbers import SPICE_NUMBER, spice_number
 from ..errors import InputError, SimulationError
 from ..results.output import Tabular
 from ..results.trajectory import Trajectory
@@ -19,23 +20,7 @@ if TYPE_CHECKING:
 
 __all__ = ["netlist_estimate", "NetlistEstimate", "refined_netlist", "spice_number", "Netlist"]
 
-_SUFFIX = {"t": 1e12, "g": 1e9, "meg": 1e6, "k": 1e3, "m": 1e-3, "u": 1e-6, "n": 1e-9, "p": 1e-12, "f": 1e-15}
-_NUMBER = re.compile(r"^([+-]?(?:\d+\.?\d*|\.\d+)(?:e[+-]?\d+)?)(meg|[tgkmunpf])?[a-z]*$", re.IGNORECASE)
 _OPTIONS = (".options", ".option", ".opt")
-
-
-def spice_number(text: str) -> float:
-    """A SPICE number: ``1e-3``, ``1m``, ``10meg`` (a unit after the suffix is ignored, as SPICE does).
-
-    Parameters
-    ----------
-    text : str
-        The number as written in a netlist.
-    """
-    match = _NUMBER.match(text.strip())
-    if match is None:
-        raise InputError(f"{text!r} is not a SPICE number")
-    return float(match.group(1)) * _SUFFIX.get((match.group(2) or "").lower(), 1.0)
 
 
 @dataclass(frozen=True)
@@ -105,8 +90,8 @@ class Netlist:
             raise InputError(f"analogy check judges a netlist with one .tran line (outside .control), "
                              f"this one has {len(trans)}")
         tokens = trans[0][1:]
-        values = [spice_number(t) for t in tokens if _NUMBER.match(t)]
-        flags = [t for t in tokens if not _NUMBER.match(t)]
+        values = [spice_number(t) for t in tokens if SPICE_NUMBER.match(t)]
+        flags = [t for t in tokens if not SPICE_NUMBER.match(t)]
         if len(values) < 2 or not values[0] > 0 or not values[1] > (values[2] if len(values) > 2 else 0.0):
             raise InputError(f"the .tran line needs TSTEP > 0 and TSTOP past TSTART: {' '.join(trans[0])!r}")
         start = values[2] if len(values) > 2 else 0.0
