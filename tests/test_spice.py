@@ -20,6 +20,8 @@ from analogy.solvers.transient import batch_netlist
 from analogy.study.comparison import compare
 from analogy.scenes.builtin import SCENES, scene
 
+_CANARY_NET = "* rc\nI1 0 n1 DC 1\nR1 n1 0 1\nC1 n1 0 1\n.tran 0.1 1 uic\n.end\n"
+
 pytestmark = pytest.mark.ngspice
 
 
@@ -259,6 +261,21 @@ def test_the_quiet_library_runs_a_stack_to_the_same_bits_and_hands_a_failure_to_
         run_quietly(bad, 1.0)
     with pytest.raises(ValueError, match="foreground"):
         quiet_session().run(text, timeout=10.0)
+
+
+@pytest.mark.skipif(not hasattr(os, "memfd_create"), reason="an in-memory file needs Linux's memfd_create")
+def test_a_library_copy_is_made_without_a_file_on_disk(monkeypatch):
+    # A worker is killed (SIGKILL) when its parent dies, perhaps while it loads its quiet copy:
+    # nothing of the copy may be on disk for it to leave, not even for a moment.
+    from analogy.solvers.quiet_ngspice import QuietSession
+    session()
+
+    def on_disk(*args, **kwargs):
+        raise AssertionError("a temporary file or folder was made")
+    monkeypatch.setattr(tempfile, "mkdtemp", on_disk)
+    monkeypatch.setattr(tempfile, "mkstemp", on_disk)
+    copy = QuietSession()
+    assert copy.run(_CANARY_NET, until=1.0)["n1"][-1] > 0.6       # 1 - e^-1 = 0.632 on a 1 s RC
 
 
 def test_a_code_model_device_runs_in_the_talking_library_after_the_quiet_one_is_loaded():

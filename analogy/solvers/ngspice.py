@@ -12,7 +12,9 @@ import sys
 import tempfile
 import threading
 import time as _time
+from contextlib import contextmanager
 from pathlib import Path
+from typing import Iterator
 
 import numpy as np
 
@@ -207,6 +209,42 @@ def _without_control(lines: list[str]) -> list[str]:
     return out
 
 
+#: The in-memory library copies' descriptors, kept open for the life of the process: dlopen
+#: matches a loaded library by its path first, and a closed descriptor's number (so its path
+#: ``/proc/self/fd/N``) would be reused by the next copy.
+_COPIES: list[int] = []
+
+
+@contextmanager
+def _library_copy(src: Path, generation: int) -> Iterator[str]:
+    """A path to a fresh copy of the library file *src*, to be loaded inside the block.
+
+    On Linux the copy is an anonymous file in memory (``memfd_create``), so a process killed
+    while it copies, even by SIGKILL, leaves nothing on disk. Elsewhere it is a temporary
+    folder, removed when the block ends (the mapping stays); what a killed process left there
+    is removed by the next process that makes a copy.
+    """
+    memfd = getattr(os, "memfd_create", None)
+    if memfd is not None and os.path.isdir("/proc/self/fd"):
+        try:
+            fd = memfd(f"libngspice-{generation}")
+            with open(src, "rb") as source, os.fdopen(fd, "wb", closefd=False) as copy:
+                shutil.copyfileobj(source, copy, 1 << 20)
+        except OSError as exc:
+            raise SpiceError(f"cannot copy the ngspice shared library {src} to load it afresh: {exc}") from None
+        _COPIES.append(fd)
+        yield f"/proc/self/fd/{fd}"
+        return
+    _remove_orphan_copies()
+    with tempfile.TemporaryDirectory(prefix=f"analogy-ngspice-{os.getpid()}-") as folder:
+        dst = Path(folder) / f"libngspice-{generation}.so"
+        try:
+            shutil.copy(src, dst)
+        except OSError as exc:
+            raise SpiceError(f"cannot copy the ngspice shared library {src} to load it afresh: {exc}") from None
+        yield str(dst)
+
+
 class NgspiceSession:
     """One loaded ngspice library: load a netlist, run it, read vectors, free the circuit.
 
@@ -246,19 +284,11 @@ class NgspiceSession:
         self._command("set nomoremode")
 
     def _reload(self):
-        # A fresh copy has its own global state; dlopen of the same path would share it. The
-        # copy is removed once loaded (the mapping stays), so even SIGKILL leaves no file behind.
-        _remove_orphan_copies()
+        # A fresh copy has its own global state; dlopen of the same path would share it.
         src = Path(self.origin or self._resolve(self._source))
         self._generation += 1
-        with _LOADING, tempfile.TemporaryDirectory(prefix=f"analogy-ngspice-{os.getpid()}-") as folder:
-            dst = Path(folder) / f"libngspice-{self._generation}.so"
-            try:
-                shutil.copy(src, dst)
-            except OSError as exc:
-                raise SpiceError(f"cannot copy the ngspice shared library {src} to load it afresh: {exc}") from None
-            self._open(str(dst))
-
+        with _LOADING, _library_copy(src, self._generation) as dst:
+            self._open(dst)
 
     @staticmethod
     def _resolve(name: str) -> str:

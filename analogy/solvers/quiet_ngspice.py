@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import os
 import pwd
-import tempfile
 import threading
 from pathlib import Path
 
@@ -70,16 +69,15 @@ class QuietSession(NgspiceSession):
             return status
         silent.on_exit = ffi.callback("int(int, bool, bool, int, void*)", exit_requested)    # kept alive
         null = ffi.NULL
-        with tempfile.TemporaryDirectory(prefix="analogy-spinit-") as empty:
-            before = os.environ.get("SPICE_SCRIPTS")
-            os.environ["SPICE_SCRIPTS"] = empty         # no spinit, so no code models
-            try:
-                failed = lib.ngSpice_Init(null, null, silent.on_exit, null, null, null, null)
-            finally:
-                if before is None:
-                    del os.environ["SPICE_SCRIPTS"]
-                else:
-                    os.environ["SPICE_SCRIPTS"] = before
+        before = os.environ.get("SPICE_SCRIPTS")
+        os.environ["SPICE_SCRIPTS"] = os.devnull        # no spinit (``/dev/null/spinit`` cannot exist), so no code models
+        try:
+            failed = lib.ngSpice_Init(null, null, silent.on_exit, null, null, null, null)
+        finally:
+            if before is None:
+                del os.environ["SPICE_SCRIPTS"]
+            else:
+                os.environ["SPICE_SCRIPTS"] = before
         if failed:
             raise SpiceError(f"cannot initialise the ngspice shared library {path}")
         self._ffi, self._lib, self._ng = ffi, lib, silent
