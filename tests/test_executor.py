@@ -122,12 +122,16 @@ def test_a_stop_in_this_process_halts_the_running_circuit_and_keeps_every_finish
     whose exception was lost (only its record set), stops the loop: the circuit is halted and
     its group dropped, the others are kept, and neither record is left behind."""
     asked = _thread.interrupt_main if stop == "ctrl-c" else stop_requests.ask
+    # Python's own Ctrl-C handler, which interrupt_main calls: a shell starts a background job
+    # with SIGINT ignored, and Python then installs none
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
     timer = threading.Timer(1.0, asked)
     timer.start()
     try:
         results, died, interrupted = _run(tmp_path, 5, work=square_or_endless, workers=1, in_process=True)
     finally:
         timer.cancel()
+        signal.signal(signal.SIGINT, before)
     assert interrupted and died == []
     assert results == {n: n * n for n in (0, 1, 3, 4)}
     assert not halt_requests.asked() and not stop_requests.asked()
