@@ -81,17 +81,35 @@ def _solo_loop(payload):
 def _floor_loop(payload):
     """ngspice alone: the batch netlists of the batched path (groups of *group_size*), written
     first and then loaded and run in the quiet session the batched path runs them in, only that
-    timed: what the batched path cannot beat."""
-    items, preset_name, group_size = payload
+    timed: what the batched path cannot beat. With *start_at* (a wall-clock time), the timed part
+    waits for it, so that workers started together run together. Returns (ready, start, end, CPU
+    seconds), wall-clock times."""
+    items, preset_name, group_size, start_at = payload
     systems = [as_system(item) for item in items]
     groups = [systems[k:k + group_size] for k in range(0, len(systems), group_size)]
     texts = [batch_netlist(g, preset_name, combined_scales(stack_scales(g))) for g in groups]
     sess = quiet_session() or session()     # the batched path's own library: nothing printed
     sess.run(texts[0], None, {})            # warm-up, as on the other paths
-    start, cpu = _time.perf_counter(), _time.process_time()
+    ready = _time.time()
+    if start_at is not None:
+        _time.sleep(max(start_at - ready, 0.0))
+    start, cpu = _time.time(), _time.process_time()
     for text in texts:
         sess.run(text, None, {})
-    return _time.perf_counter() - start, _time.process_time() - cpu
+    return ready, start, _time.time(), _time.process_time() - cpu
+
+
+def _floor_together(items, preset_name: str, group_size: int, workers: int, lead: float) -> float:
+    """Scenes per second of the floor on *workers* fresh processes at once, each with every
+    *workers*-th group, timed from the first start to the last end. The processes start their timed
+    part together, *lead* seconds after they are asked (more if one is late: then the span counts it)."""
+    groups = [items[k:k + group_size] for k in range(0, len(items), group_size)]
+    parts = [[m for g in groups[i::workers] for m in g] for i in range(workers)]
+    with worker_pool(workers, fresh=True) as ex:
+        start_at = _time.time() + lead
+        times = [f.result() for f in [ex.submit(_floor_loop, (part, preset_name, group_size, start_at))
+                                      for part in parts if part]]
+    return len(items) / (max(t[2] for t in times) - min(t[1] for t in times))
 
 
 #: Most scenes of one throughput measurement (all held in memory at once).
@@ -139,11 +157,11 @@ def throughput(n: int = 10_000, preset: str = "fast", group_size: int = 100, wor
     base = scene("default")
     q2 = np.random.default_rng(seed).uniform(-np.pi, np.pi, n)
     items = [base.replace(q=(0.0, float(x))) for x in q2]
-    rates: dict = {k: [] for k in ("batched", "one", "solo", "pyspice", "floor")}
+    rates: dict = {k: [] for k in ("batched", "one", "solo", "pyspice", "floor", "floors")}
     cpus: dict = {"one": [], "floor": []}
     worst: dict = {k: 0.0 for k in rates}
     failed, solves = 0, []
-    bar = Progress(5 * repeats, unit="path run", enabled=progress, every=0.0)
+    bar = Progress((5 + (workers > 1)) * repeats, unit="path run", enabled=progress, every=0.0)
     for _ in range(repeats):
         with worker_pool(1, fresh=True) as ex:
             sec, err, med = ex.submit(_solo_loop, (items[:baseline_n], preset)).result()
@@ -155,11 +173,15 @@ def throughput(n: int = 10_000, preset: str = "fast", group_size: int = 100, wor
         rates["pyspice"].append(baseline_n / sec)
         worst["pyspice"] = max(worst["pyspice"], err)
         bar.update(1)
+        asked = _time.time()
         with worker_pool(1, fresh=True) as ex:
-            sec, cpu = ex.submit(_floor_loop, (items, preset, group_size)).result()
-        rates["floor"].append(n / sec)
+            ready, start, end, cpu = ex.submit(_floor_loop, (items, preset, group_size, None)).result()
+        rates["floor"].append(n / (end - start))
         cpus["floor"].append(cpu)
         bar.update(1)
+        if workers > 1:         # a fresh worker was ready after (ready - asked): twice that is lead enough
+            rates["floors"].append(_floor_together(items, preset, group_size, workers, 2 * (ready - asked) + 0.5))
+            bar.update(1)
         for key, w in (("batched", workers), ("one", 1)):
             cpu = _time.process_time()
             res = run_batch(items, preset, group_size=group_size, workers=w)
@@ -172,7 +194,7 @@ def throughput(n: int = 10_000, preset: str = "fast", group_size: int = 100, wor
             failed += len(res.failures)
             bar.update(1)
     bar.close()
-    med = {k: statistics.median(v) for k, v in rates.items()}
+    med = {k: statistics.median(v) for k, v in rates.items() if v}
     ratio = statistics.median(b / p for b, p in zip(rates["batched"], rates["pyspice"]))
     per_core = statistics.median(b / p for b, p in zip(rates["one"], rates["pyspice"]))
     of_floor = statistics.median(b / f for b, f in zip(rates["one"], rates["floor"]))
@@ -183,7 +205,7 @@ def throughput(n: int = 10_000, preset: str = "fast", group_size: int = 100, wor
     def spread(key):
         return f"{med[key]:,.0f} scenes/s (runs {', '.join(f'{r:,.0f}' for r in rates[key])})"
 
-    return "\n".join([
+    lines = [
         f"throughput: default 2-DOF serial arm, random q2 in [-pi, pi], preset {preset}, "
         f"SPICE + comparison with the exact solution; medians of {repeats} turns",
         f"  batched, {workers} workers, {group_size} scenes per ngspice run, {n} scenes: "
@@ -196,7 +218,15 @@ def throughput(n: int = 10_000, preset: str = "fast", group_size: int = 100, wor
         f"{spread('pyspice')}, worst error/peak {worst['pyspice']:.2e}",
         f"  ngspice alone on the same batch netlists (1 process, {n} scenes, loading and running only): "
         f"{spread('floor')}, {cpu_per('floor')}",
-        f"  speed-up over the PySpice loop (median of per-turn ratios): batched {ratio:.1f}x, "
-        f"batched on 1 process {per_core:.1f}x; batched on 1 process reaches {of_floor:.2f} of the ngspice "
-        f"floor; {failed} scenes failed",
-    ])
+    ]
+    shares = f"batched on 1 process reaches {of_floor:.2f} of the ngspice floor"
+    if workers > 1:
+        gain = statistics.median(f / o for f, o in zip(rates["floors"], rates["floor"]))
+        lines.append(f"  ngspice alone on {workers} processes at once (the netlists dealt out in turn): "
+                     f"{spread('floors')}, {gain:.2f}x one process: what {workers} busy cores give here")
+        shares += (f", batched on {workers} workers "
+                   f"{statistics.median(b / f for b, f in zip(rates['batched'], rates['floors'])):.2f} "
+                   f"of the floor on {workers} processes")
+    lines.append(f"  speed-up over the PySpice loop (median of per-turn ratios): batched {ratio:.1f}x, "
+                 f"batched on 1 process {per_core:.1f}x; {shares}; {failed} scenes failed")
+    return "\n".join(lines)
