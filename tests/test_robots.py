@@ -375,7 +375,6 @@ def test_long_serial_arms_are_numeric_and_their_symbolic_model_is_refused_with_a
     from analogy.model.robots import robot
     from analogy.model.serial_chain import SerialChain
     from analogy.scenes.build import scene_model
-    from analogy.scenes.builtin import SCENES
     from analogy.scenes.scene import Scene
     from analogy.scenes.spec import ModelSpec
     model = scene_model(Scene.of("long", ModelSpec(robot="serial200"), q=[0.1] * 200))

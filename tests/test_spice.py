@@ -201,7 +201,7 @@ def test_library_copies_of_killed_processes_are_removed_and_live_ones_kept(tmp_p
     import os
     import tempfile
 
-    from analogy.solvers import ngspice
+    from analogy.solvers import library_copy
     monkeypatch.setattr(tempfile, "gettempdir", lambda: str(tmp_path))
     dead = max(int(p.name) for p in __import__("pathlib").Path("/proc").iterdir() if p.name.isdigit()) + 10**6
     orphan = tmp_path / f"analogy-ngspice-{dead}-abc"
@@ -209,7 +209,7 @@ def test_library_copies_of_killed_processes_are_removed_and_live_ones_kept(tmp_p
     for d in (orphan, live):
         d.mkdir()
         (d / "libngspice-1.so").write_bytes(b"x")
-    ngspice._remove_orphan_copies()
+    library_copy.remove_orphan_copies()
     assert not orphan.exists() and live.exists()
 
 

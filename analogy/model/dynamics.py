@@ -7,7 +7,6 @@ from typing import (
     Callable,
     Iterator,
     Literal,
-    Mapping,
     NamedTuple,
     Protocol,
     runtime_checkable,

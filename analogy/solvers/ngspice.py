@@ -7,19 +7,15 @@ import locale
 import logging
 import os
 import re
-import shutil
-import sys
-import tempfile
 import threading
 import time as _time
-from contextlib import contextmanager
 from pathlib import Path
-from typing import Iterator
 
 import numpy as np
 
 from ..errors import SpiceError
 from ..processes import halt_requests
+from .library_copy import library_copy
 
 __all__ = ["NgspiceSession", "session", "run_netlist", "library_path", "vector_key"]
 
@@ -181,15 +177,6 @@ def _describe_failure(lines: list[str], stage: str) -> str:
     return f"ngspice {stage}: {detail}"
 
 
-def _remove_orphan_copies() -> None:
-    """Remove library copies left by processes that were killed (SIGKILL skips every clean-up)."""
-    for folder in Path(tempfile.gettempdir()).glob("analogy-ngspice-*-*"):
-        pid = folder.name.split("-")[2]
-        if not pid.isdigit() or Path(f"/proc/{pid}").exists() or not sys.platform.startswith("linux"):
-            continue
-        shutil.rmtree(folder, ignore_errors=True)
-
-
 _CONTROL = re.compile(r"^\s*\.control", re.I | re.M)
 
 
@@ -207,42 +194,6 @@ def _without_control(lines: list[str]) -> list[str]:
         elif not inside:
             out.append(line)
     return out
-
-
-#: The in-memory library copies' descriptors, kept open for the life of the process: dlopen
-#: matches a loaded library by its path first, and a closed descriptor's number (so its path
-#: ``/proc/self/fd/N``) would be reused by the next copy.
-_COPIES: list[int] = []
-
-
-@contextmanager
-def _library_copy(src: Path, generation: int) -> Iterator[str]:
-    """A path to a fresh copy of the library file *src*, to be loaded inside the block.
-
-    On Linux the copy is an anonymous file in memory (``memfd_create``), so a process killed
-    while it copies, even by SIGKILL, leaves nothing on disk. Elsewhere it is a temporary
-    folder, removed when the block ends (the mapping stays); what a killed process left there
-    is removed by the next process that makes a copy.
-    """
-    memfd = getattr(os, "memfd_create", None)
-    if memfd is not None and os.path.isdir("/proc/self/fd"):
-        try:
-            fd = memfd(f"libngspice-{generation}")
-            with open(src, "rb") as source, os.fdopen(fd, "wb", closefd=False) as copy:
-                shutil.copyfileobj(source, copy, 1 << 20)
-        except OSError as exc:
-            raise SpiceError(f"cannot copy the ngspice shared library {src} to load it afresh: {exc}") from None
-        _COPIES.append(fd)
-        yield f"/proc/self/fd/{fd}"
-        return
-    _remove_orphan_copies()
-    with tempfile.TemporaryDirectory(prefix=f"analogy-ngspice-{os.getpid()}-") as folder:
-        dst = Path(folder) / f"libngspice-{generation}.so"
-        try:
-            shutil.copy(src, dst)
-        except OSError as exc:
-            raise SpiceError(f"cannot copy the ngspice shared library {src} to load it afresh: {exc}") from None
-        yield str(dst)
 
 
 class NgspiceSession:
@@ -287,7 +238,7 @@ class NgspiceSession:
         # A fresh copy has its own global state; dlopen of the same path would share it.
         src = Path(self.origin or self._resolve(self._source))
         self._generation += 1
-        with _LOADING, _library_copy(src, self._generation) as dst:
+        with _LOADING, library_copy(src, self._generation) as dst:
             self._open(dst)
 
     @staticmethod
