@@ -213,6 +213,23 @@ def test_library_copies_of_killed_processes_are_removed_and_live_ones_kept(tmp_p
     assert not orphan.exists() and live.exists()
 
 
+def test_a_refused_in_memory_copy_falls_back_to_a_folder_removed_after_loading(tmp_path, monkeypatch):
+    # a sandbox may refuse memfd_create (or an executable one): the copy is then a file on disk,
+    # in a folder named for this process, gone when the block ends
+    from analogy.solvers import library_copy
+
+    def refused(*args):
+        raise PermissionError(13, "Permission denied")
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    monkeypatch.setattr(os, "memfd_create", refused, raising=False)
+    src = tmp_path / "lib.so"
+    src.write_bytes(b"\x7fELF")
+    with library_copy.library_copy(src, 1) as path:
+        assert Path(path).read_bytes() == b"\x7fELF"
+        assert Path(path).parent.name.startswith(f"analogy-ngspice-{os.getpid()}-")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["lib.so"]
+
+
 @pytest.mark.ngspice
 def test_a_scene_writes_the_netlist_of_the_retry_that_ran(monkeypatch, tmp_path):
     """Where SPICE ran only on a retry, the scene's netlist file carries the retry's abstol:
