@@ -295,6 +295,22 @@ def test_a_library_copy_is_made_without_a_file_on_disk(monkeypatch):
     assert copy.run(_CANARY_NET, until=1.0)["n1"][-1] > 0.6       # 1 - e^-1 = 0.632 on a 1 s RC
 
 
+def test_a_quiet_copy_that_cannot_be_made_is_said_once_and_the_talking_library_runs(monkeypatch, caplog):
+    from analogy.solvers import quiet_ngspice
+
+    def refused():
+        raise SpiceError("/root/.spiceinit would run in the quiet copy too")
+    monkeypatch.setattr(quiet_ngspice, "_QUIET", [])
+    monkeypatch.setattr(quiet_ngspice, "QuietSession", refused)
+    with caplog.at_level("WARNING", logger="analogy"):
+        assert quiet_ngspice.quiet_session() is None and quiet_ngspice.quiet_session() is None
+        data = run_quietly(_CANARY_NET, 1.0)
+    assert [r.getMessage() for r in caplog.records] == [
+        "no quiet copy of the ngspice library (/root/.spiceinit would run in the quiet copy too): batched "
+        "groups run in the talking one, more slowly"]
+    assert data["n1"][-1] > 0.6         # 1 - e^-1 on a 1 s RC, run by the talking library
+
+
 def test_a_code_model_device_runs_in_the_talking_library_after_the_quiet_one_is_loaded():
     # XSPICE code models keep one pointer back to the library that loaded them last; the quiet
     # copy loads none, so an A device in the talking library still runs (it crashed the process).

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import os
 import pwd
 import threading
@@ -113,13 +114,17 @@ _QUIET: list = []           # the session, or None where it could not be loaded
 
 def quiet_session() -> QuietSession | None:
     """The process's quiet session, loaded on first use (once, whichever thread asks); None where
-    the library could not be copied or initialised a second time."""
+    the library could not be copied or initialised a second time, which is logged once (a warning
+    of the ``analogy`` logger): the stacks then run in the talking session, more slowly."""
     with _LOCK:
         if not _QUIET:
             try:
                 _QUIET.append(QuietSession())
-            except (SpiceError, OSError):
+            except (SpiceError, OSError) as exc:
                 _QUIET.append(None)
+                logging.getLogger("analogy").warning(
+                    "no quiet copy of the ngspice library (%s): batched groups run in the talking one, "
+                    "more slowly", exc)
         return _QUIET[0]
 
 
