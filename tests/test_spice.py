@@ -295,19 +295,24 @@ def test_a_library_copy_is_made_without_a_file_on_disk(monkeypatch):
     assert copy.run(_CANARY_NET, until=1.0)["n1"][-1] > 0.6       # 1 - e^-1 = 0.632 on a 1 s RC
 
 
-def test_a_quiet_copy_that_cannot_be_made_is_said_once_and_the_talking_library_runs(monkeypatch, caplog):
+@pytest.mark.parametrize("spiceinit", [True, False])
+def test_a_quiet_copy_that_cannot_be_made_is_said_once_and_the_talking_library_runs(monkeypatch, caplog,
+                                                                                    spiceinit):
+    # a user's .spiceinit is theirs to move: a warning; a copy refused (a file-size limit) is information
     from analogy.solvers import quiet_ngspice
+    reason = "/root/.spiceinit would run in the quiet copy too" if spiceinit else "cannot copy: File too large"
 
     def refused():
-        raise SpiceError("/root/.spiceinit would run in the quiet copy too")
+        raise SpiceError(reason)
     monkeypatch.setattr(quiet_ngspice, "_QUIET", [])
     monkeypatch.setattr(quiet_ngspice, "QuietSession", refused)
-    with caplog.at_level("WARNING", logger="analogy"):
+    monkeypatch.setattr(quiet_ngspice, "_spiceinit", lambda: Path("/root/.spiceinit") if spiceinit else None)
+    with caplog.at_level("INFO", logger="analogy"):
         assert quiet_ngspice.quiet_session() is None and quiet_ngspice.quiet_session() is None
         data = run_quietly(_CANARY_NET, 1.0)
-    assert [r.getMessage() for r in caplog.records] == [
-        "no quiet copy of the ngspice library (/root/.spiceinit would run in the quiet copy too): batched "
-        "groups run in the talking one, more slowly"]
+    assert [(r.levelname, r.getMessage()) for r in caplog.records] == [
+        ("WARNING" if spiceinit else "INFO",
+         f"no quiet copy of the ngspice library ({reason}): batched groups run in the talking one, more slowly")]
     assert data["n1"][-1] > 0.6         # 1 - e^-1 on a 1 s RC, run by the talking library
 
 

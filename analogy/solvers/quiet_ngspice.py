@@ -53,9 +53,9 @@ class QuietSession(NgspiceSession):
     def __init__(self):
         # ngspice runs a .spiceinit in the working or home folder whatever SPICE_SCRIPTS says, and
         # one that loads code models would bring back the crash spinit is left out for
-        for folder in {Path.cwd(), Path.home(), Path(pwd.getpwuid(os.getuid()).pw_dir)}:
-            if (folder / ".spiceinit").exists():
-                raise SpiceError(f"{folder / '.spiceinit'} would run in the quiet copy too")
+        found = _spiceinit()
+        if found is not None:
+            raise SpiceError(f"{found} would run in the quiet copy too")
         talking = session()     # first: the system's library is opened by its soname, which the
         # dynamic loader would match to this copy's if the copy were loaded before it
         super().__init__(talking.origin or talking._source, private=True)
@@ -112,17 +112,28 @@ class QuietSession(NgspiceSession):
 _QUIET: list = []           # the session, or None where it could not be loaded
 
 
+def _spiceinit() -> Path | None:
+    """The ``.spiceinit`` ngspice would run, in the working or home folder (None: none)."""
+    for folder in (Path.cwd(), Path.home(), Path(pwd.getpwuid(os.getuid()).pw_dir)):
+        if (folder / ".spiceinit").exists():
+            return folder / ".spiceinit"
+    return None
+
+
 def quiet_session() -> QuietSession | None:
     """The process's quiet session, loaded on first use (once, whichever thread asks); None where
-    the library could not be copied or initialised a second time, which is logged once (a warning
-    of the ``analogy`` logger): the stacks then run in the talking session, more slowly."""
+    the library could not be copied or initialised a second time: the stacks then run in the
+    talking session, more slowly. That is logged once by the ``analogy`` logger: as a warning where
+    the user's ``.spiceinit`` is the reason (theirs to move), as information where the copy could
+    not be made (a file-size limit, a sandbox), which the run that follows meets again if it matters."""
     with _LOCK:
         if not _QUIET:
             try:
                 _QUIET.append(QuietSession())
             except (SpiceError, OSError) as exc:
                 _QUIET.append(None)
-                logging.getLogger("analogy").warning(
+                logging.getLogger("analogy").log(
+                    logging.WARNING if _spiceinit() is not None else logging.INFO,
                     "no quiet copy of the ngspice library (%s): batched groups run in the talking one, "
                     "more slowly", exc)
         return _QUIET[0]
