@@ -230,6 +230,26 @@ def test_a_refused_in_memory_copy_falls_back_to_a_folder_removed_after_loading(t
     assert sorted(p.name for p in tmp_path.iterdir()) == ["lib.so"]
 
 
+def test_a_copy_refused_as_code_in_memory_is_loaded_from_disk(monkeypatch):
+    # a security policy may refuse to map an in-memory file as code: the reload takes a copy on disk
+    from analogy.solvers.ngspice import NgspiceSession
+    sess = session()
+    real = NgspiceSession._open
+    tried = []
+
+    def open_(self, path):
+        tried.append(path)
+        if path.startswith("/proc/self/fd/"):
+            raise SpiceError(f"cannot load the ngspice shared library {path}: failed to map segment")
+        return real(self, path)
+    monkeypatch.setattr(NgspiceSession, "_open", open_)
+    sess._reload()
+    monkeypatch.undo()
+    assert tried[-1].endswith(".so") and f"analogy-ngspice-{os.getpid()}-" in tried[-1]
+    assert sess.run(_CANARY_NET, until=1.0)["n1"][-1] > 0.6       # 1 - e^-1 on a 1 s RC
+    assert not list(Path(tempfile.gettempdir()).glob(f"analogy-ngspice-{os.getpid()}-*"))
+
+
 @pytest.mark.ngspice
 def test_a_scene_writes_the_netlist_of_the_retry_that_ran(monkeypatch, tmp_path):
     """Where SPICE ran only on a retry, the scene's netlist file carries the retry's abstol:
@@ -280,7 +300,15 @@ def test_the_quiet_library_runs_a_stack_to_the_same_bits_and_hands_a_failure_to_
         quiet_session().run(text, timeout=10.0)
 
 
-@pytest.mark.skipif(not hasattr(os, "memfd_create"), reason="an in-memory file needs Linux's memfd_create")
+def _memfd_works() -> bool:
+    try:
+        os.close(os.memfd_create("probe"))
+    except (AttributeError, OSError):
+        return False
+    return True
+
+
+@pytest.mark.skipif(not _memfd_works(), reason="an in-memory file needs Linux's memfd_create, allowed")
 def test_a_library_copy_is_made_without_a_file_on_disk(monkeypatch):
     # A worker is killed (SIGKILL) when its parent dies, perhaps while it loads its quiet copy:
     # nothing of the copy may be on disk for it to leave, not even for a moment.

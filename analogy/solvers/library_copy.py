@@ -25,7 +25,7 @@ _NUMBERS = itertools.count(1)
 
 
 @contextmanager
-def library_copy(src: Path, generation: int) -> Iterator[str]:
+def library_copy(src: Path, generation: int, in_memory: bool = True) -> Iterator[str]:
     """A path to a fresh copy of the library file *src*, to be loaded inside the block.
 
     On Linux the copy is an anonymous file in memory (``memfd_create``), so a process killed
@@ -40,11 +40,13 @@ def library_copy(src: Path, generation: int) -> Iterator[str]:
         The library file.
     generation : int
         The session's count of its copies, in the copy's name.
+    in_memory : bool
+        Try the copy in memory first (where that is available).
     """
     name = f"libngspice-{generation}-{next(_NUMBERS)}"
     memfd = getattr(os, "memfd_create", None)
     fd = None
-    if memfd is not None and os.path.isdir("/proc/self/fd"):
+    if in_memory and memfd is not None and os.path.isdir("/proc/self/fd"):
         try:
             fd = memfd(name)
             with open(src, "rb") as source, os.fdopen(fd, "wb", closefd=False) as copy:

@@ -238,8 +238,13 @@ class NgspiceSession:
         # A fresh copy has its own global state; dlopen of the same path would share it.
         src = Path(self.origin or self._resolve(self._source))
         self._generation += 1
-        with _LOADING, library_copy(src, self._generation) as dst:
-            self._open(dst)
+        try:
+            with _LOADING, library_copy(src, self._generation) as dst:
+                self._open(dst)
+        except (SpiceError, OSError):
+            # a policy may refuse to map a copy in memory as code: one on disk then
+            with _LOADING, library_copy(src, self._generation, in_memory=False) as dst:
+                self._open(dst)
 
     @staticmethod
     def _resolve(name: str) -> str:
