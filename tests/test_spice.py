@@ -224,7 +224,7 @@ def test_a_refused_in_memory_copy_falls_back_to_a_folder_removed_after_loading(t
     monkeypatch.setattr(os, "memfd_create", refused, raising=False)
     src = tmp_path / "lib.so"
     src.write_bytes(b"\x7fELF")
-    with library_copy.library_copy(src, 1) as path:
+    with library_copy.library_copy(src) as path:
         assert Path(path).read_bytes() == b"\x7fELF"
         assert Path(path).parent.name.startswith(f"analogy-ngspice-{os.getpid()}-")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["lib.so"]

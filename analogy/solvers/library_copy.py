@@ -19,13 +19,12 @@ __all__ = ["library_copy", "remove_orphan_copies"]
 #: matches a loaded library by its path first, and a closed descriptor's number (so its path
 #: ``/proc/self/fd/N``) would be reused by the next copy.
 _COPIES: list[int] = []
-
-
+#: Numbers the process's copies, in their names.
 _NUMBERS = itertools.count(1)
 
 
 @contextmanager
-def library_copy(src: Path, generation: int, in_memory: bool = True) -> Iterator[str]:
+def library_copy(src: Path, in_memory: bool = True) -> Iterator[str]:
     """A path to a fresh copy of the library file *src*, to be loaded inside the block.
 
     On Linux the copy is an anonymous file in memory (``memfd_create``), so a process killed
@@ -38,12 +37,10 @@ def library_copy(src: Path, generation: int, in_memory: bool = True) -> Iterator
     ----------
     src : Path
         The library file.
-    generation : int
-        The session's count of its copies, in the copy's name.
     in_memory : bool
         Try the copy in memory first (where that is available).
     """
-    name = f"libngspice-{generation}-{next(_NUMBERS)}"
+    name = f"libngspice-{next(_NUMBERS)}"
     memfd = getattr(os, "memfd_create", None)
     fd = None
     if in_memory and memfd is not None and os.path.isdir("/proc/self/fd"):

@@ -238,13 +238,16 @@ class NgspiceSession:
         # A fresh copy has its own global state; dlopen of the same path would share it.
         src = Path(self.origin or self._resolve(self._source))
         self._generation += 1
+        copy = ""
         try:
-            with _LOADING, library_copy(src, self._generation) as dst:
-                self._open(dst)
+            with _LOADING, library_copy(src) as copy:
+                self._open(copy)
         except (SpiceError, OSError):
+            if not copy.startswith("/proc/self/fd/"):
+                raise
             # a policy may refuse to map a copy in memory as code: one on disk then
-            with _LOADING, library_copy(src, self._generation, in_memory=False) as dst:
-                self._open(dst)
+            with _LOADING, library_copy(src, in_memory=False) as copy:
+                self._open(copy)
 
     @staticmethod
     def _resolve(name: str) -> str:
