@@ -21,7 +21,7 @@ from .progress import Progress
 from .results.metrics import relative_error
 from .scenes.builtin import scene
 from .solvers.exact import solve_exact
-from .circuit.scales import combined_scales, stack_scales
+from .circuit.scales import run_scales
 from .solvers.quiet_ngspice import quiet_session
 from .solvers.spice import library_path, session, solve_spice
 from .solvers.transient import batch_netlist
@@ -88,7 +88,7 @@ def _floor_loop(payload):
     items, preset_name, group_size, start_at = payload
     systems = [as_system(item) for item in items]
     groups = [systems[k:k + group_size] for k in range(0, len(systems), group_size)]
-    texts = [batch_netlist(g, preset_name, combined_scales(stack_scales(g))) for g in groups]
+    texts = [batch_netlist(g, preset_name, run_scales(g)) for g in groups]
     sess = quiet_session() or session()     # the batched path's own library: nothing printed
     sess.run(texts[0], None, {})            # warm-up, as on the other paths
     ready = _time.time()

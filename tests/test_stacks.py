@@ -175,6 +175,22 @@ def test_a_shared_stack_is_written_from_its_columns_as_from_its_circuits(name, t
     assert (" x5_n1 0 " in text) and (name != "flexpar" or "\nLx0_" in text)
 
 
+def test_rows_that_keep_different_elements_are_written_as_their_circuits():
+    """Where M12 = 0 (q2 at its root) the floating capacitor is left out of that row alone:
+    write_stack fills another template for it, and still writes write_batch's text."""
+    from scipy.optimize import brentq
+    base = scene("default")
+    m12 = lambda q2: base.systems(np.array([[0.0, q2]]))[0].mass[0, 1]
+    root = brentq(m12, 1.2, 2.0, xtol=1e-15)
+    qs = np.array([[0.0, 0.3], [0.0, root], [0.0, 2.0], [0.0, root], [0.0, 1.0]])
+    systems = base.systems(qs)
+    settings = transient_settings("fast", systems[0].t_stop, combined_scales(stack_scales(systems)),
+                                  breakpoints=systems[0].breakpoints())
+    text = write_stack(systems, settings)
+    assert text == write_batch(circuits(systems), settings)
+    assert [f"Cx{k}_1_2 " in text for k in range(5)] == [True, False, True, False, True]
+
+
 @pytest.mark.ngspice
 def test_one_bad_configuration_fails_alone():
     base = scene("parallel2").replace(t_stop=2.0)

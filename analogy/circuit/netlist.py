@@ -6,6 +6,8 @@ import math
 import re
 from typing import Iterable, Literal, Sequence
 
+import numpy as np
+
 from ..errors import InputError
 from ..waveforms import PWL, pwl_sum
 from .description import (
@@ -68,6 +70,10 @@ _NODE_REFERENCE = re.compile(r"\bv\(([nxe]\d+|m\d+_\d+)\)")
 def _prefixed(expression: str, prefix: str) -> str:
     """*expression* with its node references v(n1), v(x1) given the sub-circuit's prefix."""
     return _NODE_REFERENCE.sub(lambda m: f"v({prefix}{m.group(1)})", expression) if prefix else expression
+
+
+#: Stands for a row's number in :func:`write_stack`'s templates: no netlist text holds it.
+_ROW = "\x00"
 
 
 def _num(x: float) -> str:
@@ -160,7 +166,7 @@ def _source_values(sources, t_stop: float, memo: dict | None) -> list[tuple[str,
 
 
 def analysis_lines(settings, ic: Iterable[tuple[str, float]], save: Iterable[str],
-                   printing: bool = False) -> list[str]:
+                   printing: bool = False, *, ic_text: str | None = None, save_text: str | None = None) -> list[str]:
     """``.ic``, ``.options``, ``.tran`` (uic), ``.save`` and, with *printing*, ``.print``: *settings* formatted.
 
     Parameters
@@ -176,19 +182,26 @@ def analysis_lines(settings, ic: Iterable[tuple[str, float]], save: Iterable[str
         Add ``.print tran`` of the saved vectors with 15 significant digits, so that
         ``ngspice -b`` prints them: on the print step (``option interp``) where
         ``settings.interpolate``, else at its own time points.
+    ic_text : str, optional
+        The ``.ic`` line's text, written already (instead of *ic*).
+    save_text : str, optional
+        The ``.save`` line's text, written already (instead of *save*).
     """
-    save = list(save)
+    if ic_text is None:
+        ic_text = " ".join(f"v({n})={_num(v)}" for n, v in ic)
+    if save_text is None:
+        save_text = " ".join(save)
     options = " ".join(f"{k}={v}" if v != "" else k for k, v in settings.options)      # "": a flag
     lines = [
-        ".ic " + " ".join(f"v({n})={_num(v)}" for n, v in ic),
+        ".ic " + ic_text,
         ".options " + options,
         f".tran {_num(settings.print_step)} {_num(settings.stop)} 0 {_num(settings.max_step)} uic",
-        ".save " + " ".join(save),
+        ".save " + save_text,
     ]
     if printing:
         # in a .control block, which a run in process leaves out (see analogy.solvers.ngspice)
         interp = ["option interp"] if getattr(settings, "interpolate", True) else []
-        lines += [".print tran " + " ".join(save), ".control", "set numdgt=15", *interp, ".endc"]
+        lines += [".print tran " + save_text, ".control", "set numdgt=15", *interp, ".endc"]
     return lines
 
 
@@ -370,6 +383,9 @@ def write_stack(stack: NodeStack, settings, zero_tol: float = ZERO_TOL) -> str:
     """:func:`write_batch` of a stack's :func:`~analogy.circuit.description.circuits`, written
     from its element columns: the same text, with no object per row (a batch writes one per group).
 
+    Each row's lines are one template per pattern of kept elements, filled with ``%`` (``%r`` of a
+    float is its repr, as everywhere else), the row's number put in last.
+
     Parameters
     ----------
     stack : NodeStack
@@ -383,25 +399,34 @@ def write_stack(stack: NodeStack, settings, zero_tol: float = ZERO_TOL) -> str:
         raise ValueError("write_stack needs systems that share their inputs and springs: use write_batch")
     columns = element_columns(stack, zero_tol)
     first = stack[0]
-    count, names = len(stack), [f"n{i + 1}" for i in range(stack.dof)]
-    rows: list[list[str]] = [[] for _ in range(count)]
-    for kind, a, b, values, coefs in columns:      # values are floats: repr is exact
-        for k, (value, coef) in enumerate(zip(values, coefs)):
-            if coef != 0.0:
-                rows[k].append(f"{kind}x{k}_{a} x{k}_n{a} 0 {value!r}" if b == 0 else
-                               f"{kind}x{k}_{a}_{b} x{k}_n{a} x{k}_n{b} {value!r}")
-    sources = _source_values(current_sources(first, zero_tol), first.t_stop, None)
+    count, dof, x = len(stack), stack.dof, f"x{_ROW}_"
+    sources = []
+    for name, a, b, v, terms in _source_values(current_sources(first, zero_tol), first.t_stop, None):
+        if terms:
+            sources.append(f"* I{x}{name[1:]} is the sum of " + ", ".join(f"I{x}{t[1:]}" for t in terms))
+        sources.append(f"I{x}{name[1:]} {_node(b, x)} {_node(a, x)} {v}".replace("%", "%%"))
+    devices = [f"{kind}{x}{a} {x}n{a} 0 %r" if b == 0 else f"{kind}{x}{a}_{b} {x}n{a} {x}n{b} %r"
+               for kind, a, b, _, _ in columns]
+    values = list(zip(*[column[3] for column in columns])) if columns else [()] * count
+    kept = (np.array([column[4] for column in columns]) != 0.0).T if columns else np.zeros((count, 0), bool)
+    every = kept.all(axis=1).tolist()
+    templates: dict = {}
     lines = [f"* analogy batch of {count} independent circuits"]
-    for k, row in enumerate(rows):
-        lines += row
-        for name, a, b, v, terms in sources:
-            if terms:
-                lines.append(f"* Ix{k}_{name[1:]} is the sum of " + ", ".join(f"Ix{k}_{t[1:]}" for t in terms))
-            lines.append(f"Ix{k}_{name[1:]} {_node(b, f'x{k}_')} {_node(a, f'x{k}_')} {v}")
-    ic = [(f"x{k}_{n}", v) for k, v0 in enumerate(stack.initial_voltages.tolist()) for n, v in zip(names, v0)]
-    save = [f"v(x{k}_{n})" for k in range(count) for n in names]
+    for k, (row, full) in enumerate(zip(values, every)):
+        mask = (True,) * len(devices) if full else tuple(kept[k].tolist())
+        template = templates.get(mask)
+        if template is None:
+            template = templates[mask] = "\n".join([d for d, m in zip(devices, mask) if m] + sources)
+        if template:
+            lines.append((template % (row if full else tuple(v for v, m in zip(row, mask) if m))).replace(_ROW, str(k)))
+    v0 = stack.initial_voltages
+    if not np.all(np.isfinite(v0)):
+        _num(v0[~np.isfinite(v0)][0])           # its one sentence
+    per_row = " ".join(f"v({x}n{i + 1})=%r" for i in range(dof))
+    ic = " ".join([(per_row % tuple(row)).replace(_ROW, str(k)) for k, row in enumerate(v0.tolist())])
+    save = " ".join(f"v(x{k}_n{i + 1})" for k in range(count) for i in range(dof))
     lines += first_step_lines(settings, "x0_n1")
-    return "\n".join(lines + analysis_lines(settings, ic, save) + [".end"]) + "\n"
+    return "\n".join(lines + analysis_lines(settings, (), (), ic_text=ic, save_text=save) + [".end"]) + "\n"
 
 
 def ac_netlist(system, joint: int, f_start: float, f_stop: float, per_decade: int,

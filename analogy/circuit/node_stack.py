@@ -51,7 +51,7 @@ class NodeStack(Sequence):
         The caller knows that every row has the same topology, forces and t_stop.
     """
 
-    __slots__ = ("systems", "_arrays", "_shared")
+    __slots__ = ("systems", "_arrays", "_shared", "_scales")
 
     def __init__(self, systems: Sequence["NodeDynamics"], arrays: dict | None = None, shared_inputs: bool = False):
         self.systems = tuple(systems)
@@ -61,6 +61,7 @@ class NodeStack(Sequence):
             raise ValueError("the systems of a node stack must have one size")
         self._arrays = dict(arrays or {})
         self._shared = shared_inputs or len(self.systems) == 1
+        self._scales = None         # the combined scales of one circuit running them all (analogy.circuit.scales)
 
     @classmethod
     def of(cls, systems: Sequence["NodeDynamics"]) -> "NodeStack":

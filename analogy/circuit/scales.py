@@ -14,7 +14,7 @@ from .joint_forces import joint_forces
 from .node_stack import NodeStack
 from .topology import symmetric_part
 
-__all__ = ["Scales", "system_scales", "stack_scales", "combined_scales"]
+__all__ = ["Scales", "system_scales", "stack_scales", "combined_scales", "run_scales"]
 
 
 @dataclass(frozen=True)
@@ -310,3 +310,20 @@ def combined_scales(scales: Sequence[Scales]) -> Scales:
                   max(s.current for s in scales), max(s.charge for s in scales),
                   np.concatenate([s.decays for s in scales]), np.concatenate([s.shares for s in scales]),
                   np.concatenate([s.phases for s in scales]), max(s.size for s in scales), top, reach)
+
+
+def run_scales(systems: Sequence) -> Scales:
+    """The scales of one circuit running *systems* together: :func:`combined_scales` of their
+    :func:`stack_scales`, kept on a :class:`NodeStack` as each system keeps its own.
+
+    Parameters
+    ----------
+    systems : sequence of NodeSystem
+        Linear systems.
+    """
+    kept = systems._scales if isinstance(systems, NodeStack) else None
+    if kept is None:
+        kept = combined_scales(stack_scales(systems))
+        if isinstance(systems, NodeStack):
+            systems._scales = kept
+    return kept

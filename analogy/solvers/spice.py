@@ -12,7 +12,7 @@ from ..circuit.currents import element_currents
 from ..circuit.description import circuit
 from ..circuit.netlist import save_vectors, write_netlist
 from ..circuit.node_stack import NodeStack
-from ..circuit.scales import combined_scales, stack_scales, system_scales
+from ..circuit.scales import run_scales, system_scales
 from ..errors import SimulationError
 from ..presets import Preset
 from ..presets import preset as get_preset
@@ -215,7 +215,7 @@ class SpiceSolver(Solver):
         """
         if len(systems) == 1 or save or times is not None or any(getattr(s, "realizable", False) for s in systems):
             return super().solve_many(systems, times, preset, save=save)
-        scales = combined_scales(stack_scales(systems))
+        scales = run_scales(systems)
         text = batch_netlist(systems, preset, scales)
         stats: dict = {}
         ends = np.array([s.t_stop for s in systems])

@@ -13,7 +13,7 @@ from ..circuit.description import circuit as describe
 from ..circuit.elements import ZERO_TOL
 from ..circuit.netlist import Dialect, write_batch, write_netlist, write_stack
 from ..circuit.node_stack import NodeStack
-from ..circuit.scales import Scales, combined_scales, stack_scales, system_scales
+from ..circuit.scales import Scales, run_scales, system_scales
 from ..circuit.spice_numbers import spice_number
 from ..errors import InputError, SimulationError
 from .error_constants import (CALIBRATED_MAX_STEPS, CALIBRATED_TOPOLOGIES, FLOOR_LIMIT, SERIAL_NODE_LIMIT,
@@ -441,7 +441,7 @@ def batch_netlist(systems: Sequence, preset: str | Preset = "fast", scales: Scal
     if not systems:
         raise InputError("a batch needs at least one system")
     ends = sorted({s.t_stop for s in systems})
-    scales = scales or combined_scales(stack_scales(systems))
+    scales = scales or run_scales(systems)
     points = [s.breakpoints() for s in systems if s.forces is not systems[0].forces] + [systems[0].breakpoints()]
     settings = transient_settings(preset, ends[0], scales, breakpoints=np.concatenate(points),
                                   custom=any(beyond_calibration(s) for s in systems))

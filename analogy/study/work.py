@@ -9,7 +9,7 @@ import numpy as np
 
 from ..circuit.elements import laplacian_split
 from ..circuit.node_stack import NodeStack
-from ..circuit.scales import combined_scales, stack_scales, system_scales
+from ..circuit.scales import run_scales, system_scales
 from ..errors import InputError
 from ..presets import Preset
 from ..solvers.error_constants import CALIBRATED_MAX_STEPS, step_phase
@@ -162,7 +162,7 @@ def check_works(systems: Sequence, preset: Preset, *, spice: bool = True) -> Non
         Whether SPICE is among the solvers (one circuit per stack).
     """
     if isinstance(systems, NodeStack) and len(systems) > 1 and systems.shares_inputs:
-        check_work(systems[0], preset, combined_scales(stack_scales(systems)), stacked=len(systems), spice=spice)
+        check_work(systems[0], preset, run_scales(systems), stacked=len(systems), spice=spice)
         return
     groups: dict = {}
     for s in systems:
@@ -171,5 +171,5 @@ def check_works(systems: Sequence, preset: Preset, *, spice: bool = True) -> Non
         else:
             check_work(s, preset, spice=spice)
     for group in groups.values():
-        scales = None if len(group) == 1 else combined_scales(stack_scales(group))
+        scales = None if len(group) == 1 else run_scales(group)
         check_work(group[0], preset, scales, stacked=len(group), spice=spice)
