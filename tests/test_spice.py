@@ -93,9 +93,26 @@ def test_parse_error_is_one_exception_and_the_session_recovers():
         run_netlist("* bad\nI1 0 n1 DC 1\nR1 n1 0 1\n.tran 0 1 uic\n.end\n")
     with pytest.raises(SpiceError, match="unknown subckt"):
         run_netlist("* bad\nX1 n1 0 nothing\nR1 n1 0 1\n.tran 1e-3 1 uic\n.end\n")
+    with pytest.raises(SpiceError, match="non-ASCII"):       # refused before the library is taken
+        run_netlist("* b\u00e4d\nI1 0 n1 DC 1\nR1 n1 0 1\n.tran 1e-3 1 uic\n.end\n")
     # the next good run is unaffected
     c = compare(scene("default").system(), "fast", ["spice"])
     assert c.max_relative_error("spice") <= 1e-3
+
+
+def test_the_vectors_of_a_run_are_read_whole_as_rows_of_one_array():
+    """Every saved vector comes back whole, as ngspice holds it: an RC node (R = 1 Ω, C = 1 F,
+    a 1 A source) against v(t) = 1 - exp(-t), and a node tied to it through 1 Ω into 1e12 Ω,
+    which follows it to within 1e-12 V; every vector has the time vector's length."""
+    from analogy.solvers.spice import run_netlist
+    data = run_netlist("* rc\nI1 0 n1 DC 1\nR1 n1 0 1\nC1 n1 0 1\nR2 n1 n2 1\nR3 n2 0 1e12\n"
+                       ".tran 1e-3 1 0 1e-3 uic\n.options reltol=1e-9\n.end\n")
+    t = data["time"]
+    assert {k: v.size for k, v in data.items()} == {"time": t.size, "n1": t.size, "n2": t.size}
+    assert np.max(np.abs(data["n2"] - data["n1"])) <= 1e-11        # R2/R3 = 1e-12 of v, and rounding
+    # steps of at most h = 1e-3 s: trapezoidal error h²/12 per unit time ≈ 1e-7, the first backward-Euler
+    # steps h²/2 = 5e-7; a vector read from the wrong place or cut short is off by order 1
+    assert np.max(np.abs(data["n1"] - (1 - np.exp(-t)))) <= 1e-5
 
 
 def test_informational_stderr_is_not_an_error():

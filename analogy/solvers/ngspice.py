@@ -129,6 +129,12 @@ def _short_calls(path: str) -> ctypes.PyDLL:
     return lib
 
 
+class _VectorInfo(ctypes.Structure):
+    """ngspice's ``vector_info`` (sharedspice.h), read where ngGet_Vec_Info points."""
+    _fields_ = [("v_name", ctypes.c_char_p), ("v_type", ctypes.c_int), ("v_flags", ctypes.c_short),
+                ("v_realdata", ctypes.c_void_p), ("v_compdata", ctypes.c_void_p), ("v_length", ctypes.c_int)]
+
+
 class _DlInfo(ctypes.Structure):
     _fields_ = [("dli_fname", ctypes.c_char_p), ("dli_fbase", ctypes.c_void_p),
                 ("dli_sname", ctypes.c_char_p), ("dli_saddr", ctypes.c_void_p)]
@@ -178,6 +184,30 @@ def _describe_failure(lines: list[str], stage: str) -> str:
 
 
 _CONTROL = re.compile(r"^\s*\.control", re.I | re.M)
+
+
+class _Lines:
+    """A netlist as ngSpice_Circ takes it: one buffer of NUL-terminated lines and the NULL-ended
+    array of pointers into it, made before the library is taken (Python work no run need wait for)."""
+
+    __slots__ = ("buffer", "starts", "array")
+
+    def __init__(self, ffi, netlist: str):
+        try:
+            netlist.encode("ascii")
+        except UnicodeEncodeError:
+            raise SpiceError("netlist contains non-ASCII characters") from None
+        lines = netlist.splitlines()
+        if _CONTROL.search(netlist):
+            lines = _without_control(lines)
+        kept = [line for line in lines if line]
+        # one byte per character (ASCII): a line's length in bytes is its length
+        self.buffer = ffi.new("char[]", "\0".join(kept).encode("ascii") + b"\0")
+        self.starts = np.zeros(len(kept) + 1, dtype=np.uintp)       # the last pointer is NULL
+        if kept:
+            self.starts[1:-1] = np.cumsum(np.fromiter(map(len, kept), dtype=np.uintp, count=len(kept)) + 1)[:-1]
+            self.starts[:-1] += int(ffi.cast("uintptr_t", self.buffer))
+        self.array = ffi.cast("char **", ffi.from_buffer(self.starts))
 
 
 def _without_control(lines: list[str]) -> list[str]:
@@ -272,45 +302,38 @@ class NgspiceSession:
             raise SpiceError(f"ngspice rejected the command {cmd!r}")
         return self._ng.lines
 
-    def _load(self, netlist: str) -> list[tuple[str, str]]:
-        ffi = self._ffi
-        lines = netlist.splitlines()
-        if _CONTROL.search(netlist):
-            lines = _without_control(lines)
-        kept = [line for line in lines if line]
-        # One buffer of NUL-terminated lines and the pointers into it, computed as one array:
-        # 'replace' writes one byte per character, so a line's length in bytes is its length.
-        buf = ffi.new("char[]", "\0".join(kept).encode("ascii", "replace") + b"\0")
-        starts = np.zeros(len(kept) + 1, dtype=np.uintp)       # the last pointer is NULL
-        if kept:
-            starts[1:-1] = np.cumsum(np.fromiter(map(len, kept), dtype=np.uintp, count=len(kept)) + 1)[:-1]
-            starts[:-1] += int(ffi.cast("uintptr_t", buf))
-        array = ffi.cast("char **", ffi.from_buffer(starts))
+    def _load(self, lines: "_Lines") -> list[tuple[str, str]]:
         self._ng.lines = []
-        rc = self._lib.ngSpice_Circ(array)
+        rc = self._lib.ngSpice_Circ(lines.array)
         lines = self._ng.lines
         if rc:
             lines = lines + [("stderr", f"error: ngSpice_Circ returned {rc}")]
         return lines
 
     def _vectors(self, plot: str) -> dict[str, np.ndarray]:
+        """The plot's vectors, the real ones of one length copied into the rows of one array
+        (a batch reads hundreds; the library is held meanwhile)."""
         ffi, lib = self._ffi, self._short
         listed = lib.ngSpice_AllVecs(plot.encode())
         names = self._ng._convert_string_array(ffi.cast("char **", listed)) if listed else []
-        out = {}
+        found = []
         for name in names:
-            found = lib.ngGet_Vec_Info(f"{plot}.{name}".encode())
-            if not found:
-                continue
-            info = ffi.cast("pvector_info", found)
-            if info.v_realdata != ffi.NULL:
-                data = np.frombuffer(ffi.buffer(info.v_realdata, info.v_length * 8), dtype=np.float64).copy()
-            elif info.v_compdata != ffi.NULL:      # an AC sweep: (re, im) pairs
-                pairs = np.frombuffer(ffi.buffer(info.v_compdata, info.v_length * 16), dtype=np.float64)
-                data = pairs[0::2] + 1j * pairs[1::2]
-            else:
-                continue
-            out[vector_key(name)] = data
+            address = lib.ngGet_Vec_Info(f"{plot}.{name}".encode())
+            if address:         # one struct in ngspice, filled again by each call: read at once
+                info = _VectorInfo.from_address(address)
+                found.append((name, info.v_realdata, info.v_compdata, info.v_length))
+        out = {}
+        for length in dict.fromkeys(n for _, real, _, n in found if real):
+            these = [(name, real) for name, real, _, n in found if real and n == length]
+            block = np.empty((len(these), length))
+            start, row = block.ctypes.data, 8 * length
+            for j, (name, real) in enumerate(these):
+                ctypes.memmove(start + j * row, real, row)
+                out[vector_key(name)] = block[j]
+        for name, real, pairs, n in found:
+            if not real and pairs:      # an AC sweep: (re, im) pairs
+                both = np.ctypeslib.as_array((ctypes.c_double * (2 * n)).from_address(pairs))
+                out[vector_key(name)] = both[0::2] + 1j * both[1::2]
         return out
 
     def _plot(self) -> str:
@@ -330,7 +353,7 @@ class NgspiceSession:
 
     def _healthy(self) -> bool:
         try:
-            lines = self._load(_CANARY) + self._command("run", release=True)
+            lines = self._load(_Lines(self._ffi, _CANARY)) + self._command("run", release=True)
             ok = not any(_is_error(t) for s, t in lines) and not self._ng.exited and self._plot().startswith("tran")
             self._free()
             return ok
@@ -369,13 +392,14 @@ class NgspiceSession:
             raise KeyboardInterrupt
         if until is not None and analysis != "tran":
             raise ValueError("until is the end of a transient run")
+        lines = _Lines(self._ffi, netlist)
         with self._lock:
             if self._ng.exited:         # it asked to exit, or a halted run's thread never ended
                 self._reload()
             if stats is not None:       # another thread's run held the library: not this run's time
                 stats["waited"] = stats.get("waited", 0.0) + _time.perf_counter() - asked
             try:
-                data = self._run(netlist, vectors, stats, analysis, timeout)
+                data = self._run(lines, vectors, stats, analysis, timeout)
                 if until is not None and not (data["time"].size and data["time"][-1] >= until * (1 - 1e-9)):
                     end = data["time"][-1] if data["time"].size else 0.0
                     raise SpiceError(f"ngspice transient analysis failed: it ended at t = {end:g} s, short of "
@@ -420,13 +444,9 @@ class NgspiceSession:
         else:       # its thread still runs: nothing of it is touched; the next run loads a fresh copy
             self._ng.exited = True
 
-    def _run(self, netlist, vectors, stats=None, analysis="tran", timeout=None):
+    def _run(self, lines: _Lines, vectors, stats=None, analysis="tran", timeout=None):
         index = "time" if analysis == "tran" else "frequency"
-        try:
-            netlist.encode("ascii")
-        except UnicodeEncodeError:
-            raise SpiceError("netlist contains non-ASCII characters") from None
-        load = self._load(netlist)
+        load = self._load(lines)
         errors = [t for s, t in load if _is_error(t)]
         if errors or self._ng.exited:
             self._free()
