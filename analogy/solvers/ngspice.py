@@ -326,9 +326,10 @@ class NgspiceSession:
         for length in dict.fromkeys(n for _, real, _, n in found if real):
             these = [(name, real) for name, real, _, n in found if real and n == length]
             block = np.empty((len(these), length))
-            start, row = block.ctypes.data, 8 * length
+            start, row = ffi.from_buffer(block), 8 * length
             for j, (name, real) in enumerate(these):
-                ctypes.memmove(start + j * row, real, row)
+                # cffi's memmove keeps the GIL (ctypes' gives it up, and another thread may keep it)
+                ffi.memmove(start + j * row, ffi.cast("char *", real), row)
                 out[vector_key(name)] = block[j]
         for name, real, pairs, n in found:
             if not real and pairs:      # an AC sweep: (re, im) pairs
