@@ -405,10 +405,15 @@ def write_stack(stack: NodeStack, settings, zero_tol: float = ZERO_TOL) -> str:
         if terms:
             sources.append(f"* I{x}{name[1:]} is the sum of " + ", ".join(f"I{x}{t[1:]}" for t in terms))
         sources.append(f"I{x}{name[1:]} {_node(b, x)} {_node(a, x)} {v}".replace("%", "%%"))
+    if columns:         # a column no row keeps (a joint with no damper) is no part of any template
+        kept = np.array([column[4] for column in columns]) != 0.0
+        columns = [column for column, used in zip(columns, kept.any(axis=1).tolist()) if used]
+        kept = kept[kept.any(axis=1)].T
     devices = [f"{kind}{x}{a} {x}n{a} 0 %r" if b == 0 else f"{kind}{x}{a}_{b} {x}n{a} {x}n{b} %r"
                for kind, a, b, _, _ in columns]
     values = list(zip(*[column[3] for column in columns])) if columns else [()] * count
-    kept = (np.array([column[4] for column in columns]) != 0.0).T if columns else np.zeros((count, 0), bool)
+    if not columns:
+        kept = np.zeros((count, 0), bool)
     every = kept.all(axis=1).tolist()
     templates: dict = {}
     lines = [f"* analogy batch of {count} independent circuits"]
