@@ -24,11 +24,13 @@ _POLL_SECONDS = 0.25
 #: runs in ngspice's own thread, which holds no Python lock, the next group's Python work goes on.
 PIPELINE = 2
 
-#: The interpreter's switch interval while groups run on threads here [s]. Every line ngspice prints
-#: and every return from the library takes the GIL back from the thread running Python, which by
-#: default keeps it up to 5 ms; with 0.5 ms the default arm's batch ran 7,993 scenes/s against
-#: 7,147 (medians of five alternating runs of 4,000 scenes; 1 ms gave 7,568).
-SWITCH_INTERVAL = 0.0005
+#: The interpreter's switch interval while groups run on threads here [s]. Every return from the
+#: library takes the GIL back from the thread running Python, which by default keeps it up to 5 ms,
+#: and the library waits meanwhile. With 0.5 ms the default arm's batch ran 7,993 scenes/s against
+#: 7,147 (medians of five alternating runs of 4,000 scenes; 1 ms gave 7,568). Once the library was
+#: held for ngspice's own work alone, one process reached 0.85 of the floor with 0.1 ms against 0.82
+#: with 0.2 ms and 0.5 ms, and 0.05 ms was no better (medians of 6 to 8 alternating runs of 5,000).
+SWITCH_INTERVAL = 0.0001
 
 _SWITCHES = threading.Lock()
 _SWITCHED: list = [0, None]         # batches running groups on threads here, and the interval before them
