@@ -94,3 +94,21 @@ def test_circuits_run_together_share_the_fastest_rate_and_the_largest_scales():
     both = combined_scales([a, b])
     assert both.omega_max == b.omega_max == pytest.approx(100)
     assert both.current == a.current == 2.0 and both.peak_velocity == max(a.peak_velocity, b.peak_velocity)
+
+
+@pytest.mark.parametrize("name", ["default", "random10", "flexpar", "serial3"])
+def test_a_stack_combines_its_scales_straight_from_its_arrays_as_from_its_rows(name):
+    """run_scales of a fresh stack builds no Scales per row, and gives, field for field and to
+    the bit, the combined scales of its rows' own (stack_scales of the same systems, one by one)."""
+    from analogy.circuit.scales import run_scales, stack_scales
+    base = scene(name)
+    qs = np.tile(np.array(base.q, dtype=float), (5, 1))
+    qs[:, :2] += 0.3 * np.random.default_rng(7).uniform(-1, 1, qs[:, :2].shape)
+    stack = base.systems(qs)
+    together = run_scales(stack)
+    assert all(getattr(s, "_scales", None) is None for s in stack)     # no row was given its own
+    rows = combined_scales(stack_scales(list(base.systems(qs))))      # fresh systems, scales per row
+    for field in ("omega_max", "current", "charge", "nodes", "top_velocity", "top_position"):
+        assert getattr(together, field) == getattr(rows, field), field
+    for field in ("velocity", "position", "decays", "shares", "phases"):
+        assert np.array_equal(getattr(together, field), getattr(rows, field), equal_nan=True), field

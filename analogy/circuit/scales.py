@@ -239,6 +239,14 @@ def stack_scales(systems: Sequence) -> list[Scales]:
 
 def _stack_scales(first, m, b, k, v0) -> list[Scales]:
     """Scales of a stack sharing *first*'s forces, topology and t_stop (arrays with a leading axis)."""
+    fastest, velocity, position, current, charge, decays, share, phases, tops, reaches = \
+        _scale_arrays(first, m, b, k, v0)
+    return [Scales(float(fastest[j]), velocity[j], position[j], current, float(charge[j]), decays[j], share[j],
+                   phases[j], None, tops[j], reaches[j]) for j in range(m.shape[0])]
+
+
+def _scale_arrays(first, m, b, k, v0) -> tuple:
+    """The fields of :func:`_stack_scales`, one row per system: arrays, and *current* (shared)."""
     # Estimates only: a scale past 1e308 is inf, which the solvers' own checks then meet.
     try:
         with np.errstate(over="ignore", invalid="ignore"):
@@ -248,7 +256,7 @@ def _stack_scales(first, m, b, k, v0) -> list[Scales]:
                          "rescale the masses, dampers or springs") from None
 
 
-def _estimated_scales(first, m, b, k, v0) -> list[Scales]:
+def _estimated_scales(first, m, b, k, v0) -> tuple:
     count, n = m.shape[0], m.shape[1]
     chol = np.linalg.cholesky(m)
     def whiten(a):
@@ -293,8 +301,7 @@ def _estimated_scales(first, m, b, k, v0) -> list[Scales]:
     phases = np.where(mu < 0, omega * t_stop, phases)
     tops = np.max(velocity, axis=1).tolist() if n else [1.0] * count
     reaches = np.max(position, axis=1).tolist() if n else [t_stop] * count
-    return [Scales(float(fastest[j]), velocity[j], position[j], current, float(charge[j]), decays[j], share[j],
-                   phases[j], None, tops[j], reaches[j]) for j in range(count)]
+    return fastest, velocity, position, current, charge, decays, share, phases, tops, reaches
 
 
 def combined_scales(scales: Sequence[Scales]) -> Scales:
@@ -321,9 +328,22 @@ def run_scales(systems: Sequence) -> Scales:
     systems : sequence of NodeSystem
         Linear systems.
     """
-    kept = systems._scales if isinstance(systems, NodeStack) else None
+    stack = systems if isinstance(systems, NodeStack) else None
+    kept = None if stack is None else stack._scales
     if kept is None:
-        kept = combined_scales(stack_scales(systems))
-        if isinstance(systems, NodeStack):
-            systems._scales = kept
+        parts = None if stack is None or getattr(stack[0], "_scales", None) is not None else stack.partition()
+        if parts is not None and len(parts) == 1:       # straight from the stack's arrays: no Scales per row
+            kept = _combined_rows(*_scale_arrays(stack[0], stack.mass, stack.damping, stack.stiffness,
+                                                 stack.initial_voltages))
+        else:
+            kept = combined_scales(stack_scales(systems))
+        if stack is not None:
+            stack._scales = kept
     return kept
+
+
+def _combined_rows(fastest, velocity, position, current, charge, decays, share, phases, tops, reaches) -> Scales:
+    """:func:`combined_scales` of the rows of :func:`_scale_arrays`, taken in the same order."""
+    top, reach = max(tops), max(reaches)
+    return Scales(max(fastest.tolist()), np.array([top]), np.array([reach]), current, max(charge.tolist()),
+                  decays.reshape(-1), share.reshape(-1), phases.reshape(-1), velocity.shape[1], top, reach)
