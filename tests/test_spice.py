@@ -93,8 +93,10 @@ def test_parse_error_is_one_exception_and_the_session_recovers():
         run_netlist("* bad\nI1 0 n1 DC 1\nR1 n1 0 1\n.tran 0 1 uic\n.end\n")
     with pytest.raises(SpiceError, match="unknown subckt"):
         run_netlist("* bad\nX1 n1 0 nothing\nR1 n1 0 1\n.tran 1e-3 1 uic\n.end\n")
-    with pytest.raises(SpiceError, match="non-ASCII"):       # refused before the library is taken
+    with pytest.raises(SpiceError, match="non-ASCII"):
         run_netlist("* b\u00e4d\nI1 0 n1 DC 1\nR1 n1 0 1\n.tran 1e-3 1 uic\n.end\n")
+    with pytest.raises(SpiceError, match="NUL"):            # it would end "R1 n1 0 1" at "R1 n1", unseen
+        run_netlist("* bad\nI1 0 n1 DC 1\nR1 n1\x000 1\nC1 n1 0 1\n.tran 1e-3 1 uic\n.end\n")
     # the next good run is unaffected
     c = compare(scene("default").system(), "fast", ["spice"])
     assert c.max_relative_error("spice") <= 1e-3

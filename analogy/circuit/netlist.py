@@ -165,7 +165,7 @@ def _source_values(sources, t_stop: float, memo: dict | None) -> list[tuple[str,
     return out
 
 
-def analysis_lines(settings, ic: Iterable[tuple[str, float]], save: Iterable[str],
+def analysis_lines(settings, ic: Iterable[tuple[str, float]] = (), save: Iterable[str] = (),
                    printing: bool = False, *, ic_text: str | None = None, save_text: str | None = None) -> list[str]:
     """``.ic``, ``.options``, ``.tran`` (uic), ``.save`` and, with *printing*, ``.print``: *settings* formatted.
 
@@ -404,7 +404,8 @@ def write_stack(stack: NodeStack, settings, zero_tol: float = ZERO_TOL) -> str:
     for name, a, b, v, terms in _source_values(current_sources(first, zero_tol), first.t_stop, None):
         if terms:
             sources.append(f"* I{x}{name[1:]} is the sum of " + ", ".join(f"I{x}{t[1:]}" for t in terms))
-        sources.append(f"I{x}{name[1:]} {_node(b, x)} {_node(a, x)} {v}".replace("%", "%%"))
+        sources.append(f"I{x}{name[1:]} {_node(b, x)} {_node(a, x)} {v}")
+    sources = [line.replace("%", "%%") for line in sources]         # text of a template: no % of its own
     if columns:         # a column no row keeps (a joint with no damper) is no part of any template
         kept = np.array([column[4] for column in columns]) != 0.0
         columns = [column for column, used in zip(columns, kept.any(axis=1).tolist()) if used]
@@ -431,7 +432,7 @@ def write_stack(stack: NodeStack, settings, zero_tol: float = ZERO_TOL) -> str:
     ic = " ".join([(per_row % tuple(row)).replace(_ROW, str(k)) for k, row in enumerate(v0.tolist())])
     save = " ".join(f"v(x{k}_n{i + 1})" for k in range(count) for i in range(dof))
     lines += first_step_lines(settings, "x0_n1")
-    return "\n".join(lines + analysis_lines(settings, (), (), ic_text=ic, save_text=save) + [".end"]) + "\n"
+    return "\n".join(lines + analysis_lines(settings, ic_text=ic, save_text=save) + [".end"]) + "\n"
 
 
 def ac_netlist(system, joint: int, f_start: float, f_stop: float, per_decade: int,

@@ -307,6 +307,8 @@ def _estimated_scales(first, m, b, k, v0) -> tuple:
 def combined_scales(scales: Sequence[Scales]) -> Scales:
     """One set of scales for circuits that run together: the fastest rate, the largest sizes.
 
+    :func:`_combined_rows` makes the same from a stack's arrays: a change here is made there too.
+
     Parameters
     ----------
     scales : sequence of Scales

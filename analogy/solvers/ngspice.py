@@ -121,7 +121,7 @@ def _short_calls(path: str) -> ctypes.PyDLL:
     dlopen of a loaded path returns the same library, with the same global state.
     """
     lib = ctypes.PyDLL(path)
-    # addresses, read through cffi's declarations of the structs (faster than ctypes' own)
+    # addresses: the vector_info struct is read through a ctypes Structure (see _VectorInfo)
     lib.ngGet_Vec_Info.argtypes, lib.ngGet_Vec_Info.restype = [ctypes.c_char_p], ctypes.c_void_p
     lib.ngSpice_AllVecs.argtypes, lib.ngSpice_AllVecs.restype = [ctypes.c_char_p], ctypes.c_void_p
     lib.ngSpice_CurPlot.argtypes, lib.ngSpice_CurPlot.restype = [], ctypes.c_char_p
@@ -193,10 +193,10 @@ class _Lines:
     __slots__ = ("buffer", "starts", "array")
 
     def __init__(self, ffi, netlist: str):
-        try:
-            netlist.encode("ascii")
-        except UnicodeEncodeError:
-            raise SpiceError("netlist contains non-ASCII characters") from None
+        if not netlist.isascii():
+            raise SpiceError("netlist contains non-ASCII characters")
+        if "\0" in netlist:            # it would end its line early, unseen
+            raise SpiceError("netlist contains a NUL character")
         lines = netlist.splitlines()
         if _CONTROL.search(netlist):
             lines = _without_control(lines)
@@ -302,13 +302,13 @@ class NgspiceSession:
             raise SpiceError(f"ngspice rejected the command {cmd!r}")
         return self._ng.lines
 
-    def _load(self, lines: "_Lines") -> list[tuple[str, str]]:
+    def _load(self, netlist: "_Lines") -> list[tuple[str, str]]:
         self._ng.lines = []
-        rc = self._lib.ngSpice_Circ(lines.array)
-        lines = self._ng.lines
+        rc = self._lib.ngSpice_Circ(netlist.array)
+        printed = self._ng.lines
         if rc:
-            lines = lines + [("stderr", f"error: ngSpice_Circ returned {rc}")]
-        return lines
+            printed = printed + [("stderr", f"error: ngSpice_Circ returned {rc}")]
+        return printed
 
     def _vectors(self, plot: str) -> dict[str, np.ndarray]:
         """The plot's vectors, the real ones of one length copied into the rows of one array
@@ -365,6 +365,9 @@ class NgspiceSession:
             analysis: str = "tran", timeout: float | None = None, until: float | None = None) -> dict[str, np.ndarray]:
         """Run a transient (or, with *analysis* ``"ac"``, an AC) netlist: ``{"time": …, node: …}``.
 
+        The vectors of one length are rows of one array (one copy out of ngspice); the time or
+        frequency vector is an array of its own.
+
         Parameters
         ----------
         netlist : str
@@ -388,12 +391,12 @@ class NgspiceSession:
         SpiceError
             With one sentence naming the failure and, where ngspice says, the node.
         """
-        asked = _time.perf_counter()
         if halt_requests.asked():       # a batch is stopping its group threads: no new circuit
             raise KeyboardInterrupt
         if until is not None and analysis != "tran":
             raise ValueError("until is the end of a transient run")
         lines = _Lines(self._ffi, netlist)
+        asked = _time.perf_counter()
         with self._lock:
             if self._ng.exited:         # it asked to exit, or a halted run's thread never ended
                 self._reload()
@@ -469,8 +472,8 @@ class NgspiceSession:
         self._free()
         if index not in data:
             raise SpiceError(f"ngspice returned no {index} vector")
-        if index == "frequency":
-            data[index] = data[index].real
+        # the index on its own: kept alone (a shared grid), it holds no other vector's memory
+        data[index] = data[index].real.copy() if index == "frequency" else data[index].copy()
         if vectors is not None:
             missing = [v for v in vectors if vector_key(v) not in data]
             if missing:
