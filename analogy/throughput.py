@@ -147,7 +147,8 @@ def throughput(n: int = 10_000, preset: str = "fast", group_size: int = 100, wor
     beforehand: the batched path on one process is reported as a share of it. With more than one worker the floor also runs on
     that many processes at once, each with every other netlist (their timed parts started together),
     and the batched path on *workers* processes is reported as a share of that. The paths take
-    turns, *repeats* times, and the figures are medians.
+    turns, *repeats* times, each share's two paths one right after the other, and the figures
+    are medians.
 
     Parameters
     ----------
@@ -181,6 +182,20 @@ def throughput(n: int = 10_000, preset: str = "fast", group_size: int = 100, wor
     worst: dict = {k: 0.0 for k in rates}
     failed, solves, late, processes = 0, [], 0, workers
     bar = Progress((5 + (workers > 1)) * repeats, unit="path run", enabled=progress, every=0.0)
+
+    def batch(key: str, pool: int) -> None:
+        nonlocal failed
+        cpu = _time.process_time()
+        res = run_batch(items, preset, group_size=group_size, workers=pool)
+        if key == "one":            # this process's CPU, its threads and ngspice's included
+            cpus["one"].append(_time.process_time() - cpu)
+        rates[key].append(res.throughput)
+        # a run with no finite error (all failed) makes the worst error NaN, not hidden
+        ok = res.errors[np.isfinite(res.errors)]
+        worst[key] = max(worst[key], float(ok.max())) if ok.size else float("nan")
+        failed += len(res.failures)
+        bar.update(1)
+
     # a warm-up group here, as the floor and the loops have theirs: the library loaded and the
     # model compiled in this process (about 60 ms, an eighth of a run of 5,000 scenes) are not timed
     run_batch(items[:group_size], preset, group_size=group_size, workers=1)
@@ -195,29 +210,21 @@ def throughput(n: int = 10_000, preset: str = "fast", group_size: int = 100, wor
         rates["pyspice"].append(baseline_n / sec)
         worst["pyspice"] = max(worst["pyspice"], err)
         bar.update(1)
+        # each share's two paths run one after the other, so that both meet the machine as it is then
         asked = _time.time()
         with worker_pool(1, fresh=True) as ex:
             ready, start, end, cpu = ex.submit(_floor_loop, (items, preset, group_size, None)).result()
         rates["floor"].append(n / (end - start))
         cpus["floor"].append(cpu)
         bar.update(1)
+        batch("one", 1)
         if workers > 1:         # a fresh worker was ready after (ready - asked): twice that is lead enough
             together = _floor_together(items, preset, group_size, workers, 2 * (ready - asked) + 0.5)
             rates["floors"].append(together.rate)
             late += together.late
             processes = together.processes
             bar.update(1)
-        for key, w in (("batched", workers), ("one", 1)):
-            cpu = _time.process_time()
-            res = run_batch(items, preset, group_size=group_size, workers=w)
-            if key == "one":            # this process's CPU, its threads and ngspice's included
-                cpus["one"].append(_time.process_time() - cpu)
-            rates[key].append(res.throughput)
-            # a run with no finite error (all failed) makes the worst error NaN, not hidden
-            ok = res.errors[np.isfinite(res.errors)]
-            worst[key] = max(worst[key], float(ok.max())) if ok.size else float("nan")
-            failed += len(res.failures)
-            bar.update(1)
+        batch("batched", workers)
     bar.close()
     med = {k: statistics.median(v) for k, v in rates.items() if v}
     ratio = statistics.median(b / p for b, p in zip(rates["batched"], rates["pyspice"]))
