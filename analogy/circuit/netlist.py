@@ -406,15 +406,12 @@ def write_stack(stack: NodeStack, settings, zero_tol: float = ZERO_TOL) -> str:
             sources.append(f"* I{x}{name[1:]} is the sum of " + ", ".join(f"I{x}{t[1:]}" for t in terms))
         sources.append(f"I{x}{name[1:]} {_node(b, x)} {_node(a, x)} {v}")
     sources = [line.replace("%", "%%") for line in sources]         # text of a template: no % of its own
-    if columns:         # a column no row keeps (a joint with no damper) is no part of any template
-        kept = np.array([column[4] for column in columns]) != 0.0
-        columns = [column for column, used in zip(columns, kept.any(axis=1).tolist()) if used]
-        kept = kept[kept.any(axis=1)].T
+    kept = (np.array([column[4] for column in columns]) != 0.0).reshape(len(columns), count)
+    used = kept.any(axis=1)         # a column no row keeps (a joint with no damper) is in no template
+    columns, kept = [column for column, u in zip(columns, used.tolist()) if u], kept[used].T
     devices = [f"{kind}{x}{a} {x}n{a} 0 %r" if b == 0 else f"{kind}{x}{a}_{b} {x}n{a} {x}n{b} %r"
                for kind, a, b, _, _ in columns]
     values = list(zip(*[column[3] for column in columns])) if columns else [()] * count
-    if not columns:
-        kept = np.zeros((count, 0), bool)
     every = kept.all(axis=1).tolist()
     templates: dict = {}
     lines = [f"* analogy batch of {count} independent circuits"]
