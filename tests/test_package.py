@@ -12,7 +12,7 @@ PACKAGE = ROOT / "analogy"
 MODULES = sorted(p for p in PACKAGE.rglob("*.py"))
 #: Third-party modules heavy enough to import only where needed.
 HEAVY = {"sympy", "scipy", "matplotlib", "PySpice", "mpmath", "schemdraw", "pandas", "tqdm", "distributed", "pint",
-         "pyarrow", "dask", "yourdfpy"}
+         "pyarrow", "dask", "yourdfpy", "pinocchio"}
 
 
 def module_name(path: Path) -> str:

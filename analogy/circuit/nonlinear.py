@@ -141,12 +141,55 @@ class NonlinearNodeSystem(NodeCoordinates):
             return np.zeros(self.dof)
         return self.current_map @ self.functions.gravity(self.configuration(x))
 
+    def flow(self, x: np.ndarray, v: np.ndarray, drive: np.ndarray) -> tuple[np.ndarray, float]:
+        """(dv/dt, dW/dt) at node positions *x*, velocities *v* and node currents *drive*.
+
+        dv/dt = M'(x)⁻¹·(i − B'·v − K'·x − h). Where the model gives its forward dynamics, that
+        is T·q̈ with q̈ from it at the joint forces F = Tᵀ·(i − B'·v − K'·x) (T is constant,
+        so v̇ = T·ṙ): one call, no M' formed. W is the work of the drive and dampers, and of
+        gravity only where the model has no potential (:meth:`gravity_work` gives it then).
+
+        Parameters
+        ----------
+        x, v : ndarray
+            Node positions and velocities.
+        drive : ndarray
+            Node currents i(t).
+        """
+        net = drive - self.damping @ v
+        power = v @ net
+        f = self.functions
+        if f.potential is None and f.gravity is not None:
+            power = power - v @ self.node_gravity(x)
+        if self.stiffness is not None:
+            net = net - self.stiffness @ x
+        if f.forward is not None:
+            t = self.topology.matrix
+            return t @ f.forward(self.configuration(x), self.joint_rates(v), net @ t), power
+        return np.linalg.solve(self.node_mass(x), net - self.node_load(x, v, 0.0)), power
+
+    def gravity_work(self, x: np.ndarray) -> np.ndarray | None:
+        """U(q0) − U(q), gravity's work at every row of node positions *x*, from the model's
+        potential; None where it has none (the integral in :meth:`flow` then holds it) or no gravity.
+
+        Parameters
+        ----------
+        x : ndarray, shape (N, n)
+            Node positions.
+        """
+        potential = self.functions.potential
+        if potential is None or self.functions.gravity is None:
+            return None
+        u = potential(np.vstack([self.q0, self.q0 + np.atleast_2d(x) @ self.topology.inverse.T]))
+        return u[0] - u[1:]
+
     def energy_residual(self, trajectory) -> tuple[np.ndarray, float]:
         """T + U_K − T(0) − W along *trajectory*, and the energy scale it is relative to.
 
         T = ½·vᵀM'(x)v, U_K = ½·xᵀK'x, and W is the work of the drive, damping and
         gravity: the trajectory's own integral where it has one, else the trapezoidal
-        rule on its time points. The scale is the largest of T + U_K and |W| over time.
+        rule on its time points, gravity's part U(q0) − U(q) where the model has a potential
+        U. The scale is the largest of T + U_K and |W| over time.
 
         Parameters
         ----------
@@ -166,7 +209,8 @@ class NonlinearNodeSystem(NodeCoordinates):
         work = trajectory.work
         if work is None:
             drive = self.node_currents(t)
-            if f.gravity is None:
+            lifted = self.gravity_work(x)
+            if f.gravity is None or lifted is not None:
                 gravity = np.zeros_like(v)
             elif f.gravities is not None:
                 gravity = f.gravities(qs) @ self.current_map.T
@@ -174,6 +218,8 @@ class NonlinearNodeSystem(NodeCoordinates):
                 gravity = np.stack([self.node_gravity(p) for p in x])
             power = np.einsum("ti,ti->t", v, drive - v @ self.damping.T - gravity)
             work = np.concatenate([[0.0], np.cumsum(0.5 * (power[1:] + power[:-1]) * np.diff(t))])
+            if lifted is not None:
+                work = work + lifted
         energy = kinetic + spring
         residual = energy - energy[0] - work
         return residual, float(max(np.max(np.abs(energy)), np.max(np.abs(work)), np.finfo(float).tiny))
@@ -239,9 +285,11 @@ class NonlinearNodeSystem(NodeCoordinates):
         drho_dv = -dh_dv - self.damping
         dfx = np.linalg.solve(mass, drho_dx - np.einsum("ikl,k->il", dm_node, accel))
         dfv = np.linalg.solve(mass, drho_dv)
-        gravity = self.node_gravity(x)
-        dpv = drive - 2.0 * self.damping @ v - gravity
-        dpx = -v @ (ti.T @ dg @ ti)
+        dpv = drive - 2.0 * self.damping @ v
+        dpx = np.zeros(n)
+        if self.functions.potential is None:        # else gravity's work is U(q0) − U(q), not in W's rate
+            dpv = dpv - self.node_gravity(x)
+            dpx = -v @ (ti.T @ dg @ ti)
         jac = np.zeros((2 * n + 1, 2 * n + 1))
         jac[:n, n:2 * n] = np.eye(n)
         jac[n:2 * n, :n], jac[n:2 * n, n:2 * n] = dfx, dfv
@@ -292,7 +340,7 @@ def nonlinear_system(model, q: Sequence[float], *, parameters: Mapping[str, floa
     values = dict(model.parameters, **(parameters or {}))
     base = Provenance.of(info, robot=model.name, parameters=values,
                          configuration=dict(zip((str(c) for c in model.coordinates), list(q))),
-                         units=model.units)
+                         units=model.units, joints=getattr(model, "joint_names", None))
     return NonlinearNodeSystem(functions, q, top, waveforms(forces, n),
                                np.zeros(n) if initial_rates is None else initial_rates, t_stop, base,
                                model, values)

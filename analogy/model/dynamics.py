@@ -112,6 +112,12 @@ class MechanicalFunctions(NamedTuple):
     for analytic Jacobians; None where the model does not provide them. *masses* and
     *gravities* take a stack of poses (p, n) at once, where the model has them (energy
     residuals along a trajectory of many points).
+
+    *forward* (q, q̇, τ) gives q̈ = M(q)⁻¹·(τ − c(q, q̇) − G(q)) in one call, where the model
+    has a forward dynamics cheaper than forming M and solving (an articulated-body algorithm,
+    or one kinematics pass shared by M, c and G); B and K are not in it. *potential* takes a
+    stack of poses (p, n) and gives gravity's potential energy U with G = ∂U/∂q, so that
+    gravity's work is U(q0) − U(q) rather than an integral of G.
     """
 
     mass: Callable[[np.ndarray], np.ndarray]
@@ -122,3 +128,5 @@ class MechanicalFunctions(NamedTuple):
     derivatives: Callable | None = None
     masses: Callable[[np.ndarray], np.ndarray] | None = None
     gravities: Callable[[np.ndarray], np.ndarray] | None = None
+    forward: Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray] | None = None
+    potential: Callable[[np.ndarray], np.ndarray] | None = None

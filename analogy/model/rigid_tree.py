@@ -3,9 +3,13 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal, Sequence
+from functools import cached_property
+from typing import Literal, Mapping, Sequence
 
 import numpy as np
+
+from .articulated_body import pinocchio_functions
+from .dynamics import MechanicalFunctions
 
 __all__ = ["JointKind", "RigidTree", "axis_rotation", "spatial_inertia", "plucker", "placement_frame", "body_inertia"]
 
@@ -233,6 +237,30 @@ class RigidTree:
                 f[:, self.parents[i]] += np.einsum("pji,pj->pi", x[:, i], f[:, i])
         return tau[0] if single else tau
 
+    def potential_energy(self, q) -> np.ndarray:
+        """U(q) = −Σ mᵢ·g·cᵢ, gravity's potential energy with the base origin at zero [J]; G = ∂U/∂q.
+
+        Parameters
+        ----------
+        q : array_like, shape (n,) or (poses, n)
+            Joint coordinates.
+        """
+        single = np.ndim(q) == 1
+        qs = np.atleast_2d(np.asarray(q, dtype=float))
+        x = self._links(qs)
+        world = np.empty_like(x)            # ⁱX_0, each body's frame from the base's
+        u = np.zeros(len(qs))
+        for i in range(self.dof):
+            world[:, i] = x[:, i] if self.parents[i] < 0 else x[:, i] @ world[:, self.parents[i]]
+            m, c, _ = body_inertia(self.inertias[i])
+            if m == 0.0:
+                continue
+            rotation = world[:, i, :3, :3].transpose(0, 2, 1)
+            px = -rotation @ world[:, i, 3:, :3]
+            origin = np.stack([px[:, 2, 1], px[:, 0, 2], px[:, 1, 0]], axis=1)
+            u -= m * ((origin + rotation @ c) @ self.gravity)
+        return u[0] if single else u
+
     def gravity_load(self, q) -> np.ndarray:
         """G(q), the joint forces that hold the tree still against gravity (rows of poses too).
 
@@ -274,6 +302,112 @@ class RigidTree:
         k = 0.5 * (k + k.transpose(0, 2, 1))
         return k[0] if single else k
 
+    @cached_property
+    def _shape(self) -> tuple:
+        """What the vectorised pass reads of the tree: masks, skews, ancestry and depth levels."""
+        n = self.dof
+        revolute = np.array([k == "revolute" for k in self.kinds], dtype=float)
+        skews = np.array([_skew(np.asarray(a, dtype=float)) for a in self.axes]).reshape(n, 3, 3)
+        above = np.eye(n)               # above[i, j]: body i is body j or one of its ancestors
+        depth = np.zeros(n, dtype=int)
+        for j in range(n):
+            if self.parents[j] >= 0:
+                above[:, j] += above[:, self.parents[j]]
+                depth[j] = depth[self.parents[j]] + 1
+        levels = [(np.flatnonzero(depth == d), np.array([self.parents[j] for j in np.flatnonzero(depth == d)]))
+                  for d in range(1, depth.max(initial=0) + 1)]
+        swapped = self._subspaces()[:, _SWAP]
+        return revolute, 1.0 - revolute, skews, skews @ skews, above, levels, swapped
+
+    def _world(self, qs: np.ndarray) -> np.ndarray:
+        """ⁱX_0 per pose and body, shape (poses, n, 6, 6): every joint at once, one product per depth."""
+        revolute, prismatic, skews, squares, _, levels, _ = self._shape
+        angles = qs * revolute
+        s, c = np.sin(angles)[..., None, None], np.cos(angles)[..., None, None]
+        et = np.eye(3) - s * skews + (1.0 - c) * squares     # Eᵀ: the child's axes turned by q
+        x = np.zeros(qs.shape + (6, 6), dtype=et.dtype)
+        x[..., :3, :3] = et
+        x[..., 3:, 3:] = et
+        x[..., 3:, :3] = -(qs * prismatic)[..., None, None] * skews     # a slide: [[1, 0], [−p×, 1]]
+        x = x @ self.placements
+        for children, parents in levels:        # parents are a level up: already from the base
+            x[:, children] = x[:, children] @ x[:, parents]
+        return x
+
+    def dynamics(self, qs, rates) -> tuple[np.ndarray, np.ndarray]:
+        """(M(q), c(q, q̇) + G(q)) at every row from one kinematics pass, shape ((p, n, n), (p, n)).
+
+        The recursions of :meth:`mass_matrices` and :meth:`inverse_dynamics` written in the
+        base frame, where each is a sum over ancestors or descendants: a product with the
+        tree's ancestry matrix for all joints and poses at once.
+
+        Parameters
+        ----------
+        qs, rates : array_like, shape (poses, n)
+            q and q̇.
+        """
+        qs = np.atleast_2d(np.asarray(qs))
+        qs = qs.astype(np.result_type(qs, float))
+        p, n = qs.shape
+        qd = np.broadcast_to(np.asarray(rates, dtype=qs.dtype), qs.shape)
+        *_, above, _, swapped = self._shape
+        w = self._world(qs)
+        wt = w.swapaxes(-1, -2)
+        # ⁰X_i = (ⁱX_0)⁻¹ = P·(ⁱX_0)ᵀ·P with P swapping the halves, so S_i in the base is P·(ⁱX_0)ᵀ·P·s_i
+        s0 = (wt @ swapped[:, :, None])[..., _SWAP, 0]
+        i0 = wt @ self.inertias @ w                                     # inertias about the base origin
+        composite = (above @ i0.reshape(p, n, 36)).reshape(p, n, 6, 6)  # each body and its descendants
+        f = (composite @ s0[..., None])[..., 0]
+        upper = above * (s0 @ f.swapaxes(-1, -2))           # M_ij = S_i·Ic_j·S_j for i at or above j
+        m = upper + upper.swapaxes(-1, -2) - upper * np.eye(n)
+        sq = s0 * qd[..., None]
+        v = above.T @ sq                                    # each body's velocity: its joints' sum
+        crm = (v @ _CRM).reshape(p, n, 6, 6)                # v×, the motion cross product as a matrix
+        acc = above.T @ (crm @ sq[..., None])[..., 0]       # Ṡ_k = v_k × S_k: the bias accelerations
+        acc[..., 3:] -= self.gravity                        # the base accelerates up
+        both = i0 @ np.stack([acc, v], axis=-1)
+        force = both[..., 0] - (both[..., None, :, 1] @ crm)[..., 0, :]     # I·a + v ×* I·v
+        bias = np.einsum("pni,pni->pn", s0, above @ force)
+        return m, bias
+
+    def forward_dynamics(self, q, rates, forces) -> np.ndarray:
+        """q̈ = M(q)⁻¹·(τ − c(q, q̇) − G(q)) from :meth:`dynamics` (rows of poses too).
+
+        Parameters
+        ----------
+        q, rates, forces : array_like, shape (n,) or (poses, n)
+            q, q̇ and the joint forces τ.
+        """
+        single = np.ndim(q) == 1
+        m, bias = self.dynamics(q, rates)
+        accel = np.linalg.solve(m, (np.asarray(forces) - bias)[..., None])[..., 0]
+        return accel[0] if single else accel
+
+    def functions(self, damping: np.ndarray, source: str | None = None, joint_names: Sequence[str] = (),
+                  pose: Mapping[str, float] | None = None) -> MechanicalFunctions:
+        """The tree's M, c, G, forward dynamics and potential, with dampers *damping*.
+
+        Pinocchio's (:func:`~analogy.model.articulated_body.pinocchio_functions`) where it is
+        installed and reads the URDF *source* as this tree, else these recursions.
+
+        Parameters
+        ----------
+        damping : ndarray, shape (n, n)
+            B.
+        source : str, optional
+            The URDF text the tree was read from.
+        joint_names : sequence of str
+            Its joints, in its order (with *source*).
+        pose : mapping, optional
+            The values of the URDF's joints frozen in the tree.
+        """
+        if source is not None and (fast := pinocchio_functions(source, self, joint_names, damping, pose)):
+            return fast
+        gravity = self.gravity_load if np.any(self.gravity) else None
+        return MechanicalFunctions(self.mass_matrix, self.velocity_load, gravity, damping, None,
+                                   masses=self.mass_matrices, gravities=gravity, forward=self.forward_dynamics,
+                                   potential=None if gravity is None else self.potential_energy)
+
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Rows of a × b (numpy's cross costs a hundred times more on short rows)."""
@@ -294,3 +428,21 @@ def _cross_force(v: np.ndarray, f: np.ndarray) -> np.ndarray:
     """v ×* f for rows, the force cross product: [ω×f_n + u×f_l; ω×f_l]."""
     w, u = v[:, :3], v[:, 3:]
     return np.concatenate([_cross(w, f[:, :3]) + _cross(u, f[:, 3:]), _cross(w, f[:, 3:])], axis=1)
+
+
+#: Halves swapped: [ω; v] ↔ [v; ω].
+_SWAP = np.array([3, 4, 5, 0, 1, 2])
+
+
+def _motion_cross_tensor() -> np.ndarray:
+    """(6, 36): a motion vector v times it, reshaped (6, 6), is v× = [[ω×, 0], [u×, ω×]]."""
+    out = np.zeros((6, 6, 6))
+    for b in range(6):
+        e = np.zeros(6)
+        e[b] = 1.0
+        out[b, :3, :3] = out[b, 3:, 3:] = _skew(e[:3])
+        out[b, 3:, :3] = _skew(e[3:])
+    return out.reshape(6, 36)
+
+
+_CRM = _motion_cross_tensor()

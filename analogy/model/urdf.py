@@ -18,9 +18,10 @@ from . import rigid_tree as rigid_tree_module
 from .compiled import cache_dir
 from .dynamics import MechanicalFunctions
 from .joint import JointSpace, JointStack, configuration_stack
+from .joint_limits import JointLimits, joint_limits
 from .rigid_tree import RigidTree, axis_rotation, body_inertia, placement_frame, plucker, spatial_inertia
 
-__all__ = ["UrdfModel", "urdf_model", "read_urdf", "MAX_URDF_BYTES", "STANDARD_GRAVITY"]
+__all__ = ["UrdfModel", "JointLimits", "urdf_model", "read_urdf", "MAX_URDF_BYTES", "STANDARD_GRAVITY"]
 
 #: A URDF larger than this is refused before it is parsed (the Panda's is 20 kB).
 MAX_URDF_BYTES = 10_000_000
@@ -176,7 +177,7 @@ def _largest_moment(robot) -> float:
 
 
 def _tree(robot, gravity: float, joints: Sequence[str] | None = None, pose: Mapping[str, float] | None = None):
-    """(RigidTree, joint names, kinds, damping per joint) of a parsed URDF."""
+    """(RigidTree, joint names, kinds, damping per joint, JointLimits, root link) of a parsed URDF."""
     links = {link.name: link for link in robot.links}
     by_child: dict = {}
     children: dict = {}
@@ -208,6 +209,7 @@ def _tree(robot, gravity: float, joints: Sequence[str] | None = None, pose: Mapp
                              "both out of the joints selected (they are then frozen)", field="robot")
     pose = dict(pose or {})
     parents, kinds, axes, placements, inertias, names, damping = [], [], [], [], [], [], []
+    lower, upper, effort = [], [], []
 
     scale = _largest_moment(robot)
     # depth first, each link's joints in name order, numbered when reached: Pinocchio's order
@@ -248,6 +250,12 @@ def _tree(robot, gravity: float, joints: Sequence[str] | None = None, pose: Mapp
         if d < 0:
             raise InputError(f"joint {j.name}: damping {d:g} is negative", field="robot")
         damping.append(d)
+        given = [None if j.limit is None or getattr(j.limit, a) is None else
+                 _number(getattr(j.limit, a), f"joint {j.name}: {a} limit") for a in ("lower", "upper", "effort")]
+        low, high, most = joint_limits(j.type == "continuous", *given)
+        lower.append(low)
+        upper.append(high)
+        effort.append(most)
         stack.append(("link", j.child, len(names) - 1, np.eye(4)))
 
     tree = RigidTree(tuple(parents), tuple(kinds), np.array(axes), np.array(placements), np.array(inertias),
@@ -257,7 +265,8 @@ def _tree(robot, gravity: float, joints: Sequence[str] | None = None, pose: Mapp
     if still := [names[k] for k in range(tree.dof) if not resisted[k] > 1e-12 * resisted.max(initial=0.0)]:
         raise InputError(f"joint {still[0]} moves no mass or inertia along its motion (every link it carries "
                          "is massless there)", field="robot")
-    return tree, tuple(names), tuple(kinds), np.array(damping)
+    return tree, tuple(names), tuple(kinds), np.array(damping), \
+        JointLimits(np.array(lower), np.array(upper), np.array(effort)), roots[0]
 
 
 def _joint_motion(joint, value: float) -> np.ndarray:
@@ -273,7 +282,7 @@ def _joint_motion(joint, value: float) -> np.ndarray:
 
 
 def _cached_tree(text: str, g: float, joints, pose) -> tuple:
-    """(name, tree, joint names, kinds, dampers): from the cache when this file was read before.
+    """(name, tree, joint names, kinds, dampers, limits, root link): from the cache when this file was read before.
 
     Parsing needs yourdfpy, whose import alone takes a second; the tree is a few arrays,
     kept under a key of the file's text, the selection and this code (``ANALOGY_CACHE_DIR=``
@@ -290,11 +299,13 @@ def _cached_tree(text: str, g: float, joints, pose) -> tuple:
             with np.load(path, allow_pickle=False) as z:
                 tree = RigidTree(tuple(int(p) for p in z["parents"]), tuple(str(k) for k in z["kinds"]), z["axes"],
                                  z["placements"], z["inertias"], z["gravity"])
-                return str(z["name"]), tree, tuple(str(n) for n in z["names"]), tree.kinds, z["damping"]
+                limits = JointLimits(z["lower"], z["upper"], z["effort"])
+                return (str(z["name"]), tree, tuple(str(n) for n in z["names"]), tree.kinds, z["damping"], limits,
+                        str(z["root"]))
         except Exception:           # a damaged entry (not a zip, a missing array …) is rebuilt, never trusted
             pass
     robot = _parse(text)
-    tree, names, kinds, damping = _tree(robot, g, joints, pose)
+    tree, names, kinds, damping, limits, root = _tree(robot, g, joints, pose)
     name = str(robot.name or "urdf")
     if path is not None:
         try:
@@ -302,11 +313,12 @@ def _cached_tree(text: str, g: float, joints, pose) -> tuple:
             tmp = path.with_name(f"{path.stem}.{os.getpid()}.tmp.npz")
             np.savez(tmp, name=name, parents=np.array(tree.parents), kinds=np.array(kinds), axes=tree.axes,
                      placements=tree.placements, inertias=tree.inertias, gravity=tree.gravity,
-                     names=np.array(names), damping=damping)
+                     names=np.array(names), damping=damping, lower=limits.lower, upper=limits.upper,
+                     effort=limits.effort, root=root)
             os.replace(tmp, path)               # atomic: readers never see half a file
         except OSError:
             pass
-    return name, tree, names, kinds, damping
+    return name, tree, names, kinds, damping, limits, root
 
 
 class UrdfModel:
@@ -326,16 +338,20 @@ class UrdfModel:
         The frozen joints' values.
     g : float
         Gravity's magnitude [m/s²].
+    name : str, optional
+        The robot's name (default: the URDF's ``<robot name>``).
     """
 
     topology = "parallel"
     description = ""
 
     def __init__(self, text: str, joints: Sequence[str] | None = None, pose: Mapping[str, float] | None = None,
-                 g: float = STANDARD_GRAVITY):
+                 g: float = STANDARD_GRAVITY, name: str | None = None):
         self.text = text
-        self._selection, self._pose = joints, pose
-        self.name, self.tree, self.joint_names, kinds, self.joint_damping = _cached_tree(text, g, joints, pose)
+        self._selection, self._pose, self._label = joints, pose, name
+        (self.name, self.tree, self.joint_names, kinds, self.joint_damping, self.limits,
+         self.root_link) = _cached_tree(text, g, joints, pose)
+        self.name = name or self.name
         self.joints = kinds
         self.parameters = {"g": float(g)}
         self.coordinates = tuple(f"q{i + 1}" for i in range(len(kinds)))
@@ -371,7 +387,7 @@ class UrdfModel:
         if g == self.parameters["g"]:
             return self
         return urdf_model(self.text, None if self._selection is None else tuple(self._selection),
-                          None if not self._pose else tuple(sorted(self._pose.items())), g)
+                          None if not self._pose else tuple(sorted(self._pose.items())), g, self._label)
 
     def joint_space(self, q: Sequence[float] | None = None,
                     parameters: Mapping[str, float] | None = None) -> JointSpace:
@@ -414,7 +430,7 @@ class UrdfModel:
         return float(np.linalg.norm(t.gravity) * sum(m for m, _, _ in bodies) * reach)
 
     def mechanical_functions(self, parameters: Mapping[str, float] | None = None) -> MechanicalFunctions:
-        """M(q), c(q, q̇) and G(q) of the tree by its recursions, for the nonlinear dynamics.
+        """M(q), c(q, q̇), G(q), q̈ and U(q) of the tree (Pinocchio's where installed), for the nonlinear dynamics.
 
         Parameters
         ----------
@@ -422,9 +438,7 @@ class UrdfModel:
             ``g``.
         """
         tree = self.with_parameters(parameters).tree
-        gravity = tree.gravity_load if np.any(tree.gravity) else None
-        return MechanicalFunctions(tree.mass_matrix, tree.velocity_load, gravity, np.diag(self.joint_damping), None,
-                                   masses=tree.mass_matrices, gravities=gravity)
+        return tree.functions(np.diag(self.joint_damping), self.text, self.joint_names, self._pose)
 
     def joint_stack(self, qs, parameters: Mapping[str, float] | None = None) -> JointStack:
         """:meth:`joint_space` at every row of *qs*.
@@ -443,7 +457,7 @@ class UrdfModel:
 
 @lru_cache(maxsize=16)
 def urdf_model(text: str, joints: tuple | None = None, pose: tuple | None = None,
-               g: float = STANDARD_GRAVITY) -> UrdfModel:
+               g: float = STANDARD_GRAVITY, name: str | None = None) -> UrdfModel:
     """The :class:`UrdfModel` of a URDF's text, parsed once per process.
 
     Parameters
@@ -456,5 +470,7 @@ def urdf_model(text: str, joints: tuple | None = None, pose: tuple | None = None
         The frozen joints' values.
     g : float
         Gravity's magnitude.
+    name : str, optional
+        The robot's name (default: the URDF's ``<robot name>``).
     """
-    return UrdfModel(text, joints, dict(pose) if pose is not None else None, g)
+    return UrdfModel(text, joints, dict(pose) if pose is not None else None, g, name)

@@ -131,22 +131,17 @@ def _linear(system, force):
 
 
 def _nonlinear(system, force):
-    """State [x, v, W]: W = ∫(iᵀv − vᵀB'v − G'ᵀv) dt, the work of the forces that are not
-    in the kinetic and spring energies, so that the energy balance can be checked."""
+    """State [x, v, W]: W = ∫(iᵀv − vᵀB'v) dt, with − G'ᵀv in it where the model has no potential
+    (:meth:`~analogy.circuit.nonlinear.NonlinearNodeSystem.flow`): the work of the forces that
+    are not in the kinetic and spring energies, so that the energy balance can be checked."""
     n = system.dof
-    cmap, b = system.current_map, system.damping
-    k = system.stiffness
-    gravity = system.node_gravity
+    cmap = system.current_map
+    flow = system.flow
 
     def rhs(tt, yy):
-        x, v = yy[:n], yy[n:2 * n]
-        drive = cmap @ force(tt)
-        loss = b @ v
-        i = drive - loss - system.node_load(x, v, tt)
-        if k is not None:
-            i = i - k @ x
-        power = v @ (drive - loss - gravity(x))
-        return np.concatenate([v, np.linalg.solve(system.node_mass(x), i), [power]])
+        v = yy[n:2 * n]
+        accel, power = flow(yy[:n], v, cmap @ force(tt))
+        return np.concatenate([v, accel, [power]])
     y0 = np.concatenate([np.zeros(n), system.initial_voltages, [0.0]])
     jac = None
     if system.functions.derivatives is not None:
@@ -202,7 +197,8 @@ def solve_ode(system, times=None, method: str = "DOP853", rtol: float = 1e-10,
         extra["jac"] = (lambda tt, yy: jac) if method == "LSODA" and not callable(jac) else jac
     cls = getattr(integrate, method)
     out = np.empty((t.size, n))
-    pos = np.empty((t.size, n)) if positions and has_x else None
+    # a nonlinear system's x at every point: gravity's work U(q0) − U(q) is added to W from it
+    pos = np.empty((t.size, n)) if (positions or not linear) and has_x else None
     vs = slice(n, 2 * n) if not linear else slice(y.size - n, y.size)     # where v sits in the state
     work = np.empty(t.size) if not linear else None
     steps = nfev = njev = 0
@@ -251,9 +247,12 @@ def solve_ode(system, times=None, method: str = "DOP853", rtol: float = 1e-10,
                     k = stop
             nfev, njev = nfev + sol.nfev, njev + sol.njev
             y = sol.y
+    if work is not None and (lifted := system.gravity_work(pos)) is not None:
+        work = work + lifted
     elapsed = _time.perf_counter() - start
     stats = SolverStats(elapsed, steps, None, nfev, njev)
-    return Trajectory("ode", t, out, system.joint_rates(out), pos, stats=stats, work=work, message=note)
+    return Trajectory("ode", t, out, system.joint_rates(out), pos if positions else None, stats=stats, work=work,
+                      message=note)
 
 
 #: odeint's failure messages, in the words of the solver's other failures.
