@@ -105,7 +105,7 @@ def circuit(system, zero_tol: float = ZERO_TOL, realizable: bool = False, descri
             initial.append((c.auxiliary_nodes[1], float(across)))
     return Circuit(system.dof, tuple(parts), current_sources(system, zero_tol), tuple(initial),
                    system.t_stop, couplings, (), comments(system) if describe else (),
-                   system.provenance.robot)
+                   system.provenance.robot, system.provenance.joints or ())
 
 
 def circuits(systems: Sequence, zero_tol: float = ZERO_TOL) -> list[Circuit]:

@@ -129,9 +129,13 @@ def circuit_lines(c: Circuit, prefix: str = "", memo: dict | None = None) -> lis
         elif isinstance(p, BehaviouralCurrent):
             lines.append(f"B{prefix}{p.name} {b} {a} I={{{_prefixed(spice_expression(p.current), prefix)}}}")
     # 'I n+ n- value' drives current out of n+ and into n-: into a, out of b.
+    joint_of = {s.name: s.joint for s in c.sources}
     for name, a, b, v, terms in _source_values(c.sources, c.t_stop, memo):
         if terms:       # the description's sources it stands for, by their names
             lines.append(f"* I{prefix}{name[1:]} is the sum of " + ", ".join(f"I{prefix}{t[1:]}" for t in terms))
+        elif c.joints and name in joint_of:       # beside its source, the joint it drives
+            joint = joint_of[name]
+            lines.append("* " + comment_text(f"I{prefix}{name[1:]}: the force on joint {joint}, {c.joints[joint - 1]}"))
         lines.append(f"I{prefix}{name[1:]} {_node(b, prefix)} {_node(a, prefix)} {v}")
     return lines
 

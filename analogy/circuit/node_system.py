@@ -132,8 +132,9 @@ class NodeCoordinates:
             kept = self.__dict__["_breakpoints"] = (self.forces, self.t_stop, points)
         return kept[2]
 
-    def driven(self: _System, forces=None, t_stop: float | None = None) -> _System:
-        """This system under other joint forces, or over another horizon: the solve's own inputs.
+    def driven(self: _System, forces=None, t_stop: float | None = None, initial_rates=None) -> _System:
+        """This system under other joint forces, over another horizon or from other joint rates:
+        the solve's own inputs.
 
         The new system shares every matrix and the configuration; only what is given
         changes, checked as :func:`node_system` checks it. Gravity stays where the
@@ -145,12 +146,18 @@ class NodeCoordinates:
             One entry per joint, as :func:`node_system` takes them.
         t_stop : float, optional
             End of the simulated interval [s].
+        initial_rates : sequence of float, optional
+            Joint rates at t = 0.
         """
         out = copy.copy(self)
         for cache in ("_breakpoints", "_scales", "_inputs_key"):
             out.__dict__.pop(cache, None)
         if t_stop is not None:
             out.t_stop = check_t_stop(t_stop)
+        if initial_rates is not None:
+            with concerning("initial_rates"):
+                out.initial_rates = check_vector("initial rates r0", initial_rates, self.dof)
+            out.initial_voltages = self.topology.matrix @ out.initial_rates
         if forces is not None:
             with concerning("forces"):
                 out.forces = self._with_gravity(waveforms(forces, self.dof))
@@ -374,7 +381,7 @@ def _evaluated(model, q, parameters, topology):
         values = dict(model.parameters, **(parameters or {}))
         base_info = {"robot": model.name, "parameters": values,
                      "configuration": dict(zip((str(c) for c in model.coordinates), q or [])),
-                     "units": model.units}
+                     "units": model.units, "joints": getattr(model, "joint_names", None)}
     elif isinstance(model, JointSpace):
         joint = model
         top_spec = topology if topology is not None else "parallel"

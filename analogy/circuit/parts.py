@@ -136,6 +136,8 @@ class Circuit(NamedTuple):
         What was built: robot, parameters, configuration, topology, forces.
     robot : str
         The robot's name, for titles.
+    joints : tuple of str
+        Per joint, its own name (a URDF's), for comments beside the sources; empty: q1 … qn.
 
     A circuit is what is built, not how it is simulated: the spice solver derives its
     settings from the system (:mod:`analogy.solvers.transient`).
@@ -150,6 +152,7 @@ class Circuit(NamedTuple):
     behavioural: tuple = ()
     comments: tuple = ()
     robot: str = "custom"
+    joints: tuple = ()
 
     def __repr__(self) -> str:
         kinds = ", ".join(f"{sum(e.kind == k for e in self.parts)} {k}" for k in "CRL"
@@ -227,7 +230,10 @@ def comments(system) -> tuple[str, ...]:
     dynamics = ("dynamics: linear, the circuit at the configuration above" if kind == "linear" else
                 "dynamics: nonlinear: M'(x) as charge-defined capacitors Q = c(x)*(v_a - v_b), "
                 "velocity terms and gravity as behavioural currents, x = integral of v on nodes x1...")
-    return (f"robot: {made.robot}",
+    named = () if not made.joints else \
+        ("joints: " + ", ".join(f"q{k + 1} = {name}" for k, name in enumerate(made.joints))
+         + "; F_k and r_k are joint k's force and rate",)
+    return (f"robot: {made.robot}",) + named + (
             f"parameters: {params or 'none'}",
             f"configuration: {config or 'none'}",
             f"topology: {top.describe()}, T = {matrix}",

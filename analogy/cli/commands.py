@@ -28,6 +28,7 @@ from ..results.output import check_plot_path
 from .outputs import accuracy_exit, check_writable
 from .parser import build_parser
 from .scene_options import scene_from_args, solver_list
+from ..model.urdf_robots import URDF_ROBOTS
 from ..scenes.builtin import SCENES, scene
 from ..scenes.scene import Scene
 
@@ -38,6 +39,13 @@ def _title(sc: Scene) -> str:
     return f"analogy {sc.name}: {sc.description}" if sc.description else f"analogy {sc.name}"
 
 
+def _say_unstable(system, sc: Scene) -> None:
+    """One line before a linear run at an unstable pose (:func:`unstable_note`)."""
+    from ..scenes.robot_defaults import unstable_note
+    if (note := unstable_note(system, sc)) is not None:
+        print(f"analogy: warning: {note}", file=sys.stderr)
+
+
 def _cmd_netlist(args) -> int:
     sc = scene_from_args(args)
     if args.realizable and args.dynamics != "linear":
@@ -45,6 +53,7 @@ def _cmd_netlist(args) -> int:
     check_writable(args.output)
     save = None if args.save is None else [s.strip() for s in args.save.split(",") if s.strip()]
     system = sc.system().realized() if args.realizable else sc.system()     # as compare --realizable does
+    _say_unstable(system, sc)
     text = netlist(system, args.preset, save=save, title=_title(sc), dialect=args.dialect)
     if args.output:
         try:
@@ -91,10 +100,15 @@ def _cmd_compare(args) -> int:
                              "--estimate, --refine and --no-reference apply to one dynamics")
         return _compare_both(sc, args, solvers, step)
     system = sc.system().realized() if args.realizable else sc.system()
+    _say_unstable(system, sc)
     reference = None if args.no_reference else "auto"
     result = compare(system, preset, solvers, step=step, progress=Heartbeat(), reference=reference,
                      estimate=args.estimate, refine=args.refine)
     print(result.table())
+    if system.kind == "nonlinear":
+        from ..study.predictability import predictability
+        if (sensitivity := predictability(system, preset, result.results.get("ode"))).chaotic:
+            print(f"analogy: {sensitivity.line()}", file=sys.stderr)
     return _written_and_judged(result, result, args)
 
 
@@ -150,7 +164,8 @@ def _cmd_modes(args) -> int:
     locked = [item.strip() for item in (args.locked or "").split(",") if item.strip()]
     if bad := [item for item in locked if not item.isdigit()]:
         raise InputError(f"--locked needs joint numbers like 1,2, got {bad[0]!r}")
-    result = natural_modes(sc.system().joint, [int(x) for x in locked])
+    system = sc.system()
+    result = natural_modes(system.joint, [int(x) for x in locked], system.provenance.joints)
     print(result.table())
     if args.csv:
         try:
@@ -417,7 +432,10 @@ def _cmd_ac(args) -> int:
 
 def _cmd_scenes(args) -> int:
     for name, sc in SCENES.items():
-        print(f"{name:<10} {sc.description}")
+        print(f"{name:<16} {sc.description}")
+    for name in URDF_ROBOTS:            # derived from the file when run: not loaded to be listed
+        print(f"{name:<16} {name} from example-robot-data: hanging (or g = 0 where it cannot hang within its "
+              "joint limits), steps sized to the robot, a horizon from its modes")
     return EXIT_OK
 
 

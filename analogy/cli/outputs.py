@@ -52,7 +52,11 @@ def accuracy_exit(flags: dict, preset: str, bound: float, result=None) -> int:
                   f"{result.unestimated[solver]}", file=sys.stderr)
             continue
         worst = getattr(result, "worst_output", None)
-        which = f" on {worst(solver)[0]}" if worst is not None and solver in result.results else ""
+        which = ""
+        if worst is not None and solver in result.results:
+            provenance = getattr(getattr(result, "system", None), "provenance", None)
+            name = worst(solver)[0]
+            which = f" on {provenance.output_name(name) if provenance is not None else name}"
         print(f"analogy: accuracy: {solver} error{which} {err:.3g} of its own peak is above the {preset} "
               f"preset's bound {bound:g}", file=sys.stderr)
     singular = getattr(result, "singular", "")

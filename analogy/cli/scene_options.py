@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from dataclasses import replace
 
 from ..circuit.topology import TOPOLOGY_NAMES
@@ -90,6 +91,9 @@ def scene_options(p: argparse.ArgumentParser, preset: str = "accurate") -> None:
     g.add_argument("--urdf", metavar="FILE", help="a robot from its URDF file (revolute, continuous, prismatic "
                    "and fixed joints; gravity along -z, --param g=0 turns it off); q1..qn follow its movable "
                    "joints depth first, each link's joints by name (Pinocchio's order)")
+    g.add_argument("--base", choices=("fixed", "floating"), help="a URDF robot's root link: held fixed to the "
+                   "world (fixed, the default, said in one line when the root is not the world) or free-flying "
+                   "(floating: not modelled yet, refused)")
     g.add_argument("--joints", metavar="NAMES", help="with --urdf: the movable joints kept, e.g. "
                    "'shoulder_pan_joint,elbow_joint'; the others are frozen at 0")
     g.add_argument("--mass", metavar="VECTOR|MATRIX", help="mass matrix, e.g. '[[m1, m3], [m3, m2]]', or its "
@@ -172,6 +176,27 @@ def _fitted(sc: Scene, model) -> dict:
     return out
 
 
+def _urdf_defaults(spec: ModelSpec, label: str, params: dict, args) -> dict:
+    """A URDF robot's scene changes: its default pose, gravity, forces and horizon where the
+    options leave them, said in one line (with the sentence on its base) on stderr."""
+    from ..scenes.robot_defaults import base_note, robot_defaults     # scipy's optimizer: URDF robots only
+    model = scene_model(Scene.of(label, spec, parameters=params, source="command line"))
+    if getattr(args, "base", None) == "floating":
+        raise InputError(f"--base floating: a free-flying base is not modelled yet; --base fixed holds "
+                         f"{model.name}'s root link {model.root_link} to the world")
+    q = None if args.q is None else _option("--q", parse_vector, args.q, numeric=True, dimension=COORDINATE)
+    if q is not None and len(q) != model.dof:
+        raise InputError(f"--q: expected {model.dof} numbers, got {len(q)}: {label} has {model.dof} joints "
+                         f"({', '.join(model.joint_names)})")
+    d = robot_defaults(model, params.get("g"), q, label)
+    if not (args.force and args.t_stop is not None and q is not None):
+        print(f"analogy: note: {d.note}", file=sys.stderr)
+    if getattr(args, "base", None) is None and (base := base_note(model)) is not None:
+        print(f"analogy: note: {base}", file=sys.stderr)
+    return {"model": spec, "q": d.q, "parameters": {**params, "g": d.g}, "forces": d.forces, "t_stop": d.t_stop,
+            "initial_rates": None, "topology": None, "robot_note": d.note}
+
+
 def scene_from_args(args) -> Scene:
     """The scene the CLI options describe: a built-in scene with the options' changes.
 
@@ -213,9 +238,9 @@ def scene_from_args(args) -> Scene:
             raise InputError("--robot and --urdf both name the robot: give one")
         names = None if args.joints is None else tuple(n.strip() for n in args.joints.split(",") if n.strip())
         spec = ModelSpec(urdf=_option("--urdf", read_urdf, args.urdf), joints=names or None)
-        model = scene_model(Scene.of("urdf", spec, parameters=params, source="command line"))
-        changes.update(model=spec, q=(0.0,) * model.dof, parameters=params, forces=(1.0,) * model.dof,
-                       initial_rates=None, topology=None)
+        changes.update(_urdf_defaults(spec, spec.label, params, args))
+    elif args.robot in URDF_ROBOTS:
+        changes.update(_urdf_defaults(ModelSpec(robot=args.robot, **chosen), args.robot, params, args))
     elif args.joints is not None:
         raise InputError("--joints selects the joints of a --urdf robot")
     elif args.damping or args.stiffness or args.gravity:
@@ -269,8 +294,11 @@ def scene_from_args(args) -> Scene:
         changes["equilibrium"] = True
     if getattr(args, "dynamics", None) in ("linear", "nonlinear"):      # "both" is the command's
         changes["dynamics"] = args.dynamics
+    robot_note = changes.pop("robot_note", None)
     new = sc.replace(**changes)
-    if new.key != sc.key:           # name and describe what was actually built
+    if robot_note is not None:      # a URDF robot: its own name, and how its defaults were chosen
+        new = new.replace(name=new.model.label, description=robot_note.partition(": ")[2])
+    elif new.key != sc.key:         # name and describe what was actually built
         label = new.model.label
         new = new.replace(name=label if label != sc.name else sc.name,
                           description=f"{label}, changed from the built-in scene {sc.name!r} on the "

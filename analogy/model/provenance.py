@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field, fields, replace
 from typing import Mapping
 
 from ..errors import InputError
 
 __all__ = ["Provenance"]
+
+#: A joint rate's output name, with a solver's or a run's suffix: r2, r2_spice, r2_linear.
+_RATE = re.compile(r"^r([0-9]+)(_[A-Za-z0-9_]+)?$")
 
 
 @dataclass(frozen=True)
@@ -26,6 +30,8 @@ class Provenance:
         The coordinates it was built at.
     units : tuple of str or None
         Per joint coordinate, ``"rad"`` or ``"m"``; None where the model does not say.
+    joints : tuple of str or None
+        Per joint coordinate, the joint's own name (a URDF's); None: the coordinates are q1 … qn.
     """
 
     robot: str = "custom"
@@ -33,6 +39,21 @@ class Provenance:
     parameters: dict = field(default_factory=dict)
     configuration: dict = field(default_factory=dict)
     units: tuple | None = None
+    joints: tuple | None = None
+
+    def output_name(self, name: str) -> str:
+        """*name* with a joint rate ``r<k>`` named after its joint: ``r2_spice`` → ``shoulder_lift_joint_rate_spice``.
+
+        Other names, and every name of a model without joint names, are returned as they are.
+
+        Parameters
+        ----------
+        name : str
+            An output or column name (``r2``, ``r2_spice``, ``r2_linear``, ``v_n1`` …).
+        """
+        if not self.joints or (m := _RATE.match(name)) is None or not 1 <= int(m.group(1)) <= len(self.joints):
+            return name
+        return f"{self.joints[int(m.group(1)) - 1]}_rate{m.group(2) or ''}"
 
     @classmethod
     def of(cls, given: "Provenance | Mapping | None", **defaults) -> "Provenance":
@@ -58,8 +79,9 @@ class Provenance:
         for key in ("parameters", "configuration"):
             if key in values:
                 values[key] = dict(values[key] or {})
-        if values.get("units") is not None:
-            values["units"] = tuple(values["units"])
+        for key in ("units", "joints"):
+            if values.get(key) is not None:
+                values[key] = tuple(values[key])
         return replace(base, **values)
 
     def at(self, configuration: Mapping[str, float], parameters: Mapping[str, float] | None = None) -> "Provenance":
@@ -74,4 +96,4 @@ class Provenance:
         """
         params = {**self.parameters, **(parameters or {})}
         # built directly, not by dataclasses.replace: a stack makes one record per row
-        return type(self)(self.robot, self.scene, params, dict(configuration), self.units)
+        return type(self)(self.robot, self.scene, params, dict(configuration), self.units, self.joints)

@@ -37,6 +37,8 @@ class Modes(Tabular):
         The 2n roots s of det(M·s² + B·s + K) = 0, as python-control's ``damp`` lists
         them: a pair per oscillating mode, real ones where damping wins or no spring holds
         (s = 0 for a free rigid body).
+    joints : tuple of str or None
+        Every joint's own name (a URDF robot's), for the table and the shape columns; None: 1 … n.
     """
 
     omega: np.ndarray
@@ -45,6 +47,7 @@ class Modes(Tabular):
     shapes: np.ndarray
     free: tuple
     poles: np.ndarray = None
+    joints: tuple | None = None
 
     @property
     def unstable(self) -> np.ndarray:
@@ -52,15 +55,23 @@ class Modes(Tabular):
         return self.omega_squared < 0
 
     def columns(self) -> dict[str, np.ndarray]:
-        """``mode``, ``omega_rad_s``, ``f_hz`` and ``damping_ratio``, one row per mode."""
-        return {"mode": np.arange(1, self.omega.size + 1), "omega_rad_s": self.omega,
+        """``mode``, ``omega_rad_s``, ``f_hz``, ``damping_ratio``, ``kind``, then each free joint's
+        share of the M-normalised shape (``shape_<joint>``), one row per mode."""
+        cols = {"mode": np.arange(1, self.omega.size + 1), "omega_rad_s": self.omega,
                 "f_hz": self.omega / (2 * math.pi), "damping_ratio": self.damping_ratio,
                 "kind": np.array(["unstable" if bad else "rigid body" if w == 0 else "oscillating"
                                   for w, bad in zip(self.omega, self.unstable)])}
+        cols.update((f"shape_{name}", self.shapes[k]) for k, name in enumerate(self._free_names()))
+        return cols
+
+    def _free_names(self) -> list[str]:
+        """The free joints' names: their own, or q1 … by number."""
+        return [self.joints[j - 1] if self.joints else f"q{j}" for j in self.free]
 
     def table(self) -> str:
         """A plain-text table of the modes, unstable ones marked."""
-        lines = [f"free joints {', '.join(map(str, self.free))}",
+        named = "" if not self.joints else " (" + ", ".join(self._free_names()) + ")"
+        lines = [f"free joints {', '.join(map(str, self.free))}{named}",
                  f"{'mode':>4}{'omega [rad/s]':>16}{'f [Hz]':>14}{'damping ratio':>15}"]
         for k, (w, z, bad) in enumerate(zip(self.omega, self.damping_ratio, self.unstable)):
             note = "  unstable (growth rate)" if bad else ("  rigid body" if w == 0 else "")
@@ -124,7 +135,7 @@ def system_poles(m: np.ndarray, b: np.ndarray, k: np.ndarray) -> np.ndarray:
     return s[np.lexsort((s.imag, np.abs(s)))]
 
 
-def natural_modes(joint, locked: Sequence[int] = ()) -> Modes:
+def natural_modes(joint, locked: Sequence[int] = (), joints: Sequence[str] | None = None) -> Modes:
     """The natural modes of a joint space (M, B, K) with some joints held clamped.
 
     Parameters
@@ -133,6 +144,8 @@ def natural_modes(joint, locked: Sequence[int] = ()) -> Modes:
         M, B and K at the configuration.
     locked : sequence of int
         Joints (1-based) held fixed.
+    joints : sequence of str, optional
+        Every joint's own name.
     """
     n = joint.dof
     bad = [j for j in locked if not 1 <= j <= n]
@@ -152,4 +165,4 @@ def natural_modes(joint, locked: Sequence[int] = ()) -> Modes:
     modal_b = np.einsum("ik,ij,jk->k", shapes, b, shapes)
     with np.errstate(divide="ignore", invalid="ignore"):
         zeta = np.where(omega > 0, modal_b / (2 * omega), np.nan)
-    return Modes(omega, w2, zeta, shapes, free, system_poles(m, b, k))
+    return Modes(omega, w2, zeta, shapes, free, system_poles(m, b, k), None if joints is None else tuple(joints))

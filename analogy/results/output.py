@@ -133,9 +133,15 @@ def column_unit(name: str, joint_units=None) -> str:
     return {"v_": "V", "i_": "A"}.get(name[:2], "")
 
 
-def _with_unit(name: str, joint_units) -> str:
-    unit = column_unit(name, joint_units)
+def _with_unit(name: str, joint_units, plain: str | None = None) -> str:
+    unit = column_unit(name if plain is None else plain, joint_units)
     return f"{name} [{unit}]" if unit else name
+
+
+def _named(system):
+    """The column renaming of *system*: joint rates after a URDF robot's joints, the rest as they are."""
+    provenance = getattr(system, "provenance", None)
+    return provenance.output_name if provenance is not None else (lambda name: name)
 
 
 class Tabular:
@@ -166,21 +172,26 @@ class Tabular:
             n = len(next(iter(cols.values())))
             rows = np.unique(np.append(np.arange(0, n, every), n - 1)) if n else np.arange(0)
             cols = {name: np.asarray(v)[rows] for name, v in cols.items()}
-        return write_columns(path, {_with_unit(name, units): v for name, v in cols.items()})
+        named = _named(system)
+        return write_columns(path, {_with_unit(named(name), units, name): v for name, v in cols.items()})
 
     def to_frame(self) -> "pandas.DataFrame":
         """The :meth:`columns` as a pandas DataFrame indexed by the first of them.
 
-        Column names stay plain (``r1_spice``), so that code can index them; their units
-        are in ``frame.attrs["units"]`` (``{"time": "s", "r1_spice": "rad/s", …}``), as
-        the CSV's header names them.
+        Column names stay plain (``r1_spice``), so that code can index them; a URDF robot's
+        joint rates are named after its joints (``shoulder_pan_joint_rate_spice``), the
+        ``r1`` form they stand for in ``frame.attrs["outputs"]``. Units are in
+        ``frame.attrs["units"]`` (``{"time": "s", "r1_spice": "rad/s", …}``), as the CSV's
+        header names them.
         """
         import pandas as pd
         system = getattr(self, "system", None)
         joint = system.provenance.units if system is not None else None
+        named = _named(system)
         cols = self.columns()
-        frame = pd.DataFrame(cols).set_index(next(iter(cols)))
-        frame.attrs["units"] = {name: u for name in cols if (u := column_unit(name, joint))}
+        frame = pd.DataFrame({named(name): v for name, v in cols.items()}).set_index(named(next(iter(cols))))
+        frame.attrs["units"] = {named(name): u for name in cols if (u := column_unit(name, joint))}
+        frame.attrs["outputs"] = {named(name): name for name in cols if named(name) != name}
         return frame
 
 

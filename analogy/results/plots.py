@@ -11,7 +11,7 @@ from .metrics import PEAK_FLOOR
 from .output import check_plot_path
 
 __all__ = ["save_figure", "solver_style", "shown_joints", "error_envelope", "plot_trajectory", "plot_comparison",
-           "plot_quantities", "plot_linear_horizon", "plot_bode", "MANY_JOINTS"]
+           "plot_quantities", "plot_linear_horizon", "plot_bode", "MANY_JOINTS", "rate_labels"]
 
 
 _STYLES = {"exact": dict(ls="-", lw=2.0, alpha=0.5), "spice": dict(ls="--", lw=1.2),
@@ -92,11 +92,25 @@ def error_envelope(time: np.ndarray, error: np.ndarray, bins: int = 400) -> tupl
     return t, np.repeat(top[keep], 2)
 
 
-def _legends(ax, joints: list[int], units, solvers: list[str]) -> None:
+def rate_labels(n: int, names=None) -> list[str]:
+    """Per joint, the label of its rate: ``r1`` …, or its own name (a URDF robot's joints).
+
+    Parameters
+    ----------
+    n : int
+        Joints.
+    names : sequence of str, optional
+        The joints' names.
+    """
+    return list(names) if names and len(names) == n else [f"r{j + 1}" for j in range(n)]
+
+
+def _legends(ax, joints: list[int], units, solvers: list[str], names=None) -> None:
     """Two compact legends outside the axes: colour is the joint, line style the solver."""
     from matplotlib.lines import Line2D
-    handles = [Line2D([], [], color=f"C{j % 10}", lw=2, label=f"r{j + 1}" + (f" [{rate_unit(units[j])}]"
-                                                                              if units else ""))
+    labels = rate_labels(max(joints, default=-1) + 1 if not names else len(names), names)
+    handles = [Line2D([], [], color=f"C{j % 10}", lw=2, label=labels[j] + (f" [{rate_unit(units[j])}]"
+                                                                           if units else ""))
                for j in joints]
     handles += [Line2D([], [], color="k", label=name, **solver_style(name)) for name in solvers]
     ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False,
@@ -161,7 +175,7 @@ def plot_comparison(comparison, path=None) -> Figure:
             for j in joints:
                 ax.plot(tr.time, tr.rates[:, j], color=f"C{j % 10}", **solver_style(name))
         ax.set_ylabel(rate_label(None if unit is None else [unit]))
-        _legends(ax, joints, units, list(ok))
+        _legends(ax, joints, units, list(ok), comparison.system.provenance.joints)
     shown = f"; {count} of {n} joints shown (largest peaks)" if count < n else ""
     axes[0].set_title(f"{comparison.system.provenance.robot}: {', '.join(ok)} "
                       f"(preset {comparison.preset}){shown}", fontsize="medium")
@@ -270,7 +284,7 @@ def plot_quantities(time: np.ndarray, groups: list, errors: dict, title: str, pa
 
 
 def plot_linear_horizon(time: np.ndarray, nonlinear: np.ndarray, linear: np.ndarray, deviation: np.ndarray,
-                        thresholds: dict, title: str, path=None, units=None) -> Figure:
+                        thresholds: dict, title: str, path=None, units=None, names=None) -> Figure:
     """The full motion against the circuit linearised at q0, and how far apart they are.
 
     Parameters
@@ -289,12 +303,15 @@ def plot_linear_horizon(time: np.ndarray, nonlinear: np.ndarray, linear: np.ndar
         Image file to write.
     units : sequence of str, optional
         Joint units (:func:`analogy.units.joint_units`).
+    names : sequence of str, optional
+        The joints' names (:func:`rate_labels`).
     """
     fig = Figure(figsize=(8, 6), layout="constrained")
     ax, axe = fig.subplots(2, 1, sharex=True)
+    labels = rate_labels(nonlinear.shape[1], names)
     for j in range(nonlinear.shape[1]):
-        ax.plot(time, nonlinear[:, j], color=f"C{j % 10}", lw=2.0, alpha=0.6, label=f"r{j + 1} nonlinear")
-        ax.plot(time, linear[:, j], color=f"C{j % 10}", ls="--", lw=1.2, label=f"r{j + 1} linear at q0")
+        ax.plot(time, nonlinear[:, j], color=f"C{j % 10}", lw=2.0, alpha=0.6, label=f"{labels[j]} nonlinear")
+        ax.plot(time, linear[:, j], color=f"C{j % 10}", ls="--", lw=1.2, label=f"{labels[j]} linear at q0")
     ax.set_ylabel(rate_label(units))
     ax.set_title(title)
     ax.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)

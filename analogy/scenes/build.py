@@ -207,7 +207,7 @@ def scene_model(scene: SceneData) -> object:
         if spec.robot in URDF_ROBOTS:
             with keyed(keys["robot"]):
                 text, joints = urdf_robot(spec.robot)
-            return _urdf(ModelSpec(urdf=text, joints=joints), params, keys)
+            return _urdf(ModelSpec(urdf=text, joints=joints), params, keys, spec.robot)
         if spec.robot is not None:
             for label in ("mass", "damping", "stiffness", "gravity"):
                 if getattr(spec, label) is not None:
@@ -257,7 +257,7 @@ def scene_model(scene: SceneData) -> object:
         return model
 
 
-def _urdf(spec: ModelSpec, params: Mapping[str, float], keys: dict):
+def _urdf(spec: ModelSpec, params: Mapping[str, float], keys: dict, name: str | None = None):
     """A URDF robot's model (parsed once per process), at the scene's g."""
     for label in ("mass", "damping", "stiffness", "gravity"):
         if getattr(spec, label) is not None:
@@ -269,7 +269,7 @@ def _urdf(spec: ModelSpec, params: Mapping[str, float], keys: dict):
     except InputError as exc:
         raise InputError(f"{keys['parameters']} {exc}") from None
     with keyed(keys.get("urdf", keys["robot"])):
-        return urdf_model(spec.urdf, spec.joints, None, float(params.get("g", STANDARD_GRAVITY)))
+        return urdf_model(spec.urdf, spec.joints, None, float(params.get("g", STANDARD_GRAVITY)), name)
 
 
 def symbolic_model(scene: SceneData) -> object:

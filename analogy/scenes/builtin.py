@@ -7,6 +7,7 @@ from typing import Sequence
 
 from ..solvers.transient import netlist
 from ..errors import InputError
+from ..model.urdf_robots import URDF_ROBOTS
 from .scene import Scene
 from .spec import ModelSpec
 
@@ -65,12 +66,16 @@ def scene(name: str) -> Scene:
     Parameters
     ----------
     name : str
-        One of :data:`SCENES`.
+        One of :data:`SCENES`, or a named URDF robot (its default experiment:
+        :func:`~analogy.scenes.robot_defaults.robot_scene`).
     """
-    try:
+    if name in SCENES:
         return SCENES[name]
-    except KeyError:
-        raise InputError(f"unknown scene {name!r}: use {', '.join(SCENES)}") from None
+    if name in URDF_ROBOTS:        # derived from the robot's file when first asked for
+        from .robot_defaults import robot_scene
+        return robot_scene(name)
+    raise InputError(f"unknown scene {name!r}: use {', '.join(SCENES)} or a named robot "
+                     f"({', '.join(URDF_ROBOTS)})")
 
 
 def write_netlists(directory, names: Sequence[str] = PAPER_EXAMPLES, preset: str = "accurate") -> list[Path]:

@@ -187,7 +187,8 @@ class SceneResult(Tabular):
         """(quantity, {solver: {name: values}}) for every requested quantity."""
         groups = []
         if self.comparison is not None:
-            rates = {s: {f"r{j + 1}": tr.rates[:, j] for j in range(self.system.dof)}
+            named = self.system.provenance.output_name
+            rates = {s: {named(f"r{j + 1}"): tr.rates[:, j] for j in range(self.system.dof)}
                      for s, tr in self.comparison.results.items()}
             groups.append(("joint rates", rates))
         if self.scene.node_voltages:

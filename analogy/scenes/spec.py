@@ -2,10 +2,15 @@
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from typing import Any, Mapping, Protocol
 
 __all__ = ["ModelSpec", "SceneData", "freeze"]
+
+#: A URDF's robot name, read without parsing the file; kept to what a file name may hold.
+_ROBOT_NAME = re.compile(r"<robot\b[^>]*?\bname\s*=\s*[\"']([^\"']*)[\"']")
+_UNSAFE = re.compile(r"[^A-Za-z0-9_.-]+")
 
 
 def freeze(value) -> object:
@@ -85,8 +90,14 @@ class ModelSpec:
 
     @property
     def label(self) -> str:
-        """The robot's name, or ``custom``."""
-        return self.robot or ("urdf" if self.urdf is not None else "custom")
+        """The robot's name (a URDF's own ``<robot name>``, as a file name keeps it), or ``custom``."""
+        if self.robot:
+            return self.robot
+        if self.urdf is None:
+            return "custom"
+        found = _ROBOT_NAME.search(self.urdf)
+        name = _UNSAFE.sub("_", found.group(1)).strip("._-")[:60] if found else ""
+        return name or "urdf"
 
 
 class SceneData(Protocol):

@@ -190,6 +190,7 @@ class Comparison(Tabular):
             worst = "" if name == self.reference else err.worst
             if not self.reference and name in self.estimated:
                 worst = self.estimated[name].worst
+            worst = self.system.provenance.output_name(worst)
             est = self.estimated[name].relative if name in self.estimated else math.nan
             rows.append([name, tr.run_time * 1e3, err.absolute, worst, err.relative, est, err.whole,
                          "" if st.steps is None else st.steps, note])
@@ -202,19 +203,21 @@ class Comparison(Tabular):
                  "no reference: errors estimated by refined runs" if self.estimated or self.unestimated else
                  "no reference, so no errors measured")
         circuit = ", realizable circuit" if getattr(self.system, "realizable", False) else ""
+        rows = self._rows()
+        width = max([14] + [len(str(row[3])) + 2 for row in rows])     # joint names are long
         lines = [f"robot {self.system.provenance.robot}, topology {self.system.topology.name}{circuit}, "
                  f"preset {self.preset}, {self.time.size} time points; {where}",
-                 f"{'solver':<10}{'run time [ms]':>15}{'max |error|':>14}{'worst output':>14}"
+                 f"{'solver':<10}{'run time [ms]':>15}{'max |error|':>14}{'worst output':>{width}}"
                  f"{'error / peak':>14}" + (f"{'estimated':>12}" if self.estimated else "")
                  + f"{'all / peak':>12}{'steps':>8}"]
-        for name, ms, e, worst, r, est, whole, steps, note in self._rows():
+        for name, ms, e, worst, r, est, whole, steps, note in rows:
             if ms in ("failed", "skipped"):
                 lines.append(f"{name:<10}  {'failed' if ms == 'failed' else 'does not apply'}: {note}")
                 continue
             tail = f"  ({note})" if note else ""
             guess = (f"{est:>12.2e}" if est == est else f"{'-':>12}") if self.estimated else ""
-            errs = (f"{e:>14.3e}{worst or '-':>14}{r:>14.3e}{guess}{whole:>12.2e}" if self.reference
-                    else f"{'-':>14}{worst or '-':>14}{'-':>14}{guess}{'-':>12}")
+            errs = (f"{e:>14.3e}{worst or '-':>{width}}{r:>14.3e}{guess}{whole:>12.2e}" if self.reference
+                    else f"{'-':>14}{worst or '-':>{width}}{'-':>14}{guess}{'-':>12}")
             lines.append(f"{name:<10}{ms:>15.3f}{errs}{steps!s:>8}{tail}")
         if getattr(getattr(self.system, "joint", None), "unstable", False):
             lines.append("unstable equilibrium: K + ∂G/∂q has a negative eigenvalue, so the motion grows")

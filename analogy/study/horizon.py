@@ -66,7 +66,8 @@ class LinearHorizon(Tabular):
         robot = self.nonlinear.system.provenance.robot
         return plot_linear_horizon(self.nonlinear.time, ref.rates, self.linear, self.deviation, self.held,
                                    f"{robot}: nonlinear motion against the circuit at q0", path,
-                                   units=self.nonlinear.system.provenance.units)
+                                   units=self.nonlinear.system.provenance.units,
+                                   names=self.nonlinear.system.provenance.joints)
 
 
 def linear_horizon(scene, preset="accurate", solvers: Sequence[str] = ("spice", "ode"),

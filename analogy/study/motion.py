@@ -83,4 +83,7 @@ def motion(system: NodeDynamics, trajectory: Trajectory, frames: int = 60, *,
         note = "the motion the linear circuit predicts about q0"
     capacitances = np.array([system.node_mass(row) for row in x_shown]) if system.kind == "nonlinear" else None
     title = f"{provenance.robot} {system.kind}, {trajectory.solver}"
-    return Motion(title, t, v, list(system.nodes), shown, outline, x_shown, capacitances, note)
+    nodes = list(system.nodes)
+    if provenance.joints and np.array_equal(system.topology.matrix, np.eye(system.dof)):
+        nodes = [f"{node}: {name}" for node, name in zip(nodes, provenance.joints)]     # node k is joint k
+    return Motion(title, t, v, nodes, shown, outline, x_shown, capacitances, note)
