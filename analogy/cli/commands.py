@@ -41,6 +41,8 @@ def _title(sc: Scene) -> str:
 
 def _say_unstable(system, sc: Scene) -> None:
     """One line before a linear run at an unstable pose (:func:`unstable_note`)."""
+    if not getattr(getattr(system, "joint", None), "unstable", False):
+        return                  # the usual case, without importing scipy for the note
     from ..scenes.robot_defaults import unstable_note
     if (note := unstable_note(system, sc)) is not None:
         print(f"analogy: warning: {note}", file=sys.stderr)

@@ -141,9 +141,9 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("stress", help="stress-test numerical stability: families of hard cases, each run by "
                                       "every solver that applies (CSV, a plot per family, a summary)")
     p.add_argument("--quick", action="store_true", help="only the ends of each sweep (under a minute)")
-    p.add_argument("--families", default="abcdefgh", help="family letters (default abcdefgh): a conditioning, "
-                   "b time scales, c long runs, d size, e units, f near-singular, g nonlinear, h a real arm's "
-                   "singular poses")
+    p.add_argument("--families", default="abcdefghi", help="family letters (default abcdefghi): "
+                   "a conditioning, b time scales, c long runs, d size, e units, f near-singular, g nonlinear, "
+                   "h a real arm's singular poses, i the named robots at their defaults")
     p.add_argument("-o", "--output", default="stress", help="folder for stress.csv, stress.md and "
                    "stress_<family>.png (made if missing; default: stress)")
     p.add_argument("--timeout", type=float, default=10.0, help="wall-time limit of each ODE run [s] (default 10)")

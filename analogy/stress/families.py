@@ -13,7 +13,7 @@ from ..circuit.node_system import node_system
 from ..errors import InputError
 from ..model.joint import JointSpace
 from ..model.urdf import urdf_model
-from ..model.urdf_robots import urdf_robot
+from ..model.urdf_robots import URDF_ROBOTS, urdf_robot
 from ..presets import PRESETS, Preset
 
 __all__ = ["StressCase", "FAMILIES", "FAMILY_TITLES", "ALL_FAMILIES", "cases", "singular_q1", "spd_with_spectrum"]
@@ -30,6 +30,8 @@ FAMILY_TITLES = {
     "g": "nonlinear: fast motions and a chaotic double pendulum",
     "h": "a real arm at its singular poses: the UR5's elbow straightening (q3 → 0) and its wrist "
          "(q5 → 0), from its URDF, g = 0",
+    "i": "real arms at their defaults: each named URDF robot hanging (or at g = 0 where it cannot hang "
+         "within its limits), under steps sized to it, over a horizon from its modes",
 }
 #: Every family, the default of :func:`cases`.
 ALL_FAMILIES = "".join(FAMILY_TITLES)
@@ -245,8 +247,19 @@ def _real_arm(quick: bool, p: Preset) -> Iterator[StressCase]:
                              _runs(p))
 
 
+def _real_arm_defaults(quick: bool, p: Preset) -> Iterator[StressCase]:
+    """Every named URDF robot's default experiment, linear (:func:`~analogy.scenes.builtin.scene`):
+    fast decays beside slow ones (the xArm7's 68 µs), undamped arms hanging (the URs), arms at
+    g = 0 whose only time scale is a damper's (the Panda's 890 s)."""
+    from ..scenes.builtin import scene
+    for k, name in enumerate(("panda", "z1") if quick else URDF_ROBOTS):
+        def build(name=name):
+            return scene(name).system()
+        yield StressCase("i", "robot", float(k), f"{name} at its defaults", build, _runs(p))
+
+
 FAMILIES = {"a": _conditioning, "b": _time_scales, "c": _long_runs, "d": _size, "e": _units,
-            "f": _singular, "g": _nonlinear, "h": _real_arm}
+            "f": _singular, "g": _nonlinear, "h": _real_arm, "i": _real_arm_defaults}
 
 
 def cases(families: str = ALL_FAMILIES, quick: bool = False, timeout: float = 10.0) -> Iterator[StressCase]:
