@@ -73,7 +73,7 @@ class Preset:
     operation_budget : float
         The most operations a SPICE circuit may need: its time points times the
         work of one point, Σᵢ cᵢ² over its nodes' couplings
-        (:func:`analogy.study.work.point_operations`).
+        (:func:`analogy.circuit.elements.point_operations`).
     step_budget : int
         The most steps the time-scale cap may ask for: over a t_stop that would need
         more, the cap is t_stop/step_budget and the bound may fail (then it is flagged

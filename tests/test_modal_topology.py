@@ -124,7 +124,7 @@ def test_a_sum_of_piecewise_linear_waveforms_is_their_pointwise_sum():
 def test_a_modal_circuit_s_work_counts_one_node_per_row():
     """The work estimate counts the floating elements the circuit keeps: M' = I to rounding has
     none, so a point costs Σᵢ 1² = n operations, against n³ for the dense serial circuit."""
-    from analogy.study.work import point_operations
+    from analogy.circuit.elements import point_operations
     sc = scene("random10")
     assert point_operations(sc.replace(topology="modal").system()) == 10
     assert point_operations(sc.system()) == 10 ** 3

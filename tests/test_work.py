@@ -77,7 +77,7 @@ def test_a_sweep_past_the_budget_stores_each_scene_as_refused(tmp_path):
 ])
 def test_a_spice_point_costs_the_sum_of_squared_couplings(pattern, operations):
     """Σᵢ cᵢ², the work of a sparse LU whose fill stays in the pattern of M', B' and K'."""
-    from analogy.study.work import point_operations
+    from analogy.circuit.elements import point_operations
     n = 12
     mass = {"dense": np.full((n, n), 0.1) + np.eye(n), "diagonal": np.eye(n),
             "tridiagonal": np.eye(n) + 0.3 * (np.eye(n, k=1) + np.eye(n, k=-1))}[pattern]

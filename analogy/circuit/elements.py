@@ -8,7 +8,7 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["Element", "ElementKind", "ELEMENT_KINDS", "elements", "element_table", "spice_value", "mp_capacitance", "laplacian_split",
+__all__ = ["Element", "ElementKind", "ELEMENT_KINDS", "elements", "element_table", "spice_value", "mp_capacitance", "laplacian_split", "point_operations",
            "ZERO_TOL"]
 
 #: Default relative tolerance below which an element value counts as zero.
@@ -199,3 +199,27 @@ def elements(system, zero_tol: float = ZERO_TOL) -> list[Element]:
     return [Element(kind, a, b, float(spice_value(kind, c[0])), float(c[0]))
             for kind, a, b, c in element_table(system.mass[None], system.damping[None], k, zero_tol)
             if c[0] != 0.0]
+
+
+def point_operations(system) -> float:
+    """The operations of one SPICE time point of *system*'s circuit: Σᵢ cᵢ².
+
+    cᵢ counts the floating elements at node i, from M', B' and K' together, the nodes that node i's
+    parts couple it to: a sparse LU whose fill stays inside that pattern costs Σᵢ cᵢ²
+    (n³ for a dense M', n for a diagonal one), and it is refactored at every Newton
+    step. A nonlinear circuit couples every node through M'(x) and counts as dense.
+
+    Parameters
+    ----------
+    system : NodeSystem or NonlinearNodeSystem
+        A node system.
+    """
+    n = system.dof
+    if system.kind != "linear":
+        return float(n) ** 3
+    pattern = np.eye(n, dtype=bool)
+    for x in (system.mass, system.damping, system.stiffness):
+        if x is not None:       # the floating elements the circuit keeps: rounding is no coupling
+            pattern |= laplacian_split(x)[1] != 0
+    couplings = pattern.sum(axis=1, dtype=float)
+    return float(couplings @ couplings)

@@ -57,6 +57,9 @@ class Scales:
         The node count n (None: the length of *velocity*).
     top_velocity, top_position : float
         max of *velocity* and of *position*, where the builder has them at hand (NaN: derived).
+    frequencies : ndarray
+        Per mode, aligned with *phases*: the rate its phase turns at, ω_dk for an underdamped mode and
+        σ_k for one that grows, zero otherwise [rad/s] (see :meth:`phase_error`).
     """
 
     omega_max: float
@@ -70,6 +73,7 @@ class Scales:
     nodes: int | None = None
     top_velocity: float = math.nan
     top_position: float = math.nan
+    frequencies: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     def __repr__(self) -> str:
         return (f"Scales(omega_max={self.omega_max:.4g} rad/s, velocity={float(np.max(self.velocity)):.3g}, "
@@ -163,6 +167,47 @@ class Scales:
         """
         alive = self.phases[self.shares[:self.phases.size] > bound] if self.phases.size else self.phases
         return float(np.max(alive)) if alive.size else 0.0
+
+    def phase_error(self, step: float, bound: float) -> float:
+        """The trapezoidal rule's phase error at steps *step*, summed over the modes larger than *bound*
+        of the peak: each turns Φ_k radians and errs (ω_k·h)²/12 of its amplitude per radian.
+
+        At steps h the rule turns an oscillation at 2·atan(ω·h/2)/h instead of ω, and a growth at σ by
+        (1 + σh/2)/(1 − σh/2) = e^(σh·(1 + (σh)²/12 + …)): both are (ω·h)²/12 of each radian, held to
+        the amplitude, whatever reltol. The sum bounds an output to which every mode brings up to its
+        own peak.
+
+        Parameters
+        ----------
+        step : float
+            The step h [s].
+        bound : float
+            The preset's bound: a smaller mode cannot break it.
+        """
+        phases, turns = self._turning(bound)
+        return float(np.sum(phases * (turns * step) ** 2)) / 12
+
+    def phase_limit(self, error: float, bound: float) -> float:
+        """The step at which :meth:`phase_error` is *error* (inf where no mode larger than *bound* turns).
+
+        Parameters
+        ----------
+        error : float
+            The phase error allowed, over each mode's amplitude.
+        bound : float
+            The preset's bound.
+        """
+        phases, turns = self._turning(bound)
+        weight = float(np.sum(phases * turns ** 2))
+        return math.sqrt(12 * error / weight) if weight > 0 else math.inf
+
+    def _turning(self, bound: float) -> tuple[np.ndarray, np.ndarray]:
+        """Φ_k and ω_k of the modes larger than *bound* of the peak (none where the rates are unknown)."""
+        n = min(self.phases.size, self.frequencies.size)
+        if not n:
+            return np.zeros(0), np.zeros(0)
+        alive = self.shares[:n] > bound
+        return self.phases[:n][alive], self.frequencies[:n][alive]
 
     def decay_limit(self, product: float, bound: float, horizon: float = math.inf) -> float:
         """The step at which the fastest decay larger than 10·*bound* of the peak reaches β·h = *product*
@@ -271,10 +316,10 @@ def stack_scales(systems: Sequence) -> list[Scales]:
 
 def _stack_scales(first, m, b, k, v0) -> list[Scales]:
     """Scales of a stack sharing *first*'s forces, topology and t_stop (arrays with a leading axis)."""
-    fastest, velocity, position, current, charge, decays, share, phases, tops, reaches = \
+    fastest, velocity, position, current, charge, decays, share, phases, tops, reaches, turns = \
         _scale_arrays(first, m, b, k, v0)
     return [Scales(float(fastest[j]), velocity[j], position[j], current, float(charge[j]), decays[j], share[j],
-                   phases[j], None, tops[j], reaches[j]) for j in range(m.shape[0])]
+                   phases[j], None, tops[j], reaches[j], turns[j]) for j in range(m.shape[0])]
 
 
 def _scale_arrays(first, m, b, k, v0) -> tuple:
@@ -331,9 +376,10 @@ def _estimated_scales(first, m, b, k, v0) -> tuple:
     phases = damped * lives * np.exp(-np.abs(beta) * lives / 2)
     # a mode that grows at σ (an unstable equilibrium) carries its relative error as a phase does: σ·t_stop
     phases = np.where(mu < 0, omega * t_stop, phases)
+    turns = np.where(mu < 0, omega, damped)
     tops = np.max(velocity, axis=1).tolist() if n else [1.0] * count
     reaches = np.max(position, axis=1).tolist() if n else [t_stop] * count
-    return fastest, velocity, position, current, charge, decays, share, phases, tops, reaches
+    return fastest, velocity, position, current, charge, decays, share, phases, tops, reaches, turns
 
 
 def combined_scales(scales: Sequence[Scales]) -> Scales:
@@ -350,7 +396,8 @@ def combined_scales(scales: Sequence[Scales]) -> Scales:
     return Scales(max(s.omega_max for s in scales), np.array([top]), np.array([reach]),
                   max(s.current for s in scales), max(s.charge for s in scales),
                   np.concatenate([s.decays for s in scales]), np.concatenate([s.shares for s in scales]),
-                  np.concatenate([s.phases for s in scales]), max(s.size for s in scales), top, reach)
+                  np.concatenate([s.phases for s in scales]), max(s.size for s in scales), top, reach,
+                  np.concatenate([s.frequencies for s in scales]))
 
 
 def run_scales(systems: Sequence) -> Scales:
@@ -376,8 +423,10 @@ def run_scales(systems: Sequence) -> Scales:
     return kept
 
 
-def _combined_rows(fastest, velocity, position, current, charge, decays, share, phases, tops, reaches) -> Scales:
+def _combined_rows(fastest, velocity, position, current, charge, decays, share, phases, tops, reaches,
+                   turns) -> Scales:
     """:func:`combined_scales` of the rows of :func:`_scale_arrays`, taken in the same order."""
     top, reach = max(tops), max(reaches)
     return Scales(max(fastest.tolist()), np.array([top]), np.array([reach]), current, max(charge.tolist()),
-                  decays.reshape(-1), share.reshape(-1), phases.reshape(-1), velocity.shape[1], top, reach)
+                  decays.reshape(-1), share.reshape(-1), phases.reshape(-1), velocity.shape[1], top, reach,
+                  turns.reshape(-1))

@@ -10,20 +10,20 @@ import numpy as np
 
 from ..circuit.description import Circuit, circuits
 from ..circuit.description import circuit as describe
-from ..circuit.elements import ZERO_TOL
+from ..circuit.elements import ZERO_TOL, point_operations
 from ..circuit.netlist import Dialect, write_batch, write_netlist, write_stack
 from ..circuit.node_stack import NodeStack
 from ..circuit.scales import Scales, run_scales, system_scales
 from ..circuit.spice_numbers import spice_number
 from ..errors import InputError, SimulationError
-from .error_constants import (CALIBRATED_MAX_STEPS, CALIBRATED_TOPOLOGIES, FLOOR_LIMIT, SERIAL_NODE_LIMIT,
+from .error_constants import (CALIBRATED_MAX_STEPS, CALIBRATED_TOPOLOGIES, FLOOR_LIMIT, SAFETY, SERIAL_NODE_LIMIT,
                               calibrated_options, calibrated_reltol)
 from ..presets import Preset
 from ..presets import preset as get_preset
 
 __all__ = ["TransientSettings", "transient_settings", "netlist", "batch_netlist", "ROUNDING_STEPS",
            "NGSPICE_FIRST_STEP", "RETRY_LOOSEN", "RETRY_TIGHTEN", "REFINE", "refined", "STEP_TOLERANCES",
-           "beyond_calibration", "spice_run_reltol", "NGSPICE_STEP_TOLERANCES"]
+           "beyond_calibration", "spice_run_reltol", "NGSPICE_STEP_TOLERANCES", "circuit_operations"]
 
 #: Factors on abstol and vntol of the first run and of the retries after "time step too small".
 RETRY_LOOSEN = (1.0, 1e3, 1e6)
@@ -212,10 +212,29 @@ def _shortest_gap(breakpoints: np.ndarray, t_stop: float) -> float:
     return float(np.min(gaps)) if gaps.size else t_stop
 
 
+def _phase_cap(p: Preset, t_stop: float, scales: Scales, operations: float | None = None) -> float:
+    """The step that holds the trapezoidal rule's phase error over each mode's amplitude, summed over the
+    modes that turn within *t_stop* (:meth:`~analogy.circuit.scales.Scales.phase_error`), to
+    bound/:data:`~analogy.solvers.error_constants.SAFETY`; inf where its steps pass the preset's step
+    budget or, at *operations* a step (default n³, a dense circuit's), its operation budget: steps that
+    cannot buy the bound are not spent, and the run is judged and flagged.
+
+    ngspice's truncation check does not see this error: it holds each step's to reltol, so the error
+    grows with the steps a run takes. The UR5 hanging (undamped modes of 0.88 to 9.5 rad/s over 10 s)
+    took 101,723 steps at reltol 1e-10 and erred 7.7e-6 of its elbow rate's peak, each mode's error its
+    Σ(ω·h)³/12 over the steps taken, to 1 %. The sum counts every mode in full on every output; the
+    room SAFETY leaves is for an output whose own peak is under a mode's share in it.
+    """
+    step = scales.phase_limit(p.bound / SAFETY, p.bound)
+    points = t_stop / step
+    operations = float(scales.size) ** 3 if operations is None else operations
+    return step if points <= p.step_budget and points * operations <= p.operation_budget else math.inf
+
+
 def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | None, *,
                        behavioural: bool = False, coupled: bool = False, constrained: bool = False,
                        breakpoints: np.ndarray | None = None, loosen: float = 1.0,
-                       custom: bool = False) -> TransientSettings:
+                       custom: bool = False, operations: float | None = None) -> TransientSettings:
     """The transient settings of a circuit with *scales* over *t_stop* at *preset*.
 
     The absolute tolerances are the preset's relative ones times the circuit's current,
@@ -253,6 +272,9 @@ def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | Non
         as for every circuit the error constants do not speak for (see
         :data:`~analogy.presets.Preset.calibrated`; also one whose abstol's rounding floor passes
         :data:`~analogy.solvers.error_constants.FLOOR_LIMIT` times its current scale).
+    operations : float, optional
+        The circuit's operations a time point (:func:`analogy.circuit.elements.point_operations`; default n³):
+        the phase cap is not taken past the preset's operation budget.
     """
     p = get_preset(preset)
     opts = dict(p.behavioural_options if behavioural else p.spice_options)
@@ -289,6 +311,10 @@ def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | Non
         rate = scales.lasting(p.bound, horizon)
         phase = math.inf if calibrated else p.phase_step
         cap = min(phase / rate if rate > 0 else math.inf, scales.decay_limit(p.decay_step, p.bound, horizon))
+        if not calibrated and math.isfinite(p.phase_step) and not (behavioural or coupled):
+            # the preset's own caps (not the calibration's or the bench's fixed settings) on a linear
+            # trapezoidal circuit: the phase error of its own modes over t_stop sets the step
+            cap = min(cap, _phase_cap(p, t_stop, scales, operations))
         tmax = min(tmax, max(cap, t_stop / p.step_budget))
         shortest = min(first, 0.1 * _shortest_gap(np.zeros(0) if breakpoints is None else breakpoints, t_stop))
         rounding = ROUNDING_STEPS * scales.rounding_current(shortest)
@@ -296,7 +322,8 @@ def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | Non
             # a rounding floor past the calibration's may judge each step, not reltol: the Panda's (3.2e-7)
             # left its small r3 at 1.7e-6 at the accurate reltol, in 731 steps whatever the reltol
             return transient_settings(preset, t_stop, scales, behavioural=behavioural, coupled=coupled,
-                                      constrained=constrained, breakpoints=breakpoints, loosen=loosen, custom=True)
+                                      constrained=constrained, breakpoints=breakpoints, loosen=loosen, custom=True,
+                                      operations=operations)
         for key, size in (("abstol", scales.current), ("vntol", scales.peak_velocity),
                           ("chgtol", scales.charge)):
             if key not in opts:
@@ -378,10 +405,22 @@ def beyond_calibration(system) -> bool:
     return name not in CALIBRATED_TOPOLOGIES or (name == "serial" and system.dof > SERIAL_NODE_LIMIT)
 
 
+def circuit_operations(systems) -> float:
+    """The operations of one time point of a circuit running *systems* (a family's first, times their count).
+
+    Parameters
+    ----------
+    systems : sequence of NodeDynamics
+        The systems of one run.
+    """
+    return point_operations(systems[0]) * len(systems)
+
+
 def _settings_of(system, c: Circuit, preset, loosen: float = 1.0) -> TransientSettings:
     return transient_settings(preset, system.t_stop, system_scales(system), behavioural=bool(c.behavioural),
                               coupled=bool(c.couplings), constrained=bool(c.constraints),
-                              breakpoints=system.breakpoints(), loosen=loosen, custom=beyond_calibration(system))
+                              breakpoints=system.breakpoints(), loosen=loosen, custom=beyond_calibration(system),
+                              operations=circuit_operations([system]))
 
 
 def netlist(system, preset: str | Preset = "accurate", save: Iterable[str] | None = None,
@@ -452,7 +491,8 @@ def batch_netlist(systems: Sequence, preset: str | Preset = "fast", scales: Scal
     scales = scales or run_scales(systems)
     points = [s.breakpoints() for s in systems if s.forces is not systems[0].forces] + [systems[0].breakpoints()]
     settings = transient_settings(preset, ends[0], scales, breakpoints=np.concatenate(points),
-                                  custom=any(beyond_calibration(s) for s in systems))
+                                  custom=any(beyond_calibration(s) for s in systems),
+                                  operations=circuit_operations(systems))
     if len(ends) > 1:
         settings = replace(settings, stop=ends[-1], horizons=tuple(ends[:-1]))
     if isinstance(systems, NodeStack) and len(systems.partition()) == 1:

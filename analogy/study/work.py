@@ -7,7 +7,7 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
-from ..circuit.elements import laplacian_split
+from ..circuit.elements import point_operations
 from ..circuit.node_stack import NodeStack
 from ..circuit.scales import run_scales, system_scales
 from ..errors import InputError
@@ -15,7 +15,7 @@ from ..presets import Preset
 from ..solvers.error_constants import CALIBRATED_MAX_STEPS, step_phase
 from ..solvers.transient import beyond_calibration, spice_run_reltol
 
-__all__ = ["WorkEstimate", "check_work", "check_works", "estimate_work", "point_operations"]
+__all__ = ["WorkEstimate", "check_work", "check_works", "estimate_work"]
 
 #: Time points per force segment: each breakpoint restarts an integrator's step control.
 _POINTS_PER_SEGMENT = 4
@@ -28,30 +28,6 @@ class WorkEstimate(NamedTuple):
     segments: int
     fastest: float      # the rate [rad/s] that sets the points: a mode, a decay or a sine
     operations: float = 0.0     # of the SPICE circuit: points × point_operations, summed over a stack
-
-
-def point_operations(system) -> float:
-    """The operations of one SPICE time point of *system*'s circuit: Σᵢ cᵢ².
-
-    cᵢ counts the floating elements at node i, from M', B' and K' together, the nodes that node i's
-    parts couple it to: a sparse LU whose fill stays inside that pattern costs Σᵢ cᵢ²
-    (n³ for a dense M', n for a diagonal one), and it is refactored at every Newton
-    step. A nonlinear circuit couples every node through M'(x) and counts as dense.
-
-    Parameters
-    ----------
-    system : NodeSystem or NonlinearNodeSystem
-        A node system.
-    """
-    n = system.dof
-    if system.kind != "linear":
-        return float(n) ** 3
-    pattern = np.eye(n, dtype=bool)
-    for x in (system.mass, system.damping, system.stiffness):
-        if x is not None:       # the floating elements the circuit keeps: rounding is no coupling
-            pattern |= laplacian_split(x)[1] != 0
-    couplings = pattern.sum(axis=1, dtype=float)
-    return float(couplings @ couplings)
 
 
 def estimate_work(system, preset: Preset, scales=None, stacked: int = 1) -> WorkEstimate:
