@@ -21,8 +21,7 @@ from ..results.trajectory_stack import TrajectoryStack
 from .ngspice import NgspiceSession, library_path, run_netlist, session, vector_key
 from .quiet_ngspice import run_quietly
 from .registry import Solver, stacked_trajectories
-from .transient import (REFINE, RETRY_LOOSEN, batch_netlist, beyond_calibration, circuit_operations, refined,
-                        transient_settings)
+from .transient import REFINE, RETRY_LOOSEN, batch_netlist, circuit_settings, refined
 
 __all__ = ["NgspiceSession", "session", "run_netlist", "solve_spice", "library_path", "vector_key",
            "SpiceSolver", "SOLVER", "RETRY_LOOSEN"]     # the session's names, re-exported
@@ -102,10 +101,7 @@ def solve_spice(system, times=None, *, preset="accurate", save=None) -> Trajecto
     names = [e for e in (save or []) if e not in system.nodes] + circ.state_nodes + circ.monitors
     vectors = save_vectors(circ, list(system.nodes) + names)
     scales = system_scales(system)
-    settings = transient_settings(preset, system.t_stop, scales, behavioural=bool(circ.behavioural),
-                                  coupled=bool(circ.couplings), constrained=bool(circ.constraints),
-                                  breakpoints=system.breakpoints(), custom=beyond_calibration(system),
-                                  operations=circuit_operations([system]))
+    settings = circuit_settings(system, circ, preset)
     sess = session()
     start = _time.perf_counter()
     note = ""

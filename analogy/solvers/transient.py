@@ -16,6 +16,7 @@ from ..circuit.node_stack import NodeStack
 from ..circuit.scales import Scales, run_scales, system_scales
 from ..circuit.spice_numbers import spice_number
 from ..errors import InputError, SimulationError
+from .motion_step import circuit_motion_step
 from .error_constants import (CALIBRATED_MAX_STEPS, CALIBRATED_TOPOLOGIES, FLOOR_LIMIT, SAFETY, SERIAL_NODE_LIMIT,
                               calibrated_options, calibrated_reltol)
 from ..presets import Preset
@@ -23,7 +24,8 @@ from ..presets import preset as get_preset
 
 __all__ = ["TransientSettings", "transient_settings", "netlist", "batch_netlist", "ROUNDING_STEPS",
            "NGSPICE_FIRST_STEP", "RETRY_LOOSEN", "RETRY_TIGHTEN", "REFINE", "refined", "STEP_TOLERANCES",
-           "beyond_calibration", "spice_run_reltol", "NGSPICE_STEP_TOLERANCES", "circuit_operations"]
+           "beyond_calibration", "spice_run_reltol", "NGSPICE_STEP_TOLERANCES", "circuit_operations",
+           "circuit_settings"]
 
 #: Factors on abstol and vntol of the first run and of the retries after "time step too small".
 RETRY_LOOSEN = (1.0, 1e3, 1e6)
@@ -234,7 +236,8 @@ def _phase_cap(p: Preset, t_stop: float, scales: Scales, operations: float | Non
 def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | None, *,
                        behavioural: bool = False, coupled: bool = False, constrained: bool = False,
                        breakpoints: np.ndarray | None = None, loosen: float = 1.0,
-                       custom: bool = False, operations: float | None = None) -> TransientSettings:
+                       custom: bool = False, operations: float | None = None,
+                       motion: float | None = None) -> TransientSettings:
     """The transient settings of a circuit with *scales* over *t_stop* at *preset*.
 
     The absolute tolerances are the preset's relative ones times the circuit's current,
@@ -275,6 +278,9 @@ def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | Non
     operations : float, optional
         The circuit's operations a time point (:func:`analogy.circuit.elements.point_operations`; default n³):
         the phase cap is not taken past the preset's operation budget.
+    motion : float, optional
+        A behavioural circuit's step from its motion's error (:func:`~analogy.solvers.motion_step.motion_step`),
+        instead of the preset's fixed t_stop/behavioural_max_steps.
     """
     p = get_preset(preset)
     opts = dict(p.behavioural_options if behavioural else p.spice_options)
@@ -291,8 +297,8 @@ def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | Non
         opts["method"] = "gear"
     if constrained:
         opts["reltol"] = f"{min(float(opts.get('reltol', NGSPICE_RELTOL)), 10 * p.bound):.3g}"
-    tmax = t_stop / (p.behavioural_max_steps if behavioural else
-                     CALIBRATED_MAX_STEPS if calibrated else p.max_steps)
+    tmax = motion if behavioural and motion is not None else \
+        t_stop / (p.behavioural_max_steps if behavioural else CALIBRATED_MAX_STEPS if calibrated else p.max_steps)
     tstep = t_stop / p.steps
     first = NGSPICE_FIRST_STEP * tstep
     if scales is not None:
@@ -323,7 +329,7 @@ def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | Non
             # left its small r3 at 1.7e-6 at the accurate reltol, in 731 steps whatever the reltol
             return transient_settings(preset, t_stop, scales, behavioural=behavioural, coupled=coupled,
                                       constrained=constrained, breakpoints=breakpoints, loosen=loosen, custom=True,
-                                      operations=operations)
+                                      operations=operations, motion=motion)
         for key, size in (("abstol", scales.current), ("vntol", scales.peak_velocity),
                           ("chgtol", scales.charge)):
             if key not in opts:
@@ -416,11 +422,25 @@ def circuit_operations(systems) -> float:
     return point_operations(systems[0]) * len(systems)
 
 
-def _settings_of(system, c: Circuit, preset, loosen: float = 1.0) -> TransientSettings:
+def circuit_settings(system, c: Circuit, preset, loosen: float = 1.0) -> TransientSettings:
+    """The transient settings of *system*'s circuit *c* at *preset*: what a run and its netlist share.
+
+    Parameters
+    ----------
+    system : NodeDynamics
+        The system.
+    c : Circuit
+        Its circuit.
+    preset : str or Preset
+        The accuracy preset.
+    loosen : float
+        Factor on abstol and vntol (the retries after a collapsed step).
+    """
+    motion = circuit_motion_step(system, c, get_preset(preset))
     return transient_settings(preset, system.t_stop, system_scales(system), behavioural=bool(c.behavioural),
                               coupled=bool(c.couplings), constrained=bool(c.constraints),
                               breakpoints=system.breakpoints(), loosen=loosen, custom=beyond_calibration(system),
-                              operations=circuit_operations([system]))
+                              operations=circuit_operations([system]), motion=motion)
 
 
 def netlist(system, preset: str | Preset = "accurate", save: Iterable[str] | None = None,
@@ -463,7 +483,7 @@ def netlist(system, preset: str | Preset = "accurate", save: Iterable[str] | Non
         return write_netlist(system, settings, save, title, printing, dialect)
     c = describe(system, zero_tol, getattr(system, "realizable", False) if realizable is None else realizable)
     try:
-        settings = settings or _settings_of(system, c, preset, loosen)
+        settings = settings or circuit_settings(system, c, preset, loosen)
     except SimulationError as exc:      # no netlist can be written for it: the input's scale
         raise InputError(str(exc)) from None
     return write_netlist(c, settings, save, title, printing, dialect)
