@@ -16,7 +16,7 @@ from analogy.presets import PRESETS
 from analogy.results.metrics import output_errors
 from analogy.solvers.exact import solve_exact
 from analogy.solvers.spice import solve_spice
-from analogy.solvers.transient import _settings_of, transient_settings
+from analogy.solvers.transient import circuit_settings, transient_settings
 
 ACCURATE = PRESETS["accurate"]
 
@@ -84,7 +84,7 @@ def test_xarm7_at_g_0_steps_as_its_horizon_asks_and_keeps_the_bound():
     system = _xarm7()
     scales = system_scales(system)
     assert scales.omega_max == 0 and scales.lasting(ACCURATE.bound, system.t_stop) == 0
-    settings = _settings_of(system, circuit(system), ACCURATE)
+    settings = circuit_settings(system, circuit(system), ACCURATE)
     assert settings.max_step == pytest.approx(system.t_stop / ACCURATE.max_steps)
     tr = solve_spice(system, preset=ACCURATE)
     decays = scales.decays[scales.shares > 10 * ACCURATE.bound]
@@ -101,5 +101,5 @@ def test_the_written_xarm7_netlist_is_what_ran_and_runs_in_plain_ngspice(tmp_pat
     from test_plain_ngspice import _check
     system = _xarm7()
     tr = solve_spice(system, preset=ACCURATE)
-    assert tr.settings == _settings_of(system, circuit(system), ACCURATE)
+    assert tr.settings == circuit_settings(system, circuit(system), ACCURATE)
     _check(" ".join(XARM7), tmp_path)

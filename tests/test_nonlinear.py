@@ -283,22 +283,22 @@ def test_a_circuit_that_collapses_under_both_methods_runs_at_a_tighter_reltol():
 
 @pytest.mark.ngspice
 def test_a_trapezoidal_run_that_collapses_finishes_with_gear():
-    """serial4 swinging under gravity (q2 turning several radians a second), at the fixed cap
-    t_stop/20000 (its motion's own step, 53,607 steps, is past the step budget given here, so
-    the fixed cap runs): under the trapezoidal rule the step collapses at t = 1.05 s whatever
-    the tolerances. The gear retry finishes, says so, and keeps at least the fast preset's
-    bound. (At its own step the trapezoidal rule finishes, within 7.2e-7.)"""
-    from dataclasses import replace
+    """serial4 swinging under gravity (q2 turning several radians a second): under the
+    trapezoidal rule the step collapses at t = 1.05 s whatever the tolerances. The gear
+    retry finishes, says so, and at the accurate preset's cap (40 times the fast preset's
+    steps), shortened by √(8/3) for gear's error constant 2/9 against the trapezoidal
+    rule's 1/12, keeps at least the fast preset's bound."""
     from analogy.cli import build_parser, scene_from_args
     from analogy.presets import PRESETS
+    from analogy.solvers.transient import GEAR_STEP
     args = build_parser().parse_args([
         "compare", "--robot", "serial4", "--dynamics", "nonlinear", "--param", "g=9.81", "--t-stop", "4",
         "--q=0.3,-0.5,0.8,0.2", "--r0=0,1,-1,0.5", "--force", "step(3)", "--force", "step(1)",
         "--force", "step(0.5)", "--force", "step(0.2)"])
-    fixed_cap = replace(PRESETS["accurate"], step_budget=50_000)
-    c = compare(scene_from_args(args).system(), fixed_cap, solvers=("spice", "reference"))
+    c = compare(scene_from_args(args).system(), "accurate", solvers=("spice", "reference"))
     assert not c.failures
-    assert c.results["spice"].settings.max_step == pytest.approx(4 / fixed_cap.behavioural_max_steps, rel=1e-12)
+    cap = 4 / PRESETS["accurate"].behavioural_max_steps
+    assert c.results["spice"].settings.max_step == pytest.approx(cap / GEAR_STEP, rel=1e-12)
     assert "retried with gear integration" in c.results["spice"].message
     assert dict(c.results["spice"].settings.options)["method"] == "gear"
     assert c.max_relative_error("spice") <= 1e-3

@@ -150,7 +150,7 @@ class NodeCoordinates:
             Joint rates at t = 0.
         """
         out = copy.copy(self)
-        for cache in ("_breakpoints", "_scales", "_inputs_key", "_motion_step"):
+        for cache in ("_breakpoints", "_scales", "_inputs_key"):
             out.__dict__.pop(cache, None)
         if t_stop is not None:
             out.t_stop = check_t_stop(t_stop)

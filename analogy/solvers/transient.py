@@ -16,7 +16,6 @@ from ..circuit.node_stack import NodeStack
 from ..circuit.scales import Scales, run_scales, system_scales
 from ..circuit.spice_numbers import spice_number
 from ..errors import InputError, SimulationError
-from .motion_step import circuit_motion_step
 from .error_constants import (CALIBRATED_MAX_STEPS, CALIBRATED_TOPOLOGIES, FLOOR_LIMIT, SAFETY, SERIAL_NODE_LIMIT,
                               calibrated_options, calibrated_reltol)
 from ..presets import Preset
@@ -24,11 +23,14 @@ from ..presets import preset as get_preset
 
 __all__ = ["TransientSettings", "transient_settings", "netlist", "batch_netlist", "ROUNDING_STEPS",
            "NGSPICE_FIRST_STEP", "RETRY_LOOSEN", "RETRY_TIGHTEN", "REFINE", "refined", "STEP_TOLERANCES",
-           "beyond_calibration", "spice_run_reltol", "NGSPICE_STEP_TOLERANCES", "circuit_operations",
-           "circuit_settings"]
+           "beyond_calibration", "spice_run_reltol", "NGSPICE_STEP_TOLERANCES",
+           "circuit_settings", "GEAR_STEP"]
 
 #: Factors on abstol and vntol of the first run and of the retries after "time step too small".
 RETRY_LOOSEN = (1.0, 1e3, 1e6)
+#: gear-2's truncation error per step is (2/9)·h³·x‴ against the trapezoidal rule's (1/12)·h³·x‴:
+#: its retry of a trapezoidal run takes steps √(8/3) times shorter, for the same error.
+GEAR_STEP = math.sqrt(8.0 / 3.0)
 #: The last retry of a nonlinear circuit whose step collapsed under both methods: reltol this many times tighter.
 RETRY_TIGHTEN = 100.0
 
@@ -149,19 +151,19 @@ class TransientSettings:
         """The settings a run tries in turn while its step collapses ("time step too small").
 
         First these, then abstol and vntol ``RETRY_LOOSEN`` times larger (rounding read as
-        truncation error), when the options have them; last, for a trapezoidal run, gear
-        at the first tolerances. A nonlinear circuit has no absolute tolerance to loosen,
-        and one (serial4 swinging under gravity) collapses under the trapezoidal rule at
-        the same instant whatever its tolerances, while gear at the same step cap
-        finishes; gear damps what the trapezoidal rule carries from step to step. Where gear
-        collapses too, a nonlinear circuit runs last at reltol :data:`RETRY_TIGHTEN` times
-        tighter: flex2 under its motor steps at ``fast`` collapsed at t = 6.39 s (trap) and
-        4.40 s (gear), and ran to its end at reltol 1e-5.
+        truncation error), when the options have them; last, for a trapezoidal run, gear at
+        the first tolerances and a step :data:`GEAR_STEP` shorter. A nonlinear circuit has no
+        absolute tolerance to loosen, and one (serial4 swinging under gravity) collapses under
+        the trapezoidal rule at the same instant whatever its tolerances, while gear finishes.
+        Where gear collapses too, a nonlinear circuit runs last at reltol :data:`RETRY_TIGHTEN`
+        times tighter: flex2 under its motor steps at ``fast`` collapsed at t = 6.39 s (trap)
+        and 4.40 s (gear), and ran to its end at reltol 1e-5.
         """
         absolute = any(k in ("abstol", "vntol") for k, _ in self.options)
         ladder = [self.loosened(f) for f in RETRY_LOOSEN] if absolute else [self.loosened(1.0)]
-        if self.method == "trap":
-            ladder.append(self.loosened(1.0).with_method("gear"))
+        if self.method == "trap":     # the step that holds the trapezoidal rule's error, for gear's
+            gear = self.loosened(1.0).with_method("gear")
+            ladder.append(replace(gear, max_step=gear.max_step / GEAR_STEP))
         if not absolute:
             ladder.append(self.loosened(1.0).tightened(RETRY_TIGHTEN))
         return ladder
@@ -221,11 +223,8 @@ def _phase_cap(p: Preset, t_stop: float, scales: Scales, operations: float | Non
     budget or, at *operations* a step (default n³, a dense circuit's), its operation budget: steps that
     cannot buy the bound are not spent, and the run is judged and flagged.
 
-    ngspice's truncation check does not see this error: it holds each step's to reltol, so the error
-    grows with the steps a run takes. The UR5 hanging (undamped modes of 0.88 to 9.5 rad/s over 10 s)
-    took 101,723 steps at reltol 1e-10 and erred 7.7e-6 of its elbow rate's peak, each mode's error its
-    Σ(ω·h)³/12 over the steps taken, to 1 %. The sum counts every mode in full on every output; the
-    room SAFETY leaves is for an output whose own peak is under a mode's share in it.
+    ngspice's check holds each step's error to reltol, so the error grows with the steps: the UR5
+    hanging (0.88 to 9.5 rad/s over 10 s) erred 7.7e-6 in 101,723 steps, each mode its Σ(ω·h)³/12, to 1 %.
     """
     step = scales.phase_limit(p.bound / SAFETY, p.bound)
     points = t_stop / step
@@ -236,8 +235,7 @@ def _phase_cap(p: Preset, t_stop: float, scales: Scales, operations: float | Non
 def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | None, *,
                        behavioural: bool = False, coupled: bool = False, constrained: bool = False,
                        breakpoints: np.ndarray | None = None, loosen: float = 1.0,
-                       custom: bool = False, operations: float | None = None,
-                       motion: float | None = None) -> TransientSettings:
+                       custom: bool = False, operations: float | None = None) -> TransientSettings:
     """The transient settings of a circuit with *scales* over *t_stop* at *preset*.
 
     The absolute tolerances are the preset's relative ones times the circuit's current,
@@ -278,9 +276,6 @@ def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | Non
     operations : float, optional
         The circuit's operations a time point (:func:`analogy.circuit.elements.point_operations`; default n³):
         the phase cap is not taken past the preset's operation budget.
-    motion : float, optional
-        A behavioural circuit's step from its motion's error (:func:`~analogy.solvers.motion_step.motion_step`),
-        instead of the preset's fixed t_stop/behavioural_max_steps.
     """
     p = get_preset(preset)
     opts = dict(p.behavioural_options if behavioural else p.spice_options)
@@ -297,8 +292,8 @@ def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | Non
         opts["method"] = "gear"
     if constrained:
         opts["reltol"] = f"{min(float(opts.get('reltol', NGSPICE_RELTOL)), 10 * p.bound):.3g}"
-    tmax = motion if behavioural and motion is not None else \
-        t_stop / (p.behavioural_max_steps if behavioural else CALIBRATED_MAX_STEPS if calibrated else p.max_steps)
+    tmax = t_stop / (p.behavioural_max_steps if behavioural else
+                     CALIBRATED_MAX_STEPS if calibrated else p.max_steps)
     tstep = t_stop / p.steps
     first = NGSPICE_FIRST_STEP * tstep
     if scales is not None:
@@ -329,7 +324,7 @@ def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | Non
             # left its small r3 at 1.7e-6 at the accurate reltol, in 731 steps whatever the reltol
             return transient_settings(preset, t_stop, scales, behavioural=behavioural, coupled=coupled,
                                       constrained=constrained, breakpoints=breakpoints, loosen=loosen, custom=True,
-                                      operations=operations, motion=motion)
+                                      operations=operations)
         for key, size in (("abstol", scales.current), ("vntol", scales.peak_velocity),
                           ("chgtol", scales.charge)):
             if key not in opts:
@@ -411,17 +406,6 @@ def beyond_calibration(system) -> bool:
     return name not in CALIBRATED_TOPOLOGIES or (name == "serial" and system.dof > SERIAL_NODE_LIMIT)
 
 
-def circuit_operations(systems) -> float:
-    """The operations of one time point of a circuit running *systems* (a family's first, times their count).
-
-    Parameters
-    ----------
-    systems : sequence of NodeDynamics
-        The systems of one run.
-    """
-    return point_operations(systems[0]) * len(systems)
-
-
 def circuit_settings(system, c: Circuit, preset, loosen: float = 1.0) -> TransientSettings:
     """The transient settings of *system*'s circuit *c* at *preset*: what a run and its netlist share.
 
@@ -436,11 +420,10 @@ def circuit_settings(system, c: Circuit, preset, loosen: float = 1.0) -> Transie
     loosen : float
         Factor on abstol and vntol (the retries after a collapsed step).
     """
-    motion = circuit_motion_step(system, c, get_preset(preset))
     return transient_settings(preset, system.t_stop, system_scales(system), behavioural=bool(c.behavioural),
                               coupled=bool(c.couplings), constrained=bool(c.constraints),
                               breakpoints=system.breakpoints(), loosen=loosen, custom=beyond_calibration(system),
-                              operations=circuit_operations([system]), motion=motion)
+                              operations=point_operations(system))
 
 
 def netlist(system, preset: str | Preset = "accurate", save: Iterable[str] | None = None,
@@ -512,7 +495,7 @@ def batch_netlist(systems: Sequence, preset: str | Preset = "fast", scales: Scal
     points = [s.breakpoints() for s in systems if s.forces is not systems[0].forces] + [systems[0].breakpoints()]
     settings = transient_settings(preset, ends[0], scales, breakpoints=np.concatenate(points),
                                   custom=any(beyond_calibration(s) for s in systems),
-                                  operations=circuit_operations(systems))
+                                  operations=point_operations(systems[0]) * len(systems))
     if len(ends) > 1:
         settings = replace(settings, stop=ends[-1], horizons=tuple(ends[:-1]))
     if isinstance(systems, NodeStack) and len(systems.partition()) == 1:
