@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import sympy as sp
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from hang_guard import finishes
@@ -185,6 +185,8 @@ def systems(draw):
 
 
 @given(systems())
+# a mass of 1e-300 on an unstable spring: its rate's phase error overflows (no step holds it)
+@example((np.array([[1e-300]]), np.diag([1.0]), np.diag([-1.0]), "serial", [1.0]))
 @profile("matrices")
 def test_matrices_give_a_clean_netlist_and_a_finite_solution_or_one_sentence(parts):
     mass, damping, stiffness, top, forces = parts

@@ -198,7 +198,8 @@ class Scales:
             The preset's bound.
         """
         phases, turns = self._turning(bound)
-        weight = float(np.sum(phases * turns ** 2))
+        with np.errstate(over="ignore"):        # a rate past the float range: no step holds it (0)
+            weight = float(np.sum(phases * turns ** 2))
         return math.sqrt(12 * error / weight) if weight > 0 else math.inf
 
     def _turning(self, bound: float) -> tuple[np.ndarray, np.ndarray]:

@@ -227,6 +227,8 @@ def _phase_cap(p: Preset, t_stop: float, scales: Scales, operations: float | Non
     hanging (0.88 to 9.5 rad/s over 10 s) erred 7.7e-6 in 101,723 steps, each mode its Σ(ω·h)³/12, to 1 %.
     """
     step = scales.phase_limit(p.bound / SAFETY, p.bound)
+    if not step > 0:            # no representable step holds it: not bought, judged
+        return math.inf
     points = t_stop / step
     operations = float(scales.size) ** 3 if operations is None else operations
     return step if points <= p.step_budget and points * operations <= p.operation_budget else math.inf
