@@ -273,7 +273,7 @@ def test_a_urdf_read_before_comes_from_the_cache_without_its_parser(tmp_path, mo
 
     def no_parser(text):
         raise AssertionError("parsed again")
-    monkeypatch.setattr(urdf, "_parse", no_parser)
+    monkeypatch.setattr(urdf, "parse_urdf", no_parser)
     again = UrdfModel(_GOOD, ["turn", "tilt"])
     q = [0.4, -0.2]
     assert again.joint_names == first.joint_names and again.name == "bench"

@@ -24,7 +24,7 @@ from ..scenes.build import LABELS, scene_model
 from ..scenes.builtin import SCENES, scene
 from ..scenes.scene import Scene
 from ..scenes.spec import ModelSpec
-from ..model.urdf import read_urdf
+from ..model.urdf_file import read_urdf
 from ..model.urdf_robots import URDF_ROBOTS
 
 __all__ = ["CLI_KEYS", "PRESET_HELP", "scene_from_args", "scene_options", "solver_list"]

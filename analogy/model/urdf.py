@@ -3,146 +3,27 @@
 from __future__ import annotations
 
 import hashlib
-import io
 import os
-import warnings
 from functools import cached_property, lru_cache
 from pathlib import Path
 from typing import Mapping, Sequence
-from xml.etree import ElementTree
 
 import numpy as np
 
 from ..errors import InputError
+from . import joint_limits as joint_limits_module
 from . import rigid_tree as rigid_tree_module
+from . import urdf_file as urdf_file_module
 from .compiled import cache_dir
 from .dynamics import MechanicalFunctions
 from .joint import JointSpace, JointStack, configuration_stack
 from .joint_limits import JointLimits, joint_limits
+from .urdf_file import MOVING_JOINTS, parse_urdf, urdf_number
 from .rigid_tree import RigidTree, axis_rotation, body_inertia, placement_frame, plucker, spatial_inertia
 
-__all__ = ["UrdfModel", "JointLimits", "urdf_model", "read_urdf", "MAX_URDF_BYTES", "STANDARD_GRAVITY"]
+__all__ = ["UrdfModel", "urdf_model", "STANDARD_GRAVITY"]
 
-#: A URDF larger than this is refused before it is parsed (the Panda's is 20 kB).
-MAX_URDF_BYTES = 10_000_000
 STANDARD_GRAVITY = 9.80665
-_MOVING = {"revolute": "revolute", "continuous": "revolute", "prismatic": "prismatic"}
-#: The largest number a URDF may hold: M sums products m·l² and G products g·m·l, which stay
-#: inside the floating-point range (1.8e308) below this.
-_LARGEST = 1e100
-
-
-def read_urdf(path) -> str:
-    """The text of the URDF file at *path*, or one sentence.
-
-    Parameters
-    ----------
-    path : str or Path
-        The file.
-    """
-    p = Path(path)
-    try:
-        if p.stat().st_size > MAX_URDF_BYTES:
-            raise InputError(f"{p} is larger than {MAX_URDF_BYTES:,} bytes: not a URDF this reads", field="robot")
-        return p.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError(f"no URDF file {p}", field="robot") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"cannot read {p}: {getattr(exc, 'strerror', None) or exc}", field="robot") from None
-
-
-def _triple(text: str | None, what: str, default=(0.0, 0.0, 0.0)) -> tuple:
-    if text is None:
-        return default
-    parts = text.split()
-    try:
-        values = tuple(float(x) for x in parts)
-    except ValueError:
-        raise InputError(f"{what} is not three numbers: {text!r}", field="robot") from None
-    if len(values) != 3 or not all(abs(v) <= _LARGEST for v in values):
-        raise InputError(f"{what} must be three finite numbers of at most 1e100, got {text!r}", field="robot")
-    return values
-
-
-def _check_document(root) -> None:
-    """What the recovering parser would let through: the structure, names and numbers of the XML."""
-    if root.tag != "robot" or not root.get("name"):
-        raise InputError("not a URDF: its root element must be <robot name=\"...\">", field="robot")
-    for kind in ("link", "joint"):
-        seen: set = set()
-        for e in root.findall(kind):
-            name = e.get("name")
-            if not name:
-                raise InputError(f"a <{kind}> has no name", field="robot")
-            if name in seen:
-                raise InputError(f"two {kind}s are named {name!r}", field="robot")
-            seen.add(name)
-    for link in root.findall("link"):
-        for inertial in link.findall("inertial"):
-            where = f"link {link.get('name')}"
-            mass = inertial.find("mass")
-            if mass is None or mass.get("value") is None:
-                raise InputError(f"{where}: its <inertial> has no <mass value=...>", field="robot")
-            inertia = inertial.find("inertia")
-            missing = [a for a in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
-                       if inertia is None or inertia.get(a) is None]
-            if missing:
-                raise InputError(f"{where}: its <inertia> has no {missing[0]} (all six are needed)", field="robot")
-            for a in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz"):
-                _number(inertia.get(a), f"{where}: {a}")
-            _number(mass.get("value"), f"{where}: mass")
-            origin = inertial.find("origin")
-            if origin is not None:
-                _triple(origin.get("xyz"), f"{where}: inertial origin xyz")
-                _triple(origin.get("rpy"), f"{where}: inertial origin rpy")
-    for joint in root.findall("joint"):
-        where = f"joint {joint.get('name')}"
-        for end in ("parent", "child"):
-            e = joint.find(end)
-            if e is None or not e.get("link"):
-                raise InputError(f"{where} has no <{end} link=...>", field="robot")
-        origin = joint.find("origin")
-        if origin is not None:
-            _triple(origin.get("xyz"), f"{where}: origin xyz")
-            _triple(origin.get("rpy"), f"{where}: origin rpy")
-        axis = joint.find("axis")
-        if axis is not None:
-            _triple(axis.get("xyz"), f"{where}: axis", (1.0, 0.0, 0.0))
-
-
-def _parse(text: str):
-    # no DTD: entities could expand without bound or read other files into the names
-    if "<!DOCTYPE" in text or "<!ENTITY" in text:
-        raise InputError("the URDF has a DTD (<!DOCTYPE or <!ENTITY>): URDF files need none", field="robot")
-    try:
-        root = ElementTree.fromstring(text.encode("utf-8"))     # well-formed, before a recovering parser
-    except ElementTree.ParseError as exc:
-        raise InputError(f"not a readable URDF (malformed XML: {exc})", field="robot") from None
-    _check_document(root)
-    try:
-        import yourdfpy
-    except ImportError:
-        raise InputError("URDF robots need yourdfpy: pip install yourdfpy", field="robot") from None
-    yourdfpy.urdf._logger.disabled = True      # its notes on a file are said here, in one sentence, or not at all
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            return yourdfpy.URDF.load(io.BytesIO(text.encode("utf-8")), build_scene_graph=False, load_meshes=False,
-                                      build_collision_scene_graph=False, load_collision_meshes=False).robot
-    except Exception as exc:        # lxml's and yourdfpy's own errors: the file is not a URDF
-        detail = " ".join(str(exc).split())[:160] or type(exc).__name__
-        raise InputError(f"not a readable URDF ({detail})", field="robot") from None
-
-
-def _number(value, what: str) -> float:
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise InputError(f"{what} is not a number: {value!r}", field="robot") from None
-    if not abs(x) <= _LARGEST:
-        raise InputError(f"{what} is {'not finite' if not np.isfinite(x) else f'{x:g}, past any physical scale'}",
-                         field="robot")
-    return x
 
 
 def _inertia(link, scale: float) -> np.ndarray:
@@ -154,7 +35,7 @@ def _inertia(link, scale: float) -> np.ndarray:
     inertial = link.inertial
     if inertial is None:
         return np.zeros((6, 6))
-    mass = _number(inertial.mass, f"link {link.name}: mass")
+    mass = urdf_number(inertial.mass, f"link {link.name}: mass")
     frame = np.asarray(inertial.origin if inertial.origin is not None else np.eye(4), dtype=float)
     rot = np.asarray(inertial.inertia if inertial.inertia is not None else np.zeros((3, 3)), dtype=float)
     if mass < 0:
@@ -182,7 +63,7 @@ def _tree(robot, gravity: float, joints: Sequence[str] | None = None, pose: Mapp
     by_child: dict = {}
     children: dict = {}
     for j in robot.joints:
-        if j.type not in (*_MOVING, "fixed"):
+        if j.type not in (*MOVING_JOINTS, "fixed"):
             raise InputError(f"joint {j.name} is {j.type}: only revolute, continuous, prismatic and fixed "
                              "joints are modelled (a floating base can come later)", field="robot")
         if j.child in by_child:
@@ -196,7 +77,7 @@ def _tree(robot, gravity: float, joints: Sequence[str] | None = None, pose: Mapp
     if len(roots) != 1:
         raise InputError(f"the URDF has {len(roots)} root links ({', '.join(roots[:4])}): a tree has one",
                          field="robot")
-    movable = [j.name for j in robot.joints if j.type in _MOVING]
+    movable = [j.name for j in robot.joints if j.type in MOVING_JOINTS]
     kept = set(movable if joints is None else joints)
     if unknown := [name for name in kept if name not in movable]:
         raise InputError(f"no movable joint {unknown[0]!r} (the URDF's are {', '.join(movable)})", field="robot")
@@ -232,7 +113,7 @@ def _tree(robot, gravity: float, joints: Sequence[str] | None = None, pose: Mapp
         origin = frame @ np.asarray(j.origin if j.origin is not None else np.eye(4), dtype=float)
         if j.type == "fixed" or j.name not in kept:
             if j.type != "fixed":       # frozen at its pose: a fixed joint there
-                origin = origin @ _joint_motion(j, _number(pose.get(j.name, 0.0), f"joint {j.name}: pose"))
+                origin = origin @ _joint_motion(j, urdf_number(pose.get(j.name, 0.0), f"joint {j.name}: pose"))
             stack.append(("link", j.child, body, origin))
             continue
         axis = np.asarray(j.axis if j.axis is not None else (1.0, 0.0, 0.0), dtype=float)
@@ -240,18 +121,18 @@ def _tree(robot, gravity: float, joints: Sequence[str] | None = None, pose: Mapp
         if norm < 1e-12:
             raise InputError(f"joint {j.name} has no axis (its axis is zero)", field="robot")
         parents.append(body)
-        kinds.append(_MOVING[j.type])
+        kinds.append(MOVING_JOINTS[j.type])
         axes.append(axis / norm)
         placements.append(plucker(origin[:3, :3], origin[:3, 3]))
         inertias.append(np.zeros((6, 6)))
         names.append(j.name)
         d = getattr(j.dynamics, "damping", None) if j.dynamics is not None else None
-        d = 0.0 if d is None else _number(d, f"joint {j.name}: damping")
+        d = 0.0 if d is None else urdf_number(d, f"joint {j.name}: damping")
         if d < 0:
             raise InputError(f"joint {j.name}: damping {d:g} is negative", field="robot")
         damping.append(d)
         given = [None if j.limit is None or getattr(j.limit, a) is None else
-                 _number(getattr(j.limit, a), f"joint {j.name}: {a} limit") for a in ("lower", "upper", "effort")]
+                 urdf_number(getattr(j.limit, a), f"joint {j.name}: {a} limit") for a in ("lower", "upper", "effort")]
         low, high, most = joint_limits(j.type == "continuous", *given)
         lower.append(low)
         upper.append(high)
@@ -274,7 +155,7 @@ def _joint_motion(joint, value: float) -> np.ndarray:
     axis = np.asarray(joint.axis if joint.axis is not None else (1.0, 0.0, 0.0), dtype=float)
     axis = axis / np.linalg.norm(axis)
     t = np.eye(4)
-    if _MOVING[joint.type] == "revolute":
+    if MOVING_JOINTS[joint.type] == "revolute":
         t[:3, :3] = axis_rotation(axis, value)[0]
     else:
         t[:3, 3] = axis * value
@@ -291,7 +172,7 @@ def _cached_tree(text: str, g: float, joints, pose) -> tuple:
     folder = cache_dir()
     key = hashlib.sha256(repr((text, g, None if joints is None else tuple(joints),
                                None if pose is None else sorted(pose.items()))).encode())
-    for source in (__file__, rigid_tree_module.__file__):
+    for source in (__file__, rigid_tree_module.__file__, urdf_file_module.__file__, joint_limits_module.__file__):
         key.update(Path(source).read_bytes())
     path = None if folder is None else folder / f"urdf-{key.hexdigest()[:24]}.npz"
     if path is not None and path.is_file():
@@ -304,7 +185,7 @@ def _cached_tree(text: str, g: float, joints, pose) -> tuple:
                         str(z["root"]))
         except Exception:           # a damaged entry (not a zip, a missing array …) is rebuilt, never trusted
             pass
-    robot = _parse(text)
+    robot = parse_urdf(text)
     tree, names, kinds, damping, limits, root = _tree(robot, g, joints, pose)
     name = str(robot.name or "urdf")
     if path is not None:

@@ -6,7 +6,7 @@ from importlib import metadata
 from pathlib import Path
 
 from ..errors import InputError
-from .urdf import read_urdf
+from .urdf_file import read_urdf
 
 __all__ = ["URDF_ROBOTS", "urdf_robot"]
 

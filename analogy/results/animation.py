@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import io
+import logging
 import re
 import shutil
 from dataclasses import dataclass
 from html import escape
 from pathlib import Path
+from tempfile import TemporaryDirectory
 from typing import TYPE_CHECKING, Literal
 
 import numpy as np
@@ -102,7 +104,7 @@ class Motion:
         suffix = check_animation_path(path)
         anim = self.animation(fps)
         if suffix == ".html":
-            path.write_text(_page(self.title, offline(anim.to_jshtml(fps=fps, default_mode="loop"))))
+            path.write_text(_page(self.title, _player(anim, self.frames, fps)))
         elif suffix == ".gif":
             from matplotlib.animation import PillowWriter
             anim.save(path, writer=PillowWriter(fps=fps))
@@ -119,7 +121,7 @@ class Motion:
         fps : float
             Frames per second.
         """
-        return offline(self.animation(fps).to_jshtml(fps=fps, default_mode="loop"))
+        return _player(self.animation(fps), self.frames, fps)
 
     def _repr_html_(self) -> str:
         return self.to_jshtml()
@@ -300,6 +302,36 @@ def _draw_capacitances(ax, motion: Motion) -> None:
 _GLYPHS = {"fast-backward": "&#8676;", "step-backward": "&#9665;", "play fa-flip-horizontal": "&#9664;",
            "pause": "&#10074;&#10074;", "play": "&#9654;", "step-forward": "&#9655;",
            "fast-forward": "&#8677;", "minus": "&minus;", "plus": "+"}
+
+
+#: The most a page embeds [MB]: 2,000 frames of an arm take about 170 MB.
+_MOST_PAGE_MB = 512
+_EMBEDDED = re.compile(r'^\s*frames\[\d+\] = "data:image/', re.MULTILINE)
+
+
+def _player(anim: "FuncAnimation", frames: int, fps: float) -> str:
+    """Matplotlib's HTML player of every one of the *frames*, offline, or one sentence.
+
+    ``to_jshtml`` drops frames past ``animation.embed_limit`` (20 MB by default) with only a
+    log line: the page's own limit is the stated maximum, and a page that would lose a frame
+    is refused.
+    """
+    from matplotlib.animation import HTMLWriter
+    with TemporaryDirectory() as folder:
+        path = Path(folder, "player.html")
+        writer = HTMLWriter(fps=fps, embed_frames=True, default_mode="loop", embed_limit=_MOST_PAGE_MB)
+        logger = logging.getLogger("matplotlib.animation")
+        level = logger.level
+        logger.setLevel(logging.ERROR)     # its note on dropped frames becomes the sentence below
+        try:
+            anim.save(str(path), writer=writer)
+        finally:
+            logger.setLevel(level)
+        player = path.read_text()
+    if (kept := len(_EMBEDDED.findall(player))) != frames:
+        raise InputError(f"a page of {frames:,} frames would embed more than {_MOST_PAGE_MB} MB (only {kept:,} fit): "
+                         "ask for fewer frames or write .gif or .mp4")
+    return offline(player)
 
 
 def offline(player: str) -> str:

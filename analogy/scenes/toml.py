@@ -40,7 +40,7 @@ from pathlib import Path
 from ..errors import InputError
 from ..model.conventions import CONVENTIONS
 from ..model.dynamics import DYNAMICS
-from ..model.urdf import read_urdf
+from ..model.urdf_file import read_urdf
 from ..model.expressions import parse_number
 from ..model.quantities import ANY, COORDINATE, RATE
 from ..presets import preset as get_preset
