@@ -269,7 +269,8 @@ def test_the_step_ladder_ends_in_gear_for_a_trapezoidal_run():
 @pytest.mark.deep                   # 80 s: three runs, the last at reltol 1e-5
 def test_a_circuit_that_collapses_under_both_methods_runs_at_a_tighter_reltol():
     """flex2's nonlinear circuit under its motor steps at fast: the trapezoidal rule collapses at
-    t = 6.39 s and gear at 4.40 s; the trapezoidal rule at reltol 1e-5 runs to t_stop, and says so.
+    t = 6.39 s and gear (at its step √(8/3) shorter) at 4.16 s; the trapezoidal rule at reltol 1e-5
+    runs to t_stop, and says so.
     (Its undamped modes, up to 1588 rad/s over 10 s, leave it far past fast's bound, as they leave
     the ODE at fast: the comparison flags both.)"""
     from analogy.cli import build_parser, scene_from_args
@@ -277,7 +278,7 @@ def test_a_circuit_that_collapses_under_both_methods_runs_at_a_tighter_reltol():
     args = build_parser().parse_args(["compare", "--robot", "flex2", "--dynamics", "nonlinear"])
     tr = analogy.solve_spice(scene_from_args(args).system(), preset="fast")
     assert tr.success and tr.time[-1] == pytest.approx(10.0, rel=1e-12)
-    assert f"retried with reltol {1e-3 / RETRY_TIGHTEN:g} (" in tr.message and "4.40" in tr.message
+    assert f"retried with reltol {1e-3 / RETRY_TIGHTEN:g} (" in tr.message and "4.16" in tr.message
     assert dict(tr.settings.options)["method"] == "trap"
 
 

@@ -157,7 +157,7 @@ class TransientSettings:
         the trapezoidal rule at the same instant whatever its tolerances, while gear finishes.
         Where gear collapses too, a nonlinear circuit runs last at reltol :data:`RETRY_TIGHTEN`
         times tighter: flex2 under its motor steps at ``fast`` collapsed at t = 6.39 s (trap)
-        and 4.40 s (gear), and ran to its end at reltol 1e-5.
+        and 4.16 s (gear), and ran to its end at reltol 1e-5.
         """
         absolute = any(k in ("abstol", "vntol") for k, _ in self.options)
         ladder = [self.loosened(f) for f in RETRY_LOOSEN] if absolute else [self.loosened(1.0)]
