@@ -24,13 +24,10 @@ from ..presets import preset as get_preset
 __all__ = ["TransientSettings", "transient_settings", "netlist", "batch_netlist", "ROUNDING_STEPS",
            "NGSPICE_FIRST_STEP", "RETRY_LOOSEN", "RETRY_TIGHTEN", "REFINE", "refined", "STEP_TOLERANCES",
            "beyond_calibration", "spice_run_reltol", "NGSPICE_STEP_TOLERANCES",
-           "circuit_settings", "GEAR_STEP"]
+           "circuit_settings"]
 
 #: Factors on abstol and vntol of the first run and of the retries after "time step too small".
 RETRY_LOOSEN = (1.0, 1e3, 1e6)
-#: gear-2's truncation error per step is (2/9)·h³·x‴ against the trapezoidal rule's (1/12)·h³·x‴:
-#: its retry of a trapezoidal run takes steps √(8/3) times shorter, for the same error.
-GEAR_STEP = math.sqrt(8.0 / 3.0)
 #: The last retry of a nonlinear circuit whose step collapsed under both methods: reltol this many times tighter.
 RETRY_TIGHTEN = 100.0
 
@@ -152,18 +149,17 @@ class TransientSettings:
 
         First these, then abstol and vntol ``RETRY_LOOSEN`` times larger (rounding read as
         truncation error), when the options have them; last, for a trapezoidal run, gear at
-        the first tolerances and a step :data:`GEAR_STEP` shorter. A nonlinear circuit has no
+        the first tolerances. A nonlinear circuit has no
         absolute tolerance to loosen, and one (serial4 swinging under gravity) collapses under
         the trapezoidal rule at the same instant whatever its tolerances, while gear finishes.
         Where gear collapses too, a nonlinear circuit runs last at reltol :data:`RETRY_TIGHTEN`
         times tighter: flex2 under its motor steps at ``fast`` collapsed at t = 6.39 s (trap)
-        and 4.16 s (gear), and ran to its end at reltol 1e-5.
+        and 4.40 s (gear), and ran to its end at reltol 1e-5.
         """
         absolute = any(k in ("abstol", "vntol") for k, _ in self.options)
         ladder = [self.loosened(f) for f in RETRY_LOOSEN] if absolute else [self.loosened(1.0)]
-        if self.method == "trap":     # the step that holds the trapezoidal rule's error, for gear's
-            gear = self.loosened(1.0).with_method("gear")
-            ladder.append(replace(gear, max_step=gear.max_step / GEAR_STEP))
+        if self.method == "trap":
+            ladder.append(self.loosened(1.0).with_method("gear"))
         if not absolute:
             ladder.append(self.loosened(1.0).tightened(RETRY_TIGHTEN))
         return ladder
