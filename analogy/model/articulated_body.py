@@ -5,14 +5,12 @@ from __future__ import annotations
 import hashlib
 import threading
 from functools import lru_cache
-from typing import TYPE_CHECKING, Any, Callable, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
 from .dynamics import MechanicalFunctions
-
-if TYPE_CHECKING:
-    from .rigid_tree import RigidTree
+from .rigid_tree import RigidTree
 
 __all__ = ["pinocchio_functions", "pinocchio_model", "AGREEMENT_GUARD"]
 
@@ -143,7 +141,7 @@ class _Pinocchio:
                          for q in np.atleast_2d(qs)])
 
 
-def _agrees(p: _Pinocchio, tree: "RigidTree") -> bool:
+def _agrees(p: _Pinocchio, tree: RigidTree) -> bool:
     """Whether Pinocchio's M and c + G are the tree's at a few states (see :data:`AGREEMENT_GUARD`)."""
     rng = np.random.default_rng(0)
     n = tree.dof
@@ -163,7 +161,7 @@ def _cached(text: str, joint_names: tuple, pose: tuple, gravity: tuple) -> _Pino
     return None if built is None else _Pinocchio(_library(), *built)
 
 
-def pinocchio_functions(text: str, tree: "RigidTree", joint_names: Sequence[str], damping: np.ndarray,
+def pinocchio_functions(text: str, tree: RigidTree, joint_names: Sequence[str], damping: np.ndarray,
                         pose: Mapping[str, float] | None = None) -> MechanicalFunctions | None:
     """The tree's M, c, G, forward dynamics (``pinocchio.aba``) and U by Pinocchio, or None.
 
@@ -193,7 +191,7 @@ def pinocchio_functions(text: str, tree: "RigidTree", joint_names: Sequence[str]
                                potential=None if gravity is None else p.potential)
 
 
-def _agreed(p: _Pinocchio, tree: "RigidTree") -> bool:
+def _agreed(p: _Pinocchio, tree: RigidTree) -> bool:
     """:func:`_agrees`, once per Pinocchio model and tree."""
     key = hashlib.sha256(repr((tree.parents, tree.kinds)).encode())
     for a in (tree.axes, tree.placements, tree.inertias, tree.gravity):

@@ -4,11 +4,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
-from typing import Literal, Mapping, Sequence
+from typing import Literal, Sequence
 
 import numpy as np
 
-from .articulated_body import pinocchio_functions
 from .dynamics import MechanicalFunctions
 
 __all__ = ["JointKind", "RigidTree", "axis_rotation", "spatial_inertia", "plucker", "placement_frame", "body_inertia"]
@@ -383,26 +382,14 @@ class RigidTree:
         accel = np.linalg.solve(m, (np.asarray(forces) - bias)[..., None])[..., 0]
         return accel[0] if single else accel
 
-    def functions(self, damping: np.ndarray, source: str | None = None, joint_names: Sequence[str] = (),
-                  pose: Mapping[str, float] | None = None) -> MechanicalFunctions:
-        """The tree's M, c, G, forward dynamics and potential, with dampers *damping*.
-
-        Pinocchio's (:func:`~analogy.model.articulated_body.pinocchio_functions`) where it is
-        installed and reads the URDF *source* as this tree, else these recursions.
+    def functions(self, damping: np.ndarray) -> MechanicalFunctions:
+        """The tree's M, c, G, forward dynamics and potential by these recursions, with dampers *damping*.
 
         Parameters
         ----------
         damping : ndarray, shape (n, n)
             B.
-        source : str, optional
-            The URDF text the tree was read from.
-        joint_names : sequence of str
-            Its joints, in its order (with *source*).
-        pose : mapping, optional
-            The values of the URDF's joints frozen in the tree.
         """
-        if source is not None and (fast := pinocchio_functions(source, self, joint_names, damping, pose)):
-            return fast
         gravity = self.gravity_load if np.any(self.gravity) else None
         return MechanicalFunctions(self.mass_matrix, self.velocity_load, gravity, damping, None,
                                    masses=self.mass_matrices, gravities=gravity, forward=self.forward_dynamics,

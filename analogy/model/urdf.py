@@ -14,6 +14,7 @@ from ..errors import InputError
 from . import joint_limits as joint_limits_module
 from . import rigid_tree as rigid_tree_module
 from . import urdf_file as urdf_file_module
+from .articulated_body import pinocchio_functions
 from .compiled import cache_dir
 from .dynamics import MechanicalFunctions
 from .joint import JointSpace, JointStack, configuration_stack
@@ -319,7 +320,9 @@ class UrdfModel:
             ``g``.
         """
         tree = self.with_parameters(parameters).tree
-        return tree.functions(np.diag(self.joint_damping), self.text, self.joint_names, self._pose)
+        damping = np.diag(self.joint_damping)
+        # Pinocchio's where it is installed and reads the file as this tree, else the tree's own
+        return pinocchio_functions(self.text, tree, self.joint_names, damping, self._pose) or tree.functions(damping)
 
     def joint_stack(self, qs, parameters: Mapping[str, float] | None = None) -> JointStack:
         """:meth:`joint_space` at every row of *qs*.
