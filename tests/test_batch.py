@@ -6,7 +6,7 @@ import pytest
 import analogy
 from analogy.batch import run_batch
 from analogy.solvers.transient import batch_netlist
-from analogy.presets import preset
+from analogy.presets import TOLERANCES, preset
 from analogy.scenes.builtin import SCENES, scene
 from analogy.solvers.exact import solve_exact, solve_exact_many
 from analogy.solvers.spice import SOLVER as SPICE
@@ -243,3 +243,15 @@ def test_a_halt_request_halts_a_circuit_running_in_another_thread():
     data = session().run("* after\nR1 n1 0 1\nC1 n1 0 1\nI1 0 n1 DC 1\n.tran 0.01 1 uic\n.end\n", ["n1"])
     # v = 1 − e^(−t) on ngspice's points, within its default reltol (1e-3) of the peak, 1 V
     assert np.allclose(data["n1"], 1 - np.exp(-data["time"]), rtol=0, atol=1e-3)
+
+
+def test_a_batch_of_scenes_runs_each_at_its_own_preset():
+    """A scene's preset is part of the job: the batch holds each scene to its own bound
+    (the accurate one at 1e-6, not at the fast preset's 1e-3), and an explicit preset
+    applies to every member."""
+    sc = scene("default")
+    own = run_batch([sc.replace(preset="fast"), sc, sc.replace(q=(0.1, 0.2))], workers=1)
+    assert own.errors[0] <= TOLERANCES["fast"] and own.errors[0] > TOLERANCES["accurate"]
+    assert np.all(own.errors[1:] <= TOLERANCES["accurate"])
+    fixed = run_batch([sc], "fast", workers=1)
+    assert fixed.errors[0] == own.errors[0]

@@ -109,6 +109,25 @@ def test_a_motion_near_a_singular_pose_is_flagged_with_exit_3(capsys):
     assert "singular pose of the loop" in capsys.readouterr().err
 
 
+def test_the_linear_circuit_is_refused_at_a_singular_pose_and_warned_of_near_one(capsys):
+    """The five-bar stretched straight, q = (π, 0): the distal links in line, Φ_p loses rank and
+    the passive rates ∂p/∂q are undefined. Newton lands about 1e-8 off the singular set, where
+    cond(Φ_p) passes 1/√ε and the rates have lost half their digits: refused in one sentence
+    (exit 2). At 0.04 rad from it, cond is past 20: the netlist is written, with the warning in
+    its header and on stderr. The default pose says nothing."""
+    model = robot("parallel2")
+    assert main(["netlist", "--robot", "parallel2", "--q", "3.141592653589793, 0"]) == 2
+    err = capsys.readouterr().err
+    assert "singular pose" in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
+    assert model.pose_condition((3.1, 0.0)) > SINGULAR_CONDITION > model.pose_condition((2.1, 0.9))
+    assert main(["netlist", "--robot", "parallel2", "--q", "3.1, 0"]) == 0
+    out, err = capsys.readouterr()
+    assert "* warning: q = (3.1, 0) is near a singular pose" in out and "near a singular pose" in err
+    assert main(["netlist", "--robot", "parallel2"]) == 0
+    out, err = capsys.readouterr()
+    assert "warning" not in out + err
+
+
 def test_the_circuit_has_a_node_per_joint_and_one_per_constraint():
     """Five-bar: nodes n1, n2 (motors), n3, n4 (distal links), n5, n6 (λ); the passive positions
     are kept apart from the system's."""

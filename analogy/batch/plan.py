@@ -127,7 +127,7 @@ def plan_groups(items: Sequence, group_size: int) -> list[Group]:
     """Split *items* (Scenes or NodeSystems) into groups of at most *group_size* that run together.
 
     Scenes that differ only in their configuration, a robot's parameter values and t_stop
-    form one family, built as a stack. A group's horizons lie within :data:`HORIZON_SPREAD`
+    form one family, built as a stack. Scenes of different presets never share a group. A group's horizons lie within :data:`HORIZON_SPREAD`
     of each other, so that one ngspice run serves them all.
 
     Parameters
@@ -143,11 +143,12 @@ def plan_groups(items: Sequence, group_size: int) -> list[Group]:
             raise InputError("a batch measures errors against the reference and does not estimate them: "
                              "run a scene with estimate = true or refine = true by itself (analogy run)")
         family = item.family() if isinstance(item, Scene) else None
-        key = ("family", family) if family is not None else \
-            ("single", item.dynamics if isinstance(item, Scene) else item.kind)
+        preset = item.preset if isinstance(item, Scene) else None      # a group runs at one preset
+        key = ("family", family, preset) if family is not None else \
+            ("single", item.dynamics if isinstance(item, Scene) else item.kind, preset)
         kinds.setdefault(key, []).append(k)
     groups = []
-    for (kind, _), idx in kinds.items():
+    for (kind, *_), idx in kinds.items():
         for chunk in _chunks(idx, [items[k].t_stop for k in idx], group_size):
             if kind != "family":
                 groups.append(Group(chunk, tuple(items[k] for k in chunk)))

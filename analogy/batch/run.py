@@ -11,12 +11,14 @@ from typing import TYPE_CHECKING, Sequence
 import numpy as np
 
 from ..errors import InputError
+from ..presets import Preset
 from ..presets import preset as get_preset
 from ..progress import Progress
 from ..results.output import html_table, write_rows
 from ..solvers.registry import solver
 from .executor import ATTEMPTS, execute
-from .plan import GroupResult, plan_groups, solve_group_isolated
+from ..scenes.scene import Scene
+from .plan import Group, GroupResult, plan_groups, solve_group_isolated
 
 if TYPE_CHECKING:
     import pandas
@@ -136,7 +138,13 @@ def _solve(payload) -> GroupResult:
     return solve_group_isolated(*payload)
 
 
-def run_batch(systems: Sequence, preset="fast", *, solvers: Sequence[str] = ("spice",),
+def _preset_of(group: Group) -> Preset:
+    """The preset a group's members share (:func:`plan_groups` keeps presets apart)."""
+    first = group.base if group.base is not None else group.items[0]
+    return get_preset(first.preset if isinstance(first, Scene) else Scene.preset)
+
+
+def run_batch(systems: Sequence, preset=None, *, solvers: Sequence[str] = ("spice",),
               group_size: int = 100, workers: int = 2, executor: Executor | None = None,
               compare_exact: bool = True, keep_rates: bool = False, progress: bool = False) -> BatchResult:
     """Simulate many systems: groups of *group_size* run together through :func:`compare_many`.
@@ -156,8 +164,9 @@ def run_batch(systems: Sequence, preset="fast", *, solvers: Sequence[str] = ("sp
     ----------
     systems : sequence of NodeSystem or Scene
         What to simulate.
-    preset : str or Preset
-        Accuracy preset.
+    preset : str or Preset, optional
+        Accuracy preset for every member. None: each Scene's own preset, and ``accurate``
+        (a Scene's default) for a NodeSystem.
     solvers : sequence of str
         Solvers to run on every scene (SPICE runs each group as one circuit).
     group_size : int
@@ -173,7 +182,7 @@ def run_batch(systems: Sequence, preset="fast", *, solvers: Sequence[str] = ("sp
     progress : bool
         Show a progress bar.
     """
-    p = get_preset(preset)
+    fixed = None if preset is None else get_preset(preset)
     names = list(dict.fromkeys(solvers))
     if group_size < 1 or workers < 1:
         raise InputError("group_size and workers must be at least 1")
@@ -211,7 +220,7 @@ def run_batch(systems: Sequence, preset="fast", *, solvers: Sequence[str] = ("sp
         for name in names + ["exact"]:
             solver(name)            # imported once here, so that forked workers start with it
     try:
-        interrupted = execute(groups, lambda g: (g, p, names, reference, keep_rates), _solve, done, died,
+        interrupted = execute(groups, lambda g: (g, fixed or _preset_of(g), names, reference, keep_rates), _solve, done, died,
                               workers=workers if spread else 1, executor=executor, in_process=True,
                               pass_signals=True)
     finally:

@@ -382,6 +382,8 @@ def _evaluated(model, q, parameters, topology):
         base_info = {"robot": model.name, "parameters": values,
                      "configuration": dict(zip((str(c) for c in model.coordinates), q or [])),
                      "units": model.units, "joints": getattr(model, "joint_names", None)}
+        if q is not None and (note := getattr(model, "pose_note", None)) is not None:   # a closed chain
+            base_info["notes"] = tuple(filter(None, [note(q, parameters)]))
     elif isinstance(model, JointSpace):
         joint = model
         top_spec = topology if topology is not None else "parallel"

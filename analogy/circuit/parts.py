@@ -239,7 +239,7 @@ def comments(system) -> tuple[str, ...]:
             f"topology: {top.describe()}, T = {matrix}",
             f"forces: {describe_forces(system.forces)}",
             "initial rates: " + (", ".join(f"{x:g}" for x in r0) if np.any(r0) else "zero")
-            + f"; t_stop = {system.t_stop:g} s", dynamics)
+            + f"; t_stop = {system.t_stop:g} s", dynamics) + tuple(f"warning: {note}" for note in made.notes)
 
 
 def current_sources(system, zero_tol: float = ZERO_TOL) -> tuple[CurrentSource, ...]:

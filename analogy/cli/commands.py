@@ -39,8 +39,10 @@ def _title(sc: Scene) -> str:
     return f"analogy {sc.name}: {sc.description}" if sc.description else f"analogy {sc.name}"
 
 
-def _say_unstable(system, sc: Scene) -> None:
-    """One line before a linear run at an unstable pose (:func:`unstable_note`)."""
+def _say_pose(system, sc: Scene) -> None:
+    """One line before a linear run at an unstable pose (:func:`unstable_note`), and the pose's own notes."""
+    for note in system.provenance.notes:
+        print(f"analogy: warning: {note}", file=sys.stderr)
     if not getattr(getattr(system, "joint", None), "unstable", False):
         return                  # the usual case, without importing scipy for the note
     from ..scenes.robot_defaults import unstable_note
@@ -55,7 +57,7 @@ def _cmd_netlist(args) -> int:
     check_writable(args.output)
     save = None if args.save is None else [s.strip() for s in args.save.split(",") if s.strip()]
     system = sc.system().realized() if args.realizable else sc.system()     # as compare --realizable does
-    _say_unstable(system, sc)
+    _say_pose(system, sc)
     text = netlist(system, args.preset, save=save, title=_title(sc), dialect=args.dialect)
     if args.output:
         try:
@@ -102,7 +104,7 @@ def _cmd_compare(args) -> int:
                              "--estimate, --refine and --no-reference apply to one dynamics")
         return _compare_both(sc, args, solvers, step)
     system = sc.system().realized() if args.realizable else sc.system()
-    _say_unstable(system, sc)
+    _say_pose(system, sc)
     reference = None if args.no_reference else "auto"
     result = compare(system, preset, solvers, step=step, progress=Heartbeat(), reference=reference,
                      estimate=args.estimate, refine=args.refine)

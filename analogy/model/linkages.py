@@ -18,11 +18,18 @@ import sympy as sp
 from sympy.simplify.fu import TR8
 
 from ..errors import InputError
+from .assembly import AssemblySolver
 from .dynamics import MechanicalFunctions
 from .joint import JointStack, configuration_stack
 from .symbolic import Model
 
-__all__ = ["link_mass_matrix", "ClosedChainModel"]
+__all__ = ["link_mass_matrix", "ClosedChainModel", "SINGULAR_CONDITION"]
+
+#: Equilibrated cond(Φ_p) past which a closed chain's pose counts as near a singular one: the
+#: passive joints' solution is then twenty times more sensitive to the motors than its best.
+#: Measured on the five-bar: 9.1 on a 2 rad swing that keeps 1e-6 at accurate, 108 on the
+#: built-in scene's 10 s, which misses it by 300 times (``examples/lab_closed_chains.py``).
+SINGULAR_CONDITION = 20.0
 
 
 def link_mass_matrix(links: Sequence, coordinates: Sequence) -> sp.Matrix:
@@ -103,8 +110,10 @@ class ClosedChainModel(Model):
 
     #: Largest first Newton correction (rad, or m) accepted in one continuation step.
     max_correction = 0.2
-    #: Condition number of Φ_p above which q counts as singular.
-    max_condition = 1e10
+    #: Equilibrated condition number of Φ_p (see :meth:`pose_condition`) above which q is singular:
+    #: 1/√ε, where the passive rates ∂p/∂q have lost half their digits (the five-bar stretched
+    #: straight lands there about 1e-8 off the singular set, at 2e8).
+    max_condition = 1.0 / np.sqrt(np.finfo(float).eps)
 
     def __post_init__(self):
         super().__post_init__()
@@ -168,6 +177,40 @@ class ClosedChainModel(Model):
         return Model(f"{self.name} (cut open)", self.tree_mass, damping=padded(self.damping),
                      stiffness=padded(self.stiffness), gravity=self.tree_gravity, parameters=self.parameters,
                      coordinates=tuple(self.coordinates) + self.passive, topology="parallel")
+
+    def pose_condition(self, q: Sequence[float], parameters: Mapping[str, float] | None = None) -> float:
+        """The equilibrated condition number of Φ_p at *q*: its rows and columns scaled by the
+        lengths they have at the reference assembly, as :meth:`loop_closure` scales by a run's start.
+
+        Parameters
+        ----------
+        q : sequence of float
+            Actuated joint angles.
+        parameters : mapping, optional
+            Parameter overrides.
+        """
+        p, _ = self.assemble(q, parameters)
+        values = {**self.parameters, **(parameters or {})}
+        return self._assembly.condition(np.asarray(q, dtype=float).reshape(-1), p,
+                                        tuple(float(values[k]) for k in self.parameters))
+
+    def pose_note(self, q: Sequence[float], parameters: Mapping[str, float] | None = None) -> str | None:
+        """The sentence said of a linear circuit at *q* near a singular pose of the loop; None away from one.
+
+        Parameters
+        ----------
+        q : sequence of float
+            Actuated joint angles.
+        parameters : mapping, optional
+            Parameter overrides.
+        """
+        cond = self.pose_condition(q, parameters)
+        if cond < SINGULAR_CONDITION:
+            return None
+        pose = ", ".join(f"{x:.6g}" for x in np.asarray(q, dtype=float).reshape(-1))
+        return (f"q = ({pose}) is near a singular pose of the loop (equilibrated cond(Φ_p) = {cond:.3g}, past "
+                f"{SINGULAR_CONDITION:g}): the passive joints' rates, and the capacitances built from them, change "
+                "fast with q here, so the linear circuit holds for small motions only")
 
     def loop_closure(self, thetas, parameters: Mapping[str, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
         """|Φ(θ)| and the equilibrated condition number of Φ_p at each row of *thetas* = (q, p).
@@ -295,7 +338,7 @@ class ClosedChainModel(Model):
         if self.tree_gravity is not None:
             fns[2] = _with_gravity_stiffness(fns[2], self, lam, len(q), len(p))
         n, pnames = len(q), list(self.parameters)
-        solve = _AssemblySolver(self, kin, n, pnames)
+        solve = AssemblySolver(self, kin, n, pnames)
 
         def wrap(fn):
             if fn is None:
@@ -339,129 +382,6 @@ class ClosedChainModel(Model):
         return p.copy(), rates.copy()
 
 
-#: A pose this close (rad, or m) to the last one solved continues from it, not from the reference.
-_NEAR = 0.05
-#: Continuation steps from the reference assembly to the asked configuration (each a few Newton
-#: iterations); a pose many turns away would otherwise take minutes.
-_MAX_CONTINUATION_STEPS = 2000
-
-
-class _AssemblySolver:
-    """Numeric loop closure by continuation from the reference assembly; remembers the last answer."""
-
-    def __init__(self, model: ClosedChainModel, kin, n: int, pnames: list[str]):
-        self.model, self.n, self.pnames = model, n, pnames
-        self.residual, self.jac_p, self.jac_q = kin
-        self.last = (None, None)
-        self.references = {}
-
-    def __call__(self, args):
-        key = tuple(float(a) for a in args)
-        if self.last[0] == key:
-            return self.last[1]
-        q, params = np.array(key[:self.n]), key[self.n:]
-        if self.model.branch is not None:
-            q0, p0 = (np.asarray(a, dtype=float).reshape(-1)
-                      for a in self.model.branch(q, dict(zip(self.pnames, params))))
-        else:
-            q0, p0 = self._reference(params)
-        near = self.last[0]
-        if near is not None and near[self.n:] == params and np.max(np.abs(q - near[:self.n]), initial=0) <= _NEAR:
-            q0, p0 = np.array(near[:self.n]), self.last[1][0]     # along a trajectory: from the last pose
-        p = self._continue(q0, p0, q, params)
-        jp = self._jp(q, p, params)
-        if np.linalg.cond(jp) > self.model.max_condition:
-            raise InputError(f"model {self.model.name!r} is singular at q = {_fmt(q)}")
-        rates = -np.linalg.solve(jp, self._jq(q, p, params))
-        self.last = (key, (p, rates))
-        return p, rates
-
-    def _r(self, q, p, params):
-        return np.asarray(self.residual(*q, *p, *params), dtype=float).reshape(-1)
-
-    def _jp(self, q, p, params):
-        return np.asarray(self.jac_p(*q, *p, *params), dtype=float)
-
-    def _jq(self, q, p, params):
-        return np.asarray(self.jac_q(*q, *p, *params), dtype=float)
-
-    def _reference(self, params):
-        if params not in self.references:
-            values = dict(zip(self.pnames, params))
-            try:
-                q0, p0 = (np.asarray(a, dtype=float).reshape(-1) for a in self.model.reference(values))
-                p0 = self._newton(q0, p0, params)
-            except (ValueError, ZeroDivisionError, FloatingPointError, np.linalg.LinAlgError):
-                p0 = None
-            if p0 is None:
-                raise InputError(f"model {self.model.name!r} has no reference assembly "
-                                 f"with these parameters")
-            self.references[params] = (q0, p0)
-        return self.references[params]
-
-    def _newton(self, q, p, params):
-        # Quadratic convergence is required: a slow or growing correction means the
-        # predictor was too far from this branch, and the caller shortens the step.
-        p = np.array(p, dtype=float)
-        previous = np.inf
-        for k in range(30):
-            if not np.all(np.isfinite(p)):
-                return None
-            delta = np.linalg.solve(self._jp(q, p, params), self._r(q, p, params))
-            size = float(np.max(np.abs(delta))) if delta.size else 0.0
-            if not np.isfinite(size) or (k == 0 and size > self.model.max_correction):
-                return None
-            p -= delta
-            if size <= 1e-12:
-                p -= np.linalg.solve(self._jp(q, p, params), self._r(q, p, params))
-                return p
-            if size > 0.5 * previous:
-                return None
-            previous = size
-        return None
-
-    def _continue(self, q0, p0, q1, params):
-        dq = q1 - q0
-
-        def at(s):
-            return q1 if s == 1.0 else q0 + s * dq
-
-        sign = np.sign(np.linalg.det(self._jp(q0, p0, params)))
-        s, h, p = 0.0, 1.0, p0
-        for _ in range(_MAX_CONTINUATION_STEPS):
-            if s >= 1.0:
-                break
-            # s and h stay dyadic, so the last step lands on s = 1 exactly.
-            h = min(h, 1.0 - s)
-            qs = at(s)
-            try:
-                tangent = -np.linalg.solve(self._jp(qs, p, params), self._jq(qs, p, params) @ dq)
-                trial = self._newton(at(s + h), p + h * tangent, params)
-            except np.linalg.LinAlgError:
-                trial = None
-            if trial is not None and np.sign(np.linalg.det(self._jp(at(s + h), trial, params))) == sign:
-                p, s, h = trial, s + h, 2.0 * h
-                continue
-            h *= 0.5
-            if h < 1e-6:
-                why = (f": the loop meets a singular pose near q = {_fmt(qs)}, where the active joints do not "
-                       "determine the passive ones (links in line, a parallelogram folded flat); choose a pose "
-                       "away from it") if np.linalg.cond(self._jp(qs, p, params)) > _SINGULAR else \
-                    f" (continuation from q = {_fmt(q0)} fails near q = {_fmt(qs)})"
-                raise InputError(f"model {self.model.name!r} does not assemble at q = {_fmt(q1)} "
-                                 f"in its working mode{why}", field="q")
-        if s < 1.0:
-            raise InputError(f"model {self.model.name!r}: q = {_fmt(q1)} is too far from its reference assembly "
-                             f"q = {_fmt(q0)} to follow the loop there in {_MAX_CONTINUATION_STEPS:,} steps: give "
-                             "joint angles within a few turns of it", field="q")
-        return p
-
-
-#: cond(Φ_p) past which a failed continuation is reported as a singular pose (1/√ε: the passive
-#: joints' solve has lost half its digits there).
-_SINGULAR = 1.0 / np.sqrt(np.finfo(float).eps)
-
-
 def _with_gravity_stiffness(stiffness, model: ClosedChainModel, lam, n: int, m: int):
     """K(q) + ∂(Sᵀ·G_θ)/∂q along the loop (see :class:`ClosedChainModel`), on the compiled arguments."""
     theta = list(model.coordinates) + list(model.passive)
@@ -484,7 +404,3 @@ def _with_gravity_stiffness(stiffness, model: ClosedChainModel, lam, n: int, m: 
             k = k + np.asarray(stiffness(*values), dtype=float).reshape(n, n)
         return list(k.reshape(-1))
     return evaluate
-
-
-def _fmt(q) -> str:
-    return "(" + ", ".join(f"{x:.6g}" for x in q) + ")"

@@ -32,6 +32,9 @@ class Provenance:
         Per joint coordinate, ``"rad"`` or ``"m"``; None where the model does not say.
     joints : tuple of str or None
         Per joint coordinate, the joint's own name (a URDF's); None: the coordinates are q1 … qn.
+    notes : tuple of str
+        What a user must hear about the pose before trusting the circuit built at it
+        (near a singular pose of a closed chain's loop), said by the CLI, the netlist and the comparison.
     """
 
     robot: str = "custom"
@@ -40,6 +43,7 @@ class Provenance:
     configuration: dict = field(default_factory=dict)
     units: tuple | None = None
     joints: tuple | None = None
+    notes: tuple = ()
 
     def output_name(self, name: str) -> str:
         """*name* with a joint rate ``r<k>`` named after its joint: ``r2_spice`` → ``shoulder_lift_joint_rate_spice``.
@@ -79,7 +83,7 @@ class Provenance:
         for key in ("parameters", "configuration"):
             if key in values:
                 values[key] = dict(values[key] or {})
-        for key in ("units", "joints"):
+        for key in ("units", "joints", "notes"):
             if values.get(key) is not None:
                 values[key] = tuple(values[key])
         return replace(base, **values)

@@ -22,15 +22,11 @@ from ..results.output import Tabular, html_table
 from ..results.trajectory import Trajectory
 from ..results.trajectory_stack import TrajectoryStack
 from ..circuit.node_stack import NodeStack
+from ..model.linkages import SINGULAR_CONDITION
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-#: Equilibrated cond(Φ_p) past which a closed chain's motion counts as near a singular pose: the
-#: passive joints' solution is then twenty times more sensitive to the motors than its best.
-#: Measured on the five-bar: 9.1 on a 2 rad swing that keeps 1e-6 at accurate, 108 on the
-#: built-in scene's 10 s, which misses it by 300 times (``examples/lab_closed_chains.py``).
-SINGULAR_CONDITION = 20.0
 
 __all__ = ["Comparison", "compare", "compare_many", "DEFAULT_SOLVERS", "SINGULAR_CONDITION"]
 
