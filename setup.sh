@@ -45,8 +45,12 @@ ngspice46() {
     grep -q '^12' /etc/debian_version 2>/dev/null || { echo "setup: ngspice 46 is fetched on Debian 12 only" >&2; return 1; }
     rm -rf "$root" "$lists"
     mkdir -p "$lists/lists/partial" "$lists/cache/archives/partial"
-    printf 'Types: deb\nURIs: http://deb.debian.org/debian\nSuites: bookworm-backports\nComponents: main\nSigned-By: /usr/share/keyrings/debian-archive-keyring.gpg\n' \
-        > "$lists/backports.sources"
+    # the backports suite from the archive the machine's own apt configuration names for bookworm
+    local site
+    site="$(apt-get indextargets --format '$(SITE) $(RELEASE)' 2>/dev/null | awk '$2 == "bookworm" {print $1; exit}')"
+    [ -n "$site" ] || { echo "setup: the apt configuration names no bookworm archive to fetch ngspice 46 from" >&2; return 1; }
+    printf 'Types: deb\nURIs: %s\nSuites: bookworm-backports\nComponents: main\nSigned-By: /usr/share/keyrings/debian-archive-keyring.gpg\n' \
+        "$site" > "$lists/backports.sources"
     local apt=(apt-get -qq -o Dir::Etc::sourcelist="$PWD/$lists/backports.sources" -o Dir::Etc::sourceparts=-
                -o Dir::State::Lists="$PWD/$lists/lists" -o Dir::Cache="$PWD/$lists/cache")
     "${apt[@]}" update || return 1

@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .files import write_figure
 from .solvers.transient import netlist
 from .errors import AnalogyError
 from .presets import PRESETS, Preset, tolerance_preset
@@ -197,7 +198,7 @@ class BenchResult:
                      fontsize="medium")
         axes[0].set_ylabel(f"median run time [s] ({self.repeats} warm runs)")
         if path is not None:
-            fig.savefig(path, dpi=110)
+            write_figure(fig, path, dpi=110)
         return fig
 
 

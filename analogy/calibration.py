@@ -10,6 +10,7 @@ from typing import Iterator
 
 import numpy as np
 
+from .files import replaced
 from .bench import bench_scenes
 from .errors import AnalogyError
 from .presets import PRESETS, Preset
@@ -142,7 +143,7 @@ def write_runs(runs, path) -> Path:
         The CSV file.
     """
     path = Path(path)
-    with open(path, "w", newline="") as fh:
+    with replaced(path) as tmp, open(tmp, "w", newline="") as fh:
         out = csv.writer(fh)
         out.writerow(["circuit", "reltol", "ringing", "error_over_peak", "points", "status"])
         for r in runs:

@@ -36,7 +36,7 @@ from analogy.waveforms import parse_waveform
 DEEP = os.environ.get("ANALOGY_FUZZ") == "deep"
 #: Cases per target: about 2,000 in all by default, 10,000 each in the deep profile.
 CASES = {"expressions": 500, "matrices": 300, "waveforms": 400, "scenes": 250, "cli": 250, "netlist_text": 300,
-         "units": 400, "sweeps": 200, "store": 60, "options": 300, "urdf": 300}
+         "units": 400, "sweeps": 200, "store": 60, "manifest": 200, "options": 300, "urdf": 300}
 if DEEP:
     CASES = dict.fromkeys(CASES, 10_000)
 COUNTS: Counter = Counter()
@@ -459,6 +459,47 @@ def test_a_corrupted_store_reads_or_says_what_is_damaged(small_store, target, fl
             refused("store", exc)
         else:
             assert len(frame) <= 20 and frame["scene"].is_unique
+
+
+json_value = st.recursive(st.one_of(st.none(), st.booleans(), st.integers(-5, 10**20), st.floats(allow_nan=False),
+                                     st.text(max_size=8)),
+                           lambda inner: st.one_of(st.lists(inner, max_size=3),
+                                                   st.dictionaries(st.sampled_from(["name", "values", "low", "high",
+                                                                                    "log", "x"]), inner, max_size=4)),
+                           max_leaves=8)
+
+
+@given(st.lists(st.tuples(st.sampled_from(["schema", "key", "scene", "method", "count", "seed", "group_size", "axes",
+                                           "solvers", "preset", "source", "joint_units", "isolated", "axes.0",
+                                           "axes.0.name", "axes.0.values", "axes.0.low"]), json_value),
+                min_size=1, max_size=3))
+@profile("manifest")
+def test_a_manifest_with_fields_of_any_type_reports_or_says_it_is_not_a_manifest(small_store, changes):
+    """The store's _sweep.json edited by hand: a report and a resume either work or refuse in one sentence."""
+    import json
+    import shutil
+    from analogy.batch.report import batch_report
+    from analogy.batch.store import read
+    with case("manifest"), tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp) / "store"
+        shutil.copytree(small_store / "base", folder)
+        data = json.loads((folder / "_sweep.json").read_text())
+        for where, value in changes:
+            parts, node = where.split("."), data
+            for part in parts[:-1]:
+                node = node[int(part)] if isinstance(node, list) and part.isdigit() and int(part) < len(node) \
+                    else node.get(part) if isinstance(node, dict) else None
+            if isinstance(node, dict):
+                node[parts[-1]] = value
+            elif isinstance(node, list) and parts[-1].isdigit() and int(parts[-1]) < len(node):
+                node[int(parts[-1])] = value
+        (folder / "_sweep.json").write_text(json.dumps(data))
+        try:
+            report = finishes(lambda: batch_report(folder), 5.0)
+            assert report.summary() and report.html()
+            assert len(read(folder)) == 20
+        except InputError as exc:
+            refused("manifest", exc)
 
 
 class _Reached(BaseException):

@@ -1,6 +1,7 @@
 """Sweeps: designs by index, scenes by axis, a store that holds each scene once however the run went."""
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -312,3 +313,44 @@ def test_a_sweep_scene_past_the_work_budget_is_stored_as_refused_and_the_others_
     assert (rows.loc[late, "status"] == "refused").all() and late.sum() == 2
     assert rows.loc[late, "message"].str.contains("more than the budget").all()
     assert (rows.loc[~late, "status"] == "ok").all() and (~late).sum() == 4
+
+
+def test_a_resumed_sweep_exits_as_its_whole_store_says(tmp_path, capsys):
+    """Exit codes judge the sweep, not one run: a resume that solves nothing new still exits 1
+    while the store holds refused scenes, and says how many."""
+    body = SWEEP.split("[sweep]")[0] + ('[sweep]\nmethod = "grid"\ngroup_size = 20\n[sweep.axes]\n'
+                                         't_stop = [1, 1e8]\nq2 = [0.1, 0.5]\n')
+    (tmp_path / "s.toml").write_text(body)
+    args = ["batch", str(tmp_path / "s.toml"), "-o", str(tmp_path / "out"), "--no-progress"]
+    assert main(args) == 1
+    capsys.readouterr()
+    assert main(args) == 1
+    out, err = capsys.readouterr()
+    assert "solved 0 of 4 scenes" in out and "the store holds 2 refused scenes" in err
+
+
+@pytest.mark.parametrize("axis, word", [('force1 = ["stpe(2)", "step(1)"]', "force1"),
+                                        ('dynamics = ["linear", "nonlinaer"]', "dynamics"),
+                                        ('topology = ["serial", "paralel"]', "topology")])
+def test_a_typo_among_an_axis_choices_is_refused_before_any_scene_runs(tmp_path, capsys, axis, word):
+    (tmp_path / "s.toml").write_text(HEAD + f'[sweep]\nmethod = "grid"\n[sweep.axes]\n{axis}\nq2 = [0.1, 0.2]\n')
+    assert main(["batch", str(tmp_path / "s.toml"), "-o", str(tmp_path / "out"), "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and f"axis {word}:" in err and "Traceback" not in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_sweep_axes_take_units_as_scene_files_do_and_judge_them(tmp_path, capsys):
+    """"10 deg" on a revolute joint is 0.1745 rad and "500 ms" a t_stop of 0.5 s, stored in SI;
+    a length on that joint, or a mass for a time, is one sentence before any scene runs."""
+    def sweep(axes):
+        (tmp_path / "s.toml").write_text(HEAD + f'[sweep]\nmethod = "grid"\n[sweep.axes]\n{axes}')
+        return load_sweep(tmp_path / "s.toml")
+    sw = sweep('q2 = ["10 deg", 0.5]\nt_stop = ["500 ms", 2]\nl1 = ["20 cm", 1]\n')
+    values = sw.values(sw.points(0, sw.size))
+    assert sorted(set(values["q2"])) == [np.deg2rad(10), 0.5] and sorted(set(values["t_stop"])) == [0.5, 2.0]
+    assert sorted(set(values["l1"])) == [pytest.approx(0.2), 1.0]
+    for axes, why in [('q2 = ["10 mm", 0.5]\n', "q2 is an angle"), ('t_stop = ["2 kg", 1]\n', "a unit of [mass]"),
+                      ('l1 = ["2 kg", 1]\n', "l1 is a length")]:
+        with pytest.raises(InputError, match=f"axis {axes.split()[0]}: .*{re.escape(why)}"):
+            sweep(axes)

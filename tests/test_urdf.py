@@ -202,9 +202,16 @@ def test_a_scene_file_names_its_urdf_relative_to_itself(tmp_path):
                           '[configuration]\nq = [0.5, -0.3]\n[inputs]\nforces = [1, 0.5]\nt_stop = 2\n')
     sc = load_scene(scene_file)
     assert sc.model.urdf == _GOOD and sc.model.joints == ("turn", "tilt") and sc.system().dof == 2
-    scene_file.write_text(scene_file.read_text().replace("arms/bench.urdf", "../bench.urdf"))
-    with pytest.raises(InputError, match=r"\[model\] urdf: '../bench.urdf' must be a relative path"):
-        load_scene(scene_file)
+    # an input is read, never written: a URDF beside the scene's folder, or anywhere, is the user's to name
+    (tmp_path / "scenes").mkdir()
+    beside = tmp_path / "scenes" / "bench.toml"
+    beside.write_text(scene_file.read_text().replace("arms/bench.urdf", "../arms/bench.urdf"))
+    assert load_scene(beside).model == sc.model
+    beside.write_text(scene_file.read_text().replace("arms/bench.urdf", str(tmp_path / "arms" / "bench.urdf")))
+    assert load_scene(beside).model == sc.model
+    beside.write_text(scene_file.read_text().replace("arms/bench.urdf", "../arms/missing.urdf"))
+    with pytest.raises(InputError, match=r"\[model\] urdf: .*missing.urdf"):
+        load_scene(beside)
 
 
 @pytest.mark.deep                   # 7 s: in CI's deep pass

@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..files import write_figure, write_text
 from ..errors import InputError
 from ..presets import preset as get_preset
 from ..scenes.paths import inside_folder
@@ -209,7 +210,7 @@ class BatchReport:
         fig.suptitle(f"{self.info.get('scene', '')}: error against each swept axis "
                      f"({len(f):,} scenes shown)", fontsize="medium")
         if path is not None:
-            fig.savefig(path, dpi=110)
+            write_figure(fig, path, dpi=110)
         return fig
 
     def _bounds(self) -> dict[str, float]:
@@ -245,7 +246,7 @@ class BatchReport:
             ax.legend(loc="upper left", frameon=False)
         ax.set_title(f"{self.info.get('scene', '')}: {len(self.frame):,} scenes", fontsize="medium")
         if path is not None:
-            fig.savefig(path, dpi=110)
+            write_figure(fig, path, dpi=110)
         return fig
 
     def plot_map(self, path=None, solver: str | None = None) -> "Figure | None":
@@ -281,7 +282,7 @@ class BatchReport:
         ax.set_ylabel(_label(y, self.info.get("joint_units")))
         ax.set_title(f"{self.info.get('scene', '')}: {solver} error over ({x}, {y})", fontsize="medium")
         if path is not None:
-            fig.savefig(path, dpi=110)
+            write_figure(fig, path, dpi=110)
         return fig
 
     def write(self, folder) -> list[Path]:
@@ -297,8 +298,8 @@ class BatchReport:
         # each file inside the folder, reached through no symlink (as every output of the package)
         md, page, by_axis, histogram, error_map = (inside_folder(out, name) for name in REPORT_FILES)
         written = [md, page]
-        md.write_text(self.summary() + "\n")
-        page.write_text(self.html())
+        write_text(md, self.summary() + "\n")
+        write_text(page, self.html())
         if len(self.frame) and self.solvers:
             self.plot_axes(by_axis)
             self.plot_histogram(histogram)
@@ -331,4 +332,8 @@ def batch_report(directory) -> BatchReport:
     frame = read(directory)
     if frame.empty:
         raise InputError(f"{directory} holds no results yet")
-    return BatchReport(frame, manifest(directory))
+    info = manifest(directory)
+    if missing := [a["name"] for a in info.get("axes", []) if a["name"] not in frame.columns]:
+        raise InputError(f"{directory}'s manifest names axis {missing[0]!r}, which its results do not hold: "
+                         "restore the manifest, or run the sweep again in an empty folder")
+    return BatchReport(frame, info)

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
+from ..files import write_figure
 from ..errors import InputError
 from ..presets import Preset
 from ..presets import preset as get_preset
@@ -129,7 +130,7 @@ class BatchResult:
         ax.set_ylabel("scenes")
         ax.set_title(self.summary(), fontsize="small")
         if path is not None:
-            fig.savefig(path, dpi=110)
+            write_figure(fig, path, dpi=110)
         return fig
 
 

@@ -16,7 +16,7 @@ from ..solvers.registry import SOLVER_NAMES
 from ..progress import Progress
 from .executor import ATTEMPTS, execute
 from .plan import Group, plan_groups, solve_group as solve_members
-from .store import ResultStore
+from .store import ResultStore, status_counts
 from .sweep import Sweep
 
 if TYPE_CHECKING:
@@ -43,6 +43,8 @@ class SweepRun:
         Scenes solved and stored by this run.
     statuses : dict of str to int
         Rows written by this run, by status.
+    stored : dict of str to int
+        Every row in the store after this run (earlier runs' too), by status: what the exit code judges.
     wall_time : float
         Seconds of this run.
     interrupted : bool
@@ -56,6 +58,7 @@ class SweepRun:
     skipped: int
     solved: int = 0
     statuses: dict = field(default_factory=dict)
+    stored: dict = field(default_factory=dict)
     wall_time: float = 0.0
     interrupted: bool = False
     replaced: str | None = None
@@ -315,6 +318,7 @@ def run_sweep(sweep: Sweep, directory, *, workers: int = 2, executor: Executor |
     finally:
         try:
             store.compact()
+            result.stored = status_counts(directory)
         finally:
             store.close()
             bar.close()

@@ -21,7 +21,8 @@ if TYPE_CHECKING:
     import pandas
     import pyarrow
 
-__all__ = ["ResultStore", "StoreError", "STATUSES", "RESERVED_COLUMNS", "manifest", "read", "read_trajectories"]
+__all__ = ["ResultStore", "StoreError", "STATUSES", "RESERVED_COLUMNS", "manifest", "read", "read_trajectories",
+           "status_counts"]
 
 #: Row status: solved within the bound, outside it, a solver failed, the scene is invalid, its run is
 #: past the work budget (refused before it starts), its worker died.
@@ -66,7 +67,43 @@ def _read_manifest(path: Path) -> dict:
             not isinstance(data.get("size", 0), int) or not isinstance(data.get("scene", ""), str):
         raise InputError(f"{path} is not a sweep manifest (a JSON object with the sweep's key): restore it, "
                          "or use an empty folder")
+    if (wrong := _wrong_field(data)) is not None:
+        raise InputError(f"{path} is not a sweep manifest: its field {wrong} is not what a sweep writes; "
+                         "restore it, or use an empty folder")
     return data
+
+
+def _is(value, kinds: tuple, optional: bool = False) -> bool:
+    """Whether *value* is one of *kinds* (a bool only where *kinds* names bool), or None where *optional*."""
+    if value is None:
+        return optional
+    return bool in kinds if isinstance(value, bool) else isinstance(value, kinds)
+
+
+#: A manifest's fields and their types, as :meth:`~analogy.batch.sweep.Sweep.describe` writes them
+#: (an older store may lack some: only those present are judged).
+_FIELDS = {"schema": (str,), "base_key": (str,), "method": (str,), "count": (int,), "seed": (int,),
+           "group_size": (int,), "preset": (str,), "source": (str, type(None)), "isolated": (bool,)}
+
+
+def _wrong_field(data: dict) -> str | None:
+    """The first field of a manifest that does not have the type a sweep writes, or None."""
+    for name, kinds in _FIELDS.items():
+        if name in data and not _is(data[name], kinds):
+            return repr(name)
+    for name in ("solvers", "joint_units"):
+        if name in data and not (isinstance(data[name], list) and all(isinstance(x, str) for x in data[name])):
+            return repr(name)
+    axes = data.get("axes", [])
+    if not isinstance(axes, list):
+        return "'axes'"
+    for k, axis in enumerate(axes):
+        numbers = (int, float)
+        if not (isinstance(axis, dict) and isinstance(axis.get("name"), str)
+                and _is(axis.get("values"), (list,), True) and _is(axis.get("low"), numbers, True)
+                and _is(axis.get("high"), numbers, True) and isinstance(axis.get("log", False), bool)):
+            return f"'axes'[{k}]"
+    return None
 
 
 def _parts(directory: Path) -> list[Path]:
@@ -96,15 +133,31 @@ def _read_part(path: Path, columns=None):
     return _scene_column(table)
 
 
-def _computed(directory: Path) -> bool:
-    """Whether the store holds a scene that was computed: any status but ``invalid``."""
+def status_counts(directory) -> dict[str, int]:
+    """Rows of the store by status, merged parts and pending groups alike: every run's, not one run's.
+
+    Parameters
+    ----------
+    directory : str or Path
+        The store.
+    """
+    directory = Path(directory)
     statuses = [_read_part(p, ["status"]).column("status") for p in _parts(directory)]
     for p in sorted((directory / _PENDING).glob("g*[0-9].arrow")):
         try:
             statuses.append(_read_ipc(_own_file(p)).column("status"))
         except (OSError, ValueError, KeyError) as exc:
             raise _damaged(p, exc) from None
-    return any(v != "invalid" for column in statuses for v in column.to_pylist())
+    counts: dict[str, int] = {}
+    for column in statuses:
+        for v in column.to_pylist():
+            counts[v] = counts.get(v, 0) + 1
+    return counts
+
+
+def _computed(directory: Path) -> bool:
+    """Whether the store holds a scene that was computed: any status but ``invalid``."""
+    return any(status != "invalid" for status in status_counts(directory))
 
 
 def _write(path: Path, write) -> None:
@@ -199,7 +252,7 @@ class ResultStore:
                     # every stored scene was invalid, so nothing computed is lost: the corrected sweep takes it
                     self._clear()
                     self.replaced = str(old.get("scene", "?"))
-                    _write(path, lambda p: p.write_text(json.dumps(self.manifest, indent=1, default=str)))
+                    _write(path, lambda tmp: tmp.write_text(json.dumps(self.manifest, indent=1, default=str)))
                 else:
                     raise InputError(f"{self.directory} holds the results of another sweep "
                                      f"({old.get('scene', '?')}, key {str(old.get('key'))[:12]}): "
@@ -208,7 +261,7 @@ class ResultStore:
             stray = [p for p in self.directory.glob("part-*.parquet")]
             if stray:
                 raise InputError(f"{self.directory} holds Parquet parts but no manifest: use an empty folder")
-            _write(path, lambda p: p.write_text(json.dumps(self.manifest, indent=1, default=str)))
+            _write(path, lambda tmp: tmp.write_text(json.dumps(self.manifest, indent=1, default=str)))
         for tmp in self.directory.rglob(".*.tmp"):     # from a run killed while writing
             tmp.unlink(missing_ok=True)
         names = [p.name for p in _parts(self.directory)]

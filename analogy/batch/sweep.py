@@ -10,7 +10,14 @@ from typing import Iterator, Literal
 
 import numpy as np
 
+from ..circuit.joint_forces import waveforms
+from ..circuit.topology import TOPOLOGY_NAMES
 from ..errors import InputError
+from ..model.catalog import robot_family
+from ..model.dynamics import DYNAMICS
+from ..model.expressions import parse_number
+from ..model.quantities import ANY, COORDINATE, RATE, Measured, check_joint_dimensions, check_parameter_units
+from ..model.urdf_robots import URDF_ROBOTS
 from ..presets import preset as get_preset
 from .store import RESERVED_COLUMNS
 from ..scenes.build import scene_model
@@ -197,6 +204,19 @@ class Sweep:
                         get_preset(v)       # a name or a tolerance
                     except InputError as exc:
                         raise InputError(f"axis preset: {exc}") from None
+            if measured := [v for v in (axis.values or (axis.low, axis.high)) if isinstance(v, Measured)]:
+                _check_units(self.base, axis.name, kind, joint, measured)
+            # every choice read here, before any scene runs: a typo is one sentence, not stored rows
+            for v in axis.values or ():
+                try:
+                    if kind == "force":
+                        waveforms([v], 1)
+                    elif kind == "dynamics" and v not in DYNAMICS:
+                        raise InputError(f"{v!r} is not one of {', '.join(DYNAMICS)}")
+                    elif kind == "topology" and isinstance(v, str) and v not in TOPOLOGY_NAMES:
+                        raise InputError(f"{v!r} is not one of {', '.join(TOPOLOGY_NAMES)}")
+                except InputError as exc:
+                    raise InputError(f"axis {axis.name}: {exc}") from None
         object.__setattr__(self, "_kinds", kinds)
 
     @property
@@ -319,6 +339,27 @@ class Sweep:
                 "joint_units": list(self.base.system().provenance.units or ())}
 
 
+def _check_units(base: Scene, name: str, kind: str, joint: int, values: list) -> None:
+    """One sentence if a swept value's unit does not measure what it sets (as a scene file's would)."""
+    try:
+        if kind in ("q", "rate"):
+            joints = getattr(scene_model(base), "joints", None)
+            for v in values:
+                vector = [0.0] * len(base.q)
+                vector[joint] = v
+                check_joint_dimensions(vector, joints, rates=kind == "rate", name="q" if kind == "q" else "r")
+        elif kind == "parameter":
+            spec = base.model
+            urdf = spec.urdf is not None or spec.robot in URDF_ROBOTS
+            # a model given by its matrices declares no units: its parameters are not judged
+            units = {"g": "m/s^2"} if urdf else robot_family(spec.robot)[0].parameter_units(
+                [name]) if spec.robot is not None else {}
+            for v in values:
+                check_parameter_units({name: v}, units)
+    except InputError as exc:
+        raise InputError(f"axis {name}: {exc}") from None
+
+
 def sweep_from(base: Scene, axes: dict, **design) -> Sweep:
     """A :class:`Sweep` from a base scene and a mapping of axis name to values, range or table.
 
@@ -341,7 +382,14 @@ def sweep_from(base: Scene, axes: dict, **design) -> Sweep:
     return Sweep(base, tuple(built), **design)
 
 
+#: What a swept value measures, by axis kind: a string with a unit is read as in a scene file.
+_DIMENSIONS = {"q": COORDINATE, "rate": RATE, "t_stop": "time", "parameter": ANY}
+
+
 def _axis(name: str, spec, method: str) -> Axis:
+    dimension = _DIMENSIONS.get(axis_kind(name)[0])
+    if dimension is not None:
+        spec = _measured(name, spec, dimension)
     if isinstance(spec, dict):
         unknown = set(spec) - {"values", "low", "high", "scale", "count"}
         if unknown:
@@ -373,10 +421,25 @@ def _axis(name: str, spec, method: str) -> Axis:
     return Axis(name, values=tuple(items))
 
 
+def _measured(name: str, spec, dimension):
+    """*spec* with each string read as a number with its unit (``"30 deg"``, ``"2 kg"``)."""
+    def read(v):
+        if not isinstance(v, str):
+            return v
+        try:
+            return parse_number(v, dimension)
+        except InputError as exc:
+            raise InputError(f"axis {name}: {exc}") from None
+    if isinstance(spec, dict):
+        return {k: ([read(x) for x in v] if k == "values" and isinstance(v, list) else
+                    read(v) if k in ("low", "high") else v) for k, v in spec.items()}
+    return [read(x) for x in spec] if isinstance(spec, list) else spec
+
+
 def _num(name: str, value) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise InputError(f"axis {name}: low and high must be numbers")
-    return float(value)
+    return value if isinstance(value, Measured) else float(value)
 
 
 def _list(name: str, value) -> list:
@@ -386,7 +449,7 @@ def _list(name: str, value) -> list:
     for v in value:
         if isinstance(v, bool) or not isinstance(v, (int, float, str)):
             raise InputError(f"axis {name}: values must be numbers or strings")
-        out.append(float(v) if isinstance(v, (int, float)) else v)
+        out.append(v if isinstance(v, Measured) else float(v) if isinstance(v, (int, float)) else v)
     if not all(math.isfinite(v) for v in out if isinstance(v, float)):
         raise InputError(f"axis {name}: values must be finite")
     return out

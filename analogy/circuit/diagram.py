@@ -30,6 +30,7 @@ import schemdraw
 import schemdraw.elements as elm
 from schemdraw.segments import Segment, SegmentCircle, SegmentPoly
 
+from ..files import write_figure
 from ..errors import InputError
 from ..units import mechanical_units
 from .description import circuit
@@ -468,7 +469,7 @@ def draw(system: NodeSystem, directory: str | Path, stem: str = "system", *,
         fig = draw_element_map(system, zero_tol=zero_tol)
         with matplotlib.rc_context({"svg.fonttype": "none", "svg.hashsalt": "analogy"}):
             for p in paths:      # SVG text stays text: searchable, and the same on every run
-                fig.savefig(p, dpi=110, metadata={"Date": None} if p.suffix == ".svg" else None)
+                write_figure(fig, p, dpi=110, metadata={"Date": None} if p.suffix == ".svg" else None)
         return paths
     circuit = _write(draw_circuit(system, zero_tol=zero_tol), [out / f"{stem}_circuit{s}" for s in FORMATS])
     return circuit + _write(draw_mechanism(system, zero_tol=zero_tol),
@@ -506,8 +507,8 @@ def _write(drawing: schemdraw.Drawing, targets: list[Path]) -> list[Path]:
             target.parent.mkdir(parents=True, exist_ok=True)
             svg = target.suffix.lower() == ".svg"
             with matplotlib.rc_context({"svg.fonttype": "none", "svg.hashsalt": "analogy"}):
-                fig.savefig(target, dpi=dpi, bbox_inches="tight", pad_inches=0.15, facecolor="white",
-                            metadata={"Date": None} if svg else None)
+                write_figure(fig, target, dpi=dpi, bbox_inches="tight", pad_inches=0.15, facecolor="white",
+                             metadata={"Date": None} if svg else None)
     finally:
         drawing.fig = None
     return targets

@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..files import write_figure
 from ..units import mechanical_units
 from .description import circuit
 from .elements import ZERO_TOL
@@ -94,5 +95,5 @@ def draw_element_map(system: "NodeSystem", path: str | Path | None = None, *,
     fig.suptitle(f"{system.provenance.robot} ({system.topology.name} topology): {count} elements "
                  f"on {n} nodes, by node pair; red is negative, blank is left out", fontsize="medium")
     if path is not None:
-        fig.savefig(path, dpi=110)
+        write_figure(fig, path, dpi=110)
     return fig

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 import threading
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Sequence
 
 import numpy as np
@@ -38,6 +38,7 @@ class Scales:
         underdamped mode (ζ_k = β_k/2ω_k), or of the forces' sines. A decay, however fast,
         is left to ngspice's truncation check: it dies out, while an oscillation keeps
         its phase error. Zero for a system that has none (then t_stop alone sets the steps).
+        A nonlinear system's is at least the rate its fastest revolute joint turns at the start.
     velocity : ndarray, shape (n,)
         Per node, the velocity scale [V, i.e. m/s or rad/s].
     position : ndarray, shape (n,)
@@ -279,6 +280,12 @@ def system_scales(system) -> Scales:
     k = None if system.stiffness is None else np.asarray(system.stiffness, dtype=float)[None]
     out = _stack_scales(system, m, np.asarray(system.damping, dtype=float)[None], k,
                         np.asarray(system.initial_voltages, dtype=float)[None])[0]
+    if system.kind != "linear":
+        # the configuration turns at the joint rates, and M'(x) with it: at least the start's
+        units = getattr(getattr(system, "provenance", None), "units", None) or ("rad",) * system.dof
+        turning = [abs(float(r)) for r, u in zip(system.initial_rates, units) if u == "rad"]
+        if max(turning, default=0.0) > out.omega_max:
+            out = replace(out, omega_max=max(turning))
     _keep(system, out)
     return out
 

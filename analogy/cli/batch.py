@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Iterator
 
 from ..errors import EXIT_ACCURACY, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, InputError, SimulationError
+from .outputs import check_folder
 from .scene_options import preset_option
 from ..processes import scratch_folder
 
@@ -187,11 +188,14 @@ def batch_command(args) -> int:
               "run the same command to resume", file=sys.stderr)
         return EXIT_INTERRUPTED
     print(f"stored in {args.output} (read it with pandas.read_parquet or 'analogy batch report {args.output}')")
-    if any(run.statuses.get(s) for s in ("failed", "invalid", "refused", "worker-died")):
+    # the whole store is judged, earlier runs' rows too: a resumed sweep's exit is the sweep's
+    if bad := {s: run.stored[s] for s in ("failed", "invalid", "refused", "worker-died") if run.stored.get(s)}:
+        print("analogy: simulation failed: the store holds " + ", ".join(f"{v} {k}" for k, v in bad.items())
+              + " scenes (their messages are in the store's message column)", file=sys.stderr)
         return EXIT_FAILED
-    if run.statuses.get("inaccurate"):
-        print(f"analogy: accuracy: {run.statuses['inaccurate']} scenes are outside their preset's bound "
-              "(status 'inaccurate' in the store)", file=sys.stderr)
+    if run.stored.get("inaccurate"):
+        print(f"analogy: accuracy: {run.stored['inaccurate']} scenes in the store are outside their preset's "
+              "bound (status 'inaccurate')", file=sys.stderr)
         return EXIT_ACCURACY
     return EXIT_OK
 
@@ -210,8 +214,7 @@ def _report(args) -> int:
     if inside is not None and (not inside or not inside[0].startswith("_")):
         raise InputError(f"a report inside the store {args.report_dir} goes in a folder whose name starts "
                          "with _ (the default is _report), so that the store stays a Parquet dataset")
-    if folder.exists() and not folder.is_dir():
-        raise InputError(f"cannot write the report into {folder}: it is a file")
+    check_folder(folder, "the report")
     try:
         written = report.write(folder)
     except OSError as exc:

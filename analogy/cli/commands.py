@@ -14,6 +14,7 @@ from concurrent.futures import BrokenExecutor
 from dataclasses import replace
 from pathlib import Path
 
+from ..files import write_text
 from ..solvers.transient import netlist
 from ..heap import retain_freed_memory
 from ..errors import EXIT_ACCURACY, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE
@@ -25,7 +26,7 @@ from ..processes import stop_requests
 from ..progress import Heartbeat
 from ..presets import preset as get_preset
 from ..results.output import check_plot_path
-from .outputs import accuracy_exit, check_writable
+from .outputs import accuracy_exit, check_folder, check_writable, write_outputs
 from .parser import build_parser
 from .scene_options import scene_from_args, solver_list
 from ..model.urdf_robots import URDF_ROBOTS
@@ -61,7 +62,7 @@ def _cmd_netlist(args) -> int:
     text = netlist(system, args.preset, save=save, title=_title(sc), dialect=args.dialect)
     if args.output:
         try:
-            Path(args.output).write_text(text)
+            write_text(args.output, text)
         except OSError as exc:
             raise InputError(f"cannot write {args.output}: {exc.strerror}") from None
     else:
@@ -134,29 +135,23 @@ CSV_ROWS = 100_000
 
 def _written_and_judged(output, result, args) -> int:
     """Write --csv and --plot of *output* (even when a solver failed), then the exit code of *result*."""
-    try:
-        if args.csv:
-            cols = output.columns()
-            rows = len(next(iter(cols.values())))
-            every = 1
-            if rows > CSV_ROWS:         # said before the time and disk go, with the other way
-                size = f"about {rows * len(cols) * 20 / 1e6:,.0f} MB"
-                if getattr(args, "step", None) is None and not getattr(args, "csv_all", False):
-                    every = -(-rows // CSV_ROWS)
-                    print(f"analogy: {args.csv} holds one in every {every} of the {rows:,} time points, as computed "
-                          f"({-(-rows // every) + 1:,} rows at most); --csv-all writes them all ({size})",
-                          file=sys.stderr)
-                else:
-                    span = float(output.time[-1]) if getattr(output, "time", None) is not None else 0.0
-                    print(f"analogy: writing {rows:,} rows to {args.csv} ({size}); --step {span / 10_000:.3g} "
-                          "writes 10,001", file=sys.stderr)
-            output.to_csv(args.csv, every=every)
-            print(f"wrote {args.csv}")
-        if args.plot:
-            output.plot(args.plot)
-            print(f"wrote {args.plot}")
-    except OSError as exc:
-        raise InputError(f"cannot write output: {exc}") from None
+    every = 1
+    if args.csv:
+        cols = output.columns()
+        rows = len(next(iter(cols.values())))
+        if rows > CSV_ROWS:         # said before the time and disk go, with the other way
+            size = f"about {rows * len(cols) * 20 / 1e6:,.0f} MB"
+            if getattr(args, "step", None) is None and not getattr(args, "csv_all", False):
+                every = -(-rows // CSV_ROWS)
+                print(f"analogy: {args.csv} holds one in every {every} of the {rows:,} time points, as computed "
+                      f"({-(-rows // every) + 1:,} rows at most); --csv-all writes them all ({size})",
+                      file=sys.stderr)
+            else:
+                span = float(output.time[-1]) if getattr(output, "time", None) is not None else 0.0
+                print(f"analogy: writing {rows:,} rows to {args.csv} ({size}); --step {span / 10_000:.3g} "
+                      "writes 10,001", file=sys.stderr)
+    write_outputs([(args.csv, lambda: output.to_csv(args.csv, every=every)),
+                   (args.plot, lambda: output.plot(args.plot))])
     return EXIT_FAILED if result.failures else accuracy_exit(result.outside_bound(), result.preset, result.bound,
                                                                  result)
 
@@ -306,9 +301,7 @@ def _cmd_bench(args) -> int:
     result = bench(repeats=_positive(args.repeats, "--repeats"), full=args.full,
                    progress=not args.no_progress, quick=args.quick)
     print(result.table())
-    result.to_csv(args.csv)
-    result.plot(args.plot)
-    print(f"wrote {args.csv} and {args.plot}")
+    write_outputs([(args.csv, lambda: result.to_csv(args.csv)), (args.plot, lambda: result.plot(args.plot))])
     return EXIT_OK
 
 
@@ -333,8 +326,7 @@ def _calibrate(args) -> int:
 def _cmd_stress(args) -> int:
     from ..stress import stress, write_report
     out = Path(args.output)
-    if out.exists() and not out.is_dir():
-        raise InputError(f"cannot write into {out}: it is a file")
+    check_folder(out)
     if not args.timeout > 0:
         raise InputError(f"--timeout must be positive, got {args.timeout:g}")
     families = args.families.strip().lower()
@@ -342,12 +334,12 @@ def _cmd_stress(args) -> int:
         return _estimates(args, out, families)
     report = stress(families, quick=args.quick, timeout=args.timeout,
                     progress=not args.no_progress)
+    print(report.summary())             # said before any file, which a full disk could refuse
     try:
         out.mkdir(parents=True, exist_ok=True)
         written = write_report(report, out)
     except OSError as exc:
         raise InputError(f"cannot write the stress report: {exc}") from None
-    print(report.summary())
     print("wrote " + ", ".join(str(p) for p in written))
     return EXIT_OK
 
@@ -359,16 +351,16 @@ def _estimates(args, out: Path, families: str) -> int:
     if bad:
         raise InputError(f"unknown stress families {''.join(bad)}: use letters of {''.join(FAMILY_TITLES)}")
     report = validate_estimates(args.quick, families, args.timeout, progress=not args.no_progress)
+    print(report.summary())
     try:
         out.mkdir(parents=True, exist_ok=True)
-        written = [report.to_csv(out / "estimates.csv"), out / "estimates.md", out / "estimates.png"]
-        (out / "estimates.md").write_text("# Error estimates against true errors\n\n" + report.summary()
-                                          + "\n\n" + report.table() + "\n")
-        report.plot(out / "estimates.png")
     except OSError as exc:
-        raise InputError(f"cannot write the estimates report: {exc}") from None
-    print(report.summary())
-    print("wrote " + ", ".join(str(p) for p in written))
+        raise InputError(f"cannot create {out}: {exc.strerror or exc}") from None
+    write_outputs([(out / "estimates.csv", lambda: report.to_csv(out / "estimates.csv")),
+                   (out / "estimates.md", lambda: write_text(out / "estimates.md", "# Error estimates against true "
+                                                             "errors\n\n" + report.summary() + "\n\n"
+                                                             + report.table() + "\n")),
+                   (out / "estimates.png", lambda: report.plot(out / "estimates.png"))])
     return EXIT_OK
 
 
@@ -463,6 +455,7 @@ def main(argv=None) -> int:
         Arguments (default ``sys.argv[1:]``).
     """
     parser = build_parser()
+    args = None
     caught: dict[str, int] = {}
     # SIGTERM ends a command as Ctrl-C does: every clean-up runs (workers, scratch folders, stores)
     stop_requests.clear()               # before the handler: a request from here on is this command's
@@ -488,7 +481,9 @@ def main(argv=None) -> int:
                   f"first {first!r}: check the result", file=sys.stderr)
         return code
     except InputError as exc:
-        print(f"analogy: error: {one_line(exc)}{_HINTS.get(exc.field, '')}", file=sys.stderr)
+        # --budget is named only where the command has it
+        hint = _HINTS.get(exc.field, "") if exc.field != "budget" or hasattr(args, "budget") else ""
+        print(f"analogy: error: {one_line(exc)}{hint}", file=sys.stderr)
         return EXIT_USAGE
     except AccuracyError as exc:
         print(f"analogy: accuracy: {one_line(exc)}", file=sys.stderr)

@@ -8,12 +8,13 @@ import sys
 from pathlib import Path
 
 from ..errors import EXIT_ACCURACY, EXIT_OK, InputError
+from ..files import check_target
 
-__all__ = ["check_writable", "accuracy_exit"]
+__all__ = ["check_writable", "check_folder", "write_outputs", "accuracy_exit"]
 
 
 def check_writable(path) -> None:
-    """Nothing if a file can be written at *path*; one sentence if not.
+    """Nothing if a file can be written at *path*; one sentence if not (see :func:`~analogy.files.check_target`).
 
     Parameters
     ----------
@@ -22,13 +23,55 @@ def check_writable(path) -> None:
     """
     if path is None:
         return
-    if Path(path).is_dir():
-        raise InputError(f"cannot write {path}: it is a folder")
-    folder = Path(path).resolve().parent
+    check_target(path)
+    folder = Path(os.path.abspath(path)).parent        # a symlink at path is replaced, not followed
     if not folder.is_dir():
         raise InputError(f"cannot write {path}: folder {folder} does not exist")
-    if not os.access(folder, os.W_OK) or (Path(path).exists() and not os.access(path, os.W_OK)):
+    if not os.access(folder, os.W_OK) or (
+            Path(path).is_file() and not Path(path).is_symlink() and not os.access(path, os.W_OK)):
         raise InputError(f"cannot write {path}: permission denied")
+
+
+def check_folder(path, what: str = "the output") -> None:
+    """Nothing if *path* is a folder, or none exists there yet; one sentence if files cannot go there.
+
+    Parameters
+    ----------
+    path : str or Path
+        The output folder.
+    what : str
+        What goes in it, for the sentence.
+    """
+    try:
+        if Path(path).exists() and not Path(path).is_dir():
+            raise InputError(f"cannot write {what} into {path}: it is a file")
+    except OSError as exc:
+        raise InputError(f"cannot write {what} into {path}: {exc.strerror or exc}") from None
+
+
+def write_outputs(writes) -> None:
+    """Write each output in turn, saying each one written; a failed one does not stop the others.
+
+    Nothing computed is lost to one bad path or a full disk: the failures are said together
+    in one sentence at the end (:class:`InputError`, exit 2).
+
+    Parameters
+    ----------
+    writes : iterable of (str or Path or None, callable)
+        Each output's path and what writes it; a None path is skipped.
+    """
+    failed = []
+    for path, write in writes:
+        if path is None:
+            continue
+        try:
+            write()
+        except OSError as exc:
+            failed.append(f"{path} ({exc.strerror or exc})")
+            continue
+        print(f"wrote {path}")
+    if failed:
+        raise InputError("cannot write " + "; nor ".join(failed))
 
 
 def accuracy_exit(flags: dict, preset: str, bound: float, result=None) -> int:

@@ -5,7 +5,7 @@ from __future__ import annotations
 from ..errors import EXIT_FAILED, EXIT_OK, InputError, SimulationError
 from ..results.animation import check_animation_path
 from ..results.output import check_plot_path
-from .outputs import accuracy_exit, check_writable
+from .outputs import accuracy_exit, check_folder, check_writable, write_outputs
 from .scene_options import scene_from_args, solver_list
 
 __all__ = ["animate_command", "report_command"]
@@ -24,8 +24,10 @@ def animate_command(args) -> int:
     args : argparse.Namespace
         The parsed command line.
     """
+    from ..presets import preset as get_preset
     from ..solvers.registry import solve
     from ..study.motion import motion
+    from ..study.work import check_work
     sc = scene_from_args(args)
     check_animation_path(args.output)
     check_writable(args.output)
@@ -37,17 +39,15 @@ def animate_command(args) -> int:
     if not 2 <= args.frames <= 2000:
         raise InputError(f"--frames takes 2 to 2000 frames, got {args.frames}")
     system = sc.system()
+    check_work(system, get_preset(args.preset), spice=args.solver == "spice")    # refused before it runs
     run = solve(system, args.solver, preset=args.preset)
     if not run.success:
         raise SimulationError(f"{args.solver}: {run.message}")
     shown = motion(system, run, args.frames, conventions=sc.model.conventions)
-    shown.save(args.output, args.fps)
-    print(f"wrote {args.output} ({shown.frames} frames, {shown.frames / args.fps:.3g} s at {args.fps:g} fps)")
-    if shown.note:
-        print(f"  {shown.note}")
-    if args.sheet:
-        shown.sheet(args.sheet)
-        print(f"wrote {args.sheet}")
+    print(f"{shown.frames} frames, {shown.frames / args.fps:.3g} s at {args.fps:g} fps"
+          + (f": {shown.note}" if shown.note else ""))
+    write_outputs([(args.output, lambda: shown.save(args.output, args.fps)),
+                   (args.sheet, lambda: shown.sheet(args.sheet))])
     return EXIT_OK
 
 
@@ -75,15 +75,14 @@ def report_command(args) -> int:
                                   ("solvers", solver_list(args.solvers))) if v is not None and v != getattr(sc, k)}
     sc = validated(sc.replace(**changes)) if changes else sc
     out = Path(args.output_dir)
-    if out.exists() and not out.is_dir():
-        raise InputError(f"cannot write the report into {out}: it is a file")
+    check_folder(out, "the report")
     if out.is_dir():
         check_writable(out / "index.html")
     if not 2 <= args.frames <= 2000:
         raise InputError(f"--frames takes 2 to 2000 frames, got {args.frames}")
     report = scene_report(sc, animation=not args.no_animation, frames=args.frames)
+    print(report.comparison.table())            # said before the page, which a full disk could refuse
     path = report.save(out)
-    print(report.comparison.table())
     print(f"wrote {path} ({len(report.html) / 1e6:.2f} MB)")
     c = report.comparison
     return EXIT_FAILED if c.failures else accuracy_exit(c.outside_bound(), c.preset, c.bound, c)

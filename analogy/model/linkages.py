@@ -18,18 +18,12 @@ import sympy as sp
 from sympy.simplify.fu import TR8
 
 from ..errors import InputError
-from .assembly import AssemblySolver
+from .assembly import SINGULAR_CONDITION, AssemblySolver
 from .dynamics import MechanicalFunctions
 from .joint import JointStack, configuration_stack
 from .symbolic import Model
 
-__all__ = ["link_mass_matrix", "ClosedChainModel", "SINGULAR_CONDITION"]
-
-#: Equilibrated cond(Φ_p) past which a closed chain's pose counts as near a singular one: the
-#: passive joints' solution is then twenty times more sensitive to the motors than its best.
-#: Measured on the five-bar: 9.1 on a 2 rad swing that keeps 1e-6 at accurate, 108 on the
-#: built-in scene's 10 s, which misses it by 300 times (``examples/lab_closed_chains.py``).
-SINGULAR_CONDITION = 20.0
+__all__ = ["link_mass_matrix", "ClosedChainModel"]
 
 
 def link_mass_matrix(links: Sequence, coordinates: Sequence) -> sp.Matrix:

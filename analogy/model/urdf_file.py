@@ -39,6 +39,8 @@ def read_urdf(path) -> str:
         The file.
     """
     p = Path(path)
+    if "\x00" in str(p):
+        raise InputError(f"{str(p)!r} contains a NUL byte, which no file name may hold", field="robot")
     try:
         # a FIFO without a writer would block the open itself: open without waiting, then read
         fd = os.open(p, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))

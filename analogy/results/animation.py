@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Literal
 import numpy as np
 from matplotlib.figure import Figure
 
+from ..files import write_figure, write_text, written
 from ..errors import InputError
 
 if TYPE_CHECKING:
@@ -104,13 +105,14 @@ class Motion:
         suffix = check_animation_path(path)
         anim = self.animation(fps)
         if suffix == ".html":
-            path.write_text(_page(self.title, _player(anim, self.frames, fps)))
+            write_text(path, _page(self.title, _player(anim, self.frames, fps)))
         elif suffix == ".gif":
             from matplotlib.animation import PillowWriter
-            anim.save(path, writer=PillowWriter(fps=fps))
+            written(path, lambda tmp: anim.save(tmp, writer=PillowWriter(fps=fps)))
         else:
             from matplotlib.animation import FFMpegWriter
-            anim.save(path, writer=FFMpegWriter(fps=fps, codec="h264", extra_args=["-pix_fmt", "yuv420p"]))
+            written(path, lambda tmp: anim.save(tmp, writer=FFMpegWriter(
+                fps=fps, codec="h264", extra_args=["-pix_fmt", "yuv420p"])))
         return path
 
     def to_jshtml(self, fps: float = 15.0) -> str:
@@ -161,7 +163,7 @@ class Motion:
             ax.set_title(f"frame {k + 1} of {self.frames}, t = {self.frame_times[k]:.3g} s", fontsize=9)
         sheet.suptitle(self.title, fontsize=10)
         if path is not None:
-            sheet.savefig(path, dpi=160)
+            write_figure(sheet, path, dpi=160)
         return sheet
 
 

@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING, Mapping
 
 import numpy as np
 
+from ..files import replaced
 from ..errors import InputError
 from ..units import rate_unit
 
@@ -35,7 +36,7 @@ def write_columns(path, columns: Mapping[str, np.ndarray]) -> Path:
         Column name to values.
     """
     path = Path(path)
-    with path.open("w", newline="") as fh:
+    with replaced(path) as tmp, tmp.open("w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(list(columns))
         for row in zip(*columns.values()):
@@ -65,7 +66,7 @@ def write_rows(path, header: list[str], rows) -> Path:
         The rows.
     """
     path = Path(path)
-    with path.open("w", newline="") as fh:
+    with replaced(path) as tmp, tmp.open("w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(header)
         for row in rows:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.figure import Figure  # no pyplot: works headless, with no global state
 
+from ..files import write_figure
 from ..errors import InputError
 from ..units import quantity_label, rate_label, rate_unit
 from .metrics import PEAK_FLOOR
@@ -41,7 +42,7 @@ def save_figure(fig: Figure, path) -> Figure:
     """
     if path is not None:
         check_plot_path(path)
-        fig.savefig(path, dpi=110)
+        write_figure(fig, path, dpi=110)
     return fig
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Sequence
 
+from ..files import write_text
 from ..solvers.transient import netlist
 from ..errors import InputError
 from ..model.urdf_robots import URDF_ROBOTS
@@ -96,6 +97,6 @@ def write_netlists(directory, names: Sequence[str] = PAPER_EXAMPLES, preset: str
     for name in names:
         sc = scene(name)
         path = out / f"{name}.cir"
-        path.write_text(netlist(sc.system(), preset, title=f"analogy example {name}: {sc.description}"))
+        write_text(path, netlist(sc.system(), preset, title=f"analogy example {name}: {sc.description}"))
         paths.append(path)
     return paths

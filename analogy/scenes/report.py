@@ -8,6 +8,7 @@ from datetime import datetime, timezone
 from html import escape
 from pathlib import Path
 
+from ..files import write_text
 from .. import __version__
 from ..errors import InputError
 from ..presets import preset as get_preset
@@ -84,7 +85,7 @@ class SceneReport:
         try:
             out.mkdir(parents=True, exist_ok=True)
             path = out / "index.html"
-            path.write_text(self.html)
+            write_text(path, self.html)
         except OSError as exc:
             raise InputError(f"cannot write the report into {out}: {exc.strerror or exc}") from None
         return path

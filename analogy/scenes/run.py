@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..files import write_text
 from ..solvers.transient import netlist as make_netlist
 from ..errors import InputError
 from ..presets import preset as get_preset
@@ -118,7 +119,7 @@ def run_scene(scene: Scene, output_dir=None, progress=None) -> "SceneResult":
 def _write_text(path: Path, text: str) -> Path:
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(text)
+        write_text(path, text)
     except OSError as exc:
         raise InputError(f"cannot write {path}: {exc.strerror or exc}") from None
     return path

@@ -46,7 +46,7 @@ from ..model.quantities import ANY, COORDINATE, RATE
 from ..presets import preset as get_preset
 from ..results.output import check_plot_path
 from ..solvers.registry import SOLVER_NAMES
-from .paths import check_relative_name, inside_folder
+from .paths import check_relative_name
 from .scene import OUTPUTS, Scene
 from .spec import ModelSpec, freeze
 from .validate import validated
@@ -292,7 +292,7 @@ def scene_from_table(data: dict, source="scene.toml") -> Scene:
 
 
 def _urdf_spec(ctx: _Context, model: dict) -> ModelSpec:
-    """A URDF robot: the file relative to the scene file's folder, under the output paths' rules."""
+    """A URDF robot: the file relative to the scene file's folder, or anywhere (read, never written)."""
     name, joints = model["urdf"], model.get("joints")
     if not isinstance(name, str):
         raise ctx.error("[model] urdf", f"expected a file name, got {_kind(name)}")
@@ -301,7 +301,7 @@ def _urdf_spec(ctx: _Context, model: dict) -> ModelSpec:
     if joints is not None and not (isinstance(joints, list) and joints and all(isinstance(j, str) for j in joints)):
         raise ctx.error("[model] joints", "expected a list of joint names")
     with ctx.key("[model] urdf"):
-        text = read_urdf(inside_folder(Path(str(ctx.source)).parent, name))
+        text = read_urdf(Path(str(ctx.source)).parent / name)
     return ModelSpec(urdf=text, joints=None if joints is None else tuple(joints))
 
 

@@ -8,6 +8,8 @@ from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
+from ..files import replaced
+
 __all__ = ["ErrorConstant", "CALIBRATION", "CALIBRATED_MAX_STEPS", "CALIBRATED_TOPOLOGIES", "SERIAL_NODE_LIMIT",
            "RELTOL_LIMITS",
            "RINGING_LIMIT", "FLOOR_LIMIT", "SAFETY", "calibrated_options",
@@ -118,7 +120,7 @@ def write_constants(rows, path) -> Path:
         The file.
     """
     path = Path(path)
-    with open(path, "w", newline="") as fh:
+    with replaced(path) as tmp, open(tmp, "w", newline="") as fh:
         out = csv.writer(fh)
         out.writerow(["reltol", "c0", "circuits", "worst"])
         for r in sorted(rows, key=lambda r: r.reltol):

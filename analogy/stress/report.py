@@ -11,6 +11,7 @@ from typing import Iterable
 
 import numpy as np
 
+from ..files import write_figure, write_text
 from ..errors import AnalogyError, InputError
 from ..progress import Progress
 from ..study.comparison import compare
@@ -158,7 +159,7 @@ class StressReport(Tabular):
                        else "swept value [1] (line style: " + ", ".join(axes) + ")")
             top.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize=8)
             path = folder / f"stress_{fam}.png"
-            fig.savefig(path, dpi=110)
+            write_figure(fig, path, dpi=110)
             plt.close(fig)
             written.append(path)
         return written
@@ -278,7 +279,7 @@ def write_report(report: StressReport, folder) -> list[Path]:
     """
     folder = Path(folder)
     out = [report.to_csv(folder / "stress.csv")]
-    (folder / "stress.md").write_text("# Stress report\n\n" + report.summary() + "\n")
+    write_text(folder / "stress.md", "# Stress report\n\n" + report.summary() + "\n")
     return out + [folder / "stress.md"] + report.plot(folder)
 
 

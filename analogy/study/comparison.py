@@ -22,7 +22,7 @@ from ..results.output import Tabular, html_table
 from ..results.trajectory import Trajectory
 from ..results.trajectory_stack import TrajectoryStack
 from ..circuit.node_stack import NodeStack
-from ..model.linkages import SINGULAR_CONDITION
+from ..model.assembly import SINGULAR_CONDITION
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure

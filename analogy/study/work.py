@@ -53,12 +53,7 @@ def estimate_work(system, preset: Preset, scales=None, stacked: int = 1) -> Work
     """
     segments = len(system.breakpoints())
     scales = system_scales(system) if scales is None else scales
-    rate = scales.fastest(preset.bound)
-    if system.kind != "linear":
-        # the configuration turns at the joint rates, and M'(x) with it: at least the start's
-        units = getattr(getattr(system, "provenance", None), "units", None) or ("rad",) * system.dof
-        turning = [abs(float(r)) for r, u in zip(system.initial_rates, units) if u == "rad"]
-        rate = max([rate, *turning])
+    rate = scales.fastest(preset.bound)      # a nonlinear system's includes the rates its joints turn at
     reltol = _reltol(system, preset, scales)
     if reltol is not None:      # the steps the truncation check takes on the fastest oscillation, the decay cap
         points = max(system.t_stop * scales.omega_max / step_phase(reltol),
