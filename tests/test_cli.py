@@ -254,3 +254,16 @@ def test_the_flexible_arm_s_joint_frame_from_the_command_line():
     assert first == pytest.approx(expected.omega[0] / (2 * np.pi), rel=1e-5)      # 6 printed digits
     bad = cli("modes", "--robot", "serial2", "--joint-frame", "tip")
     assert bad.returncode == 2 and bad.stderr.count("\n") == 1 and "flexible arms" in bad.stderr
+
+
+@pytest.mark.ngspice
+def test_the_readme_symbolic_mass_example_exits_as_the_readme_says(capsys):
+    """README: the serial example exits 3 on r2 (v2 − v1, six times smaller than the node voltages
+    SPICE's step control holds), and --refine meets the accurate bound."""
+    from analogy.cli import main
+    args = ["compare", "--mass", "[[a + b*cos(q2), b], [b, b]]", "--param", "a=3", "--param", "b=1",
+            "--q", "0, 0.5", "--damping", "[1, 2]", "--topology", "serial", "--force", "step(1)",
+            "--force", "sine(0, 0.5, 2)", "--solvers", "spice,exact"]
+    assert main(args) == 3
+    assert "spice error on r2" in capsys.readouterr().err
+    assert main(args + ["--refine"]) == 0

@@ -52,6 +52,20 @@ def test_a_listener_that_never_answers_is_refused_within_the_deadline(tmp_path, 
     listener.close()
 
 
+def test_a_scheduler_without_workers_is_refused_instead_of_waited_on(tmp_path, capsys, monkeypatch):
+    """Tasks sent to a scheduler no worker has joined would wait for ever: after the connection
+    deadline the command says so in one sentence (the deadline shortened here to 2 s)."""
+    from distributed import LocalCluster
+    import analogy.cli.batch as batch
+    monkeypatch.setattr(batch, "CONNECT_SECONDS", 2.0)
+    (tmp_path / "s.toml").write_text(sweep_text(10))
+    with LocalCluster(n_workers=0, processes=False, protocol="tcp://", dashboard_address=None) as empty:
+        assert main(["batch", str(tmp_path / "s.toml"), "-o", str(tmp_path / "out"), "--scheduler",
+                     empty.scheduler_address, "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "has no worker (none joined within 2 s)" in err
+
+
 def _free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))

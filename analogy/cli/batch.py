@@ -134,6 +134,12 @@ def dask_executor(workers: int, scheduler: str | None = None) -> Iterator[object
                 client = Client(cluster)
             else:
                 client = _connect(Client, scheduler_address(scheduler))
+                scratch.callback(client.close)
+                try:        # a scheduler without workers would take the tasks and wait in silence
+                    client.wait_for_workers(1, timeout=CONNECT_SECONDS)
+                except TimeoutError:
+                    raise InputError(f"the Dask scheduler {scheduler} has no worker (none joined within "
+                                     f"{CONNECT_SECONDS:g} s): start one with 'dask worker {scheduler}'") from None
         except (OSError, TimeoutError) as exc:
             raise InputError(f"cannot reach the Dask scheduler {scheduler}: {exc}") from None
         except RuntimeError as exc:
