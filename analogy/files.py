@@ -28,6 +28,8 @@ def check_target(path) -> bool:
         Where a file will go.
     """
     path = Path(path)
+    if "\x00" in str(path):
+        raise InputError(f"cannot write {str(path)!r}: it contains a NUL byte, which no file name may hold")
     try:
         info = path.stat()          # through a symlink: what a write would reach
     except FileNotFoundError:

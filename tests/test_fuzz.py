@@ -11,6 +11,7 @@ import io
 import math
 import os
 import re
+import stat
 import tempfile
 import time
 from collections import Counter
@@ -36,7 +37,7 @@ from analogy.waveforms import parse_waveform
 DEEP = os.environ.get("ANALOGY_FUZZ") == "deep"
 #: Cases per target: about 2,000 in all by default, 10,000 each in the deep profile.
 CASES = {"expressions": 500, "matrices": 300, "waveforms": 400, "scenes": 250, "cli": 250, "netlist_text": 300,
-         "units": 400, "sweeps": 200, "store": 60, "manifest": 200, "options": 300, "urdf": 300}
+         "units": 400, "sweeps": 200, "store": 60, "manifest": 200, "paths": 150, "options": 300, "urdf": 300}
 if DEEP:
     CASES = dict.fromkeys(CASES, 10_000)
 COUNTS: Counter = Counter()
@@ -459,6 +460,50 @@ def test_a_corrupted_store_reads_or_says_what_is_damaged(small_store, target, fl
             refused("store", exc)
         else:
             assert len(frame) <= 20 and frame["scene"].is_unique
+
+
+_SEGMENTS = ["sub", "missing", "link_file", "link_dir", "fifo", "plain.cir", "a" * 300, "..", ".", "x\x00y", ""]
+
+
+@given(st.lists(st.sampled_from(_SEGMENTS), max_size=3), st.sampled_from(["n.cir", "link_file", "fifo", "plain.cir",
+                                                                          "b" * 250 + ".cir", "sub", ".hidden"]),
+       st.booleans())
+@profile("paths")
+def test_an_output_path_gets_the_whole_file_or_one_sentence_and_nothing_outside_its_folder(folders, name, device):
+    """``netlist -o PATH`` over symlinks to files outside, pipes, missing folders, names too long
+    and NUL bytes: exit 0 with a regular file at PATH (a symlink there replaced), or exit 2 in one
+    sentence; the folder outside is never written unless PATH itself goes through a folder link,
+    and no temporary file is left anywhere."""
+    with case("paths"), tempfile.TemporaryDirectory() as tmp:
+        root = Path(tmp)
+        inside, outside = root / "inside", root / "outside"
+        (inside / "sub").mkdir(parents=True)
+        outside.mkdir()
+        (outside / "target.cir").write_text("untouched\n")
+        (inside / "plain.cir").write_text("old\n")
+        (inside / "link_file").symlink_to(outside / "target.cir")
+        (inside / "link_dir").symlink_to(outside)
+        os.mkfifo(inside / "fifo")
+        path = os.devnull if device else os.path.join(str(inside), *folders, name)
+        err = io.StringIO()
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
+            code = finishes(lambda: main(["netlist", "-o", path]), 30.0)
+        said = err.getvalue().strip().splitlines()
+        if code == 2:
+            refused("paths", InputError(said[-1]))
+            assert len(said) == 1 and said[0].startswith("analogy: error: "), said
+        else:
+            assert code == 0, said
+            written = Path(path)
+            assert device or (written.is_file() and not written.is_symlink()
+                              and written.read_text().startswith("* analogy"))
+        through_link = "link_dir" in folders and "\x00" not in path
+        if not through_link:
+            assert sorted(p.name for p in outside.iterdir()) == ["target.cir"]
+        assert (outside / "target.cir").read_text() == "untouched\n"
+        leftovers = [p for p in root.rglob(".*") if p.is_file() and p.resolve() != Path(path).resolve()]
+        assert not leftovers, leftovers
+        assert stat.S_ISCHR(os.stat(os.devnull).st_mode)
 
 
 json_value = st.recursive(st.one_of(st.none(), st.booleans(), st.integers(-5, 10**20), st.floats(allow_nan=False),
