@@ -14,6 +14,7 @@ from analogy.model.joint import JointSpace
 from analogy.presets import PRESETS
 from analogy.scenes.builtin import SCENES
 from analogy.study.work import check_work, estimate_work
+from hang_guard import finishes
 
 
 @pytest.mark.parametrize("args, fragment", [
@@ -26,6 +27,34 @@ def test_runs_past_the_budget_are_refused_before_they_start(capsys, args, fragme
     assert main(["compare", *args]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and fragment in err[0] and "--budget" in err[0], err
+
+
+@pytest.mark.parametrize("args, fragment", [
+    # a joint turning at 1e5 rad/s for 10 s: 6.25e7 points at the accurate phase step of 0.016 rad
+    (["--dynamics", "nonlinear", "--r0", "1e5, 0"], "6.25e+07 time points"),
+    (["--dynamics", "nonlinear", "--r0", "1e5, 0", "--solvers", "ode,exact"], "for a nonlinear run"),
+])
+def test_a_nonlinear_run_past_the_budget_is_refused_before_it_starts(capsys, args, fragment):
+    """A nonlinear point costs NONLINEAR_POINT_COST·n³ of SPICE's operations and as many of the
+    points budget (M(q), c and G evaluated where a linear point multiplies): the run that went on
+    past 90 s is one sentence now."""
+    assert finishes(lambda: main(["compare", *args])) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and fragment in err[0], err
+
+
+def test_an_animation_has_the_work_guard_of_a_comparison(capsys, tmp_path):
+    assert finishes(lambda: main(["animate", "--t-stop", "1e8", "--frames", "10", "-o", str(tmp_path / "a.gif")])) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "time points" in err[0] and not (tmp_path / "a.gif").exists(), err
+
+
+def test_every_named_robot_runs_nonlinear_inside_the_budget():
+    from analogy.model.urdf_robots import URDF_ROBOTS
+    for name in ("serial2", "serial3", "parallel2", "flexpar", *URDF_ROBOTS):
+        system = analogy.scene(name).replace(dynamics="nonlinear").system()
+        for p in PRESETS.values():
+            check_work(system, p)
 
 
 def test_every_built_in_scene_is_far_inside_the_budget():

@@ -28,7 +28,7 @@ from ..presets import preset as get_preset
 from ..results.output import check_plot_path
 from .outputs import accuracy_exit, check_folder, check_writable, write_outputs
 from .parser import build_parser
-from .scene_options import scene_from_args, solver_list
+from .scene_options import built_system, scene_from_args, solver_list
 from ..model.urdf_robots import URDF_ROBOTS
 from ..scenes.builtin import SCENES, scene
 from ..scenes.scene import Scene
@@ -57,7 +57,7 @@ def _cmd_netlist(args) -> int:
         raise InputError("--realizable applies to the linear circuit, not to --dynamics nonlinear")
     check_writable(args.output)
     save = None if args.save is None else [s.strip() for s in args.save.split(",") if s.strip()]
-    system = sc.system().realized() if args.realizable else sc.system()     # as compare --realizable does
+    system = built_system(sc, args.realizable)      # as compare --realizable does
     _say_pose(system, sc)
     text = netlist(system, args.preset, save=save, title=_title(sc), dialect=args.dialect)
     if args.output:
@@ -104,7 +104,7 @@ def _cmd_compare(args) -> int:
             raise InputError("--dynamics both measures the linear circuit against the nonlinear reference: "
                              "--estimate, --refine and --no-reference apply to one dynamics")
         return _compare_both(sc, args, solvers, step)
-    system = sc.system().realized() if args.realizable else sc.system()
+    system = built_system(sc, args.realizable)
     _say_pose(system, sc)
     reference = None if args.no_reference else "auto"
     result = compare(system, preset, solvers, step=step, progress=Heartbeat(), reference=reference,
@@ -163,7 +163,7 @@ def _cmd_modes(args) -> int:
     locked = [item.strip() for item in (args.locked or "").split(",") if item.strip()]
     if bad := [item for item in locked if not item.isdigit()]:
         raise InputError(f"--locked needs joint numbers like 1,2, got {bad[0]!r}")
-    system = sc.system()
+    system = built_system(sc)
     result = natural_modes(system.joint, [int(x) for x in locked], system.provenance.joints)
     print(result.table())
     if args.csv:
@@ -219,7 +219,7 @@ def _cmd_draw(args) -> int:
                          else f"{sc.name}-{sc.key[:8]}")
     if Path(stem).name != stem or stem in (".", ".."):
         raise InputError(f"--stem {stem!r} must be a plain file name (the folder is -o)")
-    system = sc.system()
+    system = built_system(sc)
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -415,7 +415,7 @@ def _cmd_ac(args) -> int:
     sc = scene_from_args(args)
     check_writable(args.csv)
     plot = check_plot_path(args.plot) if args.plot else None
-    check = mobility_check(sc.system(), args.f_start, args.f_stop, args.points)
+    check = mobility_check(built_system(sc), args.f_start, args.f_stop, args.points)
     print(check.report)
     if args.csv:
         print(f"wrote {check.spice.to_csv(args.csv)}")

@@ -19,6 +19,7 @@ from ..model.expressions import (
 )
 from ..model.quantities import ANY, COORDINATE, RATE
 from ..presets import PRESETS
+from ..progress import Heartbeat
 from ..presets import preset as get_preset
 from ..scenes.build import LABELS, scene_model
 from ..scenes.builtin import SCENES, scene
@@ -27,7 +28,7 @@ from ..scenes.spec import ModelSpec
 from ..model.urdf_file import read_urdf
 from ..model.urdf_robots import URDF_ROBOTS
 
-__all__ = ["CLI_KEYS", "PRESET_HELP", "scene_from_args", "scene_options", "solver_list"]
+__all__ = ["CLI_KEYS", "PRESET_HELP", "built_system", "scene_from_args", "scene_options", "solver_list"]
 
 #: The flag that sets each part of a scene, for input errors (forces are one repeated flag,
 #: so they are not numbered).
@@ -321,3 +322,23 @@ def solver_list(text: str | None) -> tuple[str, ...] | None:
     if not names or (bad := [s for s in names if s not in SOLVER_NAMES]):
         raise InputError(f"--solvers: unknown solver {bad[0]!r}" if names else "--solvers names no solver")
     return names
+
+
+def built_system(sc: Scene, realizable: bool = False) -> object:
+    """*sc*'s node system, with a line every 15 s while it is built past 3 s (a large arm's symbolic
+    nonlinear derivation takes minutes: serial10's took 98 s, serial12's 277 s).
+
+    Parameters
+    ----------
+    sc : Scene
+        The scene.
+    realizable : bool
+        Its realizable circuit (negative elements behind 1:-1 couplings).
+    """
+    beat = Heartbeat()
+    beat("model build")
+    try:
+        system = sc.system()
+    finally:
+        beat(None)
+    return system.realized() if realizable else system

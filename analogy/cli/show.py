@@ -6,7 +6,7 @@ from ..errors import EXIT_FAILED, EXIT_OK, InputError, SimulationError
 from ..results.animation import check_animation_path
 from ..results.output import check_plot_path
 from .outputs import accuracy_exit, check_folder, check_writable, write_outputs
-from .scene_options import scene_from_args, solver_list
+from .scene_options import built_system, scene_from_args, solver_list
 
 __all__ = ["animate_command", "report_command"]
 
@@ -38,7 +38,7 @@ def animate_command(args) -> int:
         raise InputError(f"--fps must be positive, got {args.fps:g}")
     if not 2 <= args.frames <= 2000:
         raise InputError(f"--frames takes 2 to 2000 frames, got {args.frames}")
-    system = sc.system()
+    system = built_system(sc)
     check_work(system, get_preset(args.preset), spice=args.solver == "spice")    # refused before it runs
     run = solve(system, args.solver, preset=args.preset)
     if not run.success:

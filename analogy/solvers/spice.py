@@ -10,6 +10,7 @@ import numpy as np
 
 from ..circuit.currents import element_currents
 from ..circuit.description import circuit
+from ..circuit.elements import point_operations
 from ..circuit.netlist import save_vectors, write_netlist
 from ..circuit.node_stack import NodeStack
 from ..circuit.scales import run_scales, system_scales
@@ -111,8 +112,8 @@ def solve_spice(system, times=None, *, preset="accurate", save=None) -> Trajecto
         stats: dict = {}
         text = write_netlist(circ, settings, list(system.nodes) + names, printing=False)
         try:
-            data = sess.run(text, vectors, stats, timeout=_limit(scales, system.t_stop, get_preset(preset),
-                                                                            run_size([system.dof])))
+            size = run_size([system.dof]) if system.kind == "linear" else point_operations(system)
+            data = sess.run(text, vectors, stats, timeout=_limit(scales, system.t_stop, get_preset(preset), size))
             break
         except SimulationError as exc:
             waited += stats.get("waited", 0.0)

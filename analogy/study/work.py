@@ -7,7 +7,7 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
-from ..circuit.elements import point_operations
+from ..circuit.elements import NONLINEAR_POINT_COST, point_operations
 from ..circuit.node_stack import NodeStack
 from ..circuit.scales import run_scales, system_scales
 from ..errors import InputError
@@ -59,8 +59,9 @@ def estimate_work(system, preset: Preset, scales=None, stacked: int = 1) -> Work
         points = max(system.t_stop * scales.omega_max / step_phase(reltol),
                      system.t_stop / scales.decay_limit(preset.decay_step, preset.bound))
     else:
+        # as the step policy caps them: a decay over well before t_stop sets no steps after it
         phase = preset.phase_step if math.isfinite(preset.phase_step) else 1.0
-        points = system.t_stop * rate / phase
+        points = system.t_stop * scales.lasting(preset.bound, system.t_stop) / phase
     points = max(points, _fewest(system, preset, reltol is not None)) + _POINTS_PER_SEGMENT * segments
     points = points if math.isfinite(points) else math.inf
     return WorkEstimate(points, segments, rate, points * stacked * point_operations(system))
@@ -103,10 +104,14 @@ def check_work(system, preset: Preset, scales=None, *, stacked: int = 1, spice: 
         raise InputError(f"the forces have {work.segments:,} segments between breakpoints (pwl points, pulse "
                          f"edges), more than the budget of {preset.segment_budget:,}: use fewer, or raise "
                          "the preset's segment budget", field="budget")
-    if work.points > preset.work_budget:
+    # a nonlinear point evaluates M(q), c and G (and SPICE its expressions) where a linear one multiplies
+    nonlinear = system.kind != "linear"
+    budget = preset.work_budget / (NONLINEAR_POINT_COST if nonlinear else 1.0)
+    if work.points > budget:
+        each = f" for a nonlinear run (a point of it counts {NONLINEAR_POINT_COST:g})" if nonlinear else ""
         raise InputError(f"the run would need about {work.points:.3g} time points (the fastest rate, "
                          f"{work.fastest:.3g} rad/s, over t_stop = {system.t_stop:g} s), more than the budget "
-                         f"of {preset.work_budget:.3g}: shorten t_stop, or raise the preset's work budget",
+                         f"of {budget:.3g}{each}: shorten t_stop, or raise the preset's work budget",
                          field="budget")
     if spice and work.operations > preset.operation_budget:
         size = f"{stacked} circuits of {system.dof} nodes" if stacked > 1 else f"{system.dof} nodes"
