@@ -49,3 +49,12 @@ def test_committed_netlists_are_up_to_date(tmp_path):
                 else:
                     assert abs(float(x) - float(y)) <= 4 * n * n * eps * scale[a[0][0]], (path.name, a, b)
     assert sorted(p.name for p in NETLISTS.glob("*.cir")) == sorted(p.name for p in fresh)
+
+
+def test_a_comment_spells_symbols_and_accented_names_in_ascii_and_stays_one_line():
+    """Netlists are ASCII for every SPICE: the package's own symbols are spelled out, accents
+    dropped, and what has no spelling becomes "?"; no character can start a new line."""
+    from analogy.circuit.netlist import comment_text
+    assert comment_text("cond(Φ_p) = 44.7 · M′ ≤ 1e-6, T⁻¹, 68 µs") == "cond(Phi_p) = 44.7 * M' <= 1e-6, T^-1, 68 us"
+    assert comment_text("gelenk_ä épaule 肩") == "gelenk_a epaule ?"
+    assert comment_text("a\n.control\r\u2028shell") == "a?.control??shell"

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import re
+import unicodedata
 from typing import Iterable, Literal, Sequence
 
 import numpy as np
@@ -33,6 +34,12 @@ DIALECTS: tuple[str, ...] = ("ngspice", "gnucap")
 _GNUCAP_OPTIONS = ("method", "reltol", "abstol", "vntol", "chgtol", "trtol")
 _EPS = 2.0 ** -52
 
+#: Symbols the package writes (and joint names may hold) spelled in ASCII for a comment; accents
+#: are dropped by NFKD (é → e), superscripts become digits; anything else left becomes "?".
+_ASCII_NAMES = str.maketrans({"Φ": "Phi", "φ": "phi", "ε": "eps", "λ": "lambda", "ω": "omega", "β": "beta",
+                              "σ": "sigma", "ζ": "zeta", "π": "pi", "µ": "u", "μ": "u", "θ": "theta",
+                              "·": "*", "×": "x", "−": "-", "–": "-", "—": "-", "≤": "<=", "≥": ">=",
+                              "≈": "~", "→": "->", "…": "...", "ᵀ": "^T", "⁻": "^-", "′": "'", "’": "'"})
 _SAFE_COMMENT = re.compile(r"[^A-Za-z0-9 _.,:;=+\-*/()\[\]{}<>'#%@!?|~^&$]")
 _SAFE_EXPRESSION = re.compile(r"^[A-Za-z0-9_.+\-*/()^ ,<>=!&|?:]+$")
 
@@ -45,7 +52,8 @@ def comment_text(text) -> str:
     text : object
         Anything; its ``str`` is cleaned.
     """
-    return _SAFE_COMMENT.sub("?", str(text))
+    text = unicodedata.normalize("NFKD", str(text).translate(_ASCII_NAMES))
+    return _SAFE_COMMENT.sub("?", "".join(c for c in text if not unicodedata.combining(c)))
 
 
 def spice_expression(text: str) -> str:

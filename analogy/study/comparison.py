@@ -232,9 +232,12 @@ class Comparison(Tabular):
                 f"on {self.time.size} points, error/peak vs {self.reference}: {errs}{failed}>")
 
     def _repr_html_(self) -> str:
-        return html_table(["solver", "run time [ms]", "max |error|", "worst output", "error / its peak",
-                           "estimated error / its peak", "all / largest peak", "steps", "note"], self._rows(),
-                          self.caption)
+        header = ["solver", "run time [ms]", "max |error|", "worst output", "error / its peak",
+                  "estimated error / its peak", "all / largest peak", "steps", "note"]
+        rows = self._rows()
+        if not self.estimated:          # as the text table: the column only where an estimate ran
+            header, rows = header[:5] + header[6:], [row[:5] + row[6:] for row in rows]
+        return html_table(header, rows, self.caption)
 
     @property
     def caption(self) -> str:
