@@ -88,11 +88,12 @@ def node_lagrangian(system) -> NodeLagrangian:
     tinv = sp.Matrix(np.asarray(system.topology.inverse).tolist())
     q = list(model.coordinates) or list(sp.symbols(f"q1:{n + 1}", real=True))
     at = {qk: float(q0) + sum(tinv[k, j] * x[j] for j in range(n)) for k, (qk, q0) in enumerate(zip(q, system.q0))}
-    mass = (tinv.T * model.mass_matrix.subs(subs) * tinv).subs(at)
+    # xreplace: every key is a symbol, and subs' own matching costs 10 times more on a long chain
+    mass = (tinv.T * model.mass_matrix.xreplace(subs) * tinv).xreplace(at)
     vv = sp.Matrix(v)
     load = sp.Matrix([-(vv.T * mass.diff(x[a]) * vv)[0] / 2 for a in range(n)])
     if model.gravity is not None:
-        load += tinv.T * model.gravity.subs(subs).subs(at)
+        load += tinv.T * model.gravity.xreplace(subs).xreplace(at)
     return NodeLagrangian(x, v, mass, load)
 
 
