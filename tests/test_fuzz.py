@@ -468,6 +468,7 @@ _SEGMENTS = ["sub", "missing", "link_file", "link_dir", "fifo", "plain.cir", "a"
 @given(st.lists(st.sampled_from(_SEGMENTS), max_size=3), st.sampled_from(["n.cir", "link_file", "fifo", "plain.cir",
                                                                           "b" * 250 + ".cir", "sub", ".hidden"]),
        st.booleans())
+@example(folders=["missing", "..", "a" * 300], name="n.cir", device=False)     # a long name past a missing folder
 @profile("paths")
 def test_an_output_path_gets_the_whole_file_or_one_sentence_and_nothing_outside_its_folder(folders, name, device):
     """``netlist -o PATH`` over symlinks to files outside, pipes, missing folders, names too long

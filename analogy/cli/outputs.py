@@ -24,12 +24,16 @@ def check_writable(path) -> None:
     if path is None:
         return
     check_target(path)
-    folder = Path(os.path.abspath(path)).parent        # a symlink at path is replaced, not followed
-    if not folder.is_dir():
-        raise InputError(f"cannot write {path}: folder {folder} does not exist")
-    if not os.access(folder, os.W_OK) or (
-            Path(path).is_file() and not Path(path).is_symlink() and not os.access(path, os.W_OK)):
-        raise InputError(f"cannot write {path}: permission denied")
+    # the folder as the system will resolve it ("missing/.." is no folder), not normalised by name
+    folder = Path(path).parent
+    try:
+        if not folder.is_dir():
+            raise InputError(f"cannot write {path}: folder {folder} does not exist")
+        if not os.access(folder, os.W_OK) or (
+                Path(path).is_file() and not Path(path).is_symlink() and not os.access(path, os.W_OK)):
+            raise InputError(f"cannot write {path}: permission denied")
+    except OSError as exc:          # a folder name too long, a loop of symlinks
+        raise InputError(f"cannot write {path}: {exc.strerror or exc}") from None
 
 
 def check_folder(path, what: str = "the output") -> None:
