@@ -58,3 +58,15 @@ def test_a_comment_spells_symbols_and_accented_names_in_ascii_and_stays_one_line
     assert comment_text("cond(Φ_p) = 44.7 · M′ ≤ 1e-6, T⁻¹, 68 µs") == "cond(Phi_p) = 44.7 * M' <= 1e-6, T^-1, 68 us"
     assert comment_text("gelenk_ä épaule 肩") == "gelenk_a epaule ?"
     assert comment_text("a\n.control\r\u2028shell") == "a?.control??shell"
+
+
+def test_a_summed_source_is_described_by_its_forces_and_no_comment_names_a_missing_device():
+    """With gravity, joint 1's step and its gravity load into n1 are one PWL device In1: its comment
+    lists the two waveforms, and every I-device a comment names is a line of the file."""
+    import re
+    from analogy.solvers.transient import netlist
+    text = netlist(scene("serial2").replace(parameters=(("g", 9.81),), q=(0.3, 0.2)).system())
+    assert "* In1 sums the forces into n1: step(1) (joint 1) + step(-35.0028) (joint 1)" in text
+    devices = {line.split()[0] for line in text.splitlines() if line and line[0] in "IVBCREFLG"}
+    named = set(re.findall(r"\bI[A-Za-z0-9_]+", "\n".join(line for line in text.splitlines() if line.startswith("*"))))
+    assert named <= devices, named - devices

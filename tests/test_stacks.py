@@ -171,7 +171,7 @@ def test_a_shared_stack_is_written_from_its_columns_as_from_its_circuits(name, t
     assert text == write_batch(circuits(systems), settings)
     if topology is None:                # (a custom T is beyond the calibration: other settings)
         assert batch_netlist(systems, "fast") == text       # what a batch writes
-    assert ("is the sum of" in text) == (topology is not None)
+    assert ("sums the forces into" in text) == (topology is not None)
     assert (" x5_n1 0 " in text) and (name != "flexpar" or "\nLx0_" in text)
 
 

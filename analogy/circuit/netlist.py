@@ -140,7 +140,7 @@ def circuit_lines(c: Circuit, prefix: str = "", memo: dict | None = None) -> lis
     joint_of = {s.name: s.joint for s in c.sources}
     for name, a, b, v, terms in _source_values(c.sources, c.t_stop, memo):
         if terms:       # the description's sources it stands for, by their names
-            lines.append(f"* I{prefix}{name[1:]} is the sum of " + ", ".join(f"I{prefix}{t[1:]}" for t in terms))
+            lines.append(f"* I{prefix}{name[1:]} " + comment_text(f"sums the forces into n{a}: " + " + ".join(terms)))
         elif c.joints and name in joint_of:       # beside its source, the joint it drives
             joint = joint_of[name]
             lines.append("* " + comment_text(f"I{prefix}{name[1:]}: the force on joint {joint}, {c.joints[joint - 1]}"))
@@ -152,7 +152,7 @@ def _source_values(sources, t_stop: float, memo: dict | None) -> list[tuple[str,
     """(name, a, b, value, terms) of each source device: the grounded piecewise-linear sources into one
     node are one device ``In<k>`` whose PWL is their sum (under a custom map T⁻ᵀ every joint
     drives every node, and ngspice evaluates n² sources at every step otherwise), with the names of
-    the sources it sums as *terms*; the rest as given."""
+    what it sums as *terms* (each force's waveform and joint); the rest as given."""
     merged: dict[int, list] = {}
     for s in sources:
         if s.b == 0 and isinstance(s.waveform, PWL):
@@ -173,7 +173,8 @@ def _source_values(sources, t_stop: float, memo: dict | None) -> list[tuple[str,
             written.add(s.a)
             group = merged[s.a]
             out.append((f"In{s.a}", s.a, 0, pwl_sum([(g.waveform, g.scale) for g in group]).spice(1.0, t_stop),
-                        tuple(g.name for g in group)))
+                        tuple(f"{'' if g.scale == 1.0 else f'{g.scale:g}*'}{g.waveform.label()} (joint {g.joint})"
+                              for g in group)))
     return out
 
 
@@ -415,7 +416,7 @@ def write_stack(stack: NodeStack, settings, zero_tol: float = ZERO_TOL) -> str:
     sources = []
     for name, a, b, v, terms in _source_values(current_sources(first, zero_tol), first.t_stop, None):
         if terms:
-            sources.append(f"* I{x}{name[1:]} is the sum of " + ", ".join(f"I{x}{t[1:]}" for t in terms))
+            sources.append(f"* I{x}{name[1:]} " + comment_text(f"sums the forces into n{a}: " + " + ".join(terms)))
         sources.append(f"I{x}{name[1:]} {_node(b, x)} {_node(a, x)} {v}")
     sources = [line.replace("%", "%%") for line in sources]         # text of a template: no % of its own
     kept = (np.array([column[4] for column in columns]) != 0.0).reshape(len(columns), count)
