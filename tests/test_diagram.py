@@ -176,3 +176,16 @@ def test_past_six_nodes_the_element_map_shows_every_element_once_with_its_sign(s
     assert len(values) >= len(expected)
     assert all(min(abs(v - x) for v in values) <= 1e-12 + 1e-9 * abs(x) for x in expected)
     assert any(v < 0 for v in values)               # negative MP capacitances are there, with their sign
+
+
+def test_with_gravity_each_source_is_labelled_with_its_own_term(tmp_path):
+    """Gravity adds a step to each joint's force: a source per term, each labelled with its own
+    waveform as a term of f_k, never with the whole force (which would count it twice)."""
+    system = analogy.scene("serial2").replace(parameters=(("g", 9.81),), q=(0.3, 0.2)).system()
+    paths = diagram.draw(system, tmp_path, "g", schematic=True)
+    texts = svg_texts(paths[0]) + svg_texts(paths[2])
+    for name, term in (("1", "step(1)"), ("1", "step(-35.0028)"), ("2", "sine(0, 0.5, 0.5)"), ("2", "step(-6.88727)")):
+        assert sum(f"= {term} " in t and f"a term of f{name}" in t for t in texts) == 2, term     # circuit, mechanism
+    assert not [t for t in texts if "= f1 =" in t or "= f2 =" in t]
+    assert labelled(paths[0], CIRCUIT_NAME) == Counter([e.name for e in elements(system)]
+                                                       + [src.name for src in circuit(system).sources])

@@ -80,7 +80,8 @@ class _Part:
     coefficient: float     # mass, damping or stiffness, or the source scale
     joint: int = 0         # sources: the joint whose force drives it, 1-based
     into_a: bool = True    # sources: current (force) flows into node a, else into node b
-    waveform: str = ""     # sources: the joint force as written, e.g. step(1)
+    waveform: str = ""     # sources: its term of the joint force as written, e.g. step(1)
+    terms: int = 1         # sources: how many terms the joint's force has (a source each)
     unit: str = ""         # the mechanical value's unit, e.g. kg·m² (empty when the model has none)
 
 
@@ -113,9 +114,9 @@ def _parts(system: NodeSystem, zero_tol: float) -> list[_Part]:
         else:
             a, b = min(src.a, src.b), max(src.a, src.b)
             into_a = src.a == a
-        wave = " + ".join(w.label() for w in system.forces[src.joint - 1]) or "0"
+        wave = src.waveform.label()         # its own term: with gravity a joint has a source per term
         parts.append(_Part(src.name, "I", a, b, src.scale, src.scale, src.joint, into_a=into_a,
-                           waveform=wave, unit=units["I"]))
+                           waveform=wave, terms=len(system.forces[src.joint - 1]), unit=units["I"]))
     return parts
 
 
@@ -279,20 +280,24 @@ def _wave(p: _Part) -> str:
     return p.waveform if len(p.waveform) <= 24 else p.waveform[:21] + "..."
 
 
+def _source_label(name: str, p: _Part, unit: str) -> str:
+    """A force source: f_k itself, or (with gravity, a sum) its own term of f_k; two lines either way."""
+    scaled = _wave(p) if p.value == 1.0 else f"{_number(p.value)}\u00b7{_wave(p)}"
+    if p.terms > 1:
+        return f"{name}\n= {scaled} {unit}, a term of f{p.joint}"
+    if p.value == 1.0:
+        return f"{name}\n= {scaled} {unit}" if name == f"f{p.joint}" else f"{name}\n= f{p.joint} = {scaled} {unit}"
+    return f"{name}\n= {_number(p.value)}\u00b7f{p.joint},\nf{p.joint} = {_wave(p)} {unit}"
+
+
 def _circuit_label(p: _Part) -> str:
-    if p.kind == "I":
-        if p.value == 1.0:
-            return f"{p.name}\n= f{p.joint} = {_wave(p)} A"
-        return f"{p.name}\n= {_number(p.value)}\u00b7f{p.joint},\nf{p.joint} = {_wave(p)} A"
-    return f"{p.name}\n= {_number(p.value)} {_UNITS[p.kind]}"
+    return _source_label(p.name, p, "A") if p.kind == "I" else f"{p.name}\n= {_number(p.value)} {_UNITS[p.kind]}"
 
 
 def _mechanism_label(p: _Part) -> str:
     suffix = p.name[1:]
     if p.kind == "I":
-        if p.value == 1.0:
-            return f"f{suffix}\n= {_wave(p)} {p.unit}"
-        return f"f{suffix}\n= {_number(p.value)}\u00b7f{p.joint},\nf{p.joint} = {_wave(p)} {p.unit}"
+        return _source_label(f"f{suffix}", p, p.unit)
     prefix = {"C": "MP p\u2032" if p.b else "m\u2032", "R": "b\u2032", "L": "k\u2032"}[p.kind]
     return f"{prefix}{suffix}\n= {_number(p.coefficient)} {p.unit}"
 
