@@ -63,3 +63,25 @@ def test_ac_command_prints_every_mode_and_writes_its_files(tmp_path, capsys):
     assert rc == 0 and "rigid" not in out and out.count("e-0") >= 3
     assert csv.read_text().splitlines()[0].startswith("f_hz,abs_Y1_1,phase_deg_Y1_1")
     assert png.stat().st_size > 10000
+
+
+def test_the_csv_joint_mobility_is_reciprocal_in_a_serial_circuit(tmp_path):
+    """R_i/F_j = R_j/F_i: the joint mobility (B + sM + K/s)⁻¹ is symmetric whatever the topology,
+    to rounding (κ·ε of its largest entry). In the serial circuit the node voltages per joint force
+    are not: v2/F1 ≠ v1/F2. The CSV names both for what they are."""
+    import csv
+    from analogy.scenes.builtin import scene
+    system = scene("serial3").system()
+    assert system.topology.name == "serial"
+    response = exact_mobility(system, frequency_grid(0.01, 100.0, 20))
+    y = response.joint_mobility()
+    cond = np.linalg.cond(system.mass)
+    assert np.max(np.abs(y - np.swapaxes(y, 1, 2))) <= 100 * cond * np.finfo(float).eps * np.max(np.abs(y))
+    nodes = response.mobility
+    assert np.max(np.abs(nodes[:, 1, 0] - nodes[:, 0, 1])) > 1e-3 * np.max(np.abs(nodes))
+    path = tmp_path / "y.csv"
+    response.to_csv(path)
+    rows = list(csv.DictReader(path.open()))
+    assert abs(float(rows[5]["abs_Y1_2"]) - float(rows[5]["abs_Y2_1"])) <= \
+        100 * cond * np.finfo(float).eps * np.max(np.abs(y))
+    assert "abs_v2_F1" in rows[0]

@@ -96,20 +96,28 @@ class FrequencyResponse(Tabular):
         """R_j/F_j [f, joint]: each joint's rate per unit force on itself, whatever the topology."""
         return np.einsum("jk,fkj->fj", self.joint_map, self.mobility)
 
+    def joint_mobility(self) -> np.ndarray:
+        """R_i/F_j [f, joint i, joint j]: the joint mobility matrix, symmetric (reciprocal) for any
+        topology, as (B + sM + K/s)⁻¹ is; the node voltages' own matrix is not, unless T = I."""
+        return np.einsum("ik,fkj->fij", self.joint_map, self.mobility)
+
     def __repr__(self) -> str:
         f = self.frequency
         return (f"<FrequencyResponse {self.solver}: {self.mobility.shape[1]} nodes × {self.mobility.shape[2]} "
                 f"joints, {f.size} frequencies {f[0]:.3g}–{f[-1]:.3g} Hz>")
 
     def columns(self) -> dict[str, np.ndarray]:
-        """``f_hz``, then ``abs_Y<node>_<joint>`` and ``phase_deg_Y<node>_<joint>`` for every pair."""
+        """``f_hz``; the joint mobilities ``abs_Y<i>_<j>``, ``phase_deg_Y<i>_<j>`` (joint i's rate per unit
+        force on joint j, what the Bode plot draws); then the node voltages per joint force
+        ``abs_v<node>_F<j>``, ``phase_deg_v<node>_F<j>`` (the circuit's own, the same where T = I)."""
         cols: dict[str, np.ndarray] = {"f_hz": self.frequency}
-        _, nodes, joints = self.mobility.shape
-        for i in range(nodes):
-            for j in range(joints):
-                y = self.mobility[:, i, j]
-                cols[f"abs_Y{i + 1}_{j + 1}"] = np.abs(y)
-                cols[f"phase_deg_Y{i + 1}_{j + 1}"] = np.degrees(np.angle(y))
+        for name, values in (("Y{}_{}", self.joint_mobility()), ("v{}_F{}", self.mobility)):
+            _, rows, joints = values.shape
+            for i in range(rows):
+                for j in range(joints):
+                    y = values[:, i, j]
+                    cols["abs_" + name.format(i + 1, j + 1)] = np.abs(y)
+                    cols["phase_deg_" + name.format(i + 1, j + 1)] = np.degrees(np.angle(y))
         return cols
 
     def relative_error(self, reference: "FrequencyResponse") -> float:
