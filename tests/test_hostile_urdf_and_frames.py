@@ -193,5 +193,5 @@ def test_animate_past_the_maximum_is_one_sentence(tmp_path, capsys, monkeypatch)
 def test_three_hundred_frames_past_twenty_megabytes_are_all_in_the_page(tmp_path, capsys):
     page = tmp_path / "a.html"
     assert main(["animate", "--robot", "serial3", "--frames", "300", "-o", str(page)]) == 0
-    assert "(300 frames" in capsys.readouterr().out
+    assert "300 frames," in capsys.readouterr().out
     assert page.stat().st_size > 20 * 1024 * 1024 and embedded(page.read_text()) == 300
