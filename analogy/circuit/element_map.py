@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -92,8 +93,10 @@ def draw_element_map(system: "NodeSystem", path: str | Path | None = None, *,
         ticks = [s * top * f for s in (-1, 1) for f in (1.0, 0.01)] + [0.0]
         bar.set_ticks(sorted(ticks), labels=[f"{t:.2g}" for t in sorted(ticks)])
     count = len(c.elements)
-    fig.suptitle(f"{system.provenance.robot} ({system.topology.name} topology): {count} elements "
-                 f"on {n} nodes, by node pair; red is negative, blank is left out", fontsize="medium")
+    title = (f"{system.provenance.robot} ({system.topology.name} topology): {count} elements on {n} nodes, "
+             "by node pair; red is negative, blank is left out")
+    # wrapped to the figure's width (about 11 characters an inch at this size): one panel is narrow
+    fig.suptitle(textwrap.fill(title, max(30, int(11 * fig.get_size_inches()[0]))), fontsize="medium")
     if path is not None:
         write_figure(fig, path, dpi=110)
     return fig

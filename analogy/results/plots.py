@@ -346,6 +346,9 @@ def plot_bode(response, reference=None, path=None) -> Figure:
     fig = Figure(figsize=(8, 5.5), layout="constrained")
     mag, phase = fig.subplots(2, 1, sharex=True)
     joints = response.mobility.shape[2]
+    units = response.units
+    each = {"rad": "(rad/s)/(N·m)", "m": "(m/s)/N"}
+    mixed = len(set(units or ())) > 1 or not units       # then each joint's unit goes in its legend entry
     for r in ([reference] if reference is not None else []) + [response]:
         style = solver_style(r.solver)
         points = r.driving_point()
@@ -353,16 +356,15 @@ def plot_bode(response, reference=None, path=None) -> Figure:
             y = points[:, j]
             names = response.coordinates
             name = names[j] if names and len(names) == joints else f"joint {j + 1}"
+            if mixed and units and len(units) == joints:
+                name = f"{name} [{each.get(units[j], '?')}]"
             label = name if r is response else None
             mag.loglog(r.frequency, np.abs(y), color=f"C{j % 10}", label=label, **style)
             phase.semilogx(r.frequency, np.degrees(np.angle(y)), color=f"C{j % 10}", **style)
     for f in response.resonances():
         mag.axvline(f, color="0.8", lw=0.6, zorder=0)
-    units = response.units
-    kinds = set(units or ())
-    unit = {frozenset({"rad"}): "(rad/s)/(N·m)", frozenset({"m"}): "(m/s)/N"}.get(frozenset(kinds),
-                                                                                  "(rad/s)/(N·m) or (m/s)/N")
-    mag.set_ylabel(f"driving-point mobility |R/F| [{unit}]")
+    unit = "" if mixed else f" [{each.get(units[0], '?')}]"
+    mag.set_ylabel(f"driving-point mobility |R/F|{unit}")
     phase.set_ylabel("phase [deg]")
     phase.set_yticks([-90, -45, 0, 45, 90])
     phase.set_xlabel("frequency [Hz]")
