@@ -379,8 +379,8 @@ def test_long_serial_arms_are_numeric_and_their_symbolic_model_is_refused_with_a
     from analogy.scenes.spec import ModelSpec
     model = scene_model(Scene.of("long", ModelSpec(robot="serial200"), q=[0.1] * 200))
     assert isinstance(model, SerialChain) and model.joint_space([0.1] * 200).mass_matrix.shape == (200, 200)
-    with pytest.raises(InputError, match="symbolic model .* up to 12 joints"):
-        robot("serial13")
+    with pytest.raises(InputError, match="symbolic model .* up to 10 joints"):
+        robot("serial11")
 
 
 def test_every_robot_family_is_one_registry_entry_that_builds():

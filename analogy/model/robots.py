@@ -438,8 +438,8 @@ def robot(name: str, link_modes: str | None = None, joint_frame: str | None = No
         return build(*family.args, **conventions)
     if size > family.symbolic_sizes:
         raise InputError(f"{name}'s symbolic model (needed for its nonlinear dynamics) is built up to "
-                         f"{family.symbolic_sizes} joints; its linear dynamics are numeric at any size "
-                         f"({family.numeric.replace(':', '.')})")
+                         f"{family.symbolic_sizes} joints, as its derivation grows as n^4.8 (serial12's took "
+                         f"minutes); its linear dynamics are numeric at any size ({family.numeric.replace(':', '.')})")
     return build(size)
 
 
