@@ -37,7 +37,7 @@ from analogy.waveforms import parse_waveform
 DEEP = os.environ.get("ANALOGY_FUZZ") == "deep"
 #: Cases per target: about 2,000 in all by default, 10,000 each in the deep profile.
 CASES = {"expressions": 500, "matrices": 300, "waveforms": 400, "scenes": 250, "cli": 250, "netlist_text": 300,
-         "units": 400, "sweeps": 200, "store": 60, "manifest": 200, "paths": 150, "options": 300, "urdf": 300}
+         "units": 400, "sweeps": 200, "store": 60, "manifest": 60, "paths": 150, "options": 300, "urdf": 300}
 if DEEP:
     CASES = dict.fromkeys(CASES, 10_000)
 COUNTS: Counter = Counter()
