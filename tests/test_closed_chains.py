@@ -99,6 +99,7 @@ def test_the_constrained_circuit_keeps_the_preset_s_bound_against_the_reduced_re
 
 
 @pytest.mark.ngspice
+@pytest.mark.deep                   # 14 s: in CI's deep pass
 def test_a_motion_near_a_singular_pose_is_flagged_with_exit_3(capsys):
     """The five-bar's built-in scene, nonlinear over its 10 s, folds both legs flat at t = 1.42 s
     with the distal links in line (cond(Φ_p) 66 on the fast preset's points): the comparison says so, and the command exits 3."""

@@ -269,6 +269,7 @@ def _stiff_light_pair():
     return next(c for c in cases() if c.label == "ratio 1e+02 zeta 0.01").build()
 
 
+@pytest.mark.deep                   # 11 s: in CI's deep pass
 def test_a_run_past_its_bound_is_refined_until_its_estimate_meets_it_and_the_truth_agrees():
     """refine: the run reported is the first whose estimated error meets the bound; its true error
     against the exact solution meets the bound too, and lies within the estimate's factor of 3."""
@@ -330,6 +331,7 @@ def test_a_large_motion_holds_the_bound_once_refined_or_its_estimate_says_it_doe
     assert true / AGREEMENT <= est        # on the safe side of the factor
 
 
+@pytest.mark.deep                   # 12 s: in CI's deep pass
 def test_a_scene_s_netlist_file_is_the_refined_run_it_reports(tmp_path, monkeypatch):
     """With refine = true the written netlist is the run reported: its step cap, not the preset's."""
     from analogy.scenes.run import run_scene

@@ -67,6 +67,7 @@ def test_the_finite_elements_give_a_loaded_cantilever_s_frequency_equation():
     assert np.all(rel <= (lam / ELEMENTS) ** 4 / 720), rel
 
 
+@pytest.mark.deep                   # 14 s with its fixture: in CI's deep pass
 def test_a_lock_in_the_tip_frame_is_a_clamp_and_one_in_the_axis_frame_is_not(tip4):
     """Both joints locked at (0.3, 0.5), no gravity: a clamped frame. The tip frame's lowest two
     frequencies come to within 1e-3 of the finite elements' 2.2806 and 10.143 Hz at 4 modes a
