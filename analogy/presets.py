@@ -84,14 +84,11 @@ class Preset:
         see :mod:`analogy.solvers.transient`): on flex2 its error is 0.13·(ω·h)² of the
         peak, so this keeps it under 5% of the bound.
     behavioural_options, behavioural_max_steps :
-        ``.options`` and step cap t_stop/behavioural_max_steps for circuits with
-        behavioural parts (the nonlinear circuits). Tight reltol with trtol = 1 makes
-        ngspice 39 stop these with "timestep too small" at the first steps, so they keep
-        ngspice's default tolerances and take their accuracy from the step cap. pivrel = 0.1
-        (default 1e-3): a URDF arm's circuit starts at rest, where most entries of its
-        Jacobian are zero; the pivots ngspice orders by then grow too small as the arm
-        moves ("singular matrix" at 0.55 s on the Panda), and the tighter threshold
-        re-pivots instead.
+        ``.options`` for circuits with behavioural parts (the nonlinear circuits), and their step cap
+        t_stop/behavioural_max_steps where the motion gives no step (closed chains, a motion the ODE
+        could not integrate). An open chain's step comes from its motion's error coefficients
+        (:mod:`analogy.solvers.motion_step`); its options make ngspice's error fall as h² there:
+        pivrel = 0.5, reltol a thousandth of the bound, the truncation check off (trtol).
 
     The absolute tolerances in *spice_options* (``abstol``, ``vntol``, ``chgtol``) are
     relative to the circuit's own current, velocity and charge scales, so the netlist
@@ -133,7 +130,8 @@ PRESETS = {
         steps=100, max_steps=50, ode_method="LSODA", ode_rtol=1e-6, phase_step=0.5, first_phase_step=0.02,
         step_budget=1_000_000, work_budget=1e7, calibrated=True, decay_step=0.5,
         description="better than 1e-3 of the peak, lowest run time", bound=1e-3,
-        behavioural_options={"method": "trap", "pivrel": 0.1}, behavioural_max_steps=500),
+        behavioural_options={"method": "trap", "pivrel": 0.5, "trtol": 1e6, "reltol": 1e-6, "abstol": 1e-5,
+                             "vntol": 1e-5}, behavioural_max_steps=500),
     "accurate": Preset(
         "accurate",
         # Measured against the exact solution on every built-in scene: worst 2.1e-7 of the
@@ -143,7 +141,15 @@ PRESETS = {
         steps=1000, max_steps=20000, ode_method="DOP853", ode_rtol=1e-12,
         phase_step=0.016, first_phase_step=3e-4, step_budget=20_000_000, calibrated=True, decay_step=0.5,
         description="better than 1e-6 of the peak", bound=1e-6,
-        behavioural_options={"method": "trap", "pivrel": 0.1}, behavioural_max_steps=20000),
+        # Circuits with behavioural parts take their step from their motion (solvers/motion_step.py), and
+        # ngspice's truncation check is off (trtol): at a tight reltol it collapsed the step at the first
+        # steps. pivrel = 0.5: at 0.1 or ngspice's 1e-3 the charges' auxiliary rows (no diagonal) kept
+        # stale pivots, the step collapsed mid-run at reltol ≤ 1e-4 and the error stopped falling with h.
+        # reltol 1e-3 of the bound: Newton's remainder stays out of the error (2-DOF swing: 2.9e-7,
+        # 7.4e-8, 1.8e-8, 4.6e-9 as the step halves from t_stop/20000). vntol 1e-7 of the velocity
+        # scale: at 1e-9 the hanging double pendulum's step collapsed at t = 0.066 s on rounding.
+        behavioural_options={"method": "trap", "pivrel": 0.5, "trtol": 1e6, "reltol": 1e-9, "abstol": 1e-7,
+                             "vntol": 1e-7}, behavioural_max_steps=20000),
 }
 
 

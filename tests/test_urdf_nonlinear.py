@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import shutil
 import subprocess
-from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -18,7 +17,7 @@ from analogy.presets import PRESETS
 from analogy.results.metrics import output_errors
 from analogy.solvers.rawfile import read_printed
 from analogy.solvers.spice import session, solve_spice
-from analogy.solvers.transient import netlist
+from analogy.solvers.transient import netlist, refined
 from analogy.waveforms import Sine
 
 from test_urdf import AGREEMENT, BENCH, random_tree_urdf
@@ -180,20 +179,20 @@ def test_the_ur5_s_nonlinear_circuit_keeps_the_accurate_bound_against_pinocchio(
 @pytest.mark.ngspice
 @pytest.mark.deep
 def test_the_panda_s_nonlinear_circuit_converges_as_the_trapezoidal_rule_to_pinocchio():
-    """At the accurate step cap (t_stop/20000) the wrist joints miss 1e-6 of their own peaks
-    (2.8e-6 measured, flagged by compare with exit 3); the error is the trapezoidal rule's
-    h², not the circuit's: half the step gives a quarter of it, within the bound."""
+    """At the step from its motion's error coefficients the Panda's swing keeps 1e-6 of each joint's
+    own peak against Pinocchio (at the old cap t_stop/20000 its wrist missed: 2.8e-6); the error
+    is the trapezoidal rule's h², not the circuit's: half the step gives a quarter of it."""
     system, pm, hold, amplitudes = _swing("panda")
     accurate = PRESETS["accurate"]
     errors = []
-    for steps in (accurate.behavioural_max_steps, 2 * accurate.behavioural_max_steps):
-        run = solve_spice(system, preset=replace(accurate, behavioural_max_steps=steps))
+    for p in (accurate, refined(accurate, tolerances=False)):
+        run = solve_spice(system, preset=p)
         rates, angles = _pinocchio_rates(system, pm, hold, amplitudes, run.time)
         assert np.ptp(angles, axis=0).max() > 3.0
         errors.append(np.max(output_errors(system.joint_rates(run.voltages), rates)[1]))
-    # h² halved twice: 4 within a third either way (the cap binds over the whole run)
+    # h² halved: 4 within a third either way (the step binds over the whole run)
     assert 4 / 1.33 <= errors[0] / errors[1] <= 4 * 1.33, errors
-    assert errors[1] <= accurate.bound, errors
+    assert errors[0] <= accurate.bound, errors
 
 
 @pytest.mark.ngspice

@@ -18,6 +18,7 @@ from ..circuit.spice_numbers import spice_number
 from ..errors import InputError, SimulationError
 from .error_constants import (CALIBRATED_MAX_STEPS, CALIBRATED_TOPOLOGIES, FLOOR_LIMIT, SAFETY, SERIAL_NODE_LIMIT,
                               calibrated_options, calibrated_reltol)
+from .motion_step import motion_step
 from ..presets import Preset
 from ..presets import preset as get_preset
 
@@ -233,7 +234,8 @@ def _phase_cap(p: Preset, t_stop: float, scales: Scales, operations: float | Non
 def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | None, *,
                        behavioural: bool = False, coupled: bool = False, constrained: bool = False,
                        breakpoints: np.ndarray | None = None, loosen: float = 1.0,
-                       custom: bool = False, operations: float | None = None) -> TransientSettings:
+                       custom: bool = False, operations: float | None = None,
+                       motion: float | None = None) -> TransientSettings:
     """The transient settings of a circuit with *scales* over *t_stop* at *preset*.
 
     The absolute tolerances are the preset's relative ones times the circuit's current,
@@ -274,6 +276,9 @@ def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | Non
     operations : float, optional
         The circuit's operations a time point (:func:`analogy.circuit.elements.point_operations`; default n³):
         the phase cap is not taken past the preset's operation budget.
+    motion : float, optional
+        The step a behavioural circuit's own motion asks (:func:`~analogy.solvers.motion_step.motion_step`):
+        it replaces the cap t_stop/``preset.behavioural_max_steps``.
     """
     p = get_preset(preset)
     opts = dict(p.behavioural_options if behavioural else p.spice_options)
@@ -292,6 +297,12 @@ def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | Non
         opts["reltol"] = f"{min(float(opts.get('reltol', NGSPICE_RELTOL)), 10 * p.bound):.3g}"
     tmax = t_stop / (p.behavioural_max_steps if behavioural else
                      CALIBRATED_MAX_STEPS if calibrated else p.max_steps)
+    if behavioural and motion is not None and motion > 0:       # NaN: no motion, the cap stays
+        # as the phase cap: steps past the step or operation budget are not bought, and the run is judged
+        points = t_stop / motion
+        each = float(scales.size) ** 3 if operations is None and scales is not None else (operations or 0.0)
+        if points <= p.step_budget and points * each <= p.operation_budget:
+            tmax = min(motion, t_stop / p.steps)
     tstep = t_stop / p.steps
     first = NGSPICE_FIRST_STEP * tstep
     if scales is not None:
@@ -418,10 +429,14 @@ def circuit_settings(system, c: Circuit, preset, loosen: float = 1.0) -> Transie
     loosen : float
         Factor on abstol and vntol (the retries after a collapsed step).
     """
-    return transient_settings(preset, system.t_stop, system_scales(system), behavioural=bool(c.behavioural),
+    p = get_preset(preset)
+    motion = None
+    if c.behavioural and not c.constraints and getattr(system, "kind", None) == "nonlinear":
+        motion = motion_step(system, p.bound, SAFETY, timeout=p.timeout)
+    return transient_settings(p, system.t_stop, system_scales(system), behavioural=bool(c.behavioural),
                               coupled=bool(c.couplings), constrained=bool(c.constraints),
                               breakpoints=system.breakpoints(), loosen=loosen, custom=beyond_calibration(system),
-                              operations=point_operations(system))
+                              operations=point_operations(system), motion=motion)
 
 
 def netlist(system, preset: str | Preset = "accurate", save: Iterable[str] | None = None,
