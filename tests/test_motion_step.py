@@ -28,20 +28,42 @@ def test_a_small_swing_errs_as_the_trapezoidal_phase_drift_of_its_oscillation():
     jac = system.jacobian(np.zeros(1), np.zeros(1), np.zeros(1))
     omega = math.sqrt(-jac[1, 0])
     crest = (math.floor((omega * system.t_stop - math.pi / 2) / math.pi) * math.pi + math.pi / 2) / omega
-    coefficient, peak, accel = error_coefficients(system)
-    assert coefficient[0] / peak[0] == pytest.approx(omega ** 3 * crest / 12, rel=0.01)
-    assert accel[0] / peak[0] == pytest.approx(omega, rel=0.01)            # r'' = ω·R at its crest
+    errors = error_coefficients(system)
+    assert np.max(errors.relative[:, 0]) == pytest.approx(omega ** 3 * crest / 12, rel=0.01)
+    assert errors.curvature[0] == pytest.approx(omega, rel=0.01)            # r'' = ω·R at its crest
 
 
 def test_the_step_holds_every_rate_within_its_share_of_the_bound():
     """h = √(bound/SAFETY·peak/max|E|) per joint, the smallest taken; and the interpolation onto
     the print points (h²/8·max|r''|) is held alike."""
     system = _pendulum(1e-3)
-    coefficient, peak, accel = error_coefficients(system)
+    errors = error_coefficients(system)
     bound = PRESETS["accurate"].bound
     h = motion_step(system, bound, SAFETY)
-    worst = max(h ** 2 * coefficient[0] / peak[0], h ** 2 / 8 * accel[0] / peak[0])
+    worst = max(h ** 2 * np.max(errors.relative), h ** 2 / 8 * errors.curvature[0])
     assert worst == pytest.approx(bound / SAFETY, rel=1e-12)     # the longest step that holds both
+
+
+def test_a_decay_that_is_over_sets_no_uniform_step():
+    """The xArm7's default (g = 0) starts with decays (the fastest 68 µs) that are over within a tenth of its 0.5 s:
+    the rule's error coefficient there is more than TRANSIENT_SHARE times the rest of the run's, so
+    no uniform step past TRANSIENT_STEPS times the preset's cap is bought from it (130,000 steps, at
+    which ngspice's step collapsed on rounding); the preset's cap runs instead, and the run is judged."""
+    from analogy.circuit.description import circuit
+    from analogy.circuit.scales import system_scales
+    from analogy.solvers.motion_step import TRANSIENT_SHARE, settling_time
+    from analogy.solvers.transient import circuit_settings
+    system = analogy.scene("xarm7").replace(dynamics="nonlinear").system()
+    bound = PRESETS["accurate"].bound
+    settle = settling_time(system_scales(system), bound, system.t_stop)
+    assert 0 < settle < 0.1 * system.t_stop
+    errors = error_coefficients(system)
+    late = errors.time >= settle
+    assert np.max(errors.relative) > TRANSIENT_SHARE * np.max(errors.relative[late])
+    assert math.isnan(motion_step(system, bound, SAFETY, transient_steps=5 * 20000))
+    assert system.t_stop / motion_step(system, bound, SAFETY) > 5 * 20000         # 130,000 uniform steps
+    settings = circuit_settings(system, circuit(system), "accurate")
+    assert settings.max_step == pytest.approx(system.t_stop / PRESETS["accurate"].behavioural_max_steps)
 
 
 @pytest.mark.ngspice

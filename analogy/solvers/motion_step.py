@@ -14,7 +14,7 @@ at :data:`MOTION_RTOL`, its third derivatives from its samples by differences wi
 force segment (ngspice restarts its step at every breakpoint).
 
 This holds where ngspice's Newton solve and its pivots are not the larger error: the
-nonlinear circuits therefore run with pivrel = 0.5 and a reltol well under the bound
+nonlinear circuits therefore run with pivrel = 0.5 and reltol at the bound
 (:data:`~analogy.presets.PRESETS`); under ngspice's defaults the error stopped falling with
 the step and a tight reltol collapsed the step (README, "Nonlinear dynamics inside SPICE").
 """
@@ -23,21 +23,31 @@ from __future__ import annotations
 
 import math
 import weakref
+from typing import NamedTuple
 
 import numpy as np
 
 from ..circuit.scales import system_scales
 from ..errors import SimulationError
 
-__all__ = ["MOTION_POINTS", "MOTION_RTOL", "error_coefficients", "motion_step"]
+__all__ = ["MOTION_LIMIT", "MOTION_POINTS", "MOTION_RTOL", "TRANSIENT_SHARE", "MotionErrors", "error_coefficients",
+           "motion_step", "settling_time"]
 
 #: Points the motion is sampled at, at least; more where its fastest rate asks.
 MOTION_POINTS = 1000
-#: The ODE's rtol for the motion: third differences of its samples must stand above its error.
-MOTION_RTOL = 1e-11
+#: The ODE's rtol for the motion: three differences at about a third of a radian raise its error 27 times, to 3e-4 of r‴.
+MOTION_RTOL = 1e-5
+#: Samples the motion may take, at most: past it (over about 2,000 radians of the fastest rate) the
+#: estimate is not made, and the preset's cap t_stop/behavioural_max_steps runs, judged as ever. Each
+#: sample costs an ODE stretch and a Jacobian: about 0.3 ms for a one-joint symbolic model.
+MOTION_LIMIT = 6000
 #: Samples per radian of the fastest rate (about 19 a period: the error coefficients agree with 31 to three digits on serial2 and the Panda).
 _PER_RADIAN = 3.0
-_LIMIT = 200_000
+#: A decay over early in the run that asks this many times the error coefficient of the rest of it
+#: (a step half as long) buys its uniform step only up to the caller's step count: the xArm7's 68 µs
+#: decay at the start asked 130,000 steps over 0.5 s, where ngspice's step collapsed on rounding
+#: (h = 3.8e-6 s) and the retry took 135 s; the hanging double pendulum's 60,000 kept 6.2e-7 in 5 s.
+TRANSIENT_SHARE = 4.0
 
 _cache: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
 
@@ -69,10 +79,17 @@ def _jacobian(system, x, v, drive) -> np.ndarray:
     return out
 
 
-def error_coefficients(system, timeout: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per joint, (max_t |E_r(t)|, max |r|, max |r''|): the trapezoidal rule's global error over h²
-    in each joint rate, the rate's peak, and its acceleration's (linear interpolation onto the
-    print points errs h²/8 of that).
+class MotionErrors(NamedTuple):
+    """The trapezoidal rule's global error over h² along a motion, per joint rate and over its own peak."""
+
+    time: np.ndarray          # (m,) the samples [s]
+    relative: np.ndarray      # (m, n) |E_r(t)|/max|r|
+    curvature: np.ndarray     # (n,) max|r''|/max|r| [1/s²]: linear interpolation between steps errs h²/8 of it
+
+
+def error_coefficients(system, timeout: float | None = None) -> MotionErrors:
+    """The trapezoidal rule's global error over h² in each joint rate along *system*'s motion, over the
+    rate's peak, and the rates' curvature.
 
     Parameters
     ----------
@@ -88,7 +105,11 @@ def error_coefficients(system, timeout: float | None = None) -> tuple[np.ndarray
         return cached
     n = system.dof
     fastest = system_scales(system).omega_max
-    points = int(min(_LIMIT, max(MOTION_POINTS, _PER_RADIAN * fastest * system.t_stop)))
+    points = max(MOTION_POINTS, _PER_RADIAN * fastest * system.t_stop)
+    if not points <= MOTION_LIMIT:
+        raise SimulationError(f"the motion turns through {fastest * system.t_stop:.3g} rad, past what its "
+                              "error coefficients are sampled for")
+    points = int(points)
     edges = np.array([t1 for _, t1 in system.segments()][:-1], dtype=float)
     t = np.unique(np.concatenate([np.linspace(0.0, system.t_stop, points), edges]))
     motion = solve_ode(system, t, "DOP853", rtol=MOTION_RTOL, positions=True, timeout=timeout)
@@ -96,12 +117,13 @@ def error_coefficients(system, timeout: float | None = None) -> tuple[np.ndarray
     drive = system.node_currents(t)
     masses = np.array([system.node_mass(xk) for xk in x])
     p = np.einsum("kab,kb->ka", masses, v)
-    accel = np.array([system.flow(x[k], v[k], drive[k])[0] for k in range(t.size)])
-    x3, p3 = np.zeros_like(x), np.zeros_like(p)
+    accel, x3, p3 = np.zeros_like(x), np.zeros_like(x), np.zeros_like(p)
     bounds = np.concatenate([[0.0], edges, [system.t_stop]])
     for t0, t1 in zip(bounds[:-1], bounds[1:]):
         i = np.flatnonzero((t >= t0) & (t <= t1))
         x3[i], p3[i] = _third(t[i], x[i]), _third(t[i], p[i])
+        if i.size >= 3:
+            accel[i] = np.gradient(v[i], t[i], axis=0, edge_order=2)
     # the local error of (x, p) as one of (x, v): δv = M'⁻¹(δp − (∂M'/∂x·δx)·v)
     source = np.zeros((t.size, 2 * n))
     for k in range(t.size):
@@ -123,16 +145,42 @@ def error_coefficients(system, timeout: float | None = None) -> tuple[np.ndarray
         rhs = (eye + 0.5 * h * jac) @ error[k - 1] + 0.5 * h * (source[k - 1] + source[k])
         error[k] = np.linalg.solve(eye - 0.5 * h * nxt, rhs)
         jac = nxt
-    result = (np.max(np.abs(system.joint_rates(error[:, n:])), axis=0), np.max(np.abs(motion.rates), axis=0),
-              np.max(np.abs(system.joint_rates(accel)), axis=0))
+    peak = np.max(np.abs(motion.rates), axis=0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        result = MotionErrors(t, np.abs(system.joint_rates(error[:, n:])) / peak,
+                              np.max(np.abs(system.joint_rates(accel)), axis=0) / peak)
     _cache[system] = result
     return result
 
 
-def motion_step(system, bound: float, safety: float, timeout: float | None = None) -> float:
-    """The step h with every joint rate's global error h²·max|E_r| within bound/*safety* of its own peak,
+def settling_time(scales, bound: float, horizon: float) -> float:
+    """When every decay larger than 10·*bound* of the peak that falls under it within a tenth of
+    *horizon* has done so (0 without one) [s]: the end of a start's fast transient.
+
+    Parameters
+    ----------
+    scales : Scales
+        The system's scales (its decays and their shares).
+    bound : float
+        The preset's bound.
+    horizon : float
+        The run's t_stop [s].
+    """
+    shares = scales.shares[:scales.decays.size]
+    big = (shares > 10 * bound) & (scales.decays > 0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        times = np.log(shares[big] / (10 * bound)) / scales.decays[big]
+    fast = times[times < 0.1 * horizon]
+    return float(np.max(fast)) if fast.size else 0.0
+
+
+def motion_step(system, bound: float, safety: float, timeout: float | None = None,
+                transient_steps: float = math.inf) -> float:
+    """The step h with every joint rate's global error h²·|E_r(t)| within bound/*safety* of its own peak,
     and the linear interpolation onto the print points (h²/8·max|r''|) too; inf where nothing
-    errs (a motion the rule follows exactly), NaN where the motion could not be integrated.
+    errs (a motion the rule follows exactly); NaN where the motion could not be integrated, or
+    where a decay that is over early would set it past *transient_steps* (:data:`TRANSIENT_SHARE`):
+    the caller keeps its cap then, and the run is judged.
 
     Parameters
     ----------
@@ -144,12 +192,20 @@ def motion_step(system, bound: float, safety: float, timeout: float | None = Non
         The factor held in hand (the steps ngspice shortens at the start and at breakpoints).
     timeout : float, optional
         Wall-time limit of the motion's integration [s].
+    transient_steps : float
+        The most steps over t_stop a decay that is over early may buy (:data:`TRANSIENT_SHARE`).
     """
     try:
-        coefficient, peak, accel = error_coefficients(system, timeout)
+        errors = error_coefficients(system, timeout)
     except SimulationError:
         return math.nan          # no motion to size the step from: the caller keeps its cap
-    with np.errstate(divide="ignore", invalid="ignore"):
-        steps = np.minimum(np.sqrt(bound / safety * peak / coefficient), np.sqrt(8.0 * bound / safety * peak / accel))
-    steps = steps[(peak > 0) & ~np.isnan(steps)]
-    return float(np.min(steps)) if steps.size else math.inf
+    relative = np.where(np.isfinite(errors.relative), errors.relative, 0.0)
+    worst = float(np.max(relative)) if relative.size else 0.0
+    settle = settling_time(system_scales(system), bound, system.t_stop)
+    late = errors.time >= settle
+    transient = settle > 0 and np.any(late) and worst > TRANSIENT_SHARE * float(np.max(relative[late]))
+    curvature = float(np.max(np.where(np.isfinite(errors.curvature), errors.curvature, 0.0), initial=0.0))
+    with np.errstate(divide="ignore"):
+        step = min(math.sqrt(bound / safety / worst) if worst > 0 else math.inf,
+                   math.sqrt(8.0 * bound / safety / curvature) if curvature > 0 else math.inf)
+    return math.nan if transient and system.t_stop / step > transient_steps else step

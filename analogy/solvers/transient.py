@@ -49,6 +49,9 @@ ROUNDING_STEPS = 4.0
 
 #: The second run of an error estimate shortens the step cap and the first step this many times.
 REFINE = 2.0
+#: A decay over early in a nonlinear run buys at most this many times the preset's behavioural step cap
+#: (:data:`~analogy.solvers.motion_step.TRANSIENT_SHARE`).
+TRANSIENT_STEPS = 5.0
 #: The options of ngspice's step control tightened by a refinement: its truncation error per step
 #: grows as h³ (trapezoidal rule and gear-2), so these REFINE³ times tighter halve the steps it
 #: chooses. abstol is tightened too, but in process only down to the rounding floor of the first
@@ -432,7 +435,8 @@ def circuit_settings(system, c: Circuit, preset, loosen: float = 1.0) -> Transie
     p = get_preset(preset)
     motion = None
     if c.behavioural and not c.constraints and getattr(system, "kind", None) == "nonlinear":
-        motion = motion_step(system, p.bound, SAFETY, timeout=p.timeout)
+        motion = motion_step(system, p.bound, SAFETY, timeout=p.timeout,
+                             transient_steps=TRANSIENT_STEPS * p.behavioural_max_steps)
     return transient_settings(p, system.t_stop, system_scales(system), behavioural=bool(c.behavioural),
                               coupled=bool(c.couplings), constrained=bool(c.constraints),
                               breakpoints=system.breakpoints(), loosen=loosen, custom=beyond_calibration(system),
