@@ -30,8 +30,8 @@ import numpy as np
 from ..circuit.scales import system_scales
 from ..errors import SimulationError
 
-__all__ = ["MOTION_LIMIT", "MOTION_POINTS", "MOTION_RTOL", "TRANSIENT_SHARE", "MotionErrors", "error_coefficients",
-           "motion_step", "settling_time"]
+__all__ = ["MOTION_LIMIT", "MOTION_POINTS", "MOTION_RTOL", "TRANSIENT_SHARE", "TRANSIENT_STEPS", "MotionErrors",
+           "error_coefficients", "motion_step", "settling_time"]
 
 #: Points the motion is sampled at, at least; more where its fastest rate asks.
 MOTION_POINTS = 1000
@@ -48,6 +48,8 @@ _PER_RADIAN = 3.0
 #: decay at the start asked 130,000 steps over 0.5 s, where ngspice's step collapsed on rounding
 #: (h = 3.8e-6 s) and the retry took 135 s; the hanging double pendulum's 60,000 kept 6.2e-7 in 5 s.
 TRANSIENT_SHARE = 4.0
+#: Such a decay buys at most this many times a preset's behavioural step cap (t_stop/20000 at accurate).
+TRANSIENT_STEPS = 5.0
 
 _cache: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
 

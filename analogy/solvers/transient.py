@@ -18,7 +18,7 @@ from ..circuit.spice_numbers import spice_number
 from ..errors import InputError, SimulationError
 from .error_constants import (CALIBRATED_MAX_STEPS, CALIBRATED_TOPOLOGIES, FLOOR_LIMIT, SAFETY, SERIAL_NODE_LIMIT,
                               calibrated_options, calibrated_reltol)
-from .motion_step import motion_step
+from .motion_step import TRANSIENT_STEPS, motion_step
 from ..presets import Preset
 from ..presets import preset as get_preset
 
@@ -49,9 +49,6 @@ ROUNDING_STEPS = 4.0
 
 #: The second run of an error estimate shortens the step cap and the first step this many times.
 REFINE = 2.0
-#: A decay over early in a nonlinear run buys at most this many times the preset's behavioural step cap
-#: (:data:`~analogy.solvers.motion_step.TRANSIENT_SHARE`).
-TRANSIENT_STEPS = 5.0
 #: The options of ngspice's step control tightened by a refinement: its truncation error per step
 #: grows as h³ (trapezoidal rule and gear-2), so these REFINE³ times tighter halve the steps it
 #: chooses. abstol is tightened too, but in process only down to the rounding floor of the first
