@@ -88,7 +88,7 @@ class Preset:
         t_stop/behavioural_max_steps where the motion gives no step (closed chains, a motion the ODE
         could not integrate). An open chain's step comes from its motion's error coefficients
         (:mod:`analogy.solvers.motion_step`); its options make ngspice's error fall as h² there:
-        pivrel = 0.5, reltol at the bound, the truncation check off (trtol).
+        pivrel = 0.9, reltol at the bound, the truncation check off (trtol).
 
     The absolute tolerances in *spice_options* (``abstol``, ``vntol``, ``chgtol``) are
     relative to the circuit's own current, velocity and charge scales, so the netlist
@@ -130,7 +130,7 @@ PRESETS = {
         steps=100, max_steps=50, ode_method="LSODA", ode_rtol=1e-6, phase_step=0.5, first_phase_step=0.02,
         step_budget=1_000_000, work_budget=1e7, calibrated=True, decay_step=0.5,
         description="better than 1e-3 of the peak, lowest run time", bound=1e-3,
-        behavioural_options={"method": "trap", "pivrel": 0.5, "trtol": 1e6, "reltol": 1e-3, "abstol": 1e-5,
+        behavioural_options={"method": "trap", "pivrel": 0.9, "trtol": 1e6, "reltol": 1e-3, "abstol": 1e-5,
                              "vntol": 1e-5}, behavioural_max_steps=500),
     "accurate": Preset(
         "accurate",
@@ -143,13 +143,14 @@ PRESETS = {
         description="better than 1e-6 of the peak", bound=1e-6,
         # Circuits with behavioural parts take their step from their motion (solvers/motion_step.py), and
         # ngspice's truncation check is off (trtol): at a tight reltol it collapsed the step at the first
-        # steps. pivrel = 0.5: at 0.1 or ngspice's 1e-3 the charges' auxiliary rows (no diagonal) kept
-        # stale pivots, the step collapsed mid-run at reltol ≤ 1e-4 and the error stopped falling with h.
-        # reltol at the bound: Newton's remainder stays out of the error (a thrown 2-DOF arm: 2.9e-7,
+        # steps. pivrel = 0.9: at 0.1 or ngspice's 1e-3 the charges' auxiliary rows (no diagonal) kept
+        # stale pivots, the step collapsed mid-run at reltol ≤ 1e-4 and the error stopped falling with h;
+        # at 0.5 serial3 swung under gravity still collapsed at t = 0.504 s on the pivots' rounding.
+        # reltol at the bound: Newton's remainder stays out of the error (2-DOF, steps (10, 5) from rest: 2.9e-7,
         # 7.4e-8, 1.8e-8, 4.5e-9 as the step halves from 2.5e-4 s, the same at reltol 1e-9; at 1e-3,
         # 4.0e-7 to 9.3e-9). vntol 1e-7 of the velocity
         # scale: at 1e-9 the hanging double pendulum's step collapsed at t = 0.066 s on rounding.
-        behavioural_options={"method": "trap", "pivrel": 0.5, "trtol": 1e6, "reltol": 1e-6, "abstol": 1e-7,
+        behavioural_options={"method": "trap", "pivrel": 0.9, "trtol": 1e6, "reltol": 1e-6, "abstol": 1e-7,
                              "vntol": 1e-7}, behavioural_max_steps=20000),
 }
 

@@ -14,7 +14,7 @@ at :data:`MOTION_RTOL`, its third derivatives from its samples by differences wi
 force segment (ngspice restarts its step at every breakpoint).
 
 This holds where ngspice's Newton solve and its pivots are not the larger error: the
-nonlinear circuits therefore run with pivrel = 0.5 and reltol at the bound
+nonlinear circuits therefore run with pivrel = 0.9 and reltol at the bound
 (:data:`~analogy.presets.PRESETS`); under ngspice's defaults the error stopped falling with
 the step and a tight reltol collapsed the step (README, "Nonlinear dynamics inside SPICE").
 """
