@@ -8,11 +8,13 @@ from typing import Literal
 
 from .errors import InputError
 
-__all__ = ["DEFAULT_T_STOP", "Preset", "PRESETS", "PresetName", "preset", "tolerance_preset", "TOLERANCES",
+__all__ = ["DEFAULT_SOLVERS", "DEFAULT_T_STOP", "Preset", "PRESETS", "PresetName", "preset", "tolerance_preset", "TOLERANCES",
            "TOLERANCE_RANGE"]
 
 #: End of the simulated interval [s] when none is given: the same for scenes, systems and the CLI.
 DEFAULT_T_STOP = 10.0
+#: The solvers a scene or a comparison runs unless told otherwise.
+DEFAULT_SOLVERS: tuple[str, ...] = ("spice", "ode", "exact")
 
 #: About 5 minutes of ngspice 39 on one 2 GHz core, which steps Σᵢ cᵢ² operations at about
 #: 1.7e8 per second (serial20 to serial100 over 20,000 points: 1.0 s and 118 s).

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Mapping
 
 from ..errors import InputError
 from ..model.dynamics import DYNAMICS, DynamicsKind
-from ..presets import DEFAULT_T_STOP, PresetName
+from ..presets import DEFAULT_SOLVERS, DEFAULT_T_STOP, PresetName
 from ..presets import preset as get_preset
 from .build import scene_model, scene_system, scene_systems, symbolic_model
 from .paths import inside_folder
@@ -112,7 +112,7 @@ class Scene:
     netlist_file: str | None = None
     csv_file: str | None = None
     plot_file: str | None = None
-    solvers: tuple[SolverName, ...] = ("spice", "ode", "exact")
+    solvers: tuple[SolverName, ...] = DEFAULT_SOLVERS  # type: ignore[assignment]
     preset: PresetName = "accurate"
     errors: bool = True
     estimate: bool = False

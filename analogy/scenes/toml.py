@@ -43,7 +43,7 @@ from ..model.dynamics import DYNAMICS
 from ..model.urdf_file import read_urdf
 from ..model.expressions import parse_number
 from ..model.quantities import ANY, COORDINATE, RATE
-from ..presets import preset as get_preset
+from ..presets import DEFAULT_SOLVERS, preset as get_preset
 from ..results.output import check_plot_path
 from ..solvers.registry import SOLVER_NAMES
 from .paths import check_relative_name
@@ -271,7 +271,7 @@ def scene_from_table(data: dict, source="scene.toml") -> Scene:
     needs = bool(outputs["joint_rates"] or outputs["node_voltages"] or outputs["element_currents"])
     use = solvers["use"]
     if use is None:
-        use = ("spice", "ode", "exact") if needs else ()
+        use = DEFAULT_SOLVERS if needs else ()
     if needs and not use:
         raise ctx.error("[solvers] use", "the outputs need a solver: choose spice, ode or exact")
     if use and not needs:

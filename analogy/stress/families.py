@@ -14,7 +14,7 @@ from ..errors import InputError
 from ..model.joint import JointSpace
 from ..model.urdf import urdf_model
 from ..model.urdf_robots import URDF_ROBOTS, urdf_robot
-from ..presets import PRESETS, Preset
+from ..presets import DEFAULT_SOLVERS, PRESETS, Preset
 
 __all__ = ["StressCase", "FAMILIES", "FAMILY_TITLES", "ALL_FAMILIES", "cases", "singular_q1", "spd_with_spectrum"]
 
@@ -93,7 +93,7 @@ def spd_with_spectrum(eigenvalues, seed: int = 0) -> np.ndarray:
     return 0.5 * (m + m.T)
 
 
-def _runs(preset: Preset, solvers=("spice", "ode", "exact")) -> tuple:
+def _runs(preset: Preset, solvers=DEFAULT_SOLVERS) -> tuple:
     return tuple((name, preset) for name in solvers)
 
 

@@ -10,7 +10,7 @@ import numpy as np
 
 from ..circuit.currents import trajectory_currents
 from ..errors import InputError
-from ..presets import Preset
+from ..presets import DEFAULT_SOLVERS, Preset
 from ..presets import preset as get_preset
 from ..solvers.registry import SOLVER_NAMES, run_many, solver
 from .estimate import MAX_REFINEMENTS, estimated_errors, refined_run
@@ -29,9 +29,6 @@ if TYPE_CHECKING:
 
 
 __all__ = ["Comparison", "compare", "compare_many", "DEFAULT_SOLVERS", "SINGULAR_CONDITION"]
-
-#: The solvers a comparison runs unless told otherwise.
-DEFAULT_SOLVERS: tuple[str, ...] = ("spice", "ode", "exact")
 
 
 @dataclass(eq=False, slots=True)
