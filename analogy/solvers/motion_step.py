@@ -63,6 +63,18 @@ def _third(t: np.ndarray, y: np.ndarray) -> np.ndarray:
     return y
 
 
+def _decay_samples(scales, t_stop: float) -> np.ndarray:
+    """Samples that follow the fastest decay from the start: spaced 2 % of t apart from a third of its
+    time constant on (a decay of rate β needs about 13/β to fall from the peak to 1e-6), where the
+    uniform samples are too sparse for it (Talos' arm: a 2 ms decay, 4 ms samples, an error 8 times
+    the estimate)."""
+    rate = float(np.max(scales.decays, initial=0.0))
+    first = 1.0 / (_PER_RADIAN * rate) if rate > 0 else math.inf
+    if not first < t_stop / MOTION_POINTS:
+        return np.zeros(0)
+    return np.geomspace(first, t_stop, int(math.ceil(math.log(t_stop / first) / math.log(1.02))) + 1)
+
+
 def _jacobian(system, x, v, drive) -> np.ndarray:
     """∂(x', v')/∂(x, v): the model's own where it has derivatives, else central differences of the flow."""
     n = system.dof
@@ -106,14 +118,15 @@ def error_coefficients(system, timeout: float | None = None) -> MotionErrors:
     if cached is not None:
         return cached
     n = system.dof
-    fastest = system_scales(system).omega_max
+    scales = system_scales(system)
+    fastest = scales.omega_max
     points = max(MOTION_POINTS, _PER_RADIAN * fastest * system.t_stop)
     if not points <= MOTION_LIMIT:
         raise SimulationError(f"the motion turns through {fastest * system.t_stop:.3g} rad, past what its "
                               "error coefficients are sampled for")
     points = int(points)
     edges = np.array([t1 for _, t1 in system.segments()][:-1], dtype=float)
-    t = np.unique(np.concatenate([np.linspace(0.0, system.t_stop, points), edges]))
+    t = np.unique(np.concatenate([np.linspace(0.0, system.t_stop, points), edges, _decay_samples(scales, system.t_stop)]))
     motion = solve_ode(system, t, "DOP853", rtol=MOTION_RTOL, positions=True, timeout=timeout)
     x, v = motion.positions, motion.voltages
     drive = system.node_currents(t)
