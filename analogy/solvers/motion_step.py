@@ -30,8 +30,7 @@ import numpy as np
 from ..circuit.scales import system_scales
 from ..errors import SimulationError
 
-__all__ = ["MOTION_LIMIT", "MOTION_POINTS", "MOTION_RTOL", "TRANSIENT_SHARE", "TRANSIENT_STEPS", "MotionErrors",
-           "error_coefficients", "motion_step", "settling_time"]
+__all__ = ["MOTION_LIMIT", "MOTION_POINTS", "MOTION_RTOL", "MotionErrors", "error_coefficients", "motion_step"]
 
 #: Points the motion is sampled at, at least; more where its fastest rate asks.
 MOTION_POINTS = 1000
@@ -43,13 +42,6 @@ MOTION_RTOL = 1e-5
 MOTION_LIMIT = 6000
 #: Samples per radian of the fastest rate (about 19 a period: the error coefficients agree with 31 to three digits on serial2 and the Panda).
 _PER_RADIAN = 3.0
-#: A decay over early in the run that asks this many times the error coefficient of the rest of it
-#: (a step half as long) buys its uniform step only up to the caller's step count: the xArm7's 68 µs
-#: decay at the start asked 130,000 steps over 0.5 s, where ngspice's step collapsed on rounding
-#: (h = 3.8e-6 s) and the retry took 135 s; the hanging double pendulum's 60,000 kept 6.2e-7 in 5 s.
-TRANSIENT_SHARE = 4.0
-#: Such a decay buys at most this many times a preset's behavioural step cap (t_stop/20000 at accurate).
-TRANSIENT_STEPS = 5.0
 
 _cache: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
 
@@ -168,34 +160,11 @@ def error_coefficients(system, timeout: float | None = None) -> MotionErrors:
     return result
 
 
-def settling_time(scales, bound: float, horizon: float) -> float:
-    """When every decay larger than 10·*bound* of the peak that falls under it within a tenth of
-    *horizon* has done so (0 without one) [s]: the end of a start's fast transient.
-
-    Parameters
-    ----------
-    scales : Scales
-        The system's scales (its decays and their shares).
-    bound : float
-        The preset's bound.
-    horizon : float
-        The run's t_stop [s].
-    """
-    shares = scales.shares[:scales.decays.size]
-    big = (shares > 10 * bound) & (scales.decays > 0)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        times = np.log(shares[big] / (10 * bound)) / scales.decays[big]
-    fast = times[times < 0.1 * horizon]
-    return float(np.max(fast)) if fast.size else 0.0
-
-
-def motion_step(system, bound: float, safety: float, timeout: float | None = None,
-                transient_steps: float = math.inf) -> float:
+def motion_step(system, bound: float, safety: float, timeout: float | None = None) -> float:
     """The step h with every joint rate's global error h²·|E_r(t)| within bound/*safety* of its own peak,
     and the linear interpolation onto the print points (h²/8·max|r''|) too; inf where nothing
-    errs (a motion the rule follows exactly); NaN where the motion could not be integrated, or
-    where a decay that is over early would set it past *transient_steps* (:data:`TRANSIENT_SHARE`):
-    the caller keeps its cap then, and the run is judged.
+    errs (a motion the rule follows exactly); NaN where the motion could not be integrated (the
+    caller keeps its cap then, and the run is judged).
 
     Parameters
     ----------
@@ -207,8 +176,6 @@ def motion_step(system, bound: float, safety: float, timeout: float | None = Non
         The factor held in hand (the steps ngspice shortens at the start and at breakpoints).
     timeout : float, optional
         Wall-time limit of the motion's integration [s].
-    transient_steps : float
-        The most steps over t_stop a decay that is over early may buy (:data:`TRANSIENT_SHARE`).
     """
     try:
         errors = error_coefficients(system, timeout)
@@ -216,11 +183,8 @@ def motion_step(system, bound: float, safety: float, timeout: float | None = Non
         return math.nan          # no motion to size the step from: the caller keeps its cap
     relative = np.where(np.isfinite(errors.relative), errors.relative, 0.0)
     worst = float(np.max(relative)) if relative.size else 0.0
-    settle = settling_time(system_scales(system), bound, system.t_stop)
-    late = errors.time >= settle
-    transient = settle > 0 and np.any(late) and worst > TRANSIENT_SHARE * float(np.max(relative[late]))
     curvature = float(np.max(np.where(np.isfinite(errors.curvature), errors.curvature, 0.0), initial=0.0))
     with np.errstate(divide="ignore"):
         step = min(math.sqrt(bound / safety / worst) if worst > 0 else math.inf,
                    math.sqrt(8.0 * bound / safety / curvature) if curvature > 0 else math.inf)
-    return math.nan if transient and system.t_stop / step > transient_steps else step
+    return step

@@ -18,7 +18,7 @@ from ..circuit.spice_numbers import spice_number
 from ..errors import InputError, SimulationError
 from .error_constants import (CALIBRATED_MAX_STEPS, CALIBRATED_TOPOLOGIES, FLOOR_LIMIT, SAFETY, SERIAL_NODE_LIMIT,
                               calibrated_options, calibrated_reltol)
-from .motion_step import TRANSIENT_STEPS, motion_step
+from .motion_step import motion_step
 from ..presets import Preset
 from ..presets import preset as get_preset
 
@@ -432,8 +432,7 @@ def circuit_settings(system, c: Circuit, preset, loosen: float = 1.0) -> Transie
     p = get_preset(preset)
     motion = None
     if c.behavioural and not c.constraints and getattr(system, "kind", None) == "nonlinear":
-        motion = motion_step(system, p.bound, SAFETY, timeout=p.timeout,
-                             transient_steps=TRANSIENT_STEPS * p.behavioural_max_steps)
+        motion = motion_step(system, p.bound, SAFETY, timeout=p.timeout)
     return transient_settings(p, system.t_stop, system_scales(system), behavioural=bool(c.behavioural),
                               coupled=bool(c.couplings), constrained=bool(c.constraints),
                               breakpoints=system.breakpoints(), loosen=loosen, custom=beyond_calibration(system),
