@@ -20,6 +20,7 @@ from analogy.model.expressions import parse_expression
 from analogy.study.comparison import compare
 from analogy.results.metrics import relative_error
 from analogy.scenes.builtin import scene
+from analogy.scenes.spec import ModelSpec
 from analogy.scenes.toml import parse_toml
 from analogy.solvers.ode import solve_ode
 from analogy.solvers.reference import NONLINEAR_RTOL
@@ -298,3 +299,20 @@ def test_a_swing_that_collapsed_at_stale_pivots_runs_trapezoidal_within_its_boun
     assert "retried" not in c.results["spice"].message
     assert dict(c.results["spice"].settings.options)["method"] == "trap"
     assert c.max_relative_error("spice") <= 1e-6
+
+
+@pytest.mark.parametrize("robot", ["serial2", "serial3"])
+def test_a_symbolic_model_evaluates_a_stack_of_poses_as_it_does_each_pose(robot):
+    """M(q) and G(q) over 200 random poses at once (what the energy residual takes along a run of
+    hundreds of thousands of points) equal the pose-by-pose values: the same expressions, numpy's
+    vector and scalar paths of sin and cos agreeing to a few units in the last place."""
+    n = int(robot[-1])
+    system = scene("default").replace(model=ModelSpec(robot=robot), q=(0.0,) * n, forces=("step(1)",) * n,
+                                      dynamics="nonlinear", parameters={"g": 9.81}).system()
+    f = system.functions
+    poses = np.random.default_rng(7).uniform(-np.pi, np.pi, (200, system.dof))
+    masses = np.stack([f.mass(q) for q in poses])
+    gravities = np.stack([f.gravity(q) for q in poses])
+    np.testing.assert_allclose(f.masses(poses), masses, rtol=0, atol=8 * np.finfo(float).eps * np.abs(masses).max())
+    np.testing.assert_allclose(f.gravities(poses), gravities, rtol=0,
+                               atol=8 * np.finfo(float).eps * np.abs(gravities).max())

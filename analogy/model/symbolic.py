@@ -424,6 +424,20 @@ class Model:
         def gravity_at(x):
             return np.asarray(g_fn(x), dtype=float).reshape(n)
 
+        def stacked(entries, shape):
+            """The flat *entries* of a stack of poses (m, n) at once, compiled on first use: numpy
+            broadcasts each entry over the stack, a constant one too."""
+            compiled: list = []
+
+            def at(qs):
+                if not compiled:
+                    compiled.append(_lambdify([q], entries, modules="numpy", cse=cse))
+                qs = np.asarray(qs, dtype=float)
+                values = compiled[0](qs.T)
+                out = np.stack([np.broadcast_to(np.asarray(e, dtype=float), qs.shape[:1]) for e in values], axis=-1)
+                return out.reshape(qs.shape[:1] + shape)
+            return at
+
         # Derivatives for the analytic Jacobian of the implicit integrators.
         qm, rm = sp.Matrix(q), sp.Matrix(rates)
         g_vec = gravity if gravity is not None and any(gravity) else sp.zeros(n, 1)
@@ -437,4 +451,6 @@ class Model:
 
         return MechanicalFunctions(mass_at, velocity_at, None if g_fn is None else gravity_at,
                                    constant["damping"] if constant["damping"] is not None
-                                   else np.zeros((n, n)), constant["stiffness"], derivatives_at)
+                                   else np.zeros((n, n)), constant["stiffness"], derivatives_at,
+                                   masses=stacked(list(mass), (n, n)),
+                                   gravities=None if g_fn is None else stacked(list(gravity), (n,)))
