@@ -8,8 +8,8 @@ from typing import Literal
 
 from .errors import InputError
 
-__all__ = ["DEFAULT_SOLVERS", "DEFAULT_T_STOP", "Preset", "PRESETS", "PresetName", "preset", "tolerance_preset", "TOLERANCES",
-           "TOLERANCE_RANGE"]
+__all__ = ["DEFAULT_SOLVERS", "DEFAULT_T_STOP", "Preset", "PRESETS", "PresetName", "preset", "tolerance_preset",
+           "TOLERANCES", "TOLERANCE_RANGE"]
 
 #: End of the simulated interval [s] when none is given: the same for scenes, systems and the CLI.
 DEFAULT_T_STOP = 10.0
@@ -148,10 +148,10 @@ PRESETS = {
         # steps. pivrel = 0.9: at 0.1 or ngspice's 1e-3 the charges' auxiliary rows (no diagonal) kept
         # stale pivots, the step collapsed mid-run at reltol ≤ 1e-4 and the error stopped falling with h;
         # at 0.5 serial3 swung under gravity still collapsed at t = 0.504 s on the pivots' rounding.
-        # reltol at the bound: Newton's remainder stays out of the error (2-DOF, steps (10, 5) from rest: 2.9e-7,
-        # 7.4e-8, 1.8e-8, 4.5e-9 as the step halves from 2.5e-4 s, the same at reltol 1e-9; at 1e-3,
-        # 4.0e-7 to 9.3e-9). vntol 1e-7 of the velocity
-        # scale: at 1e-9 the hanging double pendulum's step collapsed at t = 0.066 s on rounding.
+        # reltol at the bound: Newton's remainder stays out of the error (2-DOF, steps (10, 5) from rest:
+        # 2.9e-7, 7.4e-8, 1.8e-8, 4.5e-9 as the step halves from 2.5e-4 s, the same at reltol 1e-9; at
+        # 1e-3, 4.0e-7 to 9.3e-9). vntol 1e-7 of the velocity scale: at 1e-9 the hanging double
+        # pendulum's step collapsed at t = 0.066 s on rounding.
         behavioural_options={"method": "trap", "pivrel": 0.9, "trtol": 1e6, "reltol": 1e-6, "abstol": 1e-7,
                              "vntol": 1e-7}, behavioural_max_steps=20000),
 }

@@ -1,4 +1,4 @@
-"""The nonlinear circuit's step from its motion: the trapezoidal rule's global error h²·E(t), predicted and measured."""
+"""The nonlinear circuit's step from its motion: the trapezoidal rule's global error h²·E(t), foretold and measured."""
 
 import math
 

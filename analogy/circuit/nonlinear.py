@@ -111,6 +111,19 @@ class NonlinearNodeSystem(NodeCoordinates):
         """
         return self.topology.node_matrix(self.functions.mass(self.configuration(x)))
 
+    def node_masses(self, x: np.ndarray) -> np.ndarray:
+        """M'(x) at every row of node positions *x* (m, n): the model's stack of poses at once where it
+        has one, else pose by pose.
+
+        Parameters
+        ----------
+        x : ndarray, shape (m, n)
+            Node positions.
+        """
+        if self.functions.masses is not None:
+            return self.topology.node_matrix(self.functions.masses(self.q0 + x @ self.topology.inverse.T))
+        return np.stack([self.node_mass(p) for p in x])
+
     def node_load(self, x: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
         """h = T⁻ᵀ·(c(q, r) + G(q)): velocity terms and gravity, as node currents.
 
@@ -199,10 +212,7 @@ class NonlinearNodeSystem(NodeCoordinates):
         x, v, t = trajectory.positions, trajectory.voltages, trajectory.time
         f = self.functions
         qs = self.q0 + x @ self.topology.inverse.T       # q at every point
-        if f.masses is not None:        # the model evaluates a stack of poses at once
-            masses = self.topology.node_matrix(f.masses(qs))
-        else:
-            masses = np.stack([self.node_mass(p) for p in x])
+        masses = self.node_masses(x)
         kinetic = 0.5 * np.einsum("ti,tij,tj->t", v, masses, v)
         spring = np.zeros_like(kinetic) if self.stiffness is None else \
             0.5 * np.einsum("ti,ij,tj->t", x, self.stiffness, x)

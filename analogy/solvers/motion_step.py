@@ -34,13 +34,15 @@ __all__ = ["MOTION_LIMIT", "MOTION_POINTS", "MOTION_RTOL", "MotionErrors", "erro
 
 #: Points the motion is sampled at, at least; more where its fastest rate asks.
 MOTION_POINTS = 1000
-#: The ODE's rtol for the motion: three differences at about a third of a radian raise its error 27 times, to 3e-4 of r‴.
+#: The ODE's rtol for the motion: three differences at about a third of a radian raise its error
+#: 27 times, to 3e-4 of r‴.
 MOTION_RTOL = 1e-5
 #: Samples the motion may take, at most: past it (over about 2,000 radians of the fastest rate) the
 #: estimate is not made, and the preset's cap t_stop/behavioural_max_steps runs, judged as ever. Each
 #: sample costs an ODE stretch and a Jacobian: about 0.3 ms for a one-joint symbolic model.
 MOTION_LIMIT = 6000
-#: Samples per radian of the fastest rate (about 19 a period: the error coefficients agree with 31 to three digits on serial2 and the Panda).
+#: Samples per radian of the fastest rate (about 19 a period: the error coefficients agree with 31 a
+#: period to 1 % on serial2 and the Panda).
 _PER_RADIAN = 3.0
 
 _cache: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
@@ -65,6 +67,48 @@ def _decay_samples(scales, t_stop: float) -> np.ndarray:
     if not first < t_stop / MOTION_POINTS:
         return np.zeros(0)
     return np.geomspace(first, t_stop, int(math.ceil(math.log(t_stop / first) / math.log(1.02))) + 1)
+
+
+def _samples(system) -> tuple[np.ndarray, np.ndarray]:
+    """The motion's sample times and its force breakpoints inside (0, t_stop)."""
+    scales = system_scales(system)
+    points = max(MOTION_POINTS, _PER_RADIAN * scales.omega_max * system.t_stop)
+    if not points <= MOTION_LIMIT:
+        raise SimulationError(f"the motion turns through {scales.omega_max * system.t_stop:.3g} rad, past what "
+                              "its error coefficients are sampled for")
+    edges = np.array([t1 for _, t1 in system.segments()][:-1], dtype=float)
+    uniform = np.linspace(0.0, system.t_stop, int(points))
+    return np.unique(np.concatenate([uniform, edges, _decay_samples(scales, system.t_stop)])), edges
+
+
+def _local_errors(system, x, v, masses, x3, p3) -> np.ndarray:
+    """Each sample's local error density in (x, v): the rule's −(x‴, p‴)/12 with δv = M'⁻¹(δp − (∂M'/∂x·δx)·v)."""
+    n = system.dof
+    source = np.zeros((len(x), 2 * n))
+    for k in range(len(x)):
+        dx, dp = -x3[k] / 12.0, -p3[k] / 12.0
+        size = np.max(np.abs(dx))
+        if size > 0:
+            s = 1e-6 * max(1.0, np.max(np.abs(x[k]))) / size
+            dp = dp - (system.node_mass(x[k] + s * dx) - masses[k]) / s @ v[k]
+        source[k, :n] = dx
+        source[k, n:] = np.linalg.solve(masses[k], dp)
+    return source
+
+
+def _carried(system, t, x, v, source) -> np.ndarray:
+    """E' = J·E + source from E(0) = 0, by the trapezoidal rule on the samples (J is smooth on them)."""
+    drive = system.node_currents(t)
+    error = np.zeros_like(source)
+    eye = np.eye(source.shape[1])
+    jac = _jacobian(system, x[0], v[0], drive[0])
+    for k in range(1, t.size):
+        h = t[k] - t[k - 1]
+        nxt = _jacobian(system, x[k], v[k], drive[k])
+        rhs = (eye + 0.5 * h * jac) @ error[k - 1] + 0.5 * h * (source[k - 1] + source[k])
+        error[k] = np.linalg.solve(eye - 0.5 * h * nxt, rhs)
+        jac = nxt
+    return error
 
 
 def _jacobian(system, x, v, drive) -> np.ndarray:
@@ -110,48 +154,18 @@ def error_coefficients(system, timeout: float | None = None) -> MotionErrors:
     if cached is not None:
         return cached
     n = system.dof
-    scales = system_scales(system)
-    fastest = scales.omega_max
-    points = max(MOTION_POINTS, _PER_RADIAN * fastest * system.t_stop)
-    if not points <= MOTION_LIMIT:
-        raise SimulationError(f"the motion turns through {fastest * system.t_stop:.3g} rad, past what its "
-                              "error coefficients are sampled for")
-    points = int(points)
-    edges = np.array([t1 for _, t1 in system.segments()][:-1], dtype=float)
-    t = np.unique(np.concatenate([np.linspace(0.0, system.t_stop, points), edges, _decay_samples(scales, system.t_stop)]))
+    t, edges = _samples(system)
     motion = solve_ode(system, t, "DOP853", rtol=MOTION_RTOL, positions=True, timeout=timeout)
     x, v = motion.positions, motion.voltages
-    drive = system.node_currents(t)
-    masses = np.array([system.node_mass(xk) for xk in x])
-    p = np.einsum("kab,kb->ka", masses, v)
-    accel, x3, p3 = np.zeros_like(x), np.zeros_like(x), np.zeros_like(p)
+    masses = system.node_masses(x)
+    accel, x3, p3 = np.zeros_like(x), np.zeros_like(x), np.zeros_like(v)
     bounds = np.concatenate([[0.0], edges, [system.t_stop]])
     for t0, t1 in zip(bounds[:-1], bounds[1:]):
         i = np.flatnonzero((t >= t0) & (t <= t1))
-        x3[i], p3[i] = _third(t[i], x[i]), _third(t[i], p[i])
+        x3[i], p3[i] = _third(t[i], x[i]), _third(t[i], np.einsum("kab,kb->ka", masses[i], v[i]))
         if i.size >= 3:
             accel[i] = np.gradient(v[i], t[i], axis=0, edge_order=2)
-    # the local error of (x, p) as one of (x, v): δv = M'⁻¹(δp − (∂M'/∂x·δx)·v)
-    source = np.zeros((t.size, 2 * n))
-    for k in range(t.size):
-        dx, dp = -x3[k] / 12.0, -p3[k] / 12.0
-        size = np.max(np.abs(dx))
-        dm = 0.0
-        if size > 0:
-            s = 1e-6 * max(1.0, np.max(np.abs(x[k]))) / size
-            dm = (system.node_mass(x[k] + s * dx) - masses[k]) / s
-        source[k, :n] = dx
-        source[k, n:] = np.linalg.solve(masses[k], dp - dm @ v[k] if size > 0 else dp)
-    # E' = J·E + source, by the trapezoidal rule on the samples (the coefficients are smooth on them)
-    error = np.zeros((t.size, 2 * n))
-    eye = np.eye(2 * n)
-    jac = _jacobian(system, x[0], v[0], drive[0])
-    for k in range(1, t.size):
-        h = t[k] - t[k - 1]
-        nxt = _jacobian(system, x[k], v[k], drive[k])
-        rhs = (eye + 0.5 * h * jac) @ error[k - 1] + 0.5 * h * (source[k - 1] + source[k])
-        error[k] = np.linalg.solve(eye - 0.5 * h * nxt, rhs)
-        jac = nxt
+    error = _carried(system, t, x, v, _local_errors(system, x, v, masses, x3, p3))
     peak = np.max(np.abs(motion.rates), axis=0)
     with np.errstate(divide="ignore", invalid="ignore"):
         result = MotionErrors(t, np.abs(system.joint_rates(error[:, n:])) / peak,

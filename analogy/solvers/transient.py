@@ -221,12 +221,18 @@ def _phase_cap(p: Preset, t_stop: float, scales: Scales, operations: float | Non
     ngspice's check holds each step's error to reltol, so the error grows with the steps: the UR5
     hanging (0.88 to 9.5 rad/s over 10 s) erred 7.7e-6 in 101,723 steps, each mode its Σ(ω·h)³/12, to 1 %.
     """
-    step = scales.phase_limit(p.bound / SAFETY, p.bound)
-    if not step > 0:            # no representable step holds it: not bought, judged
+    return _bought(p, t_stop, scales.phase_limit(p.bound / SAFETY, p.bound), scales, operations)
+
+
+def _bought(p: Preset, t_stop: float, step: float, scales: Scales | None, operations: float | None) -> float:
+    """*step*, or inf where no representable step is asked or its steps pass the preset's step budget or,
+    at *operations* a step (default n³), its operation budget: steps that cannot buy the bound are not
+    spent, and the run is judged and flagged."""
+    if not step > 0:
         return math.inf
     points = t_stop / step
-    operations = float(scales.size) ** 3 if operations is None else operations
-    return step if points <= p.step_budget and points * operations <= p.operation_budget else math.inf
+    each = operations if operations is not None else float(scales.size) ** 3 if scales is not None else 0.0
+    return step if points <= p.step_budget and points * each <= p.operation_budget else math.inf
 
 
 def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | None, *,
@@ -295,14 +301,10 @@ def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | Non
         opts["reltol"] = f"{min(float(opts.get('reltol', NGSPICE_RELTOL)), 10 * p.bound):.3g}"
     tmax = t_stop / (p.behavioural_max_steps if behavioural else
                      CALIBRATED_MAX_STEPS if calibrated else p.max_steps)
-    if behavioural and motion is not None and motion > 0:       # NaN: no motion, the cap stays
-        # as the phase cap: steps past the step or operation budget are not bought, and the run is judged
-        points = t_stop / motion
-        each = float(scales.size) ** 3 if operations is None and scales is not None else (operations or 0.0)
-        if points <= p.step_budget and points * each <= p.operation_budget:
-            # at most half the print step: where a step spans about one, ngspice's interpolated printing
-            # is not the run (the UR5 at fast: 8.0e-3 printed against 1.1e-4 at its points; equal at half)
-            tmax = min(motion, 0.5 * t_stop / p.steps)
+    if behavioural and motion is not None and math.isfinite(_bought(p, t_stop, motion, scales, operations)):
+        # at most half the print step: where a step spans about one, ngspice's interpolated printing
+        # is not the run (the UR5 at fast: 8.0e-3 printed against 1.1e-4 at its points; equal at half)
+        tmax = min(motion, 0.5 * t_stop / p.steps)
     tstep = t_stop / p.steps
     first = NGSPICE_FIRST_STEP * tstep
     if scales is not None:
