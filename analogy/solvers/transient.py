@@ -225,9 +225,8 @@ def _phase_cap(p: Preset, t_stop: float, scales: Scales, operations: float | Non
 
 
 def _bought(p: Preset, t_stop: float, step: float, scales: Scales | None, operations: float | None) -> float:
-    """*step*, or inf where no representable step is asked or its steps pass the preset's step budget or,
-    at *operations* a step (default n³), its operation budget: steps that cannot buy the bound are not
-    spent, and the run is judged and flagged."""
+    """*step*, or inf where it is not representable or passes the step or (at *operations* a step, default n³)
+    operation budget: steps that cannot buy the bound are not spent, and the run is judged and flagged."""
     if not step > 0:
         return math.inf
     points = t_stop / step
@@ -281,8 +280,7 @@ def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | Non
         The circuit's operations a time point (:func:`analogy.circuit.elements.point_operations`; default n³):
         the phase cap is not taken past the preset's operation budget.
     motion : float, optional
-        The step a behavioural circuit's own motion asks (:func:`~analogy.solvers.motion_step.motion_step`):
-        it replaces the cap t_stop/``preset.behavioural_max_steps``.
+        The step a behavioural circuit's motion asks (:func:`~analogy.solvers.motion_step.motion_step`).
     """
     p = get_preset(preset)
     opts = dict(p.behavioural_options if behavioural else p.spice_options)
@@ -335,17 +333,8 @@ def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | Non
             # left its small r3 at 1.7e-6 at the accurate reltol, in 731 steps whatever the reltol
             return transient_settings(preset, t_stop, scales, behavioural=behavioural, coupled=coupled,
                                       constrained=constrained, breakpoints=breakpoints, loosen=loosen, custom=True,
-                                      operations=operations)
-        for key, size in (("abstol", scales.current), ("vntol", scales.peak_velocity),
-                          ("chgtol", scales.charge)):
-            if key not in opts:
-                continue
-            value = max(float(opts[key]) * size, rounding if key == "abstol" else 0.0)
-            value *= loosen if key in ("abstol", "vntol") else 1.0     # Python floats overflow to inf
-            if not math.isfinite(value):
-                raise SimulationError(f"SPICE cannot run this circuit: its {key} scale is past the floating-point "
-                                      f"range ({_SCALE_NAMES[key]} = {size:.3g}); the ODE and exact solvers can")
-            opts[key] = f"{value:.3g}"
+                                      operations=operations, motion=motion)
+        _scale_tolerances(opts, scales, rounding, loosen)
     tmax /= REFINE ** p.refine            # an estimate's second run: every step REFINE^refine times shorter
     impedance = None
     if scales is not None and scales.current > 0 and math.isfinite(scales.peak_velocity / scales.current):
@@ -353,6 +342,19 @@ def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | Non
     return TransientSettings(tuple((k, str(v)) for k, v in _checked_options(opts).items()), tstep, t_stop, tmax,
                              first, loosen,
                              impedance=impedance, interpolate=not calibrated)
+
+
+def _scale_tolerances(opts: dict, scales: Scales, rounding: float, loosen: float) -> None:
+    """abstol, vntol, chgtol in *opts* times the current, velocity, charge scales (abstol ≥ *rounding*; ×loosen)."""
+    for key, size in (("abstol", scales.current), ("vntol", scales.peak_velocity), ("chgtol", scales.charge)):
+        if key not in opts:
+            continue
+        value = max(float(opts[key]) * size, rounding if key == "abstol" else 0.0)
+        value *= loosen if key in ("abstol", "vntol") else 1.0     # Python floats overflow to inf
+        if not math.isfinite(value):
+            raise SimulationError(f"SPICE cannot run this circuit: its {key} scale is past the floating-point "
+                                  f"range ({_SCALE_NAMES[key]} = {size:.3g}); the ODE and exact solvers can")
+        opts[key] = f"{value:.3g}"
 
 
 def refined(preset: str | Preset, tolerances: bool = True) -> Preset:
