@@ -268,18 +268,24 @@ def test_the_step_ladder_ends_in_gear_for_a_trapezoidal_run():
 
 
 @pytest.mark.ngspice
-@pytest.mark.deep                   # 37 s: two runs, the second with looser absolute tolerances
-def test_a_nonlinear_circuit_whose_step_collapses_runs_again_with_looser_absolute_tolerances():
-    """flex2's nonlinear circuit under its motor steps at fast collapses at t = 3.91 s (rounding read
-    as a failed Newton step); the retry with abstol and vntol RETRY_LOOSEN[1] times larger runs to
-    t_stop under the same method and says so. (Its undamped modes, up to 1588 rad/s over 10 s,
-    leave it far past fast's bound, as they leave the ODE at fast: the comparison flags both.)"""
+@pytest.mark.deep                   # 20 to 37 s: one run, or two where the first collapses
+def test_flex2s_nonlinear_circuit_at_fast_runs_to_its_end_on_any_processor():
+    """flex2's nonlinear circuit under its motor steps at fast sits on ngspice's rounding floor:
+    on one processor its step collapsed at t = 3.91 s (rounding read as a failed Newton step), on
+    another it ran through, because glibc picks its sin, cos and exp per processor (FMA or not).
+    Either way it must reach t_stop under the trapezoidal rule, and a retry, where one was taken,
+    is said with the factor that ran. (Its undamped modes, up to 1588 rad/s over 10 s, leave it
+    far past fast's bound, as they leave the ODE at fast: the comparison flags both.) The retry
+    itself is forced and checked on every machine by the collapsed-step test in test_spice."""
     from analogy.cli import build_parser, scene_from_args
-    from analogy.solvers.transient import RETRY_LOOSEN
     args = build_parser().parse_args(["compare", "--robot", "flex2", "--dynamics", "nonlinear"])
     tr = analogy.solve_spice(scene_from_args(args).system(), preset="fast")
     assert tr.success and tr.time[-1] == pytest.approx(10.0, rel=1e-12)
-    assert f"retried with abstol and vntol × {RETRY_LOOSEN[1]:g} (" in tr.message and "3.91" in tr.message
+    loosen = tr.settings.loosen
+    if loosen == 1.0:
+        assert "retried" not in tr.message
+    else:
+        assert f"retried with abstol and vntol × {loosen:g} (" in tr.message
     assert dict(tr.settings.options)["method"] == "trap"
 
 
