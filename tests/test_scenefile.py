@@ -615,3 +615,19 @@ def test_a_scene_file_chooses_the_flexible_arm_s_joint_frame_and_geometric_stiff
     with pytest.raises(InputError, match="apply to the flexible arms"):
         parse_scene(text.replace('"flex2"', '"serial2"').replace("q = [0.3, 0.5, 0, 0, 0, 0]", "q = [0, 0.3]")
                     .replace("forces = [1, 1, 0, 0, 0, 0]", "forces = [1, 1]"))
+
+
+def test_a_scenes_node_voltages_and_currents_are_judged_each_against_its_own_peak():
+    """A scene's error for node voltages or element currents is the worst of its outputs, each
+    max |x − x_ref| over that output's own max |x_ref|, as for joint rates: a current of a
+    thousandth of another's peak is not hidden behind the larger peak."""
+    text = VALID.replace("[outputs]\nnetlist = true\n", "")
+    job = parse_scene('outputs = ["node_voltages", "element_currents"]\nsolvers = ["ode", "exact"]\n' + text)
+    r = run_scene(job)
+    for quantity, by_solver in (("node voltages", r.node_voltages), ("C currents", None)):
+        got = r.errors()[quantity]["ode"][1]
+        vals = by_solver or {s: {e: v[e] for e in v if e[0] == "C"} for s, v in r.element_currents.items()}
+        own = max(np.max(np.abs(vals["ode"][k] - vals["exact"][k])) / np.max(np.abs(vals["exact"][k]))
+                  for k in vals["exact"])
+        assert got == pytest.approx(own, rel=1e-12)         # the same figures, reduced in another order
+        assert r.max_relative_error("ode") >= got

@@ -223,17 +223,16 @@ def solve_group(group: Group, preset: Preset, solvers: Sequence[str], reference:
     seconds = {name: np.zeros(len(built)) for name in solvers}
     rates: list = [None] * len(built)
     for k, c in zip(ok, compare_many(systems, preset, solvers, reference=reference) if ok else []):
-        for name, why in c.failures.items():
-            failures[k] = f"{name}: {why}" if name != "spice" else why
-        for name in solvers:
-            tr = c.results.get(name)
-            if tr is not None:
-                seconds[name][k] = tr.run_time
-                if name in c.measured and name != c.reference:     # the yardstick has no error
-                    errors[name][k] = c.measured[name][1]
+        for name, r in c.records.items():
+            if r.status == "failed":
+                failures[k] = f"{name}: {r.reason}" if name != "spice" else r.reason
+            elif r.ran and name in seconds:
+                seconds[name][k] = r.trajectory.run_time
+                if r.errors is not None and name != c.reference:     # the yardstick has no error
+                    errors[name][k] = r.errors.relative
         if keep:
-            rates[k] = {s: (c.results[s].time, c.results[s].rates) for s in solvers
-                        if s in c.results and c.results[s].success}
+            ran = {s: r.trajectory for s, r in c.records.items() if r.ran}
+            rates[k] = {s: (ran[s].time, ran[s].rates) for s in solvers if s in ran}
     return GroupResult(errors, seconds, failures, invalid, refused, rates if keep else None)
 
 

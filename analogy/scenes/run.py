@@ -13,8 +13,8 @@ from ..files import write_text
 from ..solvers.transient import netlist as make_netlist
 from ..errors import InputError
 from ..presets import preset as get_preset
-from ..study.comparison import compare
-from ..results.metrics import absolute_error, relative_error
+from ..study.comparison import Comparison, compare
+from ..results.metrics import output_errors
 from ..results.output import Tabular, html_table
 from .build import keyed
 from .scene import Scene
@@ -90,17 +90,7 @@ def run_scene(scene: Scene, output_dir=None, progress=None) -> "SceneResult":
     spice = comparison.results.get("spice")
     if scene.netlist and spice is not None and spice.settings is not None:
         write_netlist(spice.settings)   # what ran, where it differs: a retry's settings, or a refined run's
-    result.time = comparison.time
-    result.failures = dict(comparison.failures)
-    result.reference = comparison.reference
-    for name, tr in comparison.results.items():
-        result.run_times[name] = tr.run_time
-        if scene.node_voltages:
-            result.node_voltages[name] = {n: tr.voltages[:, int(n[1:]) - 1] for n in scene.node_voltages}
-        if currents:
-            result.element_currents[name] = {e: tr.currents[e] for e in currents}
-    if scene.joint_rates:
-        result.comparison = comparison
+    result.solved = comparison
     try:
         if scene.csv_file:          # a scene's files may sit in subfolders of its output folder
             path = scene.path(scene.csv_file, output_dir)
@@ -135,35 +125,60 @@ class SceneResult(Tabular):
         The scene that was run.
     system : NodeDynamics
         Its node system.
-    time : ndarray or None
-        Shared time points of every solver (SPICE's own when it ran and no step was set).
-    comparison : Comparison or None
-        Joint rates of every solver, when the scene asks for them.
+    solved : Comparison or None
+        Every solver the scene ran, one record each; the figures below are read from it.
     netlist : str or None
         The netlist text, when asked for.
-    node_voltages, element_currents : dict
-        ``{solver: {name: values}}`` for the requested nodes and elements.
-    run_times : dict
-        Seconds per solver.
-    failures : dict
-        Solvers that failed, with the reason.
-    reference : str or None
-        The solver errors are measured against.
     written : list of Path
         Files written.
     """
 
     scene: Scene
     system: object = None
-    time: np.ndarray | None = None
-    comparison: object = None
+    solved: Comparison | None = None
     netlist: str | None = None
-    node_voltages: dict = field(default_factory=dict)
-    element_currents: dict = field(default_factory=dict)
-    run_times: dict = field(default_factory=dict)
-    failures: dict = field(default_factory=dict)
-    reference: str | None = None
     written: list = field(default_factory=list)
+
+    @property
+    def comparison(self) -> Comparison | None:
+        """Joint rates of every solver, when the scene asks for them."""
+        return self.solved if self.scene.joint_rates else None
+
+    @property
+    def time(self) -> np.ndarray | None:
+        """Shared time points of every solver (SPICE's own when it ran and no step was set)."""
+        return None if self.solved is None else self.solved.time
+
+    @property
+    def failures(self) -> dict[str, str]:
+        """Solvers that failed, with the reason."""
+        return {} if self.solved is None else self.solved.failures
+
+    @property
+    def reference(self) -> str | None:
+        """The solver errors are measured against."""
+        return None if self.solved is None else self.solved.reference
+
+    @property
+    def run_times(self) -> dict[str, float]:
+        """Seconds per solver that ran."""
+        return {} if self.solved is None else {n: tr.run_time for n, tr in self.solved.results.items()}
+
+    @property
+    def node_voltages(self) -> dict[str, dict[str, np.ndarray]]:
+        """``{solver: {node: values}}`` for the requested nodes."""
+        nodes = self.scene.node_voltages
+        if self.solved is None or not nodes:
+            return {}
+        return {s: {n: tr.voltages[:, int(n[1:]) - 1] for n in nodes} for s, tr in self.solved.results.items()}
+
+    @property
+    def element_currents(self) -> dict[str, dict[str, np.ndarray]]:
+        """``{solver: {element: values}}`` for the requested elements (current from a to b)."""
+        names = self.scene.element_currents
+        if self.solved is None or not names:
+            return {}
+        return {s: {e: tr.currents[e] for e in names} for s, tr in self.solved.results.items()}
 
     @property
     def ok(self) -> bool:
@@ -221,9 +236,10 @@ class SceneResult(Tabular):
                 continue
             names = list(ref)
             y = np.column_stack([ref[k] for k in names])
-            out[quantity] = {s: (absolute_error(np.column_stack([vals[k] for k in names]), y),
-                                 relative_error(np.column_stack([vals[k] for k in names]), y))
-                             for s, vals in by_solver.items()}
+            out[quantity] = {}
+            for s, vals in by_solver.items():       # each output against its own peak, as the joint rates
+                err, rel = output_errors(np.column_stack([vals[k] for k in names]), y)
+                out[quantity][s] = (float(np.max(err)), float(np.max(rel)))
         return out
 
     def max_relative_error(self, solver: str) -> float:

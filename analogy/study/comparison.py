@@ -3,24 +3,24 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Callable, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Callable, Iterator, Sequence
 
 import numpy as np
 
-from ..circuit.currents import trajectory_currents
 from ..errors import InputError
 from ..presets import DEFAULT_SOLVERS, Preset
 from ..presets import preset as get_preset
-from ..solvers.registry import SOLVER_NAMES, run_many, solver
+from ..solvers.registry import SOLVER_NAMES, solver
 from .estimate import MAX_REFINEMENTS, estimated_errors, refined_run
-from .grid import output_grid
-from .measure import measure, subset, sufficient
+from .measure import measure
+from .solver_record import SolverRecord
+from .stack_runs import StackRuns
 from .work import check_works
 from ..results.metrics import OutputErrors, peak
 from ..results.output import Tabular, html_table
 from ..results.trajectory import Trajectory
-from ..results.trajectory_stack import TrajectoryStack
 from ..circuit.node_stack import NodeStack
 from ..model.assembly import SINGULAR_CONDITION
 
@@ -44,48 +44,71 @@ class Comparison(Tabular):
     time : ndarray
         Shared time points: SPICE's own output points (t = 0 included) when SPICE
         ran and no output step was asked for, else a uniform grid.
-    results : dict of str to Trajectory
-        Successful solvers, in run order.
-    failures : dict of str to str
-        Solvers that failed, with the reason; the others are kept.
-    skipped : dict of str to str
-        Solvers asked for that do not apply to the system (the exact solver to a
-        nonlinear one), with the reason: not failures.
+    records : dict of str to SolverRecord
+        One record per solver asked for (and the reference): its run, its errors, its
+        estimate, its status. Solvers that ran or failed come in run order, then those
+        that do not apply.
     reference : str or None
         The solver the errors are measured against (None: no reference applied).
     bound : float
         The preset's promised worst error / peak (:attr:`Preset.bound`).
-    energy : dict of str to float
-        Nonlinear systems: per solver, max |T + U − T(0) − W| over the energy scale
-        (:meth:`~analogy.circuit.nonlinear.NonlinearNodeSystem.energy_residual`).
-    loop : dict of str to (float, float)
-        Closed chains: per solver, the largest loop residual |Φ| and the largest
-        equilibrated cond(Φ_p) along its run
-        (:meth:`~analogy.circuit.nonlinear.NonlinearNodeSystem.loop_residual`).
-    measured : dict of str to OutputErrors
-        Per solver, measured on its own time points: every output (joint rate, element
-        current asked for) against that output's own peak; indexed as a pair, (max |error|,
-        the worst output's error over its peak).
-    estimated : dict of str to OutputErrors
-        Per solver, when asked for: its joint rates' errors estimated without a reference
-        (:func:`~analogy.study.estimate.estimated_errors`), each against its own peak.
-    unestimated : dict of str to str
-        Solvers whose estimate was asked for and could not be made, with the reason.
+
+    The dictionaries below are views of :attr:`records`, by solver name.
     """
 
     system: object
     preset: str
     time: np.ndarray
-    results: dict = field(default_factory=dict)
-    failures: dict = field(default_factory=dict)
+    records: dict = field(default_factory=dict)
     reference: str | None = "exact"
-    measured: dict = field(default_factory=dict)
     bound: float = math.nan
-    energy: dict = field(default_factory=dict)
-    skipped: dict = field(default_factory=dict)
-    loop: dict = field(default_factory=dict)
-    estimated: dict = field(default_factory=dict)
-    unestimated: dict = field(default_factory=dict)
+
+    def _of(self, value: Callable[[SolverRecord], object], keep: Callable[[SolverRecord], bool]) -> dict:
+        return {n: value(r) for n, r in self.records.items() if keep(r)}
+
+    @property
+    def results(self) -> dict[str, Trajectory]:
+        """Successful solvers' trajectories on the shared points, in run order."""
+        return self._of(lambda r: r.trajectory, lambda r: r.ran)
+
+    @property
+    def failures(self) -> dict[str, str]:
+        """Solvers that failed, with the reason; the others were kept."""
+        return self._of(lambda r: r.reason, lambda r: r.status == "failed")
+
+    @property
+    def skipped(self) -> dict[str, str]:
+        """Solvers asked for that do not apply to the system (the exact solver to a nonlinear one): not failures."""
+        return self._of(lambda r: r.reason, lambda r: r.status == "skipped")
+
+    @property
+    def measured(self) -> dict[str, OutputErrors]:
+        """Per solver, every output (joint rate, element current asked for) against the reference on the
+        solver's own points, each against its own peak; indexed as a pair, (max |error|, worst error / peak)."""
+        return self._of(lambda r: r.errors, lambda r: r.errors is not None)
+
+    @property
+    def estimated(self) -> dict[str, OutputErrors]:
+        """Per solver, when asked for: its errors estimated without a reference
+        (:func:`~analogy.study.estimate.estimated_errors`), each output against its own peak."""
+        return self._of(lambda r: r.estimate, lambda r: r.estimate is not None)
+
+    @property
+    def unestimated(self) -> dict[str, str]:
+        """Solvers whose estimate was asked for and could not be made, with the reason."""
+        return self._of(lambda r: r.unestimated, lambda r: bool(r.unestimated))
+
+    @property
+    def energy(self) -> dict[str, float]:
+        """Nonlinear systems: per solver, max |T + U − T(0) − W| over the energy scale
+        (:meth:`~analogy.circuit.nonlinear.NonlinearNodeSystem.energy_residual`)."""
+        return self._of(lambda r: r.energy, lambda r: r.energy is not None)
+
+    @property
+    def loop(self) -> dict[str, tuple[float, float]]:
+        """Closed chains: per solver, the largest loop residual |Φ| and the largest equilibrated
+        cond(Φ_p) along its run (:meth:`~analogy.circuit.nonlinear.NonlinearNodeSystem.loop_residual`)."""
+        return self._of(lambda r: r.loop, lambda r: r.loop is not None)
 
     @property
     def singular(self) -> str:
@@ -106,7 +129,7 @@ class Comparison(Tabular):
     def errors(self) -> dict[str, OutputErrors]:
         """Per solver: (max |error|, the worst output's error over its own peak, …); NaN without a reference."""
         nan = OutputErrors(math.nan, math.nan, "", {}, math.nan)
-        return {name: self.measured.get(name, nan) for name in self.results}
+        return {n: r.errors or nan for n, r in self.records.items() if r.ran}
 
     def worst_output(self, solver: str) -> tuple[str, float]:
         """The output of *solver* farthest from the reference relative to its own peak, and that figure.
@@ -146,11 +169,15 @@ class Comparison(Tabular):
         The error against the reference judges where one ran; else the estimate, where one was made.
         """
         out = {}
-        for name, e in self.errors().items():
-            judged = e[1] if not math.isnan(e[1]) else self.estimated.get(name, e)[1]
-            if math.isnan(judged) and name in self.unestimated:
+        for name, r in self.records.items():
+            if not r.ran or name == self.reference:
+                continue
+            judged = r.relative_error
+            if math.isnan(judged) and r.estimate is not None:
+                judged = r.estimate.relative
+            if math.isnan(judged) and r.unestimated:
                 judged = math.inf           # asked for and not to be had: no promise can be said kept
-            if name != self.reference and judged > self.bound:
+            if judged > self.bound:
                 out[name] = judged
         return out
 
@@ -165,29 +192,28 @@ class Comparison(Tabular):
         return self.errors()[solver][1]
 
     def _rows(self) -> list[list]:
-        rows = []
-        for name in list(self.results) + [f for f in self.failures if f not in self.results]:
-            tr = self.results.get(name)
-            if tr is None:
-                rows.append([name, "failed", "", "", "", "", "", "", self.failures[name]])
+        rows, blank = [], [""] * 6
+        ran = [r for r in self.records.values() if r.ran]
+        for r in ran + [r for r in self.records.values() if not r.ran]:
+            if not r.ran:
+                rows.append([r.name, r.status, *blank, r.reason])
                 continue
-            err = self.errors()[name]
-            st = tr.stats
-            note = "reference" if name == self.reference else tr.message
-            if name in self.loop and name not in ("ode", "reference"):        # those solve the loop exactly
-                note = f"loop residual {self.loop[name][0]:.2e}" + (f", {note}" if note else "")
-            if name in self.energy:
-                note = f"energy residual {self.energy[name]:.2e}" + (f", {note}" if note else "")
-            if name in self.unestimated:
-                note = f"no estimate: {self.unestimated[name]}" + (f", {note}" if note else "")
-            worst = "" if name == self.reference else err.worst
-            if not self.reference and name in self.estimated:
-                worst = self.estimated[name].worst
+            err, st = r.errors or OutputErrors(math.nan, math.nan, "", {}, math.nan), r.trajectory.stats
+            note = "reference" if r.name == self.reference else r.trajectory.message
+            if r.loop is not None and r.name not in ("ode", "reference"):        # those solve the loop exactly
+                note = f"loop residual {r.loop[0]:.2e}" + (f", {note}" if note else "")
+            if r.energy is not None:
+                note = f"energy residual {r.energy:.2e}" + (f", {note}" if note else "")
+            if r.unestimated:
+                note = f"no estimate: {r.unestimated}" + (f", {note}" if note else "")
+            worst = "" if r.name == self.reference else err.worst
+            if not self.reference and r.estimate is not None:
+                worst = r.estimate.worst
             worst = self.system.provenance.output_name(worst)
-            est = self.estimated[name].relative if name in self.estimated else math.nan
-            rows.append([name, tr.run_time * 1e3, err.absolute, worst, err.relative, est, err.whole,
+            est = math.nan if r.estimate is None else r.estimate.relative
+            rows.append([r.name, r.trajectory.run_time * 1e3, err.absolute, worst, err.relative, est, err.whole,
                          "" if st.steps is None else st.steps, note])
-        return rows + [[name, "skipped", "", "", "", "", "", "", why] for name, why in self.skipped.items()]
+        return rows
 
     def table(self) -> str:
         """A plain-text table of run time, error and steps per solver."""
@@ -281,14 +307,6 @@ def _reference(system, names: list[str], reference: str | None) -> str | None:
     return None
 
 
-def _by_grid(grids: Sequence[np.ndarray]) -> list[list[int]]:
-    """Indices grouped by equal time grids (by value)."""
-    groups: dict = {}
-    for k, g in enumerate(grids):
-        groups.setdefault(g.tobytes(), []).append(k)
-    return list(groups.values())
-
-
 def compare_many(systems: Sequence, preset: str | Preset = "accurate",
                  solvers: Sequence[str] = DEFAULT_SOLVERS, times=None, *,
                  reference: str | None = "auto", step: float | None = None,
@@ -346,128 +364,94 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
     names = _names(solvers)
     check_works(systems, p, spice="spice" in names)     # a run past the budget is refused before any starts
     ref_name = _reference(systems[0], names, reference)
+    order, skipped = _run_order(systems[0], names, ref_name)
+    positions = positions or bool(save) or systems[0].kind != "linear"     # the energy balance needs positions
+    runs = StackRuns.start(systems, p, step, times)
+    with _announced(progress) as tell:
+        for name in order:
+            tell(name)
+            runs.run(name, save, positions)
+    estimates: list[dict] = [{} for _ in systems]
+    unestimated: dict = {}
+    if estimate or refine:
+        estimates, unestimated = _estimates(runs, order, MAX_REFINEMENTS if refine else 0, save, positions, progress)
+    measured = measure(systems, runs.shown, runs.own, ref_name, p, tuple(save), runs.resampled)
+    return [_comparison(k, system, runs, order, skipped, ref_name, measured[k], estimates[k], unestimated)
+            for k, system in enumerate(systems)]
+
+
+def _run_order(system, names: list[str], ref_name: str | None) -> tuple[list[str], dict[str, str]]:
+    """The solvers that apply, own time points first, and those that do not, with the reason."""
     order = [s for s in SOLVER_NAMES if s in names or s == ref_name]
     order += [s for s in names if s not in order]
     if ref_name is not None and ref_name not in order:
         order.append(ref_name)
-    order.sort(key=lambda s: not solver(s).own_grid)         # own time points first
-    count = len(systems)
-    ends = [s.t_stop for s in systems]
-    # A given grid per horizon: systems of one horizon share it (and run stacked).
-    given = None if step is None and times is None else {
-        t: output_grid(t, step, p.steps) if times is None else np.asarray(times, float) for t in dict.fromkeys(ends)}
-    runs: dict[str, list[Trajectory]] = {}
-    native: dict[str, list[Trajectory]] = {}
-    grids: list = [None if given is None else given[t] for t in ends]
-    nonlinear = systems[0].kind != "linear"
-    want_x = positions or bool(save) or nonlinear       # the energy balance needs positions
-    skipped = {}
-    resampled: set = set()          # own-grid solvers reported on another's points
-    for name in list(order):
-        reason = solver(name).supports(systems[0])
-        if reason is not None:
-            skipped[name] = reason
-            order.remove(name)
+    order.sort(key=lambda s: not solver(s).own_grid)
+    why = {name: solver(name).supports(system) for name in order}
+    return [n for n in order if why[n] is None], {n: r for n, r in why.items() if r is not None}
+
+
+@contextmanager
+def _announced(progress: Callable[[str | None], None] | None) -> Iterator[Callable[[str], None]]:
+    """*progress* told of each stage as it starts, and once with None when they end, whatever happened."""
     try:
-        for name in order:
-            s = solver(name)
-            if progress is not None:
-                progress(name)
-            if s.own_grid:
-                trs = run_many(name, systems, None, p, save=save, positions=want_x)
-                if given is None:       # millions of own points: measured on their sufficient subset
-                    trs = TrajectoryStack([sufficient(tr, systems[k], p) if tr.success and grids[k] is None
-                                           else tr for k, tr in enumerate(trs)])
-                native[name] = trs
-                # Per system, the first own-grid solver that succeeds sets the shared grid; a later one
-                # is reported on it (for the table and plots) and measured on its own points.
-                if any(g is not None and tr.success for g, tr in zip(grids, trs)):
-                    resampled.add(name)
-                    trs = TrajectoryStack([tr.resampled(grids[k], sys_.joint_rates)
-                                           if tr.success and grids[k] is not None else tr
-                                           for k, (tr, sys_) in enumerate(zip(trs, systems))])
-                grids = [tr.time if tr.success and grids[k] is None else grids[k] for k, tr in enumerate(trs)]
-            else:
-                default = {t: np.linspace(0.0, t, p.steps + 1) for t in dict.fromkeys(ends)}
-                grids = [default[t] if g is None else g for g, t in zip(grids, ends)]
-                groups = _by_grid(grids)
-                if len(groups) == 1:
-                    trs = run_many(name, systems, grids[0], p, save=save, positions=want_x)
-                else:
-                    rows: list = [None] * count
-                    for idx in groups:
-                        for k, tr in zip(idx, run_many(name, subset(systems, idx), grids[idx[0]], p,
-                                                       save=save, positions=want_x)):
-                            rows[k] = tr
-                    trs = TrajectoryStack(rows)
-            if save:
-                for tr, sys_ in zip(trs, systems):
-                    if tr.success and not tr.currents:
-                        tr.currents = trajectory_currents(sys_, tr, save)
-            runs[name] = trs
-    finally:             # a heartbeat ends whatever happened
+        yield progress if progress is not None else (lambda stage: None)
+    finally:
         if progress is not None:
             progress(None)
-    out = []
-    estimates, unestimated = [{} for _ in systems], {}
-    if estimate or refine:
-        if progress is not None:
-            progress("estimates")
-        try:
-            estimates, unestimated, better = estimated_errors(systems, {n: native.get(n, runs[n]) for n in order}, p,
-                                                              MAX_REFINEMENTS if refine else 0, save, want_x)
-        finally:
-            if progress is not None:
-                progress(None)
-        for n in order:         # a refined run replaces the first: measured on its own points, shown on the grid
-            first, swap = native.get(n, runs[n]), {}
-            for k, got in enumerate(better):
-                if n in got:
-                    tr, level, spent = got[n]
-                    swap[k] = refined_run(tr, level, first[k].run_time + spent, estimates[k][n].relative <= p.bound,
-                                          systems[k], save)
-            if not swap:
-                continue
-            if solver(n).own_grid:
-                native[n] = TrajectoryStack([sufficient(swap[k], systems[k], p) if k in swap and given is None
-                                             else swap.get(k, tr) for k, tr in enumerate(native[n])])
-                runs[n] = TrajectoryStack([replace(swap[k].resampled(grids[k], systems[k].joint_rates),  # all its points
-                                                   message=native[n][k].message) if k in swap else tr
-                                           for k, tr in enumerate(runs[n])])
-                resampled.add(n)
-            else:
-                runs[n] = TrajectoryStack([swap.get(k, tr) for k, tr in enumerate(runs[n])])
-    measured = measure(systems, runs, native, ref_name, p, tuple(save), resampled)
-    columns = [(n, runs[n]) for n in order]
-    for k, system in enumerate(systems):
-        results, failures = {}, {}
-        for n, trs in columns:
-            tr = trs[k]
-            if tr.success:
-                results[n] = tr
-            else:
-                failures[n] = tr.message
-        grid = grids[k] if grids[k] is not None else np.linspace(0.0, system.t_stop, p.steps + 1)
-        ref = ref_name if ref_name in results else None
-        energy, loop = {}, {}
-        if nonlinear:
-            for n in results:
-                tr = native[n][k] if n in native else results[n]     # on the solver's own points
-                if tr.success and tr.positions is not None:
-                    closure = system.loop_residual(tr)
-                    if closure is not None:
-                        loop[n] = closure
-                    try:
-                        residual, scale = system.energy_residual(tr)
-                        energy[n] = float(np.max(np.abs(residual))) / scale
-                    except InputError:      # a closed chain's run went where its loop does not close
-                        energy[n] = math.nan
-        for n, tr in results.items():
-            if n in estimates[k]:
-                tr.estimated = estimates[k][n]
-        out.append(Comparison(system, p.name, grid, results, failures, ref, measured[k] if ref else {},
-                              p.bound, energy, skipped, loop, estimates[k], unestimated))
-    return out
+
+
+def _estimates(runs: StackRuns, order: list[str], refinements: int, save: Sequence[str], positions: bool,
+               progress) -> tuple[list[dict], dict]:
+    """Each solver's errors estimated without a reference; a refined run replaces the first where one was made."""
+    p, systems = runs.preset, runs.systems
+    with _announced(progress) as tell:
+        tell("estimates")
+        estimates, unestimated, better = estimated_errors(systems, {n: runs.solved(n) for n in order}, p,
+                                                          refinements, save, positions)
+    for n in order:
+        first = runs.solved(n)
+        runs.take_refined(n, {k: refined_run(got[n][0], got[n][1], first[k].run_time + got[n][2],
+                                             estimates[k][n].relative <= p.bound, systems[k], save)
+                              for k, got in enumerate(better) if n in got})
+    return estimates, unestimated
+
+
+def _balances(system, tr: Trajectory) -> tuple[float | None, tuple[float, float] | None]:
+    """A nonlinear run's energy residual over its scale and, for a closed chain, its loop residual."""
+    if system.kind == "linear" or not tr.success or tr.positions is None:
+        return None, None
+    loop = system.loop_residual(tr)
+    try:
+        residual, scale = system.energy_residual(tr)
+        energy = float(np.max(np.abs(residual))) / scale
+    except InputError:      # a closed chain's run went where its loop does not close
+        energy = math.nan
+    return energy, loop
+
+
+def _comparison(k: int, system, runs: StackRuns, order: list[str], skipped: dict[str, str], ref_name: str | None,
+                measured: dict, estimates: dict, unestimated: dict) -> Comparison:
+    """System *k*'s comparison: one record per solver, its errors measured where the reference ran."""
+    records = {}
+    for n in order:
+        shown = runs.shown[n][k]
+        own = runs.own[n][k] if n in runs.own else shown
+        est = estimates.get(n)
+        if not shown.success:
+            records[n] = SolverRecord(n, "failed", shown.message, estimate=est, unestimated=unestimated.get(n, ""))
+            continue
+        if est is not None:
+            shown.estimated = est
+        energy, loop = _balances(system, own)
+        records[n] = SolverRecord(n, "ok", "", shown, own, None, est, unestimated.get(n, ""), energy, loop)
+    ref = ref_name if ref_name in records and records[ref_name].ran else None
+    for n, errors in (measured.items() if ref else ()):
+        records[n].errors = errors
+    records.update((n, SolverRecord(n, "skipped", why)) for n, why in skipped.items())
+    p = runs.preset
+    grid = runs.grids[k] if runs.grids[k] is not None else np.linspace(0.0, system.t_stop, p.steps + 1)
+    return Comparison(system, p.name, grid, records, ref, p.bound)
 
 
 def compare(system, preset: str | Preset = "accurate", solvers: Sequence[str] = DEFAULT_SOLVERS,
