@@ -78,9 +78,6 @@ def memory_per_run(runs: int = 10_000, preset: str = "accurate", scene_name: str
     for _ in range(runs):
         method.solve(system, None, p)
     gc.collect()
-    lines = 0
-    if solver == "spice":
-        ng = session()._ng
-        lines = len(getattr(ng, "_stdout", [])) + len(getattr(ng, "_stderr", []))
+    lines = len(session()._ng.lines) if solver == "spice" else 0
     return MemoryResult(runs, p.name, scene_name, _resident_kb() - before,
                         _time.perf_counter() - start, lines, solver)

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import ctypes.util
 import locale
-import logging
 import os
 import re
 import threading
@@ -59,7 +58,7 @@ def library_path() -> str:
 
 
 def declared_ffi():
-    """PySpice's one cffi object, with ngspice's declarations (taken once), the C locale set for ngspice."""
+    """PySpice's cffi object with its declarations of ngspice's C API (taken once), the C locale set for ngspice."""
     locale.setlocale(locale.LC_NUMERIC, "C")   # ngspice parses numbers with the C locale
     from PySpice.Spice.NgSpice import Shared
     global _CDEF_DONE
@@ -69,47 +68,46 @@ def declared_ffi():
     return Shared.ffi
 
 
-def _shared_class():
-    """A PySpice NgSpiceShared subclass that records output instead of judging it."""
-    logging.getLogger("PySpice").setLevel(logging.CRITICAL)  # it logs harmless notes as errors
-    from PySpice.Spice.NgSpice import Shared
+class _Library:
+    """One initialised ngspice library, through ngspice's C API with PySpice's declarations of it.
 
-    class _Shared(Shared.NgSpiceShared):
+    PySpice 1.5's ``NgSpiceShared`` cannot serve here as it stands: it declares the API afresh for
+    each instance, so a second one in a process (a fresh copy after a fatal error, the quiet copy)
+    fails with "duplicate declaration of struct ngcomplex"; and its background-thread callback
+    returns None where ngspice wants an int (cffi reports it on stderr at every ``bg_run``) and
+    reads ngspice's flag, which is true when the thread has ended, as "running". Rather than
+    override its private methods, the library is initialised here with callbacks of our own: what
+    it prints, its requests to exit and the end of a background run; or, *talking* False, only
+    the request to exit, so that no callback into Python (each takes the GIL) slows a run.
+    """
 
-        def __init__(self, path: str):
-            self._path = path
-            self.lines: list[tuple[str, str]] = []
-            self.exited = False
-            self.finished = threading.Event()       # set when a bg_run ends
-            super().__init__(ngspice_id=0, send_data=False, verbose=False)
+    def __init__(self, ffi, path: str, talking: bool = True):
+        self.lines: list[tuple[str, str]] = []      # what the last command printed: (stream, text)
+        self.exited = False                         # ngspice asked to exit: its state is unusable
+        self.finished = threading.Event()           # set when a background run ends
+        self.lib = ffi.dlopen(path)
+        null = ffi.NULL
+        exit_ = ffi.callback("int(int, bool, bool, int, void *)", self._exit)
+        printed = ffi.callback("int(char *, int, void *)", self._printed) if talking else null
+        ended = ffi.callback("int(bool, int, void *)", self._background) if talking else null
+        self._callbacks = (exit_, printed, ended)       # alive as long as the library may call them
+        self._ffi = ffi
+        if self.lib.ngSpice_Init(printed, null, exit_, null, null, ended, null):
+            raise SpiceError(f"cannot initialise the ngspice shared library {path}")
 
-        @property
-        def library_path(self):
-            return self._path
+    def _printed(self, message, ident, user) -> int:
+        stream, _, text = self._ffi.string(message).decode("utf-8", "replace").partition(" ")
+        self.lines.append((stream, text.strip()))
+        return 0
 
-        def _load_library(self, verbose):
-            self._ngspice_shared = declared_ffi().dlopen(self._path)
+    def _background(self, ended, ident, user) -> int:
+        if ended:           # ngspice passes true when its background thread has ended
+            self.finished.set()
+        return 0
 
-        def send_char(self, message, ngspice_id):
-            stream, _, text = message.partition(" ")
-            self.lines.append((stream, text.strip()))
-            return 0
-
-        @staticmethod
-        def _background_thread_running(exited, ngspice_id, user_data):
-            # ngspice passes True when its background thread ends (PySpice's own returns
-            # None, which cffi reports on stderr at every bg_run)
-            if exited:
-                Shared.ffi.from_handle(user_data).finished.set()
-            return 0
-
-        @staticmethod
-        def _exit(exit_status, immediate_unloading, quit_exit, ngspice_id, user_data):
-            self = Shared.ffi.from_handle(user_data)
-            self.exited = True
-            return exit_status
-
-    return _Shared, Shared.ffi
+    def _exit(self, status, immediate, quit_, ident, user) -> int:
+        self.exited = True
+        return status
 
 
 def _short_calls(path: str) -> ctypes.PyDLL:
@@ -127,6 +125,15 @@ def _short_calls(path: str) -> ctypes.PyDLL:
     lib.ngSpice_CurPlot.argtypes, lib.ngSpice_CurPlot.restype = [], ctypes.c_char_p
     lib.ngSpice_Command.argtypes, lib.ngSpice_Command.restype = [ctypes.c_char_p], ctypes.c_int
     return lib
+
+
+def _strings(ffi, array) -> list[str]:
+    """The strings of a NULL-ended ``char **``."""
+    out, k = [], 0
+    while array[k] != ffi.NULL:
+        out.append(ffi.string(array[k]).decode("utf-8", "replace"))
+        k += 1
+    return out
 
 
 class _VectorInfo(ctypes.Structure):
@@ -230,7 +237,7 @@ class NgspiceSession:
     """One loaded ngspice library: load a netlist, run it, read vectors, free the circuit.
 
     Each :meth:`run` ends with ``destroy all``, ``remcirc`` and a cleared command
-    memory, and PySpice's line buffers are emptied, so that memory stays flat over
+    memory, and what ngspice printed is dropped, so that memory stays flat over
     thousands of runs (:func:`analogy.memory.memory_per_run` measures it). If ngspice
     asks to exit or fails its canary after an error, the library is loaded afresh from
     a private copy, since ngspice keeps global state that a fatal error can leave broken.
@@ -255,14 +262,18 @@ class NgspiceSession:
             self.origin = os.path.abspath(found) if found else None
 
     def _open(self, path: str):
-        cls, self._ffi = _shared_class()
+        self._ffi = declared_ffi()
         try:
-            self._ng = cls(path)
+            self._ng = _Library(self._ffi, path, talking=self.prints)
         except OSError as exc:
             raise SpiceError(f"cannot load the ngspice shared library {path}: {exc}") from None
-        self._lib = self._ng._ngspice_shared
+        self._lib = self._ng.lib
         self._short = _short_calls(path)
         self._command("set nomoremode")
+        self._version = None
+        if self.prints:
+            found = re.search(r"ngspice-(\d+)", " ".join(t for _, t in self._command("version -s")))
+            self._version = int(found.group(1)) if found else None
 
     def _reload(self):
         # A fresh copy has its own global state; dlopen of the same path would share it.
@@ -291,7 +302,8 @@ class NgspiceSession:
 
     @property
     def version(self) -> int | None:
-        return self._ng.ngspice_version
+        """ngspice's major version, as the library says (None where it prints nothing)."""
+        return self._version
 
     def _command(self, cmd: str, release: bool = False) -> list[tuple[str, str]]:
         """Run *cmd* and return what ngspice printed; with *release*, other threads run meanwhile
@@ -315,7 +327,7 @@ class NgspiceSession:
         (a batch reads hundreds; the library is held meanwhile)."""
         ffi, lib = self._ffi, self._short
         listed = lib.ngSpice_AllVecs(plot.encode())
-        names = self._ng._convert_string_array(ffi.cast("char **", listed)) if listed else []
+        names = _strings(ffi, ffi.cast("char **", listed)) if listed else []
         found = []
         for name in names:
             address = lib.ngGet_Vec_Info(f"{plot}.{name}".encode())
@@ -347,10 +359,7 @@ class NgspiceSession:
         self._command("remcirc")
         # ngspice keeps every command it has parsed (about 0.2 kB each) until it is sent NULL.
         self._short.ngSpice_Command(None)
-        # PySpice keeps every line ngspice prints; what a run said is read by then.
-        for kept in (getattr(self._ng, "_stdout", None), getattr(self._ng, "_stderr", None)):
-            if isinstance(kept, list):
-                kept.clear()
+        self._ng.lines = []         # what a run said is read by then
 
     def _healthy(self) -> bool:
         try:

@@ -11,24 +11,12 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SpiceError
-from .ngspice import NgspiceSession, _shared_class, _short_calls, declared_ffi, session
+from .ngspice import NgspiceSession, session
 
 __all__ = ["QuietSession", "quiet_session", "run_quietly"]
 
 #: Guards the process's one quiet session (a copy initialises under ngspice's own loading lock).
 _LOCK = threading.Lock()
-
-
-class _Silent:
-    """What a session reads of PySpice's library object, for a library loaded with no print callback."""
-
-    ngspice_version = None
-
-    def __init__(self, convert_string_array) -> None:
-        self.lines: list = []           # stays empty: nothing is printed
-        self.exited = False
-        self.finished = threading.Event()
-        self._convert_string_array = convert_string_array     # PySpice's own reading of a char**
 
 
 class QuietSession(NgspiceSession):
@@ -61,29 +49,15 @@ class QuietSession(NgspiceSession):
         super().__init__(talking.origin or talking._source, private=True)
 
     def _open(self, path: str):
-        ffi = declared_ffi()
-        lib = ffi.dlopen(path)
-        silent = _Silent(_shared_class()[0]._convert_string_array)
-
-        def exit_requested(status, immediate, quit_, ident, user):
-            silent.exited = True
-            return status
-        silent.on_exit = ffi.callback("int(int, bool, bool, int, void*)", exit_requested)    # kept alive
-        null = ffi.NULL
         before = os.environ.get("SPICE_SCRIPTS")
         os.environ["SPICE_SCRIPTS"] = os.devnull        # no spinit (``/dev/null/spinit`` cannot exist), so no code models
         try:
-            failed = lib.ngSpice_Init(null, null, silent.on_exit, null, null, null, null)
+            super()._open(path)
         finally:
             if before is None:
                 del os.environ["SPICE_SCRIPTS"]
             else:
                 os.environ["SPICE_SCRIPTS"] = before
-        if failed:
-            raise SpiceError(f"cannot initialise the ngspice shared library {path}")
-        self._ffi, self._lib, self._ng = ffi, lib, silent
-        self._short = _short_calls(path)
-        self._command("set nomoremode")
 
     def run(self, netlist: str, vectors=None, stats: dict | None = None, analysis: str = "tran",
             timeout: float | None = None, until: float | None = None) -> dict[str, np.ndarray]:
