@@ -16,7 +16,7 @@ from .solvers.transient import netlist
 from .errors import AnalogyError
 from .presets import PRESETS, Preset, tolerance_preset
 from .progress import Progress
-from .results.metrics import output_errors, relative_error
+from .results.metrics import output_errors
 from .results.output import write_rows
 from .scenes.builtin import scene
 from .scenes.scene import Scene
@@ -302,6 +302,83 @@ def _median_time(fn, repeats: int):
     return statistics.median(times), result, runs
 
 
+def _jobs(scenes, full: bool, quick: bool) -> list[tuple]:
+    """(kind, scene, system, setting) for every solver setting on every scene."""
+    jobs = []
+    for sc in scenes:
+        system = sc.system()
+        linear = system.kind == "linear"
+        jobs += [("spice", sc, system, g) for g in (spice_grid(full, quick) if linear else nonlinear_spice_grid())]
+        if linear:      # the same physics with one node per mode: n grounded capacitors for n(n-1)/2 floating ones
+            modal = sc.replace(topology="modal").system()
+            jobs += [("spice", sc, modal, (f"modal {g[0]}",) + tuple(g[1:])) for g in spice_grid(full, quick)]
+        jobs += [("ode", sc, system, g) for g in ode_grid(quick)]
+        jobs.append(("exact" if linear else "reference", sc, system, None))
+    return jobs
+
+
+def _timed(kind: str, system, g, repeats: int) -> tuple:
+    """One setting run *repeats* times, only the solver call timed: (label, tolerance, median seconds,
+    time points, joint rates, timed runs)."""
+    from .solvers.ode import solve_ode
+
+    if kind == "spice":
+        label, opts, ms, tol = g
+        if isinstance(opts, Preset):         # a tolerance: the whole preset, its work guarded first
+            check_work(system, opts, spice=True)
+            text = netlist(system, opts, printing=False)
+        else:
+            text = netlist(system, Preset("bench", opts, steps=ms // 2, max_steps=ms, behavioural_options=opts,
+                                          behavioural_max_steps=ms), printing=False)
+        sess = session()
+
+        def run():
+            t0 = _time.perf_counter()
+            data = sess.run(text, system.nodes)
+            return data, _time.perf_counter() - t0
+
+        med, data, runs = _median_time(run, repeats)
+        rates = system.joint_rates(np.column_stack([data[k] for k in system.nodes]))
+        return label, tol, med, data["time"], rates, runs
+    t = np.linspace(0.0, system.t_stop, 201)
+    if kind == "ode":
+        method, tol = g
+        label = f"{method} rtol={tol:g}"
+    elif kind == "exact":
+        label, tol = "modal", 0.0
+    else:
+        method, tol = "DOP853", NONLINEAR_RTOL
+        label = f"DOP853 rtol={NONLINEAR_RTOL:g}"
+
+    def run():
+        tr = solve_exact(system, t) if kind == "exact" else solve_ode(system, t, method, tol)
+        return tr, tr.run_time
+
+    med, tr, runs = _median_time(run, repeats)
+    return label, tol, med, t, tr.rates, runs
+
+
+def _error(kind: str, system, t: np.ndarray, rates: np.ndarray) -> float:
+    """The worst output's error over its own peak, against the exact solution (linear), a tight
+    reference (nonlinear), a four times tighter one (the reference itself) or, for the exact
+    solver, 40-digit mpmath at five points (NaN past 10 DOF, where it has no independent reference)."""
+    from .solvers.ode import solve_ode
+
+    if kind == "exact":
+        if system.dof > 10:
+            return float("nan")
+        probe = np.linspace(0.0, system.t_stop, 5)
+        return float(np.max(output_errors(solve_exact(system, probe).voltages,
+                                          solve_reference(system, probe).voltages)[1]))
+    if kind == "reference":
+        ref = solve_ode(system, t, "DOP853", NONLINEAR_RTOL / 4).rates
+    elif system.kind == "linear":
+        ref = solve_exact(system, t).rates
+    else:
+        ref = solve_ode(system, t, "DOP853", NONLINEAR_RTOL).rates
+    return float(np.max(output_errors(rates, ref)[1]))
+
+
 def bench(repeats: int = 5, full: bool = False, scenes=None, progress: bool = True,
           quick: bool = False) -> BenchResult:
     """Time every solver setting on every scene and measure its error against the exact solution.
@@ -323,97 +400,19 @@ def bench(repeats: int = 5, full: bool = False, scenes=None, progress: bool = Tr
     quick : bool
         A small grid on the 2- and 10-DOF scenes, for a first look in seconds.
     """
-    from .solvers.ode import solve_ode
-
     start = _time.perf_counter()
     result = BenchResult(repeats=repeats)
-    scenes = bench_scenes(quick) if scenes is None else scenes
-    jobs = []
-    for sc in scenes:
-        system = sc.system()
-        linear = system.kind == "linear"
-        jobs += [("spice", sc, system, g) for g in (spice_grid(full, quick) if linear else nonlinear_spice_grid())]
-        if linear:      # the same physics with one node per mode: n grounded capacitors for n(n-1)/2 floating ones
-            modal = sc.replace(topology="modal").system()
-            jobs += [("spice", sc, modal, (f"modal {g[0]}",) + tuple(g[1:])) for g in spice_grid(full, quick)]
-        jobs += [("ode", sc, system, g) for g in ode_grid(quick)]
-        jobs.append(("exact" if linear else "reference", sc, system, None))
+    jobs = _jobs(bench_scenes(quick) if scenes is None else scenes, full, quick)
     bar = Progress(len(jobs), unit="setting", enabled=progress)
-    sess = session()
     for kind, sc, system, g in jobs:
-        n = system.dof
-        linear = system.kind == "linear"
         try:
-            if kind == "spice":
-                label, opts, ms, tol = g
-                if isinstance(opts, Preset):         # a tolerance: the whole preset, its work guarded first
-                    check_work(system, opts, spice=True)
-                    text = netlist(system, opts, printing=False)
-                else:
-                    text = netlist(system, Preset("bench", opts, steps=ms // 2, max_steps=ms, behavioural_options=opts,
-                                                  behavioural_max_steps=ms), printing=False)
-
-                def run():
-                    t0 = _time.perf_counter()
-                    data = sess.run(text, system.nodes)
-                    return data, _time.perf_counter() - t0
-
-                med, data, runs = _median_time(run, repeats)
-                t = data["time"]
-                v = np.column_stack([data[k] for k in system.nodes])
-                rates = system.joint_rates(v)
-            elif kind == "ode":
-                method, tol = g
-                label = f"{method} rtol={tol:g}"
-                t = np.linspace(0.0, system.t_stop, 201)
-
-                def run():
-                    tr = solve_ode(system, t, method, tol)
-                    return tr, tr.run_time
-
-                med, tr, runs = _median_time(run, repeats)
-                rates = tr.rates
-            elif kind == "exact":
-                label, tol = "modal", 0.0
-                t = np.linspace(0.0, system.t_stop, 201)
-
-                def run():
-                    tr = solve_exact(system, t)
-                    return tr, tr.run_time
-
-                med, tr, runs = _median_time(run, repeats)
-                rates = tr.rates
-            else:
-                label, tol = f"DOP853 rtol={NONLINEAR_RTOL:g}", NONLINEAR_RTOL
-                t = np.linspace(0.0, system.t_stop, 201)
-
-                def run():
-                    tr = solve_ode(system, t, "DOP853", NONLINEAR_RTOL)
-                    return tr, tr.run_time
-
-                med, tr, runs = _median_time(run, repeats)
-                rates = tr.rates
-            if kind == "reference":     # its own error: against a four times tighter run
-                ref = solve_ode(system, t, "DOP853", NONLINEAR_RTOL / 4).rates
-            elif linear:
-                ref = solve_exact(system, t).rates
-            else:
-                ref = solve_ode(system, t, "DOP853", NONLINEAR_RTOL).rates
-            err = float(np.max(output_errors(rates, ref)[1]))      # the one metric: each output against its own peak
-            if kind == "exact":
-                probe = np.linspace(0.0, system.t_stop, 5)
-                # The exact solver's own error is measured against 40-digit mpmath where
-                # that is affordable; above 10 DOF it has no independent reference here.
-                err = float("nan")
-                if n <= 10:
-                    mp = solve_reference(system, probe).voltages
-                    ex = solve_exact(system, probe).voltages
-                    err = relative_error(ex, mp)
-            result.rows.append(BenchRow(sc.name, n, kind, label, tol, med, err, len(t), runs=runs))
+            label, tol, med, t, rates, runs = _timed(kind, system, g, repeats)
+            result.rows.append(BenchRow(sc.name, system.dof, kind, label, tol, med, _error(kind, system, t, rates),
+                                        len(t), runs=runs))
         except (AnalogyError, ArithmeticError, ValueError) as exc:
             label = g[0] if kind == "spice" else (f"{g[0]} rtol={g[1]:g}" if kind == "ode" else kind)
             tol = g[3] if kind == "spice" else (g[1] if kind == "ode" else 0.0)
-            result.rows.append(BenchRow(sc.name, n, kind, label, tol, float("nan"), float("nan"), 0,
+            result.rows.append(BenchRow(sc.name, system.dof, kind, label, tol, float("nan"), float("nan"), 0,
                                         f"failed: {str(exc).splitlines()[0][:120]}"))
         bar.update(1)
     bar.close()

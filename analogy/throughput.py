@@ -6,6 +6,7 @@ import logging
 import os
 import statistics
 import time as _time
+from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
@@ -133,6 +134,119 @@ def _floor_together(items, preset_name: str, group_size: int, workers: int, lead
 MAX_SCENES = 1_000_000
 
 
+@dataclass
+class _Turns:
+    """What the turns of every path measured: scenes per second, CPU seconds, worst errors."""
+
+    processes: int
+    rates: dict = field(default_factory=lambda: {k: [] for k in ("batched", "one", "solo", "pyspice", "floor",
+                                                                  "floors")})
+    cpus: dict = field(default_factory=lambda: {"one": [], "floor": []})
+    worst: dict = field(default_factory=lambda: dict.fromkeys(("batched", "one", "solo", "pyspice", "floor",
+                                                              "floors"), 0.0))
+    solves: list = field(default_factory=list)
+    failed: int = 0
+    late: int = 0
+
+
+def _take_turns(turns: _Turns, n: int, preset: str, group_size: int, workers: int, baseline_n: int, seed: int,
+                repeats: int, progress: bool) -> None:
+    """Every path, *repeats* times in turn, into *turns*."""
+    base = scene("default")
+    q2 = np.random.default_rng(seed).uniform(-np.pi, np.pi, n)
+    items = [base.replace(q=(0.0, float(x))) for x in q2]
+    rates, cpus, worst = turns.rates, turns.cpus, turns.worst
+    bar = Progress((5 + (workers > 1)) * repeats, unit="path run", enabled=progress, every=0.0)
+
+    def batch(key: str, pool: int) -> None:
+        cpu = _time.process_time()
+        res = run_batch(items, preset, group_size=group_size, workers=pool)
+        if key == "one":            # this process's CPU, its threads and ngspice's included
+            cpus["one"].append(_time.process_time() - cpu)
+        rates[key].append(res.throughput)
+        # a run with no finite error (all failed) makes the worst error NaN, not hidden
+        ok = res.errors[np.isfinite(res.errors)]
+        worst[key] = max(worst[key], float(ok.max())) if ok.size else float("nan")
+        turns.failed += len(res.failures)
+        bar.update(1)
+
+    # a warm-up group here, as the floor and the loops have theirs: the library loaded and the
+    # model compiled in this process (about 60 ms, an eighth of a run of 5,000 scenes) are not timed
+    run_batch(items[:group_size], preset, group_size=group_size, workers=1)
+    for _ in range(repeats):
+        with worker_pool(1, fresh=True) as ex:
+            sec, err, med = ex.submit(_solo_loop, (items[:baseline_n], preset)).result()
+        rates["solo"].append(baseline_n / sec)
+        worst["solo"] = max(worst["solo"], err)
+        turns.solves.append(med)
+        bar.update(1)
+        with worker_pool(1, fresh=True) as ex:
+            sec, err = ex.submit(_pyspice_loop, (items[:baseline_n], preset)).result()
+        rates["pyspice"].append(baseline_n / sec)
+        worst["pyspice"] = max(worst["pyspice"], err)
+        bar.update(1)
+        # each share's two paths run one after the other, so that both meet the machine as it is then
+        asked = _time.time()
+        with worker_pool(1, fresh=True) as ex:
+            ready, start, end, cpu = ex.submit(_floor_loop, (items, preset, group_size, None)).result()
+        rates["floor"].append(n / (end - start))
+        cpus["floor"].append(cpu)
+        bar.update(1)
+        batch("one", 1)
+        if workers > 1:         # a fresh worker was ready after (ready - asked): twice that is lead enough
+            together = _floor_together(items, preset, group_size, workers, 2 * (ready - asked) + 0.5)
+            rates["floors"].append(together.rate)
+            turns.late += together.late
+            turns.processes = together.processes
+            bar.update(1)
+        batch("batched", workers)
+    bar.close()
+
+
+def _summary(turns: _Turns, n: int, preset: str, group_size: int, workers: int, baseline_n: int,
+             repeats: int) -> str:
+    """The figures of *turns*: medians, spreads, shares of the ngspice floor, speed-ups."""
+    rates, cpus, worst = turns.rates, turns.cpus, turns.worst
+    solves, failed, late, processes = turns.solves, turns.failed, turns.late, turns.processes
+    med = {k: statistics.median(v) for k, v in rates.items() if v}
+    ratio = statistics.median(b / p for b, p in zip(rates["batched"], rates["pyspice"]))
+    per_core = statistics.median(b / p for b, p in zip(rates["one"], rates["pyspice"]))
+    of_floor = statistics.median(b / f for b, f in zip(rates["one"], rates["floor"]))
+
+    def cpu_per(key):
+        return f"CPU {statistics.median(cpus[key]) / n * 1e6:.0f} ms per 1,000 scenes"
+
+    def spread(key):
+        return f"{med[key]:,.0f} scenes/s (runs {', '.join(f'{r:,.0f}' for r in rates[key])})"
+
+    lines = [
+        f"throughput: default 2-DOF serial arm, random q2 in [-pi, pi], preset {preset}, "
+        f"SPICE + comparison with the exact solution; medians of {repeats} turns",
+        f"  batched, {workers} workers, {group_size} scenes per ngspice run, {n} scenes: "
+        f"{spread('batched')}, worst error/peak {worst['batched']:.2e}",
+        f"  batched, 1 process ({PIPELINE} groups in flight on threads): {spread('one')}, "
+        f"{cpu_per('one')}, worst error/peak {worst['one']:.2e}",
+        f"  one ngspice run per scene (1 process, {baseline_n} scenes): {spread('solo')}, "
+        f"worst error/peak {worst['solo']:.2e}, median SPICE solve {statistics.median(solves) * 1e3:.3f} ms",
+        f"  plain PySpice loop (Circuit + simulator().transient(), 1 process, {baseline_n} scenes): "
+        f"{spread('pyspice')}, worst error/peak {worst['pyspice']:.2e}",
+        f"  ngspice alone on the same batch netlists (1 process, {n} scenes, loading and running only): "
+        f"{spread('floor')}, {cpu_per('floor')}",
+    ]
+    shares = f"batched on 1 process reaches {of_floor:.2f} of the ngspice floor"
+    if workers > 1:
+        gain = statistics.median(f / o for f, o in zip(rates["floors"], rates["floor"]))
+        lines.append(f"  ngspice alone on {processes} processes at once (the netlists dealt out in turn): "
+                     f"{spread('floors')}, {gain:.2f}x one process: what {processes} busy cores give here"
+                     + (f" ({late} of {repeats} turns had a process start late, its wait counted)" if late else ""))
+        shares += (f", batched on {workers} workers "
+                   f"{statistics.median(b / f for b, f in zip(rates['batched'], rates['floors'])):.2f} "
+                   f"of the floor on {processes} processes (the batched figure includes starting its workers)")
+    lines.append(f"  speed-up over the PySpice loop (median of per-turn ratios): batched {ratio:.1f}x, "
+                 f"batched on 1 process {per_core:.1f}x; {shares}; {failed} scenes failed")
+    return "\n".join(lines)
+
+
 def throughput(n: int = 10_000, preset: str = "fast", group_size: int = 100, workers: int = 2,
                baseline_n: int = 500, seed: int = 0, repeats: int = 3, progress: bool = True) -> str:
     """Scenes per second: batched (grouped runs on *workers* processes) against per-scene paths.
@@ -174,92 +288,6 @@ def throughput(n: int = 10_000, preset: str = "fast", group_size: int = 100, wor
     if n > MAX_SCENES or baseline_n > MAX_SCENES or repeats > 1000 or workers > 256:
         raise InputError(f"throughput runs at most {MAX_SCENES:,} scenes (-n, --baseline), 1000 repeats and "
                          "256 workers: each scene is held in memory; use analogy batch for more")
-    base = scene("default")
-    q2 = np.random.default_rng(seed).uniform(-np.pi, np.pi, n)
-    items = [base.replace(q=(0.0, float(x))) for x in q2]
-    rates: dict = {k: [] for k in ("batched", "one", "solo", "pyspice", "floor", "floors")}
-    cpus: dict = {"one": [], "floor": []}
-    worst: dict = {k: 0.0 for k in rates}
-    failed, solves, late, processes = 0, [], 0, workers
-    bar = Progress((5 + (workers > 1)) * repeats, unit="path run", enabled=progress, every=0.0)
-
-    def batch(key: str, pool: int) -> None:
-        nonlocal failed
-        cpu = _time.process_time()
-        res = run_batch(items, preset, group_size=group_size, workers=pool)
-        if key == "one":            # this process's CPU, its threads and ngspice's included
-            cpus["one"].append(_time.process_time() - cpu)
-        rates[key].append(res.throughput)
-        # a run with no finite error (all failed) makes the worst error NaN, not hidden
-        ok = res.errors[np.isfinite(res.errors)]
-        worst[key] = max(worst[key], float(ok.max())) if ok.size else float("nan")
-        failed += len(res.failures)
-        bar.update(1)
-
-    # a warm-up group here, as the floor and the loops have theirs: the library loaded and the
-    # model compiled in this process (about 60 ms, an eighth of a run of 5,000 scenes) are not timed
-    run_batch(items[:group_size], preset, group_size=group_size, workers=1)
-    for _ in range(repeats):
-        with worker_pool(1, fresh=True) as ex:
-            sec, err, med = ex.submit(_solo_loop, (items[:baseline_n], preset)).result()
-        rates["solo"].append(baseline_n / sec)
-        worst["solo"], solves = max(worst["solo"], err), solves + [med]
-        bar.update(1)
-        with worker_pool(1, fresh=True) as ex:
-            sec, err = ex.submit(_pyspice_loop, (items[:baseline_n], preset)).result()
-        rates["pyspice"].append(baseline_n / sec)
-        worst["pyspice"] = max(worst["pyspice"], err)
-        bar.update(1)
-        # each share's two paths run one after the other, so that both meet the machine as it is then
-        asked = _time.time()
-        with worker_pool(1, fresh=True) as ex:
-            ready, start, end, cpu = ex.submit(_floor_loop, (items, preset, group_size, None)).result()
-        rates["floor"].append(n / (end - start))
-        cpus["floor"].append(cpu)
-        bar.update(1)
-        batch("one", 1)
-        if workers > 1:         # a fresh worker was ready after (ready - asked): twice that is lead enough
-            together = _floor_together(items, preset, group_size, workers, 2 * (ready - asked) + 0.5)
-            rates["floors"].append(together.rate)
-            late += together.late
-            processes = together.processes
-            bar.update(1)
-        batch("batched", workers)
-    bar.close()
-    med = {k: statistics.median(v) for k, v in rates.items() if v}
-    ratio = statistics.median(b / p for b, p in zip(rates["batched"], rates["pyspice"]))
-    per_core = statistics.median(b / p for b, p in zip(rates["one"], rates["pyspice"]))
-    of_floor = statistics.median(b / f for b, f in zip(rates["one"], rates["floor"]))
-
-    def cpu_per(key):
-        return f"CPU {statistics.median(cpus[key]) / n * 1e6:.0f} ms per 1,000 scenes"
-
-    def spread(key):
-        return f"{med[key]:,.0f} scenes/s (runs {', '.join(f'{r:,.0f}' for r in rates[key])})"
-
-    lines = [
-        f"throughput: default 2-DOF serial arm, random q2 in [-pi, pi], preset {preset}, "
-        f"SPICE + comparison with the exact solution; medians of {repeats} turns",
-        f"  batched, {workers} workers, {group_size} scenes per ngspice run, {n} scenes: "
-        f"{spread('batched')}, worst error/peak {worst['batched']:.2e}",
-        f"  batched, 1 process ({PIPELINE} groups in flight on threads): {spread('one')}, "
-        f"{cpu_per('one')}, worst error/peak {worst['one']:.2e}",
-        f"  one ngspice run per scene (1 process, {baseline_n} scenes): {spread('solo')}, "
-        f"worst error/peak {worst['solo']:.2e}, median SPICE solve {statistics.median(solves) * 1e3:.3f} ms",
-        f"  plain PySpice loop (Circuit + simulator().transient(), 1 process, {baseline_n} scenes): "
-        f"{spread('pyspice')}, worst error/peak {worst['pyspice']:.2e}",
-        f"  ngspice alone on the same batch netlists (1 process, {n} scenes, loading and running only): "
-        f"{spread('floor')}, {cpu_per('floor')}",
-    ]
-    shares = f"batched on 1 process reaches {of_floor:.2f} of the ngspice floor"
-    if workers > 1:
-        gain = statistics.median(f / o for f, o in zip(rates["floors"], rates["floor"]))
-        lines.append(f"  ngspice alone on {processes} processes at once (the netlists dealt out in turn): "
-                     f"{spread('floors')}, {gain:.2f}x one process: what {processes} busy cores give here"
-                     + (f" ({late} of {repeats} turns had a process start late, its wait counted)" if late else ""))
-        shares += (f", batched on {workers} workers "
-                   f"{statistics.median(b / f for b, f in zip(rates['batched'], rates['floors'])):.2f} "
-                   f"of the floor on {processes} processes (the batched figure includes starting its workers)")
-    lines.append(f"  speed-up over the PySpice loop (median of per-turn ratios): batched {ratio:.1f}x, "
-                 f"batched on 1 process {per_core:.1f}x; {shares}; {failed} scenes failed")
-    return "\n".join(lines)
+    turns = _Turns(workers)
+    _take_turns(turns, n, preset, group_size, workers, baseline_n, seed, repeats, progress)
+    return _summary(turns, n, preset, group_size, workers, baseline_n, repeats)

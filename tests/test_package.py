@@ -135,7 +135,7 @@ def test_imports_inside_functions_only_defer_heavy_dependencies():
 
 @pytest.mark.parametrize("path", MODULES, ids=lambda p: module_name(p))
 def test_module_is_one_concept(path):
-    """A one-line docstring, an __all__, and no more than about 500 lines."""
+    """A one-line docstring, an __all__, no more than about 500 lines, and no function over 100."""
     tree = ast.parse(path.read_text())
     doc = ast.get_docstring(tree)
     assert doc and len(doc.splitlines()[0]) <= 120, "the module needs a one-line docstring"
@@ -143,6 +143,9 @@ def test_module_is_one_concept(path):
         assert any(isinstance(n, (ast.Assign, ast.AnnAssign)) and "__all__" in ast.unparse(n)
                    for n in tree.body), "the module needs __all__"
     assert len(path.read_text().splitlines()) <= 520
+    long = [f"{n.name} ({n.end_lineno - n.lineno + 1} lines)" for n in ast.walk(tree)
+            if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef)) and n.end_lineno - n.lineno >= 100]
+    assert not long, "functions over 100 lines, docstring included: " + ", ".join(long)
 
 
 def public_callables():

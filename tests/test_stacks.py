@@ -276,3 +276,41 @@ def test_nonlinear_and_equilibrium_scenes_form_no_stack():
     assert base.family() is not None
     assert base.replace(dynamics="nonlinear").family() is None
     assert base.replace(equilibrium=True).family() is None
+
+
+def test_the_batched_path_keeps_the_contract_of_solve(monkeypatch):
+    """Solver.solve_many checks each row as Solver.solve checks one run: a row that is not finite
+    fails alone, in solve's words, and numbers that break down for the stack as a whole send each
+    system alone, so that only the one that breaks down fails. A solver cannot bypass this."""
+    from analogy.presets import preset
+    from analogy.solvers import exact
+    from analogy.solvers.registry import Solver, run_many
+    solve = exact._solve
+    items = [scene("default").replace(q=(0.0, q), t_stop=2.0).system() for q in (0.1, 0.7, 1.3)]
+    t = np.linspace(0.0, 2.0, 41)
+
+    def culprit(systems):
+        return [s.provenance.configuration["q2"] == 0.7 for s in systems]
+
+    def poisoned(systems, times):           # a NaN the solver's own check would have missed
+        states = solve(systems, times)
+        for k in np.flatnonzero(culprit(systems)):      # one stack, or one array per part
+            states[k][times.size // 2:] = np.nan
+        return states
+
+    monkeypatch.setattr(exact, "_solve", poisoned)
+    rows = run_many("exact", items, t, preset("fast"))
+    assert [tr.success for tr in rows] == [True, False, True]
+    assert rows[1].message == "its result is not finite from t = 1 s on"
+
+    def breaking(systems, times):
+        if any(culprit(systems)):
+            raise np.linalg.LinAlgError("Eigenvalues did not converge")
+        return solve(systems, times)
+
+    monkeypatch.setattr(exact, "_solve", breaking)
+    rows = run_many("exact", items, t, preset("fast"))
+    assert [tr.success for tr in rows] == [True, False, True]
+    assert "numerics broke down: Eigenvalues did not converge" in rows[1].message
+    with pytest.raises(TypeError, match="implement _solve_many"):
+        type("Rogue", (Solver,), {"solve_many": lambda self, *a, **k: []})

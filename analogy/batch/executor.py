@@ -125,6 +125,117 @@ def _again(item: tuple, attempts: dict, retry: list, solo: list, died: Callable,
         died(item[1])
 
 
+class _Loop:
+    """One run of :func:`execute`: the pool, the groups in flight and their attempts."""
+
+    def __init__(self, groups: Iterable, payload: Callable, work: Callable, done: Callable, died: Callable,
+                 workers: int, executor: Executor | None, in_process: bool, stored: Callable[[], str]) -> None:
+        self.payload, self.work, self.done, self.died, self.stored = payload, work, done, died, stored
+        self.own = executor is None
+        self.local = self.own and (workers > 1 or not in_process)
+        self.threads = self.own and not self.local          # groups on threads of this process
+        self.workers = workers
+        self.pool = self._new_pool() if self.own else executor
+        self.limit = 4 * workers if self.local else PIPELINE if self.own else 64
+        self.pending = enumerate(groups)         # numbered: a retried group keeps its number
+        self.inflight: dict = {}
+        self.attempts: dict = {}
+        self.retry: list = []
+        self.solo: list = []
+        self.deaths = (BrokenProcessPool,) + _death_types()
+
+    def _new_pool(self):
+        if self.local:
+            return worker_pool(self.workers)
+        return ThreadPoolExecutor(PIPELINE, thread_name_prefix="analogy-group") if PIPELINE > 1 else InlineExecutor()
+
+    def _renew(self) -> None:
+        _end_pool(self.pool)
+        self.pool = self._new_pool()
+
+    def run(self) -> None:
+        """Submit, wait, hand over, until every group is done; a stop asked raises :class:`_Stop`."""
+        while True:
+            if stop_requests.asked():   # a stop whose exception was swallowed, here or before the loop
+                raise _Stop()
+            self._fill()
+            if not self.inflight:
+                return
+            self._collect()
+
+    def _fill(self) -> None:
+        """Submit groups until :attr:`limit` are in flight; a suspect runs with nothing beside it."""
+        while len(self.inflight) < self.limit:
+            if self.solo and self.inflight:
+                return
+            item = self.solo.pop() if self.solo else self.retry.pop() if self.retry else next(self.pending, None)
+            if item is None:
+                return
+            try:
+                future = self.pool.submit(self.work, self.payload(item[1]))
+            except BrokenProcessPool:
+                # a worker died since the last wait: the group never ran, so it waits for
+                # the new pool (made after the dead futures come back, or here)
+                if not self.local:
+                    raise
+                self.retry.append(item)
+                if not self.inflight:
+                    self._renew()
+                    continue
+                return
+            self.inflight[future] = item
+            if self.attempts.get(item[0], 0) >= ATTEMPTS:
+                return
+
+    def _collect(self) -> None:
+        """Wait for a group to finish (or a stop), and hand over what finished; a dead pool is renewed."""
+        alone = len(self.inflight) == 1 or not self.local     # an outside executor reports each task's own death
+        while True:                 # what finished is handed over, even when a stop was asked
+            finished, _ = wait(list(self.inflight), timeout=_POLL_SECONDS, return_when=FIRST_COMPLETED)
+            if finished or stop_requests.asked():
+                break
+        broken = False
+        for future in finished:
+            item = self.inflight.pop(future)
+            try:
+                result = future.result()
+            except CancelledError:
+                # only an outside executor cancels: a Dask scheduler that stopped, say
+                raise SimulationError("the executor cancelled the work (did the Dask scheduler stop?)"
+                                      + self.stored()) from None
+            except self.deaths as exc:
+                broken = broken or isinstance(exc, BrokenProcessPool)
+                _again(item, self.attempts, self.retry, self.solo, self.died, alone)
+                continue
+            self.done(item[1], result)
+        if broken and self.local:        # every other group in flight died with the pool
+            for item in self.inflight.values():
+                _again(item, self.attempts, self.retry, self.solo, self.died, alone)
+            self.inflight.clear()
+            self._renew()
+
+    def close(self) -> None:
+        """End the pool this loop made."""
+        if self.local:
+            _end_pool(self.pool)
+        elif self.own:
+            self.pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _on_sigterm() -> object:
+    """In the main thread, SIGTERM asks for a stop and raises :class:`_Stop` (once); the old handler."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    stopping: list = []
+
+    def _term(signum, frame):
+        if not stopping:            # once: a second SIGTERM must not break the clean-up
+            stopping.append(signum)
+            stop_requests.ask()
+            raise _Stop()
+    return signal.signal(signal.SIGTERM, _term)
+
+
 def execute(groups: Iterable, payload: Callable, work: Callable, done: Callable, died: Callable, *,
             workers: int = 2, executor: Executor | None = None, in_process: bool = False,
             stored: Callable[[], str] = lambda: "", pass_signals: bool = False) -> bool:
@@ -168,98 +279,24 @@ def execute(groups: Iterable, payload: Callable, work: Callable, done: Callable,
     bool
         True when SIGINT or SIGTERM stopped the loop before the end.
     """
-    own = executor is None
-    local = own and (workers > 1 or not in_process)
-
-    def new_pool():
-        if local:
-            return worker_pool(workers)
-        return ThreadPoolExecutor(PIPELINE, thread_name_prefix="analogy-group") if PIPELINE > 1 else InlineExecutor()
-    pool = new_pool() if own else executor
-    limit = 4 * workers if local else PIPELINE if own else 64
-    pending = enumerate(groups)         # numbered: a retried group keeps its number
-    inflight: dict = {}
-    attempts: dict = {}
-    retry: list = []
-    solo: list = []
-    deaths = (BrokenProcessPool,) + _death_types()
-    old_term = None
-    if threading.current_thread() is threading.main_thread():
-        stopping: list = []
-
-        def _term(signum, frame):
-            if not stopping:            # once: a second SIGTERM must not break the clean-up
-                stopping.append(signum)
-                stop_requests.ask()
-                raise _Stop()
-        old_term = signal.signal(signal.SIGTERM, _term)
+    loop = _Loop(groups, payload, work, done, died, workers, executor, in_process, stored)
+    old_term = _on_sigterm()
     switched = False
     try:
-        if own and not local and PIPELINE > 1:
+        if loop.threads and PIPELINE > 1:
             _short_switches(True)
             switched = True
-        while True:
-            if stop_requests.asked():   # a stop whose exception was swallowed, here or before the loop
-                raise _Stop()
-            while len(inflight) < limit:
-                if solo and inflight:
-                    break
-                item = solo.pop() if solo else retry.pop() if retry else next(pending, None)
-                if item is None:
-                    break
-                try:
-                    future = pool.submit(work, payload(item[1]))
-                except BrokenProcessPool:
-                    # a worker died since the last wait: the group never ran, so it waits for
-                    # the new pool (made below when the dead futures come back, or here)
-                    if not local:
-                        raise
-                    retry.append(item)
-                    if not inflight:
-                        _end_pool(pool)
-                        pool = new_pool()
-                        continue
-                    break
-                inflight[future] = item
-                if attempts.get(item[0], 0) >= ATTEMPTS:
-                    break               # a suspect runs with nothing beside it
-            if not inflight:
-                break
-            alone = len(inflight) == 1 or not local     # an outside executor reports each task's own death
-            while True:                 # what finished is handed over, even when a stop was asked
-                finished, _ = wait(list(inflight), timeout=_POLL_SECONDS, return_when=FIRST_COMPLETED)
-                if finished or stop_requests.asked():
-                    break
-            broken = False
-            for future in finished:
-                item = inflight.pop(future)
-                try:
-                    result = future.result()
-                except CancelledError:
-                    # only an outside executor cancels: a Dask scheduler that stopped, say
-                    raise SimulationError("the executor cancelled the work (did the Dask scheduler stop?)"
-                                          + stored()) from None
-                except deaths as exc:
-                    broken = broken or isinstance(exc, BrokenProcessPool)
-                    _again(item, attempts, retry, solo, died, alone)
-                    continue
-                done(item[1], result)
-            if broken and local:        # every other group in flight died with the pool
-                for item in inflight.values():
-                    _again(item, attempts, retry, solo, died, alone)
-                inflight.clear()
-                _end_pool(pool)
-                pool = new_pool()
+        loop.run()
     except KeyboardInterrupt:
         stopped = signal.SIGINT
-        _end_threads(pool, inflight, done, own and not local)
+        _end_threads(loop.pool, loop.inflight, done, loop.threads)
     except _Stop:
         stopped = signal.SIGTERM
-        _end_threads(pool, inflight, done, own and not local)
+        _end_threads(loop.pool, loop.inflight, done, loop.threads)
         stop_requests.clear()           # acted on: the caller hears of it below, or from the return
     except Exception as exc:
         # a group's own failure is its work's to report: what reaches here is the outside executor's
-        if own or isinstance(exc, AnalogyError):
+        if loop.own or isinstance(exc, AnalogyError):
             raise
         detail = " ".join(str(exc).split())[:160] or type(exc).__name__
         raise SimulationError(f"the executor failed ({type(exc).__name__}: {detail}; did the Dask scheduler "
@@ -271,10 +308,7 @@ def execute(groups: Iterable, payload: Callable, work: Callable, done: Callable,
             _short_switches(False)
         if old_term is not None:
             signal.signal(signal.SIGTERM, old_term)
-        if local:
-            _end_pool(pool)
-        elif own:
-            pool.shutdown(wait=True, cancel_futures=True)
+        loop.close()
     if pass_signals:
         if stopped == signal.SIGINT:
             raise KeyboardInterrupt

@@ -92,29 +92,12 @@ def _constants(tree):
     return out
 
 
-def tree_lagrangian(tree, q0, inverse: np.ndarray, x: list, v: list) -> tuple:
-    """(M'(x), h(x, v), shared) of a rigid tree in node coordinates q = q0 + T⁻¹x, r = T⁻¹v.
-
-    Parameters
-    ----------
-    tree : RigidTree
-        The bodies, joints and gravity.
-    q0 : array_like
-        The configuration at x = 0.
-    inverse : ndarray
-        T⁻¹.
-    x, v : list of sympy Symbol
-        Node positions and rates.
-    """
-    n = tree.dof
-    prog = _Program()
-    tinv = [_clean(row, 0.0) for row in np.asarray(inverse)]
-    q = [sp.Float(float(q0[j])) + _dot(tinv[j], x) for j in range(n)]
-    r = [_dot(tinv[j], v) for j in range(n)]
+def _frames(tree, prog: _Program, consts: list, q: list, r: list) -> tuple[list, list, list, list, list]:
+    """Each body's rotation and origin in the base, its angular and linear velocity, and its joint's
+    motion subspace (angular, linear), root to leaves, as shared subexpressions of *prog*."""
     zero3 = [sp.S.Zero] * 3
     rot, pos, omega, u, subspace = [], [], [], [], []
-    consts = _constants(tree)
-    for k in range(n):
+    for k in range(tree.dof):
         e, offset, _, _, _ = consts[k]
         parent = tree.parents[k]
         if parent < 0:
@@ -140,6 +123,30 @@ def tree_lagrangian(tree, q0, inverse: np.ndarray, x: list, v: list) -> tuple:
         subspace.append(s6)
         omega.append(prog.vector([a + b * r[k] for a, b in zip(w_parent, s6[0])]))
         u.append(prog.vector([a + b * r[k] for a, b in zip(u_parent, s6[1])]))
+    return rot, pos, omega, u, subspace
+
+
+def tree_lagrangian(tree, q0, inverse: np.ndarray, x: list, v: list) -> tuple:
+    """(M'(x), h(x, v), shared) of a rigid tree in node coordinates q = q0 + T⁻¹x, r = T⁻¹v.
+
+    Parameters
+    ----------
+    tree : RigidTree
+        The bodies, joints and gravity.
+    q0 : array_like
+        The configuration at x = 0.
+    inverse : ndarray
+        T⁻¹.
+    x, v : list of sympy Symbol
+        Node positions and rates.
+    """
+    n = tree.dof
+    prog = _Program()
+    tinv = [_clean(row, 0.0) for row in np.asarray(inverse)]
+    q = [sp.Float(float(q0[j])) + _dot(tinv[j], x) for j in range(n)]
+    r = [_dot(tinv[j], v) for j in range(n)]
+    consts = _constants(tree)
+    rot, pos, omega, u, subspace = _frames(tree, prog, consts, q, r)
 
     # bodies: centre of mass, inertia and momentum in the base frame
     com, inertia, momentum = [], [], []

@@ -22,12 +22,8 @@ class _Parser(argparse.ArgumentParser):
         raise InputError(f"{message} (see {self.prog} --help)")
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The ``analogy`` argument parser, with one subcommand per task."""
-    parser = _Parser(prog="analogy",
-                     description="Robot dynamics as electric circuits: netlists, SPICE and checks.")
-    parser.add_argument("--version", action="version", version=f"analogy {__version__}")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+def _netlist(sub) -> None:
+    """``analogy netlist``: the equivalent circuit's netlist."""
     p = sub.add_parser("netlist", help="write the equivalent-circuit SPICE netlist")
     scene_options(p)
     p.add_argument("-o", "--output", help="file to write (default: stdout)")
@@ -40,6 +36,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--dynamics", default="linear", choices=["linear", "nonlinear"],
                    help="the circuit at q (linear), or the robot's full nonlinear circuit: "
                         "charge-defined capacitors, behavioural forces and integrators")
+
+
+def _compare(sub) -> None:
+    """``analogy compare``: solvers run and compared on one scene."""
     p = sub.add_parser("compare", help="run SPICE, ODE and exact solvers and compare them")
     scene_options(p)
     p.add_argument("--solvers", default="spice,ode,exact",
@@ -70,11 +70,19 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--csv-all", action="store_true", help="write every time point to the CSV, however many")
     p.add_argument("--plot", metavar="FILE.png", help="write a plot of rates and errors")
     p.add_argument("--no-plot", action="store_true", help="never import the plotting library")
+
+
+def _modes(sub) -> None:
+    """``analogy modes``: natural frequencies and damping ratios."""
     p = sub.add_parser("modes", help="natural frequencies and damping ratios of the linear system at q")
     scene_options(p)
     p.add_argument("--locked", metavar="JOINTS", help="joints held clamped, e.g. '1' or '1,2'")
     p.add_argument("--csv", metavar="FILE", help="write mode, omega_rad_s, f_hz, damping_ratio, kind "
                    "(oscillating, rigid body or unstable)")
+
+
+def _ac(sub) -> None:
+    """``analogy ac``: the AC sweep against the exact mobility."""
     p = sub.add_parser("ac", help="ngspice's .ac sweep against the exact mobility (M's + B' + K'/s)^-1")
     scene_options(p)
     for flag, what in (("--f-start", "first frequency (default: modes / 10)"), ("--f-stop", "last (modes x 10)")):
@@ -82,11 +90,19 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--points", type=int, default=500, help="points per decade (default 500)")
     for flag, what in (("--csv", "|Y| and phase of SPICE's mobilities"), ("--plot", "a Bode plot")):
         p.add_argument(flag, metavar="FILE", help=f"write {what}")
+
+
+def _verify(sub) -> None:
+    """``analogy verify`` and ``analogy scenes``: every built-in example checked, and the list of scenes."""
     p = sub.add_parser("verify", help="check every built-in example: SPICE and ODE against exact, "
                                       "exact against a 40-digit mpmath solution")
     preset_option(p)
     p.add_argument("--scenes", default=None, help="comma-separated scene names (default: all)")
     sub.add_parser("scenes", help="list the built-in scenes")
+
+
+def _draw(sub) -> None:
+    """``analogy draw``: drawings of the circuit and the mechanism."""
     p = sub.add_parser("draw", help="draw the equivalent circuit and the mechanical system (SVG and PNG)")
     scene_options(p)
     p.add_argument("-o", "--output-dir", default=".", help="folder for the drawings (default: .)")
@@ -94,6 +110,10 @@ def build_parser() -> argparse.ArgumentParser:
                                   "key when changed from a built-in scene)")
     p.add_argument("--schematic", action="store_true", help="draw schematics even past 6 nodes "
                    "(default there: a map of the element values by node pair)")
+
+
+def _animate(sub) -> None:
+    """``analogy animate``: the mechanism moving beside its circuit."""
     p = sub.add_parser("animate", help="the mechanism moving beside its node voltages (and, nonlinear, its "
                                        "MP capacitances): GIF, MP4 or an HTML page")
     scene_options(p)
@@ -107,6 +127,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--frames", type=int, default=60, help="frames, evenly spread over the run (default 60)")
     p.add_argument("--fps", type=float, default=15.0, help="frames per second (default 15)")
     p.add_argument("--sheet", metavar="FILE.png", help="also write a contact sheet of three frames")
+
+
+def _report(sub) -> None:
+    """``analogy report``: one scene on one HTML page."""
     p = sub.add_parser("report", help="one scene's run on one self-contained HTML page: verdict, table, "
                                       "circuit, plots, motion, netlist and provenance")
     p.add_argument("scene_file", nargs="?", metavar="SCENE.toml",
@@ -118,6 +142,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--solvers", help="comma-separated solvers (default spice,ode,exact)")
     p.add_argument("--frames", type=int, default=48, help="frames of the animation (default 48)")
     p.add_argument("--no-animation", action="store_true", help="leave the animation out (a smaller page)")
+
+
+def _run(sub) -> None:
+    """``analogy run``: scene files run."""
     p = sub.add_parser("run", help="run scene files (TOML): exactly what each asks for")
     p.add_argument("scene_files", nargs="+", metavar="SCENE.toml", help="one or more .toml scenes")
     preset_option(p, None, "override each scene's accuracy preset (a name or a tolerance)")
@@ -125,7 +153,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--output-dir", help="folder for the scene's output files (default: next to it)")
     p.add_argument("--no-plot", action="store_true", help="skip plots even if the scene asks for one")
     p.add_argument("--dynamics", choices=["linear", "nonlinear"], help="override the scene's dynamics")
-    batch_options(sub)
+
+
+def _bench(sub) -> None:
+    """``analogy bench``: run time against error."""
     p = sub.add_parser("bench", help="run time against error: ngspice settings, ODE methods, exact solver")
     p.add_argument("--repeats", type=int, default=5, help="timed runs per setting (median; default 5)")
     p.add_argument("--quick", action="store_true", help="a small grid on the 2- and 10-DOF scenes "
@@ -138,6 +169,10 @@ def build_parser() -> argparse.ArgumentParser:
                    "FILE (default: the package's own, which --tol and the presets read), the runs beside it")
     p.add_argument("--no-progress", action="store_true", help="no progress (a bar on a terminal, "
                    "plain lines otherwise)")
+
+
+def _stress(sub) -> None:
+    """``analogy stress``: families of hard cases."""
     p = sub.add_parser("stress", help="stress-test numerical stability: families of hard cases, each run by "
                                       "every solver that applies (CSV, a plot per family, a summary)")
     p.add_argument("--quick", action="store_true", help="only the ends of each sweep (under a minute)")
@@ -152,6 +187,10 @@ def build_parser() -> argparse.ArgumentParser:
                    "error (estimates.csv, estimates.md, estimates.png)")
     p.add_argument("--no-progress", action="store_true", help="no progress (a bar on a terminal, "
                    "plain lines otherwise)")
+
+
+def _check(sub) -> None:
+    """``analogy check``: a netlist's error estimated without a reference."""
     p = sub.add_parser("check", help="estimate the error of a netlist's saved vectors without a reference: "
                        "it runs as written and again with every step halved (Richardson)")
     p.add_argument("netlist", metavar="NETLIST", help="a transient netlist, e.g. one analogy netlist wrote")
@@ -159,12 +198,20 @@ def build_parser() -> argparse.ArgumentParser:
                   "(default accurate, 1e-6 of each vector's peak)")
     p.add_argument("--csv", metavar="FILE", help="write the saved vectors as they ran")
     p.add_argument("--plot", metavar="FILE.png", help="write a plot of the saved vectors and their estimates")
+
+
+def _memory(sub) -> None:
+    """``analogy memory``: resident memory per run."""
     p = sub.add_parser("memory", help="resident memory grown per in-process solver run (kB/run)")
     p.add_argument("--runs", type=int, default=10_000, help="counted runs (default 10000)")
     p.add_argument("--solver", default="spice", help="registered solver: spice, ode, exact or reference "
                    "(default spice)")
     preset_option(p)
     p.add_argument("--scene", default="default", help="built-in scene (default: default)")
+
+
+def _throughput(sub) -> None:
+    """``analogy throughput``: scenes per second."""
     p = sub.add_parser("throughput", help="scenes per second: batched ngspice runs against per-scene loops")
     p.add_argument("-n", type=int, default=10_000, help="number of 2-DOF scenes (default 10000)")
     p.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
@@ -176,4 +223,19 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--sweep", metavar="SWEEP.toml", help="instead: this sweep into the store -o DIR, "
                    "beside the in-memory batched path on its first --baseline scenes, with peak memory")
     p.add_argument("-o", "--output", metavar="DIR", help="the store of --sweep")
+
+
+#: Each adds its subcommand, in the order ``analogy --help`` lists them.
+_SUBCOMMANDS = (_netlist, _compare, _modes, _ac, _verify, _draw, _animate, _report, _run, batch_options,
+                _bench, _stress, _check, _memory, _throughput)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``analogy`` argument parser, with one subcommand per task."""
+    parser = _Parser(prog="analogy",
+                     description="Robot dynamics as electric circuits: netlists, SPICE and checks.")
+    parser.add_argument("--version", action="version", version=f"analogy {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    for add in _SUBCOMMANDS:
+        add(sub)
     return parser

@@ -198,23 +198,9 @@ def _urdf_defaults(spec: ModelSpec, label: str, params: dict, args) -> dict:
             "initial_rates": None, "topology": None, "robot_note": d.note}
 
 
-def scene_from_args(args) -> Scene:
-    """The scene the CLI options describe: a built-in scene with the options' changes.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        Parsed scene options (see :func:`build_parser`).
-    """
-    # A robot with a scene of its own starts from that scene (a configuration that assembles).
-    start = args.robot if args.robot in SCENES and args.scene == "default" else args.scene
-    sc = scene(start)
-    params = dict(_split_param(p) for p in args.param)
-    coords = {k: params.pop(k) for k in list(params) if k[0] == "q" and k[1:].isdigit()}
-    changes: dict = {"source": "command line"}
-    chosen = {k: getattr(args, k) for k in CONVENTIONS if getattr(args, k, None) is not None}
-    if "geometric_stiffness" in chosen:
-        chosen["geometric_stiffness"] = chosen["geometric_stiffness"] == "on"
+def _model_changes(args, sc: Scene, params: dict, chosen: dict, changes: dict) -> None:
+    """The robot the options describe, into *changes*: a mass matrix, a URDF, a named robot, or the
+    scene's own arm with other conventions or parameters; one sentence for options that do not go together."""
     if args.mass is not None:
         mass = _entries(args.mass, "--mass")
         if mass and not any(isinstance(r, list) for r in mass):
@@ -266,6 +252,10 @@ def scene_from_args(args) -> Scene:
             changes["parameters"] = dict(sc.parameters, **params)
         if sc.model.robot is not None and (chosen or any(k.startswith("modes") for k in params)):
             changes.update(_fitted(sc, scene_model(sc.replace(**changes))))
+
+
+def _motion_changes(args, sc: Scene, coords: dict, changes: dict) -> None:
+    """The configuration, topology, forces, initial rates, horizon and dynamics the options set, into *changes*."""
     if args.q is not None:
         changes["q"] = tuple(_option("--q", parse_vector, args.q, numeric=True, dimension=COORDINATE))
     if coords:
@@ -295,6 +285,27 @@ def scene_from_args(args) -> Scene:
         changes["equilibrium"] = True
     if getattr(args, "dynamics", None) in ("linear", "nonlinear"):      # "both" is the command's
         changes["dynamics"] = args.dynamics
+
+
+def scene_from_args(args) -> Scene:
+    """The scene the CLI options describe: a built-in scene with the options' changes.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed scene options (see :func:`build_parser`).
+    """
+    # A robot with a scene of its own starts from that scene (a configuration that assembles).
+    start = args.robot if args.robot in SCENES and args.scene == "default" else args.scene
+    sc = scene(start)
+    params = dict(_split_param(p) for p in args.param)
+    coords = {k: params.pop(k) for k in list(params) if k[0] == "q" and k[1:].isdigit()}
+    changes: dict = {"source": "command line"}
+    chosen = {k: getattr(args, k) for k in CONVENTIONS if getattr(args, k, None) is not None}
+    if "geometric_stiffness" in chosen:
+        chosen["geometric_stiffness"] = chosen["geometric_stiffness"] == "on"
+    _model_changes(args, sc, params, chosen, changes)
+    _motion_changes(args, sc, coords, changes)
     robot_note = changes.pop("robot_note", None)
     new = sc.replace(**changes)
     if robot_note is not None:      # a URDF robot: its own name, and how its defaults were chosen

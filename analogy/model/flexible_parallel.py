@@ -63,6 +63,42 @@ def _unit(angle) -> sp.Matrix:
     return sp.Matrix([sp.cos(angle), sp.sin(angle)])
 
 
+def _flexpar_values(parameters: dict) -> dict:
+    """:data:`FLEXPAR_DEFAULTS` with *parameters*, each a known name and a value the arm can have."""
+    values = dict(FLEXPAR_DEFAULTS)
+    for key, value in parameters.items():
+        if key not in values:
+            raise InputError(f"flexpar has no parameter {key!r} (it has: {', '.join(values)})")
+        values[key] = float(value)
+    for k in (1, 2):
+        m = values[f"modes{k}"]
+        if m != int(m) or not 0 <= m <= MAX_MODES:
+            raise InputError(f"modes{k} must be a whole number of modes from 0 to {MAX_MODES}, got {m:g}")
+    if min(values[k] for k in ("l1", "l2", "rhoA1", "rhoA2", "EI1", "EI2", "lc")) <= 0:
+        raise InputError("l1, l2, rhoA1, rhoA2, EI1, EI2 and lc must be positive")
+    if min(values[k] for k in ("Jh1", "Jh2", "mh2", "mp", "Jp", "mc", "md", "zeta1", "zeta2")) < 0:
+        raise InputError("masses, inertias and damping ratios cannot be negative")
+    return values
+
+
+def _elbow(kin, links: list, v: dict, link_modes: str, normalisation: str, axial: bool) -> tuple:
+    """The elbow B, link AB's deformed tip, with its mode shapes' tip values; and B moved inward by the
+    link's foreshortening where the geometric stiffness is on (the point the closing loop meets)."""
+    theta1 = kin.angles[0]
+    elbow = moved = kin.tips[0]
+    if links[0].modes:
+        tip = (v["mh2"], 0.0) if link_modes == "clamped-mass" else (0.0, 0.0)
+        modes = beam_modes(links[0].modes, v["l1"], v["rhoA1"], v["EI1"], *tip, normalisation=normalisation)
+        elbow = moved = elbow.subs(dict(zip(kin.tip_shapes[0], modes.shape([v["l1"]])[0].tolist())))
+        if axial:
+            xg, wg = gauss_points(96)
+            slope = modes.shape(xg * v["l1"], 1)
+            delta = sp.Matrix(kin.modal[0])
+            inward = (delta.T * sp.Matrix((v["l1"] * (slope.T * wg) @ slope).tolist()) * delta)[0] / 2
+            moved = elbow - inward * _unit(theta1)
+    return elbow, moved
+
+
 def flexible_parallel_arm(link_modes: LinkModes | None = None, normalisation: Normalisation = "link-mass",
                           geometric_stiffness: bool | None = None, joint_frame: str | None = None,
                           **parameters: float) -> ClosedChainModel:
@@ -88,19 +124,7 @@ def flexible_parallel_arm(link_modes: LinkModes | None = None, normalisation: No
         raise InputError("flexpar has no joint frame to choose: its parallelogram holds the forearm along "
                          "motor 2's angle whatever link AB's tip slope")
     axial = geometric_stiffness is None or bool(geometric_stiffness)
-    values = dict(FLEXPAR_DEFAULTS)
-    for key, value in parameters.items():
-        if key not in values:
-            raise InputError(f"flexpar has no parameter {key!r} (it has: {', '.join(values)})")
-        values[key] = float(value)
-    for k in (1, 2):
-        m = values[f"modes{k}"]
-        if m != int(m) or not 0 <= m <= MAX_MODES:
-            raise InputError(f"modes{k} must be a whole number of modes from 0 to {MAX_MODES}, got {m:g}")
-    if min(values[k] for k in ("l1", "l2", "rhoA1", "rhoA2", "EI1", "EI2", "lc")) <= 0:
-        raise InputError("l1, l2, rhoA1, rhoA2, EI1, EI2 and lc must be positive")
-    if min(values[k] for k in ("Jh1", "Jh2", "mh2", "mp", "Jp", "mc", "md", "zeta1", "zeta2")) < 0:
-        raise InputError("masses, inertias and damping ratios cannot be negative")
+    values = _flexpar_values(parameters)
     link_modes = link_modes_for("axis", link_modes)
     v = values
     links = [FlexibleLink(v["l1"], v["rhoA1"], v["EI1"], int(v["modes1"]), v["Jh1"], v["mh2"], 0.0, v["zeta1"]),
@@ -115,18 +139,7 @@ def flexible_parallel_arm(link_modes: LinkModes | None = None, normalisation: No
     tree = active + passive
     at = [tree.index(c) for c in kin.coordinates]
 
-    # the elbow B, link AB's deformed tip, with its mode shapes' tip values
-    elbow = moved = kin.tips[0]
-    if links[0].modes:
-        tip = (v["mh2"], 0.0) if link_modes == "clamped-mass" else (0.0, 0.0)
-        modes = beam_modes(links[0].modes, v["l1"], v["rhoA1"], v["EI1"], *tip, normalisation=normalisation)
-        elbow = moved = elbow.subs(dict(zip(kin.tip_shapes[0], modes.shape([v["l1"]])[0].tolist())))
-        if axial:
-            xg, wg = gauss_points(96)
-            slope = modes.shape(xg * v["l1"], 1)
-            delta = sp.Matrix(kin.modal[0])
-            inward = (delta.T * sp.Matrix((v["l1"] * (slope.T * wg) @ slope).tolist()) * delta)[0] / 2
-            moved = elbow - inward * _unit(theta1)
+    elbow, moved = _elbow(kin, links, v, link_modes, normalisation, axial)
     lc, l1 = v["lc"], v["l1"]
     crank_end = -lc * _unit(theta3)
     upper = theta1 + theta2

@@ -155,6 +155,45 @@ def _nonlinear(system, force):
     return rhs, jac, y0, True
 
 
+class _Outputs:
+    """Where states go at output points: the joint rates' node velocities, the positions, the work."""
+
+    __slots__ = ("out", "pos", "work", "vs", "n")
+
+    def __init__(self, out: np.ndarray, pos: np.ndarray | None, work: np.ndarray | None, vs: slice, n: int) -> None:
+        self.out, self.pos, self.work, self.vs, self.n = out, pos, work, vs, n
+
+    def __call__(self, at: np.ndarray, states: np.ndarray) -> None:
+        """States (one row per output point *at*) into the outputs."""
+        self.out[at] = states[:, self.vs]
+        if self.pos is not None:
+            self.pos[at] = states[:, :self.n]
+        if self.work is not None:
+            self.work[at] = states[:, -1]
+
+
+def _stepped(sol, method: str, t: np.ndarray, idx: np.ndarray, keep: _Outputs, start: float,
+             timeout: float | None, t_stop: float) -> int:
+    """Step scipy's solver *sol* to the segment's end, each step's output points (*idx*, ascending)
+    read from its dense output; the number of steps. A failure or the time limit is one sentence."""
+    wanted, k, steps = t[idx], 0, 0
+    while sol.status == "running":
+        message = _guarded(method, sol.t, sol.step)
+        if sol.status == "failed":
+            raise SimulationError(f"the ODE solver {method} could not continue at t = {sol.t:.6g} s "
+                                  f"({_plain(message)}): try the other preset or the exact solver")
+        if timeout is not None and _time.perf_counter() - start > timeout:
+            raise SimulationError(f"the ODE solver {method} passed its time limit of {timeout:g} s at "
+                                  f"t = {sol.t:.6g} of {t_stop:g} s: raise the preset's timeout or "
+                                  "use the fast preset")
+        steps += 1
+        stop = int(np.searchsorted(wanted, sol.t, side="right"))     # bisection: the points are ascending
+        if stop > k:
+            keep(idx[k:stop], sol.dense_output()(t[idx[k:stop]]).T)
+            k = stop
+    return steps
+
+
 def solve_ode(system, times=None, method: str = "DOP853", rtol: float = 1e-10,
               atol: float | None = None, positions: bool = False, timeout: float | None = None) -> Trajectory:
     """Integrate *system* with a scipy ODE solver, restarting at every force breakpoint.
@@ -206,50 +245,23 @@ def solve_ode(system, times=None, method: str = "DOP853", rtol: float = 1e-10,
     pos = np.empty((t.size, n)) if (positions or not linear) and has_x else None
     vs = slice(n, 2 * n) if not linear else slice(y.size - n, y.size)     # where v sits in the state
     work = np.empty(t.size) if not linear else None
+    keep = _Outputs(out, pos, work, vs, n)
     steps = nfev = njev = 0
     for t0, t1 in system.segments():
         force.segment(t0, t1)
         last = t1 >= system.t_stop
         idx = np.flatnonzero((t >= t0) & ((t <= t1) if last else (t < t1)))
         at_start = idx[t[idx] == t0]
-        out[at_start] = y[vs]
-        if pos is not None:
-            pos[at_start] = y[:n]
-        if work is not None:
-            work[at_start] = y[-1]
+        keep(at_start, np.broadcast_to(y, (at_start.size, y.size)))
         idx = idx[t[idx] > t0]
-        wanted = t[idx]             # ascending: each step's output points are found by bisection
-        k = 0
         if t1 > t0 and method == "LSODA":
             values, counts = _lsoda(rhs, jac, y, t0, t1, t[idx], rtol, atol, start, timeout, system.t_stop)
-            out[idx] = values[1:1 + idx.size, vs]
-            if pos is not None:
-                pos[idx] = values[1:1 + idx.size, :n]
-            if work is not None:
-                work[idx] = values[1:1 + idx.size, -1]
+            keep(idx, values[1:1 + idx.size])
             y = values[-1]
             steps, nfev, njev = steps + counts[0], nfev + counts[1], njev + counts[2]
         elif t1 > t0:
             sol = _guarded(method, t0, cls, rhs, t0, y, t1, rtol=rtol, atol=atol, **extra)
-            while sol.status == "running":
-                message = _guarded(method, sol.t, sol.step)
-                if sol.status == "failed":
-                    raise SimulationError(f"the ODE solver {method} could not continue at t = {sol.t:.6g} s "
-                                          f"({_plain(message)}): try the other preset or the exact solver")
-                if timeout is not None and _time.perf_counter() - start > timeout:
-                    raise SimulationError(f"the ODE solver {method} passed its time limit of {timeout:g} s at "
-                                          f"t = {sol.t:.6g} of {system.t_stop:g} s: raise the preset's timeout or "
-                                          "use the fast preset")
-                steps += 1
-                stop = int(np.searchsorted(wanted, sol.t, side="right"))
-                if stop > k:
-                    values = sol.dense_output()(t[idx[k:stop]])
-                    out[idx[k:stop]] = values[vs].T
-                    if pos is not None:
-                        pos[idx[k:stop]] = values[:n].T
-                    if work is not None:
-                        work[idx[k:stop]] = values[-1]
-                    k = stop
+            steps += _stepped(sol, method, t, idx, keep, start, timeout, system.t_stop)
             nfev, njev = nfev + sol.nfev, njev + sol.njev
             y = sol.y
     if work is not None and (lifted := system.gravity_work(pos)) is not None:

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Iterable, Sequence
 
 import numpy as np
@@ -14,11 +14,12 @@ from ..circuit.elements import ZERO_TOL, point_operations
 from ..circuit.netlist import Dialect, write_batch, write_netlist, write_stack
 from ..circuit.node_stack import NodeStack
 from ..circuit.scales import Scales, run_scales, system_scales
-from ..circuit.spice_numbers import spice_number
 from ..errors import InputError, SimulationError
 from .error_constants import (CALIBRATED_MAX_STEPS, CALIBRATED_TOPOLOGIES, FLOOR_LIMIT, SAFETY, SERIAL_NODE_LIMIT,
                               calibrated_options, calibrated_reltol)
 from .motion_step import motion_step
+from .run_settings import (NGSPICE_FIRST_STEP, NGSPICE_RELTOL, RETRY_LOOSEN, RETRY_TIGHTEN, TransientSettings,
+                           checked_options)
 from ..presets import Preset
 from ..presets import preset as get_preset
 
@@ -26,17 +27,6 @@ __all__ = ["TransientSettings", "transient_settings", "netlist", "batch_netlist"
            "NGSPICE_FIRST_STEP", "RETRY_LOOSEN", "RETRY_TIGHTEN", "REFINE", "refined", "STEP_TOLERANCES",
            "beyond_calibration", "spice_run_reltol", "NGSPICE_STEP_TOLERANCES",
            "circuit_settings"]
-
-#: Factors on abstol and vntol of the first run and of the retries after "time step too small".
-RETRY_LOOSEN = (1.0, 1e3, 1e6)
-#: The last retry of a nonlinear circuit whose step collapsed under both methods: reltol this many times tighter.
-RETRY_TIGHTEN = 100.0
-
-#: ngspice's own first step is this fraction of the print step (ngspice 39 and later, measured);
-#: it takes it by backward Euler and never checks its truncation error.
-NGSPICE_FIRST_STEP = 1e-2
-#: ngspice's default reltol (its manual, the .options section).
-NGSPICE_RELTOL = 1e-3
 
 #: abstol is kept above this many n·ε·q/h: the rounding of a capacitor current Δq/h at the
 #: shortest step h ngspice is made to take, summed over the n nodes of a row. Under it,
@@ -59,148 +49,6 @@ STEP_TOLERANCES = ("reltol", "vntol", "chgtol")
 NGSPICE_STEP_TOLERANCES = {"reltol": 1e-3, "vntol": 1e-6, "chgtol": 1e-14}
 
 _SCALE_NAMES = {"abstol": "current scale [A]", "vntol": "velocity scale [V]", "chgtol": "charge C·v [C]"}
-#: The ``.options`` that take a word, and their words; the flags (no value); every other option is a number.
-_OPTION_WORDS = {"method": ("trap", "trapezoidal", "gear")}
-_OPTION_FLAGS = ("klu", "sparse", "interp", "noopiter", "noinit", "nopage", "savecurrents")
-
-
-def _checked_options(opts: dict) -> dict:
-    """*opts*, each a flag with no value, one of its words or a finite SPICE number: ngspice runs on
-    after an option it cannot read (reltol=nan, maxord=abc, trtol=), saying so only in print."""
-    for key, value in opts.items():
-        text = str(value).strip()
-        if not (key.isascii() and key.isidentifier()):
-            raise InputError(f"{key!r} is not a SPICE option name")
-        if key.lower() in _OPTION_FLAGS:
-            ok = str(value) == ""
-        elif key.lower() in _OPTION_WORDS:
-            ok = text.lower() in _OPTION_WORDS[key.lower()]
-        else:
-            try:
-                ok = math.isfinite(spice_number(text))
-            except InputError:
-                ok = False
-        if not ok:
-            what = ("a flag, with no value" if key.lower() in _OPTION_FLAGS else
-                    " or ".join(_OPTION_WORDS.get(key.lower(), ())) or "a finite number")
-            raise InputError(f"the SPICE option {key}={value!r} must be {what}")
-    return opts
-
-
-@dataclass(frozen=True)
-class TransientSettings:
-    """What one ngspice transient run is told: the netlist writer formats these and nothing else.
-
-    Attributes
-    ----------
-    options : tuple of (str, str)
-        ``.options`` in order, values formatted.
-    print_step : float
-        ``.tran`` TSTEP: t_stop/``preset.steps``, the grid ``ngspice -b`` prints on.
-    stop : float
-        ``.tran`` TSTOP.
-    max_step : float
-        ``.tran`` TMAX, the step cap.
-    first_step : float
-        The first (backward Euler, unchecked) step the run needs; where ngspice's own,
-        :data:`NGSPICE_FIRST_STEP` of the print step, is longer, :attr:`breakpoint` makes it shorter.
-    loosen : float
-        Factor on abstol and vntol (1 on the first run; a retry after a collapsed step raises it).
-    horizons : tuple of float
-        Ends of shorter systems in the same run, before :attr:`stop`: each is a breakpoint,
-        so that ngspice steps onto it and each system's output ends at its own horizon.
-    impedance : float or None
-        The circuit's impedance scale [Ω]: its velocity scale over its current scale
-        (gnucap's dialect sizes the resistance of its voltage sources from it).
-    interpolate : bool
-        ``ngspice -b`` prints on the print step, linearly interpolated (``option interp``):
-        where the step cap is far under the print step (the preset's own settings). A
-        calibrated run's steps grow as its truncation check allows, so it prints its own
-        points: interpolated, serial2's rows erred 7.6e-6 where its points held 2.7e-7.
-    """
-
-    options: tuple
-    print_step: float
-    stop: float
-    max_step: float
-    first_step: float
-    loosen: float = 1.0
-    horizons: tuple = ()
-    impedance: float | None = None
-    interpolate: bool = True
-
-    def with_method(self, method: str) -> "TransientSettings":
-        """These settings with the integration method *method* (``trap`` or ``gear``).
-
-        Parameters
-        ----------
-        method : str
-            ngspice's ``method`` option.
-        """
-        opts = tuple((k, method if k == "method" else v) for k, v in self.options)
-        return replace(self, options=opts if any(k == "method" for k, _ in opts) else opts + (("method", method),))
-
-    @property
-    def method(self) -> str:
-        """The integration method the options ask for (ngspice's default: trap)."""
-        return next((v for k, v in self.options if k == "method"), "trap")
-
-    def retries(self) -> list["TransientSettings"]:
-        """The settings a run tries in turn while its step collapses ("time step too small").
-
-        First these, then abstol and vntol ``RETRY_LOOSEN`` times larger (rounding read as
-        truncation error), when the options have them; last, for a trapezoidal run, gear at
-        the first tolerances. flex2's nonlinear circuit under its motor steps at ``fast``
-        collapses at t = 3.91 s and runs to its end at abstol and vntol 1000 times larger.
-        Options without absolute tolerances (a bench's) run last at reltol
-        :data:`RETRY_TIGHTEN` times tighter.
-        """
-        absolute = any(k in ("abstol", "vntol") for k, _ in self.options)
-        ladder = [self.loosened(f) for f in RETRY_LOOSEN] if absolute else [self.loosened(1.0)]
-        if self.method == "trap":
-            ladder.append(self.loosened(1.0).with_method("gear"))
-        if not absolute:
-            ladder.append(self.loosened(1.0).tightened(RETRY_TIGHTEN))
-        return ladder
-
-    @property
-    def reltol(self) -> float:
-        """ngspice's reltol: the options' or its default, 1e-3."""
-        return float(next((v for k, v in self.options if k == "reltol"), 1e-3))
-
-    def tightened(self, factor: float) -> "TransientSettings":
-        """These settings with reltol *factor* times smaller: Newton's tolerance and the truncation check.
-
-        Parameters
-        ----------
-        factor : float
-            The divisor.
-        """
-        reltol = f"{self.reltol / factor:.3g}"
-        opts = tuple((k, reltol if k == "reltol" else v) for k, v in self.options)
-        return replace(self, options=opts if any(k == "reltol" for k, _ in opts) else opts + (("reltol", reltol),))
-
-    @property
-    def breakpoint(self) -> float | None:
-        """A time at which a zero current source has a corner, so that ngspice's first step is
-        a hundredth of it; None when ngspice's own first step is short enough."""
-        own = NGSPICE_FIRST_STEP * self.print_step
-        return None if self.first_step >= own else self.first_step / NGSPICE_FIRST_STEP
-
-    def loosened(self, factor: float) -> "TransientSettings":
-        """These settings with abstol and vntol *factor* times larger than the preset's.
-
-        Parameters
-        ----------
-        factor : float
-            The retry's factor (1: the preset's own).
-        """
-        opts = []
-        for k, v in self.options:
-            if k in ("abstol", "vntol") and self.loosen != factor:
-                v = f"{float(v) / self.loosen * factor:.3g}"
-            opts.append((k, v))
-        return replace(self, options=tuple(opts), loosen=factor)
 
 
 def _shortest_gap(breakpoints: np.ndarray, t_stop: float) -> float:
@@ -232,6 +80,34 @@ def _bought(p: Preset, t_stop: float, step: float, scales: Scales | None, operat
     points = t_stop / step
     each = operations if operations is not None else float(scales.size) ** 3 if scales is not None else 0.0
     return step if points <= p.step_budget and points * each <= p.operation_budget else math.inf
+
+
+def _step_limits(p: Preset, t_stop: float, scales: Scales, first: float, tmax: float, calibrated: bool,
+                 trapezoidal: bool, operations: float | None) -> tuple[float, float]:
+    """The first step and the step cap the circuit's *scales* ask, within *first* and *tmax*: the first
+    step holds the fastest rate's phase, the cap each lasting rate's phase and decay and, on a linear
+    *trapezoidal* circuit under the preset's own caps, its modes' phase error over t_stop."""
+    need = scales.step_limit(p.first_phase_step, p.bound / 10)
+    if not need > 0:                   # zero or NaN: a rate past the float range
+        raise InputError(f"the circuit's fastest rate ({scales.omega_max:.3g} rad/s) leaves the range "
+                         "ngspice can step: rescale the masses, dampers or springs")
+    first = min(first, need)
+    # Where the preset's own caps run, a decay that falls under the bound before t_stop sets no cap: the
+    # first step above and ngspice's truncation check cover it while it lasts. A calibrated run (and
+    # the calibration, phase_step = inf) keeps the decay cap its constants were measured at: without
+    # it, at t_stop/50 steps, the slow root of an overdamped pair (stress b, ratio 1e2, ζ = 1e3) erred
+    # 2.5e-6 at reltol 1e-10 against the 3e-7 promised, as ngspice's check judges it against a node it
+    # shares with a mode a hundred times larger.
+    horizon = t_stop if not calibrated and math.isfinite(p.phase_step) else math.inf
+    rate = scales.lasting(p.bound, horizon)
+    phase = math.inf if calibrated else p.phase_step
+    cap = min(phase / rate if rate > 0 else math.inf, scales.decay_limit(p.decay_step, p.bound, horizon))
+    if not calibrated and math.isfinite(p.phase_step) and trapezoidal:
+        # the preset's own caps (not the calibration's or the bench's fixed settings) on a linear
+        # trapezoidal circuit: the phase error of its own modes over t_stop sets the step
+        cap = min(cap, _phase_cap(p, t_stop, scales, operations))
+    tmax = min(tmax, max(cap, t_stop / p.step_budget))
+    return first, tmax
 
 
 def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | None, *,
@@ -306,26 +182,8 @@ def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | Non
     tstep = t_stop / p.steps
     first = NGSPICE_FIRST_STEP * tstep
     if scales is not None:
-        need = scales.step_limit(p.first_phase_step, p.bound / 10)
-        if not need > 0:                   # zero or NaN: a rate past the float range
-            raise InputError(f"the circuit's fastest rate ({scales.omega_max:.3g} rad/s) leaves the range "
-                             "ngspice can step: rescale the masses, dampers or springs")
-        first = min(first, need)
-        # Where the preset's own caps run, a decay that falls under the bound before t_stop sets no cap: the
-        # first step above and ngspice's truncation check cover it while it lasts. A calibrated run (and
-        # the calibration, phase_step = inf) keeps the decay cap its constants were measured at: without
-        # it, at t_stop/50 steps, the slow root of an overdamped pair (stress b, ratio 1e2, ζ = 1e3) erred
-        # 2.5e-6 at reltol 1e-10 against the 3e-7 promised, as ngspice's check judges it against a node it
-        # shares with a mode a hundred times larger.
-        horizon = t_stop if not calibrated and math.isfinite(p.phase_step) else math.inf
-        rate = scales.lasting(p.bound, horizon)
-        phase = math.inf if calibrated else p.phase_step
-        cap = min(phase / rate if rate > 0 else math.inf, scales.decay_limit(p.decay_step, p.bound, horizon))
-        if not calibrated and math.isfinite(p.phase_step) and not (behavioural or coupled):
-            # the preset's own caps (not the calibration's or the bench's fixed settings) on a linear
-            # trapezoidal circuit: the phase error of its own modes over t_stop sets the step
-            cap = min(cap, _phase_cap(p, t_stop, scales, operations))
-        tmax = min(tmax, max(cap, t_stop / p.step_budget))
+        first, tmax = _step_limits(p, t_stop, scales, first, tmax, calibrated, not (behavioural or coupled),
+                                   operations)
         shortest = min(first, 0.1 * _shortest_gap(np.zeros(0) if breakpoints is None else breakpoints, t_stop))
         rounding = ROUNDING_STEPS * scales.rounding_current(shortest)
         if calibrated and rounding > FLOOR_LIMIT * scales.current:
@@ -339,7 +197,7 @@ def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | Non
     impedance = None
     if scales is not None and scales.current > 0 and math.isfinite(scales.peak_velocity / scales.current):
         impedance = scales.peak_velocity / scales.current
-    return TransientSettings(tuple((k, str(v)) for k, v in _checked_options(opts).items()), tstep, t_stop, tmax,
+    return TransientSettings(tuple((k, str(v)) for k, v in checked_options(opts).items()), tstep, t_stop, tmax,
                              first, loosen,
                              impedance=impedance, interpolate=not calibrated)
 
