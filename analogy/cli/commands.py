@@ -15,7 +15,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from ..files import write_text
-from ..solvers.transient import netlist
+from ..solvers.transient import netlist, subcircuit_netlist
 from ..heap import retain_freed_memory
 from ..errors import EXIT_ACCURACY, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE
 from ..errors import AccuracyError, AnalogyError, InputError, SimulationError, one_line
@@ -26,7 +26,8 @@ from ..processes import stop_requests
 from ..progress import Heartbeat
 from ..presets import preset as get_preset
 from ..results.output import check_plot_path
-from .outputs import accuracy_exit, check_folder, check_writable, write_outputs
+from .diagnostics import bench_command, memory_command, stress_command, throughput_command
+from .outputs import accuracy_exit, check_writable, write_outputs
 from .parser import build_parser
 from .scene_options import built_system, scene_from_args, solver_list
 from ..model.urdf_robots import URDF_ROBOTS
@@ -59,7 +60,13 @@ def _cmd_netlist(args) -> int:
     save = None if args.save is None else [s.strip() for s in args.save.split(",") if s.strip()]
     system = built_system(sc, args.realizable)      # as compare --realizable does
     _say_pose(system, sc)
-    text = netlist(system, args.preset, save=save, title=_title(sc), dialect=args.dialect)
+    if args.subckt is not None:
+        if args.dialect != "ngspice" or save is not None:
+            raise InputError("--subckt writes a subcircuit for ngspice that saves nothing: "
+                             "--dialect gnucap and --save do not apply to it")
+        text = subcircuit_netlist(system, args.preset, name=args.subckt or None, title=_title(sc))
+    else:
+        text = netlist(system, args.preset, save=save, title=_title(sc), dialect=args.dialect)
     if args.output:
         try:
             write_text(args.output, text)
@@ -285,110 +292,6 @@ def _cmd_batch(args) -> int:
     return batch_command(args)
 
 
-def _positive(value: int, what: str) -> int:
-    if value < 1:
-        raise InputError(f"{what} must be at least 1")
-    return value
-
-
-def _cmd_bench(args) -> int:
-    from ..bench import bench
-    if args.calibrate is not None:
-        return _calibrate(args)
-    check_plot_path(args.plot)
-    check_writable(args.csv)
-    check_writable(args.plot)
-    result = bench(repeats=_positive(args.repeats, "--repeats"), full=args.full,
-                   progress=not args.no_progress, quick=args.quick)
-    print(result.table())
-    write_outputs([(args.csv, lambda: result.to_csv(args.csv)), (args.plot, lambda: result.plot(args.plot))])
-    return EXIT_OK
-
-
-def _calibrate(args) -> int:
-    from ..calibration import calibration_runs, error_constants_of, write_runs
-    from ..solvers.error_constants import CALIBRATION, write_constants
-    path = Path(args.calibrate or CALIBRATION)
-    beside = path.with_name(f"{path.stem}_runs.csv")
-    check_writable(path)
-    check_writable(beside)
-    runs = calibration_runs(progress=not args.no_progress)
-    rungs = error_constants_of(runs)
-    for r in rungs:
-        print(f"reltol {r.reltol:.0e}: error ≤ {r.c0:.3g}·reltol^(2/3) = {r.error:.2e} over {r.circuits} circuits "
-              f"(worst: {r.worst})")
-    write_constants(rungs, path)
-    write_runs(runs, beside)
-    print(f"wrote {path} and {beside}")
-    return EXIT_OK
-
-
-def _cmd_stress(args) -> int:
-    from ..stress import stress, write_report
-    out = Path(args.output)
-    check_folder(out)
-    if not args.timeout > 0:
-        raise InputError(f"--timeout must be positive, got {args.timeout:g}")
-    families = args.families.strip().lower()
-    if args.estimates:
-        return _estimates(args, out, families)
-    report = stress(families, quick=args.quick, timeout=args.timeout,
-                    progress=not args.no_progress)
-    print(report.summary())             # said before any file, which a full disk could refuse
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        written = write_report(report, out)
-    except OSError as exc:
-        raise InputError(f"cannot write the stress report: {exc}") from None
-    print("wrote " + ", ".join(str(p) for p in written))
-    return EXIT_OK
-
-
-def _estimates(args, out: Path, families: str) -> int:
-    from ..stress.estimates import validate_estimates
-    from ..stress.families import FAMILY_TITLES
-    bad = sorted(set(families) - set(FAMILY_TITLES))
-    if bad:
-        raise InputError(f"unknown stress families {''.join(bad)}: use letters of {''.join(FAMILY_TITLES)}")
-    report = validate_estimates(args.quick, families, args.timeout, progress=not args.no_progress)
-    print(report.summary())
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InputError(f"cannot create {out}: {exc.strerror or exc}") from None
-    write_outputs([(out / "estimates.csv", lambda: report.to_csv(out / "estimates.csv")),
-                   (out / "estimates.md", lambda: write_text(out / "estimates.md", "# Error estimates against true "
-                                                             "errors\n\n" + report.summary() + "\n\n"
-                                                             + report.table() + "\n")),
-                   (out / "estimates.png", lambda: report.plot(out / "estimates.png"))])
-    return EXIT_OK
-
-
-def _cmd_throughput(args) -> int:
-    if args.sweep is not None:
-        from ..batch.benchmark import store_throughput
-        from ..batch.sweep import load_sweep
-        if args.output is None:
-            raise InputError("--sweep needs the results folder -o DIR")
-        print(store_throughput(load_sweep(args.sweep), args.output, sample=_positive(args.baseline, "--baseline"),
-                               workers=_positive(args.workers, "--workers")))
-        return EXIT_OK
-    from ..throughput import throughput
-    print(throughput(n=_positive(args.n, "-n"), preset=args.preset,
-                     group_size=_positive(args.group_size, "--group-size"),
-                     workers=_positive(args.workers, "--workers"),
-                     baseline_n=_positive(args.baseline, "--baseline"),
-                     repeats=_positive(args.repeats, "--repeats"), progress=not args.no_progress))
-    return EXIT_OK
-
-
-def _cmd_memory(args) -> int:
-    from ..memory import memory_per_run
-    scene(args.scene)                   # an unknown name is refused before any run
-    print(memory_per_run(_positive(args.runs, "--runs"), args.preset, args.scene, solver=args.solver))
-    return EXIT_OK
-
-
 def _cmd_check(args) -> int:
     from ..study.netlist_check import netlist_estimate
     try:
@@ -436,8 +339,9 @@ def _cmd_scenes(args) -> int:
 
 
 _COMMANDS = {"netlist": _cmd_netlist, "compare": _cmd_compare, "verify": _cmd_verify, "modes": _cmd_modes, "ac": _cmd_ac,
-             "scenes": _cmd_scenes, "draw": _cmd_draw, "run": _cmd_run, "bench": _cmd_bench,
-             "throughput": _cmd_throughput, "stress": _cmd_stress, "batch": _cmd_batch, "memory": _cmd_memory,
+             "scenes": _cmd_scenes, "draw": _cmd_draw, "run": _cmd_run, "bench": bench_command,
+             "throughput": throughput_command, "stress": stress_command, "batch": _cmd_batch,
+             "memory": memory_command,
              "check": _cmd_check,
              "animate": _cmd_animate, "report": _cmd_report}
 

@@ -36,6 +36,10 @@ def _netlist(sub) -> None:
     p.add_argument("--dynamics", default="linear", choices=["linear", "nonlinear"],
                    help="the circuit at q (linear), or the robot's full nonlinear circuit: "
                         "charge-defined capacitors, behavioural forces and integrators")
+    p.add_argument("--subckt", nargs="?", const="", metavar="NAME",
+                   help="write the robot as a subcircuit '.subckt NAME p1 ... pn' for a netlist of your own: "
+                        "one port per joint, the current into it the joint's force and its voltage the joint's "
+                        "rate; the applied forces are left to your circuit (default NAME: the robot's)")
 
 
 def _compare(sub) -> None:

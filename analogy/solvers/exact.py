@@ -327,7 +327,7 @@ class ExactSolver(Solver):
         """
         return solve_exact(system, times, positions)
 
-    def solve_many(self, systems, times, preset: Preset, *, save=(), positions=False) -> list[Trajectory]:
+    def _solve_many(self, systems, times, preset: Preset, *, save=(), positions=False) -> list[Trajectory]:
         """All systems at once with stacked linear algebra; if that fails, one by one.
 
         Parameters
@@ -344,7 +344,7 @@ class ExactSolver(Solver):
             Also return node positions where the systems have springs (one by one).
         """
         if positions or len(systems) == 1 or any(self.supports(s) for s in systems):
-            return super().solve_many(systems, times, preset, positions=positions)
+            return super()._solve_many(systems, times, preset, positions=positions)
         start = _time.perf_counter()
         t = self.grid(systems[0], times, preset)
         try:

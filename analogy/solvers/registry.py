@@ -21,8 +21,10 @@ A solver is an instance of :class:`Solver` registered in :data:`REGISTRY` by nam
   solution and :class:`~analogy.errors.InputError` for bad input; :func:`run` turns
   the former (and a solver that does not apply) into a failed Trajectory, so that only
   bad input raises past the orchestrator.
-* :meth:`Solver.solve_many` solves many systems; the default loops, and a solver may do
-  better (one ngspice run, stacked linear algebra).
+* :meth:`Solver.solve_many` solves many systems under the same contract, row by row: the
+  default loops over :meth:`Solver.solve`, and a solver may do better in its own hook
+  :meth:`Solver._solve_many` (one ngspice run, stacked linear algebra), whose rows are
+  checked as :meth:`Solver.solve` checks one; a subclass may not override ``solve_many``.
 
 Adding a solver is one module defining ``SOLVER = MySolver()`` and one line in
 :data:`_MODULES`. Modules load on first use, so a job that does not use SPICE never
@@ -45,6 +47,9 @@ from ..results.trajectory import SolverStats, Trajectory
 from ..results.trajectory_stack import TrajectoryStack
 
 __all__ = ["Solver", "SolverName", "SOLVER_NAMES", "solver", "solve", "run", "run_many", "stacked_trajectories"]
+
+#: What numbers leaving the floating-point range raise inside a solver: a failed run, not a bug.
+_BROKEN = (np.linalg.LinAlgError, FloatingPointError, OverflowError, ZeroDivisionError)
 
 #: Registered solver names.
 SolverName = Literal["spice", "gnucap", "ode", "exact", "reference"]
@@ -89,8 +94,9 @@ class Solver:
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
-        if "solve" in vars(cls):        # the contract is kept in one place: solvers implement _solve
-            raise TypeError(f"{cls.__name__} overrides Solver.solve: implement _solve instead")
+        for name in ("solve", "solve_many"):    # the contract is kept in one place: solvers implement the hooks
+            if name in vars(cls):
+                raise TypeError(f"{cls.__name__} overrides Solver.{name}: implement _{name} instead")
 
     def supports(self, system) -> str | None:
         """None if the solver applies to *system*, else one sentence why not.
@@ -130,14 +136,24 @@ class Solver:
         start = _time.perf_counter()
         try:
             tr = self._solve(system, None if self.own_grid else grid, preset, save=save, positions=positions)
-        except (np.linalg.LinAlgError, FloatingPointError, OverflowError, ZeroDivisionError) as exc:
-            # the numbers left the floating-point range (g = 1e308, say): a failed run, said once
-            detail = " ".join(str(exc).split())[:200] or type(exc).__name__
-            raise SimulationError(f"the {self.name} solver's numerics broke down: {detail} (are the model's "
-                                  "values within the floating-point range?)") from None
-        elapsed = _time.perf_counter() - start
+        except _BROKEN as exc:
+            raise self._broke(exc) from None
+        tr = self._checked(tr, system, _time.perf_counter() - start)
+        return tr if grid is None or not self.own_grid or not tr.success else tr.resampled(grid, system.joint_rates)
+
+    def _broke(self, exc: Exception) -> SimulationError:
+        # the numbers left the floating-point range (g = 1e308, say): a failed run, said once
+        detail = " ".join(str(exc).split())[:200] or type(exc).__name__
+        return SimulationError(f"the {self.name} solver's numerics broke down: {detail} (are the model's "
+                               "values within the floating-point range?)")
+
+    def _checked(self, tr: Trajectory, system, elapsed: float | None) -> Trajectory:
+        """*tr* if it keeps the contract (its wall time set to *elapsed* where given); a failed
+        trajectory if its values are not finite; :class:`SimulationError` if its shape breaks it."""
+        if elapsed is not None:
+            tr = replace(tr, stats=replace(tr.stats, wall_time=elapsed))
         if not tr.success:
-            return replace(tr, stats=replace(tr.stats, wall_time=elapsed))
+            return tr
         n = system.dof
         if not (tr.time.size and tr.time[0] == 0.0 and tr.voltages.shape == (tr.time.size, n)
                 and tr.rates.shape == tr.voltages.shape):
@@ -145,9 +161,9 @@ class Solver:
                                   f"with {n} node voltages and joint rates per time point")
         if not np.all(np.isfinite(tr.voltages)):
             first = float(tr.time[np.flatnonzero(~np.isfinite(tr.voltages).all(axis=1))[0]])
-            return Trajectory.failed(self.name, f"its result is not finite from t = {first:g} s on", elapsed)
-        tr = replace(tr, stats=replace(tr.stats, wall_time=elapsed))
-        return tr if grid is None or not self.own_grid else tr.resampled(grid, system.joint_rates)
+            return Trajectory.failed(self.name, f"its result is not finite from t = {first:g} s on",
+                                     tr.stats.wall_time)
+        return tr
 
     def refinements(self, preset: Preset) -> list[tuple[Preset, float]]:
         """Settings under which this solver errs a known fraction of what it errs under *preset*,
@@ -197,8 +213,13 @@ class Solver:
         return system.time_points(np.linspace(0.0, system.t_stop, preset.steps + 1) if times is None else times)
 
     def solve_many(self, systems: Sequence, times, preset: Preset, *, save: Sequence[str] = (),
-                   positions: bool = False) -> list[Trajectory]:
-        """Solve each of *systems* at *times*; failures come back as failed trajectories.
+                   positions: bool = False) -> Sequence[Trajectory]:
+        """Solve each of *systems* at *times*, each row under :meth:`solve`'s contract; failures
+        come back as failed trajectories.
+
+        The solver's hook :meth:`_solve_many` may solve them together; its rows are checked as
+        :meth:`solve` checks one (a stack solved as one, at once), and if the numbers break down
+        for the stack as a whole, each system runs alone.
 
         Parameters
         ----------
@@ -210,6 +231,40 @@ class Solver:
             Accuracy settings.
         save : sequence of str
             Element currents wanted from solvers that simulate them.
+        positions : bool
+            Also return node positions where the systems have springs.
+        """
+        try:
+            rows = self._solve_many(systems, times, preset, save=save, positions=positions)
+        except _BROKEN:             # each alone: only a system whose numbers leave the range fails
+            return Solver._solve_many(self, systems, times, preset, save=save, positions=positions)
+        if isinstance(rows, TrajectoryStack) and rows.whole:
+            finite = np.isfinite(rows.voltages).all(axis=(1, 2))
+            if finite.all() and rows.time[0] == 0.0 and rows.voltages.shape[2] == systems[0].dof:
+                return rows         # the contract, checked for the whole stack at once
+        out: list = []
+        for tr, s in zip(rows, systems):
+            try:
+                out.append(self._checked(tr, s, None))
+            except SimulationError as exc:
+                out.append(Trajectory.failed(self.name, str(exc), tr.stats.wall_time))
+        return out
+
+    def _solve_many(self, systems: Sequence, times, preset: Preset, *, save: Sequence[str] = (),
+                    positions: bool = False) -> Sequence[Trajectory]:
+        """The solver's own way with many systems, which :meth:`solve_many` checks row by row;
+        by default each through :func:`run` (and so :meth:`solve`).
+
+        Parameters
+        ----------
+        systems : sequence of NodeDynamics
+            The systems.
+        times : array_like or None
+            Shared output times, or None.
+        preset : Preset
+            Accuracy settings.
+        save : sequence of str
+            Element currents wanted.
         positions : bool
             Also return node positions where the systems have springs.
         """

@@ -193,7 +193,7 @@ class SpiceSolver(Solver):
         factor = REFINE ** 2 / (REFINE ** 2 - 1)
         return [(refined(preset), factor), (refined(preset, tolerances=False), factor)]
 
-    def solve_many(self, systems, times, preset: Preset, *, save=(), positions=False) -> list[Trajectory]:
+    def _solve_many(self, systems, times, preset: Preset, *, save=(), positions=False) -> list[Trajectory]:
         """One ngspice run for all systems, to the longest horizon; if it fails, one run each.
 
         Each system's output ends at its own t_stop, a breakpoint of the run (see
@@ -213,7 +213,7 @@ class SpiceSolver(Solver):
             Unused.
         """
         if len(systems) == 1 or save or times is not None or any(getattr(s, "realizable", False) for s in systems):
-            return super().solve_many(systems, times, preset, save=save)
+            return super()._solve_many(systems, times, preset, save=save)
         scales = run_scales(systems)
         text = batch_netlist(systems, preset, scales)
         stats: dict = {}
@@ -225,14 +225,14 @@ class SpiceSolver(Solver):
             data = run_quietly(text, float(ends.max()), stats) if limit is None else \
                 session().run(text, None, stats, timeout=limit, until=float(ends.max()))
         except SimulationError:
-            return super().solve_many(systems, times, preset)
+            return super()._solve_many(systems, times, preset)
         elapsed = (_time.perf_counter() - start - stats.get("waited", 0.0)) / len(systems)
         time, prepended = _from_start(data["time"])
         n = systems[0].dof
         try:
             cut = {float(end): _until(time, float(end)) for end in np.unique(ends[ends < ends.max()])}
         except SimulationError:
-            return super().solve_many(systems, times, preset)
+            return super()._solve_many(systems, times, preset)
         if any(s.dof != n for s in systems):
             out = []
             for k, s in enumerate(systems):

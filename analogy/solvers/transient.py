@@ -14,6 +14,7 @@ from ..circuit.elements import ZERO_TOL, point_operations
 from ..circuit.netlist import Dialect, write_batch, write_netlist, write_stack
 from ..circuit.node_stack import NodeStack
 from ..circuit.scales import Scales, run_scales, system_scales
+from ..circuit.subcircuit import joint_ports, subcircuit_name, write_subcircuit
 from ..errors import InputError, SimulationError
 from .error_constants import (CALIBRATED_MAX_STEPS, CALIBRATED_TOPOLOGIES, FLOOR_LIMIT, SAFETY, SERIAL_NODE_LIMIT,
                               calibrated_options, calibrated_reltol)
@@ -26,7 +27,7 @@ from ..presets import preset as get_preset
 __all__ = ["TransientSettings", "transient_settings", "netlist", "batch_netlist", "ROUNDING_STEPS",
            "NGSPICE_FIRST_STEP", "RETRY_LOOSEN", "RETRY_TIGHTEN", "REFINE", "refined", "STEP_TOLERANCES",
            "beyond_calibration", "spice_run_reltol", "NGSPICE_STEP_TOLERANCES",
-           "circuit_settings"]
+           "circuit_settings", "subcircuit_netlist"]
 
 #: abstol is kept above this many n·ε·q/h: the rounding of a capacitor current Δq/h at the
 #: shortest step h ngspice is made to take, summed over the n nodes of a row. Under it,
@@ -345,6 +346,34 @@ def netlist(system, preset: str | Preset = "accurate", save: Iterable[str] | Non
     except SimulationError as exc:      # no netlist can be written for it: the input's scale
         raise InputError(str(exc)) from None
     return write_netlist(c, settings, save, title, printing, dialect)
+
+
+def subcircuit_netlist(system, preset: str | Preset = "accurate", name: str | None = None, title: str | None = None,
+                       realizable: bool | None = None) -> str:
+    """*system* as a subcircuit a user's netlist ``.include``s: one port per joint, the applied forces
+    left outside (:func:`~analogy.circuit.subcircuit.write_subcircuit`).
+
+    Parameters
+    ----------
+    system : NodeSystem or NonlinearNodeSystem
+        The system; its own forces set the settings written beside it, and are not in it.
+    preset : str or Preset
+        Accuracy preset of those settings.
+    name : str, optional
+        The subcircuit's name (default: the robot's).
+    title : str, optional
+        First comment line.
+    realizable : bool, optional
+        Negative elements behind inverting couplings (default: as the system says).
+    """
+    real = getattr(system, "realizable", False) if realizable is None else realizable
+    unforced = system.driven([0.0] * system.dof, None)
+    c = describe(unforced, ZERO_TOL, real)
+    try:
+        settings = circuit_settings(system, describe(system, ZERO_TOL, real), preset)
+    except SimulationError as exc:
+        raise InputError(str(exc)) from None
+    return write_subcircuit(c, joint_ports(system), subcircuit_name(name or c.robot), settings, title)
 
 
 def batch_netlist(systems: Sequence, preset: str | Preset = "fast", scales: Scales | None = None) -> str:
