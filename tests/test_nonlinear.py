@@ -243,6 +243,12 @@ def test_the_charge_form_forgets_the_initial_condition_so_the_circuit_uses_a_fol
     assert np.max(np.abs(vb - np.exp(-t / 2))) <= 1e-3
     assert np.max(np.abs(va)) <= 1e-12
     moving = nonlinear("default", initial_rates=(0.5, -0.2))
+    text = analogy.netlist(moving)
+    for k in (1, 2):                # each follower says what its four devices do, beside them
+        at = text.index(f"* C{k} as a follower")
+        said = text[at:].splitlines()[0]
+        assert all(re.search(rf"\b{device}\b", said) for device in (f"Bmq{k}", f"Cmc{k}", f"Vms{k}", f"Fm{k}"))
+        assert text.splitlines()[text[:at].count("\n") + 1].startswith(f"Bmq{k} mq{k} 0 V=")
     tr = analogy.solve_spice(moving, preset="accurate")
     np.testing.assert_allclose(tr.rates[1], [0.5, -0.2], atol=1e-3)     # its first step keeps r(0)
 

@@ -131,7 +131,10 @@ def circuit_lines(c: Circuit, prefix: str = "", memo: dict | None = None) -> lis
             lines.append(f"C{prefix}{p.name} {a} {b} Q={{{_prefixed(spice_expression(p.charge), prefix)}}}")
         elif isinstance(p, ChargeCapacitor):        # Q on a node, dQ/dt through 1 F, mirrored from a to b
             qn, cn = (f"{prefix}{node}" for node in p.follower_nodes)
-            lines += [f"B{qn} {qn} 0 V={{{_prefixed(spice_expression(p.charge), prefix)}}}",
+            lines += [f"* C{prefix}{p.name} as a follower, since ngspice's Q form starts at Q = 0 whatever .ic says: "
+                      f"B{qn} holds {qn} at Q, C{cn}'s 1 F carries dQ/dt, V{prefix}ms{p.name} senses it and "
+                      f"F{prefix}m{p.name} drives it from {a} to {b}",
+                      f"B{qn} {qn} 0 V={{{_prefixed(spice_expression(p.charge), prefix)}}}",
                       f"V{prefix}ms{p.name} {qn} {cn} DC 0", f"C{cn} {cn} 0 1",
                       f"F{prefix}m{p.name} {a} {b} V{prefix}ms{p.name} 1"]
         elif isinstance(p, BehaviouralCurrent):
