@@ -150,7 +150,7 @@ class NodeCoordinates:
             Joint rates at t = 0.
         """
         out = copy.copy(self)
-        for cache in ("_breakpoints", "_scales", "_inputs_key"):
+        for cache in ("_breakpoints", "_inputs_key"):       # this class's own, of the inputs that change
             out.__dict__.pop(cache, None)
         if t_stop is not None:
             out.t_stop = check_t_stop(t_stop)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import threading
+import weakref
 from dataclasses import dataclass, field, replace
 from typing import Sequence
 
@@ -15,6 +16,9 @@ from .node_stack import NodeStack
 from .topology import symmetric_part
 
 __all__ = ["Scales", "system_scales", "stack_scales", "combined_scales", "run_scales"]
+
+#: Each system's scales, for as long as the system lives (a copy under other forces has its own).
+_KEPT: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
 
 
 @dataclass(frozen=True)
@@ -265,15 +269,16 @@ _PEAKS_LOCK = threading.Lock()
 def system_scales(system) -> Scales:
     """The :class:`Scales` of a linear or nonlinear node system.
 
-    Systems are not changed once built, so the scales are kept on the system: the work
-    guard, the SPICE settings and the ODE tolerances read them from one computation.
+    Systems are not changed once built, so the scales are kept for the system (here, for as
+    long as it lives): the work guard, the SPICE settings and the ODE tolerances read them
+    from one computation.
 
     Parameters
     ----------
     system : NodeDynamics
         The system; a nonlinear one is evaluated at x = 0.
     """
-    cached = getattr(system, "_scales", None)
+    cached = _kept(system)
     if cached is not None:
         return cached
     m = np.asarray(system.node_mass(np.zeros(system.dof)), dtype=float)[None]
@@ -290,10 +295,17 @@ def system_scales(system) -> Scales:
     return out
 
 
+def _kept(system) -> Scales | None:
+    try:
+        return _KEPT.get(system)
+    except TypeError:               # a system that cannot be weakly referred to: computed each time
+        return None
+
+
 def _keep(system, scales: Scales) -> None:
     try:
-        system._scales = scales
-    except AttributeError:          # a system type without room for it: computed again next time
+        _KEPT[system] = scales
+    except TypeError:
         pass
 
 
@@ -305,7 +317,7 @@ def stack_scales(systems: Sequence) -> list[Scales]:
     systems : sequence of NodeSystem
         Linear systems.
     """
-    out: list = [getattr(s, "_scales", None) for s in systems]
+    out: list = [_kept(s) for s in systems]
     todo = [i for i, s in enumerate(systems) if out[i] is None]
     if not todo:
         return out
@@ -420,7 +432,7 @@ def run_scales(systems: Sequence) -> Scales:
     stack = systems if isinstance(systems, NodeStack) else None
     kept = None if stack is None else stack._scales
     if kept is None:
-        parts = None if stack is None or getattr(stack[0], "_scales", None) is not None else stack.partition()
+        parts = None if stack is None or _kept(stack[0]) is not None else stack.partition()
         if parts is not None and len(parts) == 1:       # straight from the stack's arrays: no Scales per row
             kept = _combined_rows(*_scale_arrays(stack[0], stack.mass, stack.damping, stack.stiffness,
                                                  stack.initial_voltages))
