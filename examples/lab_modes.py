@@ -42,7 +42,7 @@ import _lab
 import numpy as np
 
 import analogy
-from analogy.bench import bench_scenes
+from analogy.diagnostics.bench import bench_scenes
 from analogy.model.joint import JointSpace
 from analogy.results.modes import natural_modes
 

@@ -185,7 +185,7 @@ def test_throughput_reports_the_ngspice_floor_beside_the_batched_path():
     """The floor is ngspice alone on the very batch netlists the batched path runs: every
     path's worst error stays within the fast bound, and the share of the floor is printed."""
     import re
-    from analogy.throughput import throughput
+    from analogy.diagnostics.throughput import throughput
     text = throughput(n=200, baseline_n=20, repeats=1, workers=2, group_size=50, progress=False)
     assert "ngspice alone on the same batch netlists (1 process, 200 scenes" in text
     share = re.search(r"reaches (\d+\.\d+) of the ngspice floor, batched on 2 workers (\d+\.\d+) of the floor "
@@ -206,7 +206,7 @@ def test_a_process_not_ready_at_the_common_start_marks_the_floor_on_several_proc
     """The processes' timed parts start together only if each is set up by then: a fresh
     process takes far longer than 1 ms to start, so with that lead the figure is marked."""
     from analogy.scenes.builtin import scene
-    from analogy.throughput import _floor_together
+    from analogy.diagnostics.throughput import _floor_together
     items = [scene("default").replace(q=(0.0, 0.01 * k)) for k in range(60)]
     together = _floor_together(items, "fast", 20, 2, lead=0.001, attempts=1)
     assert together.late and together.processes == 2 and together.rate > 0

@@ -127,7 +127,7 @@ def test_a_rounding_floor_past_the_calibrations_leaves_the_preset_s_own_settings
 def test_every_calibration_circuit_keeps_the_bound_its_tolerance_chose_a_reltol_for(name):
     """Through the solver as a user runs it: each circuit the constants were measured on holds the
     bound of the tolerance at the reltol the constants chose for it, per output."""
-    from analogy.calibration import calibration_circuits
+    from analogy.diagnostics.calibration import calibration_circuits
     from analogy.presets import preset
     from analogy.study.comparison import compare
     p = preset(name)

@@ -15,8 +15,8 @@ from analogy.scenes.builtin import scene
 from analogy.scenes.scene import Scene
 from analogy.scenes.spec import ModelSpec
 from analogy.solvers.transient import REFINE, refined
-from analogy.stress.estimates import AGREEMENT, validate_estimates
-from analogy.stress.families import cases
+from analogy.diagnostics.stress.estimates import AGREEMENT, validate_estimates
+from analogy.diagnostics.stress.families import cases
 from analogy.study.comparison import compare
 from analogy.study.estimate import on_points
 from analogy.study.netlist_check import netlist_estimate, refined_netlist, spice_number

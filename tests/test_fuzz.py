@@ -553,8 +553,8 @@ class _Reached(BaseException):
 
 
 #: Where each command's work starts, wrapped to check what it is given and then stop.
-_WORK = {"stress": ("analogy.stress.report", "cases"), "bench": ("analogy.bench", "bench_scenes"),
-         "memory": ("analogy.memory", "scene"), "throughput": ("analogy.throughput", "scene")}
+_WORK = {"stress": ("analogy.diagnostics.stress.report", "cases"), "bench": ("analogy.diagnostics.bench", "bench_scenes"),
+         "memory": ("analogy.diagnostics.memory", "scene"), "throughput": ("analogy.diagnostics.throughput", "scene")}
 option_value = st.one_of(number_text, hostile_text, st.integers(-3, 5).map(str), st.sampled_from(
     ["abc", "xyz", "a", "spice", "ode", "exact", "reference", "odd", "default", "serial2", "flex2", "fast", "bogus"]))
 _OPTIONS = {

@@ -6,7 +6,7 @@ import sys
 
 import pytest
 
-from analogy.memory import memory_per_run
+from analogy.diagnostics.memory import memory_per_run
 from analogy.solvers.quiet_ngspice import quiet_session
 from analogy.solvers.spice import session
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from analogy.bench import bench
+from analogy.diagnostics.bench import bench
 from analogy.cli import main
 from analogy.presets import PRESETS
 from analogy.study.comparison import compare

@@ -8,8 +8,8 @@ import sys
 import numpy as np
 import pytest
 
-from analogy.stress import FAMILY_TITLES, cases
-from analogy.stress.families import spd_with_spectrum
+from analogy.diagnostics.stress import FAMILY_TITLES, cases
+from analogy.diagnostics.stress.families import spd_with_spectrum
 
 
 def test_a_spd_matrix_with_a_set_spectrum_has_that_condition_number():
@@ -68,7 +68,7 @@ def test_the_3rrr_mass_matrix_grows_as_one_over_the_distance_to_its_singular_pos
     """Near a parallel singularity M' ~ 1/δ: cond(M') grows a hundredfold per hundredfold closer."""
     from analogy.errors import InputError
     from analogy.scenes.builtin import scene
-    from analogy.stress.families import singular_q1
+    from analogy.diagnostics.stress.families import singular_q1
     q1 = singular_q1()
     base = scene("parallel3")
     with pytest.raises(InputError):
@@ -79,5 +79,5 @@ def test_the_3rrr_mass_matrix_grows_as_one_over_the_distance_to_its_singular_pos
 
 def test_the_command_s_default_runs_every_family():
     from analogy.cli import build_parser
-    from analogy.stress.families import ALL_FAMILIES
+    from analogy.diagnostics.stress.families import ALL_FAMILIES
     assert build_parser().parse_args(["stress"]).families == ALL_FAMILIES

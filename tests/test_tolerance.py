@@ -62,7 +62,7 @@ def test_a_scene_takes_a_tolerance_as_its_preset():
 
 
 def test_the_bench_times_what_tol_chooses_and_says_whether_it_kept_the_tolerance():
-    from analogy.bench import bench
+    from analogy.diagnostics.bench import bench
     result = bench(repeats=1, quick=True, scenes=[scene("default")], progress=False)
     rows = {r.setting: r for r in result.rows if r.solver == "spice"}
     for tol in (1e-3, 1e-6):

@@ -27,7 +27,7 @@ def bench_command(args) -> int:
     args : argparse.Namespace
         The parsed command line.
     """
-    from ..bench import bench
+    from ..diagnostics.bench import bench
     if args.calibrate is not None:
         return _calibrate(args)
     check_plot_path(args.plot)
@@ -41,7 +41,7 @@ def bench_command(args) -> int:
 
 
 def _calibrate(args) -> int:
-    from ..calibration import calibration_runs, error_constants_of, write_runs
+    from ..diagnostics.calibration import calibration_runs, error_constants_of, write_runs
     from ..solvers.error_constants import CALIBRATION, write_constants
     path = Path(args.calibrate or CALIBRATION)
     beside = path.with_name(f"{path.stem}_runs.csv")
@@ -66,7 +66,7 @@ def stress_command(args) -> int:
     args : argparse.Namespace
         The parsed command line.
     """
-    from ..stress import stress, write_report
+    from ..diagnostics.stress import stress, write_report
     out = Path(args.output)
     check_folder(out)
     if not args.timeout > 0:
@@ -87,8 +87,8 @@ def stress_command(args) -> int:
 
 
 def _estimates(args, out: Path, families: str) -> int:
-    from ..stress.estimates import validate_estimates
-    from ..stress.families import FAMILY_TITLES
+    from ..diagnostics.stress.estimates import validate_estimates
+    from ..diagnostics.stress.families import FAMILY_TITLES
     bad = sorted(set(families) - set(FAMILY_TITLES))
     if bad:
         raise InputError(f"unknown stress families {''.join(bad)}: use letters of {''.join(FAMILY_TITLES)}")
@@ -115,14 +115,14 @@ def throughput_command(args) -> int:
         The parsed command line.
     """
     if args.sweep is not None:
-        from ..batch.benchmark import store_throughput
+        from ..diagnostics.store_throughput import store_throughput
         from ..batch.sweep import load_sweep
         if args.output is None:
             raise InputError("--sweep needs the results folder -o DIR")
         print(store_throughput(load_sweep(args.sweep), args.output, sample=_positive(args.baseline, "--baseline"),
                                workers=_positive(args.workers, "--workers")))
         return EXIT_OK
-    from ..throughput import throughput
+    from ..diagnostics.throughput import throughput
     print(throughput(n=_positive(args.n, "-n"), preset=args.preset,
                      group_size=_positive(args.group_size, "--group-size"),
                      workers=_positive(args.workers, "--workers"),
@@ -139,7 +139,7 @@ def memory_command(args) -> int:
     args : argparse.Namespace
         The parsed command line.
     """
-    from ..memory import memory_per_run
+    from ..diagnostics.memory import memory_per_run
     scene(args.scene)                   # an unknown name is refused before any run
     print(memory_per_run(_positive(args.runs, "--runs"), args.preset, args.scene, solver=args.solver))
     return EXIT_OK

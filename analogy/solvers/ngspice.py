@@ -238,7 +238,7 @@ class NgspiceSession:
 
     Each :meth:`run` ends with ``destroy all``, ``remcirc`` and a cleared command
     memory, and what ngspice printed is dropped, so that memory stays flat over
-    thousands of runs (:func:`analogy.memory.memory_per_run` measures it). If ngspice
+    thousands of runs (:func:`analogy.diagnostics.memory.memory_per_run` measures it). If ngspice
     asks to exit or fails its canary after an error, the library is loaded afresh from
     a private copy, since ngspice keeps global state that a fatal error can leave broken.
     """

@@ -11,12 +11,12 @@ from typing import Iterable
 
 import numpy as np
 
-from ..files import write_figure, write_text
-from ..errors import AnalogyError, InputError
-from ..progress import Progress
-from ..study.comparison import compare
-from ..results.metrics import relative_error
-from ..results.output import Tabular, write_rows
+from ...files import write_figure, write_text
+from ...errors import AnalogyError, InputError
+from ...progress import Progress
+from ...study.comparison import compare
+from ...results.metrics import relative_error
+from ...results.output import Tabular, write_rows
 from .families import ALL_FAMILIES, FAMILY_TITLES, StressCase, cases
 
 __all__ = ["StressRow", "StressReport", "stress", "write_report", "EXACT_BOUND"]
@@ -171,8 +171,8 @@ def _bound(solver: str, preset) -> float:
 
 def _exact_check(system, points: int = 9) -> tuple[float, float, str]:
     """The exact solution against the 40-digit one on *points* points: error / peak, its own seconds, a note."""
-    from ..solvers.exact import solve_exact
-    from ..solvers.reference import solve_reference
+    from ...solvers.exact import solve_exact
+    from ...solvers.reference import solve_reference
     # golden-ratio points: a uniform grid can fall on the zeros of a periodic motion
     golden = np.modf(np.arange(1, max(points - 1, 1)) * 0.6180339887498949)[0]
     probe = system.t_stop * np.sort(np.concatenate([[0.0, 1.0], golden]))

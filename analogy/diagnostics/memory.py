@@ -8,11 +8,11 @@ import resource
 import time as _time
 from dataclasses import dataclass
 
-from .errors import InputError
-from .presets import preset as get_preset
-from .scenes.builtin import scene
-from .solvers.registry import solver as registered
-from .solvers.spice import session
+from ..errors import InputError
+from ..presets import preset as get_preset
+from ..scenes.builtin import scene
+from ..solvers.registry import solver as registered
+from ..solvers.spice import session
 
 __all__ = ["MemoryResult", "memory_per_run"]
 

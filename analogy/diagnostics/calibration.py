@@ -10,20 +10,20 @@ from typing import Iterator
 
 import numpy as np
 
-from .files import replaced
+from ..files import replaced
 from .bench import bench_scenes
-from .errors import AnalogyError
-from .presets import PRESETS, Preset
-from .progress import Progress
-from .results.metrics import output_errors
-from .scenes.builtin import SCENES, scene
-from .scenes.scene import Scene
-from .scenes.spec import ModelSpec
-from .solvers.error_constants import CALIBRATED_MAX_STEPS, RINGING_LIMIT, ErrorConstant, calibrated_options
-from .solvers.exact import solve_exact
-from .solvers.spice import session
-from .solvers.transient import beyond_calibration, netlist
-from .circuit.scales import system_scales
+from ..errors import AnalogyError
+from ..presets import PRESETS, Preset
+from ..progress import Progress
+from ..results.metrics import output_errors
+from ..scenes.builtin import SCENES, scene
+from ..scenes.scene import Scene
+from ..scenes.spec import ModelSpec
+from ..solvers.error_constants import CALIBRATED_MAX_STEPS, RINGING_LIMIT, ErrorConstant, calibrated_options
+from ..solvers.exact import solve_exact
+from ..solvers.spice import session
+from ..solvers.transient import beyond_calibration, netlist
+from ..circuit.scales import system_scales
 from .stress.families import cases
 
 __all__ = ["CalibrationRun", "CALIBRATION_RELTOLS", "SERIAL_CHAINS", "calibration_circuits", "calibration_runs",

@@ -11,21 +11,21 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .batch.executor import PIPELINE
-from .batch.plan import as_system
-from .batch.run import run_batch
-from .circuit.description import circuit
-from .errors import InputError
-from .processes import worker_pool
-from .presets import preset as get_preset
-from .progress import Progress
-from .results.metrics import relative_error
-from .scenes.builtin import scene
-from .solvers.exact import solve_exact
-from .circuit.scales import run_scales
-from .solvers.quiet_ngspice import quiet_session
-from .solvers.spice import library_path, session, solve_spice
-from .solvers.transient import batch_netlist
+from ..batch.executor import PIPELINE
+from ..batch.plan import as_system
+from ..batch.run import run_batch
+from ..circuit.description import circuit
+from ..errors import InputError
+from ..processes import worker_pool
+from ..presets import preset as get_preset
+from ..progress import Progress
+from ..results.metrics import relative_error
+from ..scenes.builtin import scene
+from ..solvers.exact import solve_exact
+from ..circuit.scales import run_scales
+from ..solvers.quiet_ngspice import quiet_session
+from ..solvers.spice import library_path, session, solve_spice
+from ..solvers.transient import batch_netlist
 
 __all__ = ["throughput"]
 

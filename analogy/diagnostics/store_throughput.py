@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from .run import run_batch
-from .runner import run_sweep
-from .sweep import Sweep
+from ..batch.run import run_batch
+from ..batch.runner import run_sweep
+from ..batch.sweep import Sweep
 
 __all__ = ["store_throughput"]
 

@@ -9,12 +9,12 @@ from typing import TYPE_CHECKING, Iterable
 
 import numpy as np
 
-from ..errors import AnalogyError
-from ..presets import PRESETS
-from ..progress import Progress
-from ..results.metrics import PEAK_FLOOR
-from ..results.output import Tabular, write_rows
-from ..study.comparison import compare
+from ...errors import AnalogyError
+from ...presets import PRESETS
+from ...progress import Progress
+from ...results.metrics import PEAK_FLOOR
+from ...results.output import Tabular, write_rows
+from ...study.comparison import compare
 from .families import ALL_FAMILIES, cases
 
 if TYPE_CHECKING:
@@ -145,7 +145,7 @@ class EstimateValidation(Tabular):
             Image file to write.
         """
         from matplotlib.figure import Figure
-        from ..results.plots import save_figure
+        from ...results.plots import save_figure
         fig = Figure(figsize=(6.5, 6), layout="constrained")
         ax = fig.subplots()
         ok = [r for r in self.rows if r.verdict != "failed" and r.true_error > 0 and r.estimate > 0]

@@ -11,20 +11,20 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .files import write_figure
-from .solvers.transient import netlist
-from .errors import AnalogyError
-from .presets import PRESETS, Preset, tolerance_preset
-from .progress import Progress
-from .results.metrics import output_errors
-from .results.output import write_rows
-from .scenes.builtin import scene
-from .scenes.scene import Scene
-from .scenes.spec import ModelSpec
-from .solvers.exact import solve_exact
-from .solvers.reference import NONLINEAR_RTOL, solve_reference
-from .solvers.spice import session
-from .study.work import check_work
+from ..files import write_figure
+from ..solvers.transient import netlist
+from ..errors import AnalogyError
+from ..presets import PRESETS, Preset, tolerance_preset
+from ..progress import Progress
+from ..results.metrics import output_errors
+from ..results.output import write_rows
+from ..scenes.builtin import scene
+from ..scenes.scene import Scene
+from ..scenes.spec import ModelSpec
+from ..solvers.exact import solve_exact
+from ..solvers.reference import NONLINEAR_RTOL, solve_reference
+from ..solvers.spice import session
+from ..study.work import check_work
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -320,7 +320,7 @@ def _jobs(scenes, full: bool, quick: bool) -> list[tuple]:
 def _timed(kind: str, system, g, repeats: int) -> tuple:
     """One setting run *repeats* times, only the solver call timed: (label, tolerance, median seconds,
     time points, joint rates, timed runs)."""
-    from .solvers.ode import solve_ode
+    from ..solvers.ode import solve_ode
 
     if kind == "spice":
         label, opts, ms, tol = g
@@ -362,7 +362,7 @@ def _error(kind: str, system, t: np.ndarray, rates: np.ndarray) -> float:
     """The worst output's error over its own peak, against the exact solution (linear), a tight
     reference (nonlinear), a four times tighter one (the reference itself) or, for the exact
     solver, 40-digit mpmath at five points (NaN past 10 DOF, where it has no independent reference)."""
-    from .solvers.ode import solve_ode
+    from ..solvers.ode import solve_ode
 
     if kind == "exact":
         if system.dof > 10:

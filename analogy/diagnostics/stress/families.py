@@ -8,13 +8,13 @@ from typing import Callable, Iterator
 
 import numpy as np
 
-from ..circuit.elements import ZERO_TOL
-from ..circuit.node_system import node_system
-from ..errors import InputError
-from ..model.joint import JointSpace
-from ..model.urdf import urdf_model
-from ..model.urdf_robots import URDF_ROBOTS, urdf_robot
-from ..presets import DEFAULT_SOLVERS, PRESETS, Preset
+from ...circuit.elements import ZERO_TOL
+from ...circuit.node_system import node_system
+from ...errors import InputError
+from ...model.joint import JointSpace
+from ...model.urdf import urdf_model
+from ...model.urdf_robots import URDF_ROBOTS, urdf_robot
+from ...presets import DEFAULT_SOLVERS, PRESETS, Preset
 
 __all__ = ["StressCase", "FAMILIES", "FAMILY_TITLES", "ALL_FAMILIES", "cases", "singular_q1", "spd_with_spectrum"]
 
@@ -134,7 +134,7 @@ def _long_runs(quick: bool, p: Preset) -> Iterator[StressCase]:
 
 
 def _size(quick: bool, p: Preset) -> Iterator[StressCase]:
-    from ..model.robots import random_spd_model
+    from ...model.robots import random_spd_model
     sizes = (2, 10, 20) if quick else (2, 5, 10, 20, 50, 100, 200)
     for n in sizes:
         def build(n=n):
@@ -187,7 +187,7 @@ def singular_q1(q2: float = -1.7, q3: float = 0.35, low: float = 2.7, high: floa
     low, high : float
         A q1 that assembles and one that does not [rad].
     """
-    from ..scenes.builtin import scene
+    from ...scenes.builtin import scene
     base = scene("parallel3")
 
     def assembles(q1: float) -> bool:
@@ -206,7 +206,7 @@ def singular_q1(q2: float = -1.7, q3: float = 0.35, low: float = 2.7, high: floa
 
 def _singular_pose(quick: bool, p: Preset) -> Iterator[StressCase]:
     """The 3-RRR approaching its singular pose: M' grows as 1/δ (cond 8 at δ = 1e-2, 8e4 at 1e-6)."""
-    from ..scenes.builtin import scene
+    from ...scenes.builtin import scene
     q1 = singular_q1()
     for delta in (1e-1, 1e-4) if quick else (1e-1, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6):
         def build(delta=delta):
@@ -216,7 +216,7 @@ def _singular_pose(quick: bool, p: Preset) -> Iterator[StressCase]:
 
 
 def _nonlinear(quick: bool, p: Preset) -> Iterator[StressCase]:
-    from ..scenes.builtin import scene
+    from ...scenes.builtin import scene
     base = scene("default")
     for amp in (1.0, 10.0) if quick else (1.0, 10.0, 100.0):
         def build(amp=amp):
@@ -251,7 +251,7 @@ def _real_arm_defaults(quick: bool, p: Preset) -> Iterator[StressCase]:
     """Every named URDF robot's default experiment, linear (:func:`~analogy.scenes.builtin.scene`):
     fast decays beside slow ones (the xArm7's 68 µs), undamped arms hanging (the URs), arms at
     g = 0 whose only time scale is a damper's (the Panda's 890 s)."""
-    from ..scenes.builtin import scene
+    from ...scenes.builtin import scene
     for k, name in enumerate(("panda", "z1") if quick else URDF_ROBOTS):
         def build(name=name):
             return scene(name).system()
