@@ -151,10 +151,13 @@ def test_a_broken_library_is_reloaded_from_a_private_copy():
     sess = session()
     before = sess.run(text)
     generation = sess._generation
-    sess._ng.exited = True                      # what ngspice's exit callback records
+    broken = sess._ng
+    broken.exited = True                        # what ngspice's exit callback records
     with pytest.raises(SpiceError):
         sess.run("* bad\nI1 0 n1 DC 1\nR1 n1 0 1\n.tran 0 1 uic\n.end\n")
     assert sess._generation == generation + 1 and not sess._ng.exited
+    from analogy.solvers import ngspice
+    assert ngspice._RETIRED[-1] is broken       # its code and callbacks stay mapped: a thread may still run
     # the copy is unlinked once loaded: nothing on disk for a SIGKILL to leave behind
     assert not list(Path(tempfile.gettempdir()).glob(f"analogy-ngspice-{os.getpid()}-*"))
     after = sess.run(text)

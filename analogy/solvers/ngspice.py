@@ -27,6 +27,9 @@ _STOP_POLL = 0.05
 #: Held while a library copy initialises: ngspice reads its environment (SPICE_SCRIPTS) then.
 _LOADING = threading.RLock()
 
+#: Libraries replaced by a fresh copy, kept alive (see :meth:`NgspiceSession._open`).
+_RETIRED: list = []
+
 _CANARY = "* canary\nI1 0 n1 DC 1\nR1 n1 0 1\nC1 n1 0 1\n.tran 0.1 1 uic\n.end\n"
 
 
@@ -263,6 +266,10 @@ class NgspiceSession:
 
     def _open(self, path: str):
         self._ffi = declared_ffi()
+        if getattr(self, "_ng", None) is not None:
+            # a library left behind (a fatal error, a halted run whose thread never ended) may still
+            # call back or run: its code and callbacks stay mapped for as long as the process lives
+            _RETIRED.append(self._ng)
         try:
             self._ng = _Library(self._ffi, path, talking=self.prints)
         except OSError as exc:
