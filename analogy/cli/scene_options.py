@@ -21,7 +21,7 @@ from ..model.quantities import ANY, COORDINATE, RATE
 from ..presets import PRESETS
 from ..progress import Heartbeat
 from ..presets import preset as get_preset
-from ..scenes.build import LABELS, scene_model
+from ..scenes.build import CLI_KEYS, COMMAND_LINE, scene_model
 from ..scenes.builtin import SCENES, scene
 from ..scenes.scene import Scene
 from ..scenes.spec import ModelSpec
@@ -30,15 +30,6 @@ from ..model.urdf_robots import URDF_ROBOTS
 
 __all__ = ["CLI_KEYS", "PRESET_HELP", "built_system", "scene_from_args", "scene_options", "solver_list"]
 
-#: The flag that sets each part of a scene, for input errors (forces are one repeated flag,
-#: so they are not numbered).
-CLI_KEYS = {"robot": "--robot", "mass": "--mass", "damping": "--damping", "stiffness": "--stiffness",
-            "gravity": "--gravity", "q": "--q", "topology": "--topology", "forces": "--force",
-            "initial_rates": "--r0", "t_stop": "--t-stop", "parameters": "--param", "model": "--mass",
-            "inputs": "--force", "dynamics": "--dynamics", "link_modes": "--link-modes", "urdf": "--urdf",
-            "joint_frame": "--joint-frame", "geometric_stiffness": "--geometric-stiffness",
-            "joints": "--joints", "numbered": False}
-LABELS["command line"] = CLI_KEYS
 
 
 #: The --preset help text: each preset and what it promises.
@@ -181,7 +172,7 @@ def _urdf_defaults(spec: ModelSpec, label: str, params: dict, args) -> dict:
     """A URDF robot's scene changes: its default pose, gravity, forces and horizon where the
     options leave them, said in one line (with the sentence on its base) on stderr."""
     from ..scenes.robot_defaults import base_note, robot_defaults     # scipy's optimizer: URDF robots only
-    model = scene_model(Scene.of(label, spec, parameters=params, source="command line"))
+    model = scene_model(Scene.of(label, spec, parameters=params, source=COMMAND_LINE))
     if getattr(args, "base", None) == "floating":
         raise InputError(f"--base floating: a free-flying base is not modelled yet; --base fixed holds "
                          f"{model.name}'s root link {model.root_link} to the world")
@@ -235,7 +226,7 @@ def _model_changes(args, sc: Scene, params: dict, chosen: dict, changes: dict) -
                          "the serial arms take --param g=9.81)")
     elif args.robot is not None and args.robot != sc.model.robot:
         spec = ModelSpec(robot=args.robot, **chosen)
-        probe = Scene.of(args.robot, spec, parameters=params, source="command line")
+        probe = Scene.of(args.robot, spec, parameters=params, source=COMMAND_LINE)
         model = scene_model(probe)          # one sentence on an unknown name or parameter
         # a unit step on every joint the model drives; a flexible link's modal amplitude is not driven
         joints = model.joints or ("revolute",) * model.dof
@@ -300,7 +291,7 @@ def scene_from_args(args) -> Scene:
     sc = scene(start)
     params = dict(_split_param(p) for p in args.param)
     coords = {k: params.pop(k) for k in list(params) if k[0] == "q" and k[1:].isdigit()}
-    changes: dict = {"source": "command line"}
+    changes: dict = {"source": COMMAND_LINE}
     chosen = {k: getattr(args, k) for k in CONVENTIONS if getattr(args, k, None) is not None}
     if "geometric_stiffness" in chosen:
         chosen["geometric_stiffness"] = chosen["geometric_stiffness"] == "on"

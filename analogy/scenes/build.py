@@ -23,7 +23,7 @@ from ..model.quantities import FORCE, check_joint_dimensions, check_parameter_un
 from .spec import ModelSpec, SceneData
 
 __all__ = ["scene_model", "symbolic_model", "scene_system", "scene_systems", "entry_value", "TOML_KEYS",
-           "LABELS", "keyed"]
+           "LABELS", "keyed", "COMMAND_LINE", "CLI_KEYS"]
 
 #: How errors name each part of a scene: in a scene file, and on the command line.
 TOML_KEYS = {"robot": "[model] robot", "mass": "[model] mass", "damping": "[model] damping",
@@ -35,9 +35,21 @@ TOML_KEYS = {"robot": "[model] robot", "mass": "[model] mass", "damping": "[mode
              "joint_frame": "[model] joint_frame", "geometric_stiffness": "[model] geometric_stiffness", "urdf": "[model] urdf",
              "joints": "[model] joints"}
 
-#: How errors name each part of a scene, by the scene's source: a front end adds its own
-#: (the command line registers its flags); any other source gets the scene-file keys.
-LABELS: dict[str, dict] = {}
+#: The source of a scene made from command-line flags.
+COMMAND_LINE = "command line"
+
+#: The flag that sets each part of a scene, for input errors (forces are one repeated flag,
+#: so they are not numbered).
+CLI_KEYS = {"robot": "--robot", "mass": "--mass", "damping": "--damping", "stiffness": "--stiffness",
+            "gravity": "--gravity", "q": "--q", "topology": "--topology", "forces": "--force",
+            "initial_rates": "--r0", "t_stop": "--t-stop", "parameters": "--param", "model": "--mass",
+            "inputs": "--force", "dynamics": "--dynamics", "link_modes": "--link-modes", "urdf": "--urdf",
+            "joint_frame": "--joint-frame", "geometric_stiffness": "--geometric-stiffness",
+            "joints": "--joints", "numbered": False}
+
+#: How errors name each part of a scene, by the scene's source: the command line by its flags;
+#: any other source (a scene file, the API) by the scene-file keys.
+LABELS: dict[str, dict] = {COMMAND_LINE: CLI_KEYS}
 _QNAME = re.compile(r"^q[0-9]+$")
 _MODELS: dict = {}
 
@@ -66,7 +78,7 @@ def _keys(scene: SceneData) -> dict:
 def _where(scene: SceneData):
     """Prefix errors with the scene file, when the scene came from one."""
     src = scene.source
-    return keyed(src if src not in (None, "command line") else None)
+    return keyed(src if src not in (None, COMMAND_LINE) else None)
 
 
 def entry_value(value, where: str = "") -> float | str:

@@ -5,7 +5,7 @@ from __future__ import annotations
 from ..circuit.currents import check_element_names
 from ..circuit.description import circuit
 from ..errors import InputError
-from .build import keyed
+from .build import COMMAND_LINE, keyed
 from .scene import Scene
 
 __all__ = ["validated"]
@@ -36,7 +36,7 @@ def validated(scene: Scene) -> Scene:
     """
     system = scene.system()
     changes = {}
-    with keyed(scene.source if scene.source not in (None, "command line") else None):
+    with keyed(scene.source if scene.source not in (None, COMMAND_LINE) else None):
         with keyed("[outputs] node_voltages"):
             nv = scene.node_voltages
             changes["node_voltages"] = tuple(system.nodes) if nv is True else \

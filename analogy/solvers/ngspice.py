@@ -27,9 +27,7 @@ _STOP_POLL = 0.05
 #: Held while a library copy initialises: ngspice reads its environment (SPICE_SCRIPTS) then.
 _LOADING = threading.RLock()
 
-#: Libraries replaced by a fresh copy, kept alive (see :meth:`NgspiceSession._open`).
-_RETIRED: list = []
-
+_RETIRED: list = []         # libraries replaced by a fresh copy, kept alive (see NgspiceSession._open)
 _CANARY = "* canary\nI1 0 n1 DC 1\nR1 n1 0 1\nC1 n1 0 1\n.tran 0.1 1 uic\n.end\n"
 
 
@@ -74,14 +72,11 @@ def declared_ffi():
 class _Library:
     """One initialised ngspice library, through ngspice's C API with PySpice's declarations of it.
 
-    PySpice 1.5's ``NgSpiceShared`` cannot serve here as it stands: it declares the API afresh for
-    each instance, so a second one in a process (a fresh copy after a fatal error, the quiet copy)
-    fails with "duplicate declaration of struct ngcomplex"; and its background-thread callback
-    returns None where ngspice wants an int (cffi reports it on stderr at every ``bg_run``) and
-    reads ngspice's flag, which is true when the thread has ended, as "running". Rather than
-    override its private methods, the library is initialised here with callbacks of our own: what
-    it prints, its requests to exit and the end of a background run; or, *talking* False, only
-    the request to exit, so that no callback into Python (each takes the GIL) slows a run.
+    PySpice 1.5's ``NgSpiceShared`` declares the API afresh for each instance (a second one fails:
+    "duplicate declaration of struct ngcomplex"), and its background callback returns None where
+    ngspice wants an int and reads "thread ended" as "running". Rather than override its private
+    methods, the library gets callbacks of our own: what it prints, a request to exit, the end of a
+    background run; or, *talking* False, only the exit, so that no callback (each takes the GIL) slows a run.
     """
 
     def __init__(self, ffi, path: str, talking: bool = True):
