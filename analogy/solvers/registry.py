@@ -234,6 +234,8 @@ class Solver:
         positions : bool
             Also return node positions where the systems have springs.
         """
+        if type(self)._solve_many is Solver._solve_many:    # each through solve, checked there
+            return Solver._solve_many(self, systems, times, preset, save=save, positions=positions)
         try:
             rows = self._solve_many(systems, times, preset, save=save, positions=positions)
         except _BROKEN:             # each alone: only a system whose numbers leave the range fails

@@ -449,9 +449,8 @@ def _comparison(k: int, system, runs: StackRuns, order: list[str], skipped: dict
     for n, errors in (measured.items() if ref else ()):
         records[n].errors = errors
     records.update((n, SolverRecord(n, "skipped", why)) for n, why in skipped.items())
-    p = runs.preset
-    grid = runs.grids[k] if runs.grids[k] is not None else np.linspace(0.0, system.t_stop, p.steps + 1)
-    return Comparison(system, p.name, grid, records, ref, p.bound)
+    grid = runs.grids[k] if runs.grids[k] is not None else runs.uniform(system.t_stop)
+    return Comparison(system, runs.preset.name, grid, records, ref, runs.preset.bound)
 
 
 def compare(system, preset: str | Preset = "accurate", solvers: Sequence[str] = DEFAULT_SOLVERS,
