@@ -35,6 +35,7 @@ import numpy as np
 import sympy as sp
 
 from analogy.circuit.netlist import analysis_lines
+from analogy.presets import PRESETS
 from analogy.solvers.transient import transient_settings
 from analogy.circuit.nodal import nodal_analysis
 from analogy.solvers.spice import run_netlist
@@ -140,7 +141,8 @@ print("=> the MP model is a floating capacitor C = P; with one terminal grounded
 
 def simulate(name, title, elements, t_stop, ic, save):
     """Write <name>.cir, run it in ngspice with the accurate preset, write <name>.csv; return the vectors."""
-    text = "\n".join([f"* {title}", *elements, *analysis_lines(transient_settings("accurate", t_stop, None), ic, save), ".end"]) + "\n"
+    settings = transient_settings(PRESETS["accurate"], t_stop, None)
+    text = "\n".join([f"* {title}", *elements, *analysis_lines(settings, ic, save), ".end"]) + "\n"
     (out / f"{name}.cir").write_text(text)
     data = run_netlist(text)
     columns = ["time"] + sorted(k for k in data if k != "time")   # node voltages, then "<source>#branch" currents

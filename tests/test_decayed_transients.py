@@ -47,13 +47,13 @@ def test_the_preset_cap_follows_the_decays_that_last_and_the_first_step_every_de
     sc = _scales(2.0, decays=[1e4], shares=[0.9])
     s = transient_settings(ACCURATE, 10.0, sc, custom=True)
     # the preset's own caps: t_stop/max_steps and phase_step/ω over the oscillation; the decay is over in 1.2 ms
-    assert s.max_step == pytest.approx(min(10.0 / ACCURATE.max_steps, ACCURATE.phase_step / 2.0))
+    assert s.max_step == pytest.approx(min(10.0 / ACCURATE.spice.max_steps, ACCURATE.spice.phase_step / 2.0))
     # the first (unchecked, backward Euler) step still resolves the decay
-    assert s.first_step * 1e4 <= ACCURATE.first_phase_step * (1 + 1e-12)
+    assert s.first_step * 1e4 <= ACCURATE.spice.first_phase_step * (1 + 1e-12)
     # a decay that lasts the run caps it as an oscillation does (under a cap t_stop/10 that leaves it room)
-    loose = replace(ACCURATE, max_steps=10)
+    loose = replace(ACCURATE, spice=replace(ACCURATE.spice, max_steps=10))
     assert transient_settings(loose, 10.0, _scales(0.0, [1.0], [0.9]), custom=True).max_step == pytest.approx(
-        ACCURATE.phase_step / 1.0)
+        ACCURATE.spice.phase_step / 1.0)
     assert transient_settings(loose, 10.0, _scales(0.0, [3.0], [0.9]), custom=True).max_step == 1.0
 
 
@@ -62,7 +62,7 @@ def test_a_calibrated_run_keeps_the_decay_cap_its_constants_were_measured_at():
     sc = _scales(0.0, decays=[100.0], shares=[0.9])         # over within 0.12 s of 1e4 s
     s = transient_settings(ACCURATE, 1e4, sc)
     assert not s.interpolate                              # calibrated
-    assert s.max_step == pytest.approx(ACCURATE.decay_step / 100.0)
+    assert s.max_step == pytest.approx(ACCURATE.spice.decay_step / 100.0)
 
 
 XARM7 = ("--robot xarm7 --param g=0 --t-stop 10 " + "--force 1 " * 7).split()
@@ -85,12 +85,12 @@ def test_xarm7_at_g_0_steps_as_its_horizon_asks_and_keeps_the_bound():
     scales = system_scales(system)
     assert scales.omega_max == 0 and scales.lasting(ACCURATE.bound, system.t_stop) == 0
     settings = circuit_settings(system, circuit(system), ACCURATE)
-    assert settings.max_step == pytest.approx(system.t_stop / ACCURATE.max_steps)
+    assert settings.max_step == pytest.approx(system.t_stop / ACCURATE.spice.max_steps)
     tr = solve_spice(system, preset=ACCURATE)
     decays = scales.decays[scales.shares > 10 * ACCURATE.bound]
     lasting = float(np.sum(np.log(scales.shares[scales.shares > 10 * ACCURATE.bound] / (10 * ACCURATE.bound))))
     assert decays.size
-    assert tr.stats.steps <= ACCURATE.max_steps + lasting / ACCURATE.phase_step + ACCURATE.steps
+    assert tr.stats.steps <= ACCURATE.spice.max_steps + lasting / ACCURATE.spice.phase_step + ACCURATE.steps
     assert tr.stats.steps <= 200_000
     _, rel = output_errors(tr.rates, solve_exact(system, tr.time).rates)
     assert np.max(rel) <= ACCURATE.bound

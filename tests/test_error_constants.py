@@ -100,13 +100,13 @@ def test_a_calibrated_preset_takes_its_reltol_from_the_constants_and_the_cap_the
         assert float(opts["reltol"]) == pytest.approx(spice_reltol(p.bound), rel=5e-3)
         assert opts["trtol"] == "1" and opts["method"] == "trap"
         assert s.max_step == pytest.approx(10.0 / CALIBRATED_MAX_STEPS)
-    accurate = str(PRESETS["accurate"].spice_options["reltol"])
+    accurate = str(PRESETS["accurate"].spice.options["reltol"])
     for kind in ("coupled", "custom"):     # not measured: the preset's own options
         s = transient_settings(PRESETS["accurate"], 10.0, sc, **{kind: True})
         assert dict(s.options)["reltol"] == accurate
     ringing = node_system(JointSpace(np.eye(1), np.zeros((1, 1)), np.array([[4.0]])), forces=[1.0], t_stop=10.0)
     s = transient_settings(PRESETS["accurate"], 10.0, system_scales(ringing))
-    assert dict(s.options)["reltol"] == accurate and s.max_step < 10.0 / PRESETS["accurate"].max_steps * 1.0001
+    assert dict(s.options)["reltol"] == accurate and s.max_step < 10.0 / PRESETS["accurate"].spice.max_steps * 1.0001
 
 
 def test_a_rounding_floor_past_the_calibrations_leaves_the_preset_s_own_settings(monkeypatch):
@@ -118,7 +118,7 @@ def test_a_rounding_floor_past_the_calibrations_leaves_the_preset_s_own_settings
     assert dict(transient_settings(p, 10.0, system_scales(system)).options)["reltol"] != "1e-10"
     monkeypatch.setattr(transient, "FLOOR_LIMIT", 0.0)
     s = transient_settings(p, 10.0, system_scales(system))
-    assert dict(s.options)["reltol"] == "1e-10" and s.max_step <= 10.0 / p.max_steps
+    assert dict(s.options)["reltol"] == "1e-10" and s.max_step <= 10.0 / p.spice.max_steps
 
 
 @pytest.mark.deep

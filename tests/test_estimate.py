@@ -36,7 +36,7 @@ def test_the_trapezoidal_error_falls_as_the_square_of_the_step_so_the_refined_ru
     # (h² of the trapezoidal rule); the measured ratio must lie within the factor the estimate allows.
     system = scene("default").system()
     first = compare(system, preset, ("spice",)).max_relative_error("spice")
-    second = compare(system, refined(preset), ("spice",)).max_relative_error("spice")
+    second = compare(system, refined(PRESETS[preset]), ("spice",)).max_relative_error("spice")
     assert REFINE ** 2 / AGREEMENT < first / second < REFINE ** 2 * AGREEMENT
 
 
@@ -55,7 +55,7 @@ def test_the_estimate_lies_within_a_factor_of_three_of_the_true_error(preset):
 #: fast with a step budget under what the phase cap asks of the circuits below (23,351 points for
 #: ten undamped periods, 79,085 for the stiff light pair): the cap is not bought, so the first run
 #: keeps the calibrated step and misses the bound, as a circuit past its budget does.
-FAST_PAST_BUDGET = replace(PRESETS["fast"], step_budget=10_000)
+FAST_PAST_BUDGET = replace(PRESETS["fast"], budget=replace(PRESETS["fast"].budget, steps=10_000))
 
 
 def test_without_a_reference_the_estimate_alone_judges_the_bound():
@@ -213,7 +213,7 @@ def test_a_long_run_is_measured_on_its_sufficient_subset_within_bernstein_s_fact
     from analogy.study.grid import SUBSET_FROM
     # the default arm over 100 s with a step cap of 5e-4 s: 2·10⁵ SPICE points, the subset a tenth of them
     system = scene("default").system().driven(None, 100.0)
-    p = replace(PRESETS["fast"], max_steps=200_000, calibrated=False)     # the cap as given
+    p = replace(PRESETS["fast"], spice=replace(PRESETS["fast"].spice, max_steps=200_000, calibrated=False))     # the cap as given
     c = compare(system, p, ("spice", "exact"))
     spice = c.results["spice"]
     assert spice.stats.steps > SUBSET_FROM and spice.time.size < spice.stats.steps / 2

@@ -191,7 +191,7 @@ def test_the_nonlinear_circuit_converges_as_the_trapezoidal_rule():
     errors = []
     for factor in (1, 2):
         p = preset("fast")
-        p = replace(p, behavioural_max_steps=p.behavioural_max_steps * factor)
+        p = replace(p, spice=replace(p.spice, behavioural_max_steps=p.spice.behavioural_max_steps * factor))
         c = compare(system, p, solvers=("spice", "reference"))
         errors.append(c.errors()["spice"].relative)
         assert c.loop["spice"][0] <= 1e-8 and not c.singular

@@ -55,9 +55,9 @@ def test_a_uniform_step_past_the_operation_budget_is_not_bought():
     system = analogy.scene("xarm7").replace(dynamics="nonlinear").system()
     accurate = PRESETS["accurate"]
     h = motion_step(system, accurate.bound, SAFETY)
-    assert system.t_stop / h * point_operations(system) > accurate.operation_budget
-    settings = circuit_settings(system, circuit(system), "accurate")
-    assert settings.max_step == pytest.approx(system.t_stop / accurate.behavioural_max_steps)
+    assert system.t_stop / h * point_operations(system) > accurate.budget.operations
+    settings = circuit_settings(system, circuit(system), PRESETS["accurate"])
+    assert settings.max_step == pytest.approx(system.t_stop / accurate.spice.behavioural_max_steps)
 
 
 @pytest.mark.ngspice

@@ -16,6 +16,7 @@ from analogy.circuit.description import (
     circuit,
 )
 from analogy.errors import InputError
+from analogy.presets import PRESETS
 from analogy.model.expressions import parse_expression
 from analogy.study.comparison import compare
 from analogy.results.metrics import relative_error
@@ -259,7 +260,7 @@ def test_the_step_ladder_ends_in_gear_for_a_trapezoidal_run():
     (a bench's) run last at reltol RETRY_TIGHTEN times tighter; a gear run has nothing further to try."""
     from analogy.solvers.transient import RETRY_LOOSEN, RETRY_TIGHTEN, TransientSettings, transient_settings
     for behavioural in (False, True):
-        first = transient_settings("accurate", 1.0, None, behavioural=behavioural)
+        first = transient_settings(PRESETS["accurate"], 1.0, None, behavioural=behavioural)
         ladder = first.retries()
         assert [s.loosen for s in ladder] == [*RETRY_LOOSEN, 1.0]
         assert [s.method for s in ladder] == ["trap"] * len(RETRY_LOOSEN) + ["gear"]

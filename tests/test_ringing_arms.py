@@ -64,7 +64,7 @@ def test_a_phase_cap_the_step_budget_cannot_pay_for_is_not_taken():
     assert step == pytest.approx(math.sqrt(12 * FAST.bound / SAFETY / 1000.0), rel=1e-14)
     assert _phase_cap(FAST, 1000.0, _scales([1e5], [100.0], [1.0])) == math.inf
     # nor one whose operations pass the budget
-    assert _phase_cap(FAST, 1000.0, sc, operations=FAST.operation_budget) == math.inf
+    assert _phase_cap(FAST, 1000.0, sc, operations=FAST.budget.operations) == math.inf
 
 
 def test_a_calibrated_circuit_keeps_the_calibrated_cap():
@@ -72,7 +72,7 @@ def test_a_calibrated_circuit_keeps_the_calibrated_cap():
     from analogy.scenes.builtin import scene
     s = scene("parallel3").system()
     assert 0 < system_scales(s).ringing(1e-6) <= 1
-    settings = transient_settings("accurate", s.t_stop, system_scales(s), breakpoints=s.breakpoints())
+    settings = transient_settings(PRESETS["accurate"], s.t_stop, system_scales(s), breakpoints=s.breakpoints())
     assert settings.max_step == pytest.approx(s.t_stop / 50, rel=1e-14)
 
 

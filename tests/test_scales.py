@@ -85,7 +85,7 @@ def test_a_step_budget_bounds_the_work_of_a_long_run():
     """10^6 s of a 2000 rad/s mode at fast: the cap is t_stop/10^6, not 0.5/ω (4·10^9 steps)."""
     s = node_system(JointSpace([[1.0, 0], [0, 1.0]], stiffness=[[4e6, 0], [0, 1.0]]), forces=[1, 0],
                     t_stop=1e6)
-    assert tran_line(netlist(s, "fast"))[2] == pytest.approx(1e6 / PRESETS["fast"].step_budget, rel=1e-12)
+    assert tran_line(netlist(s, "fast"))[2] == pytest.approx(1e6 / PRESETS["fast"].budget.steps, rel=1e-12)
 
 
 def test_circuits_run_together_share_the_fastest_rate_and_the_largest_scales():

@@ -68,7 +68,7 @@ def test_ode_accurate_preset_within_1e9_of_exact(name):
     t = np.linspace(0.0, s.t_stop, 501)
     from analogy.presets import PRESETS
     p = PRESETS["accurate"]
-    ode = solve_ode(s, t, p.ode_method, p.ode_rtol)
+    ode = solve_ode(s, t, p.ode.method, p.ode.rtol)
     assert rel_err(ode.rates, solve_exact(s, t).rates) <= 1e-9
 
 

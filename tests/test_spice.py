@@ -295,9 +295,9 @@ def test_a_stack_of_small_circuits_runs_in_the_foreground_and_one_dense_circuit_
     scales = system_scales(s)
     assert _limit(scales, s.t_stop, fast, run_size([2] * 100)) is None
     assert _limit(scales, s.t_stop, accurate, run_size([2] * 100)) is None
-    assert _limit(scales, s.t_stop, fast, run_size([200])) == fast.timeout
+    assert _limit(scales, s.t_stop, fast, run_size([200])) == fast.budget.timeout
     # each node counts: 600 such circuits took 1.6 s at accurate's 20,000 steps, past half a second
-    assert _limit(scales, s.t_stop, accurate, run_size([2] * 600)) == accurate.timeout
+    assert _limit(scales, s.t_stop, accurate, run_size([2] * 600)) == accurate.budget.timeout
 
 
 def test_the_quiet_library_runs_a_stack_to_the_same_bits_and_hands_a_failure_to_the_talking_one():

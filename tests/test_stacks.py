@@ -11,6 +11,7 @@ from analogy.circuit.elements import element_table, elements
 from analogy.circuit.description import circuits
 from analogy.circuit.netlist import circuit_lines, write_batch, write_stack
 from analogy.circuit.scales import combined_scales, stack_scales
+from analogy.presets import PRESETS
 from analogy.solvers.transient import transient_settings
 from analogy.solvers.transient import batch_netlist
 from analogy.circuit.node_system import node_system, node_systems
@@ -165,7 +166,7 @@ def test_a_shared_stack_is_written_from_its_columns_as_from_its_circuits(name, t
     systems = base.systems(qs) if topology is None else node_systems(
         base.numeric_model(), qs, topology=topology, forces=forces, t_stop=4.0)
     assert len(systems.partition()) == 1
-    settings = transient_settings("fast", systems[0].t_stop, combined_scales(stack_scales(systems)),
+    settings = transient_settings(PRESETS["fast"], systems[0].t_stop, combined_scales(stack_scales(systems)),
                                   breakpoints=systems[0].breakpoints())
     text = write_stack(systems, settings)
     assert text == write_batch(circuits(systems), settings)
@@ -184,7 +185,7 @@ def test_rows_that_keep_different_elements_are_written_as_their_circuits():
     root = brentq(m12, 1.2, 2.0, xtol=1e-15)
     qs = np.array([[0.0, 0.3], [0.0, root], [0.0, 2.0], [0.0, root], [0.0, 1.0]])
     systems = base.systems(qs)
-    settings = transient_settings("fast", systems[0].t_stop, combined_scales(stack_scales(systems)),
+    settings = transient_settings(PRESETS["fast"], systems[0].t_stop, combined_scales(stack_scales(systems)),
                                   breakpoints=systems[0].breakpoints())
     text = write_stack(systems, settings)
     assert text == write_batch(circuits(systems), settings)

@@ -28,13 +28,13 @@ def test_the_step_cap_follows_the_square_root_of_the_tolerance():
     # the trapezoidal rule's error grows as (ω·h)²: ten times the tolerance, √10 times the cap
     a, b = tolerance_preset(1e-4), tolerance_preset(1e-5)
     fast, accurate = PRESETS["fast"], PRESETS["accurate"]
-    exponent = math.log(accurate.phase_step / fast.phase_step) / math.log(1e-3)
+    exponent = math.log(accurate.spice.phase_step / fast.spice.phase_step) / math.log(1e-3)
     assert exponent == pytest.approx(0.5, abs=0.01)        # the two calibrated presets agree with h²
-    assert a.phase_step / b.phase_step == pytest.approx(10 ** exponent, rel=1e-12)
-    assert accurate.phase_step < b.phase_step < a.phase_step < fast.phase_step
-    assert fast.max_steps < a.max_steps < b.max_steps < accurate.max_steps
-    assert float(b.spice_options["reltol"]) < float(a.spice_options["reltol"])
-    assert a.ode_method == "LSODA" and b.ode_method == "DOP853"
+    assert a.spice.phase_step / b.spice.phase_step == pytest.approx(10 ** exponent, rel=1e-12)
+    assert accurate.spice.phase_step < b.spice.phase_step < a.spice.phase_step < fast.spice.phase_step
+    assert fast.spice.max_steps < a.spice.max_steps < b.spice.max_steps < accurate.spice.max_steps
+    assert float(b.spice.options["reltol"]) < float(a.spice.options["reltol"])
+    assert a.ode.method == "LSODA" and b.ode.method == "DOP853"
 
 
 @pytest.mark.parametrize("tol", [1e-2, 1e-4, 1e-5, 1e-7])
@@ -92,7 +92,7 @@ def test_a_sweep_runs_at_a_tolerance_and_an_axis_may_sweep_tolerances(tmp_path):
 
 def test_a_refined_run_keeps_its_first_step_and_halves_the_cap_so_it_is_never_coarser():
     s = scene("default").system()
-    for name in ("fast", "accurate"):
+    for name in PRESETS.values():
         base = transient_settings(name, s.t_stop, system_scales(s), breakpoints=s.breakpoints())
         fine = transient_settings(refined(name), s.t_stop, system_scales(s), breakpoints=s.breakpoints())
         a, b = dict(base.options), dict(fine.options)
@@ -112,12 +112,12 @@ def test_a_refined_run_keeps_its_first_step_and_halves_the_cap_so_it_is_never_co
                                     {"trtol": " "}, {"method": ""}, {"interp": "1"}, {"reltol": "1_000"}])
 def test_an_option_ngspice_cannot_read_is_refused_before_it_is_written(option):
     # ngspice runs on after reltol=nan or maxord=abc, saying so only in print, with its default instead
-    custom = dataclasses.replace(preset("fast"), spice_options={**preset("fast").spice_options, **option})
+    custom = dataclasses.replace(preset("fast"), spice=dataclasses.replace(preset("fast").spice, options={**preset("fast").spice.options, **option}))
     with pytest.raises(InputError, match="SPICE option"):
         transient_settings(custom, 1.0, None)           # no scales: the preset's options as they are
 
 
 def test_flags_words_and_finite_numbers_pass_as_written():
-    custom = dataclasses.replace(preset("fast"), spice_options={"method": "gear", "maxord": "2", "reltol": 1e-4})
+    custom = dataclasses.replace(preset("fast"), spice=dataclasses.replace(preset("fast").spice, options={"method": "gear", "maxord": "2", "reltol": 1e-4}))
     options = dict(transient_settings(custom, 1.0, None).options)
     assert options["method"] == "gear" and options["maxord"] == "2" and options["klu"] == ""

@@ -60,14 +60,14 @@ def test_every_named_robot_runs_nonlinear_inside_the_budget():
 def test_every_built_in_scene_is_far_inside_the_budget():
     for sc in SCENES.values():
         for p in PRESETS.values():
-            assert estimate_work(sc.system(), p).points < 1e-3 * p.work_budget
+            assert estimate_work(sc.system(), p).points < 1e-3 * p.budget.points
 
 
 def test_the_budget_is_raised_deliberately():
     system = analogy.node_system(JointSpace([[1.0]], [[1.0]]), forces=["sine(0, 1, 1e6)"], t_stop=10.0)
     with pytest.raises(InputError, match="time points"):
         check_work(system, PRESETS["fast"])
-    assert check_work(system, replace(PRESETS["fast"], work_budget=1e10)).points > 1e7
+    assert check_work(system, replace(PRESETS["fast"], budget=replace(PRESETS["fast"].budget, points=1e10))).points > 1e7
 
 
 def test_the_cli_budget_must_be_a_count(capsys):
@@ -126,13 +126,13 @@ def test_a_circuit_too_large_for_spice_is_refused_and_runs_without_it():
         check_work(system, p)
     assert "shorten t_stop" not in str(caught.value) and caught.value.field == "budget"
     assert check_work(system, p, spice=False).points == 2 * p.steps + 4     # 4 points for its one force segment
-    assert check_work(system, replace(p, operation_budget=2e11)).operations == pytest.approx(n ** 3 * 2004, rel=1e-3)
+    assert check_work(system, replace(p, budget=replace(p.budget, operations=2e11))).operations == pytest.approx(n ** 3 * 2004, rel=1e-3)
 
 
 def test_every_built_in_scene_is_far_inside_the_operation_budget():
     for sc in SCENES.values():
         for p in PRESETS.values():
-            assert estimate_work(sc.system(), p).operations < 1e-2 * p.operation_budget
+            assert estimate_work(sc.system(), p).operations < 1e-2 * p.budget.operations
 
 
 @pytest.mark.ngspice

@@ -142,7 +142,7 @@ def _solve(payload) -> GroupResult:
 def _preset_of(group: Group) -> Preset:
     """The preset a group's members share (:func:`plan_groups` keeps presets apart)."""
     first = group.base if group.base is not None else group.items[0]
-    return get_preset(first.preset if isinstance(first, Scene) else Scene.preset)
+    return first.settings if isinstance(first, Scene) else get_preset(Scene.preset)     # systems: the default
 
 
 def run_batch(systems: Sequence, preset=None, *, solvers: Sequence[str] = ("spice",),

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Sequence
 import numpy as np
 
 from ..errors import InputError
-from ..presets import preset as get_preset
+from ..presets import Preset
 from ..solvers.registry import SOLVER_NAMES
 from ..progress import Progress
 from .executor import ATTEMPTS, execute
@@ -160,14 +160,15 @@ def solve_points(sweep: Sweep, start: int, points: np.ndarray, todo: np.ndarray,
     for j, sc in enumerate(scenes):
         if sc is not None:
             by_preset.setdefault(sc.preset, []).append(j)
-    for preset_name, members in by_preset.items():
+    for members in by_preset.values():
         group = [scenes[j] for j in members]
+        settings = group[0].settings
         tasks = [Group((k,), (s,)) for k, s in enumerate(group)] if isolated else plan_groups(group, len(group))
         for task in tasks:
             idx = task.rows
-            errs, secs, failed, invalid, refused, rates = solve_members(task, get_preset(preset_name), solvers,
-                                                                        reference, trajectories > 0)
-            bound = get_preset(preset_name).bound
+            errs, secs, failed, invalid, refused, rates = solve_members(task, settings, solvers, reference,
+                                                                        trajectories > 0)
+            bound = settings.bound
             for local, k in enumerate(idx):
                 j = members[k]
                 for name in solvers:
@@ -345,21 +346,21 @@ def _died(sweep: Sweep, start: int, points: np.ndarray, todo: np.ndarray, solver
     return cols
 
 
-def with_overrides(sweep: Sweep, preset: str | None = None, solvers: Sequence[str] | None = None) -> Sweep:
+def with_overrides(sweep: Sweep, preset: str | Preset | None = None, solvers: Sequence[str] | None = None) -> Sweep:
     """*sweep* with its base scene's preset or solvers replaced (a new sweep, with its own key).
 
     Parameters
     ----------
     sweep : Sweep
         The sweep.
-    preset : str, optional
+    preset : str or Preset, optional
         Accuracy preset.
     solvers : sequence of str, optional
         Solvers.
     """
     changes: dict = {}
     if preset is not None:
-        changes["preset"] = get_preset(preset).name
+        changes["preset"] = preset         # the scene keeps its name
     if solvers is not None:
         changes["solvers"] = tuple(solvers)
     return replace(sweep, base=sweep.base.replace(**changes)) if changes else sweep

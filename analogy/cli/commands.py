@@ -24,7 +24,6 @@ from ..model.expressions import (
 )
 from ..processes import stop_requests
 from ..progress import Heartbeat
-from ..presets import preset as get_preset
 from ..results.output import check_plot_path
 from .diagnostics import bench_command, memory_command, stress_command, throughput_command
 from .outputs import accuracy_exit, check_writable, write_outputs
@@ -93,17 +92,17 @@ def _cmd_compare(args) -> int:
     for path in (args.csv, args.plot):
         check_writable(path)
     step = None if args.step is None else parse_number(args.step, "time")
-    preset = get_preset(args.preset)
+    preset = args.preset
     if args.timeout is not None:
         if not (limit := parse_number(args.timeout, "time")) > 0:
             raise InputError(f"--timeout must be positive, got {args.timeout}")
-        preset = replace(preset, timeout=limit)
+        preset = replace(preset, budget=replace(preset.budget, timeout=limit))
     if args.budget is not None:
         if not (budget := parse_number(args.budget)) >= 1:
             raise InputError(f"--budget must be at least 1, got {args.budget}")
         # one knob: the operation budget scales with the points'
-        preset = replace(preset, work_budget=budget, segment_budget=int(min(budget, 2 ** 62)),
-                         operation_budget=preset.operation_budget * budget / preset.work_budget)
+        preset = replace(preset, budget=replace(preset.budget, points=budget, segments=int(min(budget, 2 ** 62)),
+                                                operations=preset.budget.operations * budget / preset.budget.points))
     if args.realizable and args.dynamics != "linear":
         raise InputError("--realizable applies to the linear circuit, not to --dynamics nonlinear or both")
     if args.dynamics == "both":
@@ -214,7 +213,7 @@ def _cmd_verify(args) -> int:
         flags.update({f"{name} {k}": v for k, v in c.outside_bound().items()})
     if code:
         return code
-    return accuracy_exit(flags, args.preset, get_preset(args.preset).bound)
+    return accuracy_exit(flags, args.preset.name, args.preset.bound)
 
 
 def _cmd_draw(args) -> int:
@@ -254,7 +253,7 @@ def _cmd_run(args) -> int:
     jobs = []
     for path in args.scene_files:           # every file is read and checked before any work
         job = load_scene(path)
-        changes = {k: v for k, v in (("dynamics", args.dynamics), ("preset", args.preset),
+        changes = {k: v for k, v in (("dynamics", args.dynamics), ("preset", args.preset and args.preset.name),
                                       ("solvers", solvers)) if v is not None and v != getattr(job, k)}
         if changes:
             job = validated(job.replace(**changes))
@@ -272,8 +271,8 @@ def _cmd_run(args) -> int:
         if result.failures:
             codes.append(EXIT_FAILED)
         elif result.comparison is not None:
-            codes.append(accuracy_exit(result.comparison.outside_bound(), job.preset,
-                                        get_preset(job.preset).bound, result.comparison))
+            codes.append(accuracy_exit(result.comparison.outside_bound(), job.preset, job.settings.bound,
+                                        result.comparison))
     return EXIT_FAILED if EXIT_FAILED in codes else max(codes, default=EXIT_OK)
 
 
@@ -308,9 +307,9 @@ def _cmd_check(args) -> int:
     if args.plot:
         result.plot(args.plot)
         print(f"wrote {args.plot}")
-    bound = get_preset(args.preset).bound
+    bound = args.preset.bound
     name, worst = result.worst
-    return accuracy_exit({f"the netlist's {name}": worst} if worst > bound else {}, args.preset, bound)
+    return accuracy_exit({f"the netlist's {name}": worst} if worst > bound else {}, args.preset.name, bound)
 
 
 def _cmd_ac(args) -> int:
@@ -325,8 +324,8 @@ def _cmd_ac(args) -> int:
     if plot is not None:
         check.spice.plot(plot, check.exact)
         print(f"wrote {plot}")
-    bound = get_preset(args.preset).bound
-    return accuracy_exit({"spice mobility": check.error} if check.error > bound else {}, args.preset, bound)
+    bound = args.preset.bound
+    return accuracy_exit({"spice mobility": check.error} if check.error > bound else {}, args.preset.name, bound)
 
 
 def _cmd_scenes(args) -> int:

@@ -123,7 +123,7 @@ def throughput_command(args) -> int:
                                workers=_positive(args.workers, "--workers")))
         return EXIT_OK
     from ..diagnostics.throughput import throughput
-    print(throughput(n=_positive(args.n, "-n"), preset=args.preset,
+    print(throughput(n=_positive(args.n, "-n"), preset=args.preset.name,
                      group_size=_positive(args.group_size, "--group-size"),
                      workers=_positive(args.workers, "--workers"),
                      baseline_n=_positive(args.baseline, "--baseline"),
@@ -141,5 +141,5 @@ def memory_command(args) -> int:
     """
     from ..diagnostics.memory import memory_per_run
     scene(args.scene)                   # an unknown name is refused before any run
-    print(memory_per_run(_positive(args.runs, "--runs"), args.preset, args.scene, solver=args.solver))
+    print(memory_per_run(_positive(args.runs, "--runs"), args.preset.name, args.scene, solver=args.solver))
     return EXIT_OK

@@ -18,7 +18,7 @@ from ..model.expressions import (
     split_entries,
 )
 from ..model.quantities import ANY, COORDINATE, RATE
-from ..presets import PRESETS
+from ..presets import PRESETS, Preset
 from ..progress import Heartbeat
 from ..presets import preset as get_preset
 from ..scenes.build import CLI_KEYS, COMMAND_LINE, scene_model
@@ -49,13 +49,14 @@ def preset_option(p: argparse.ArgumentParser, default: str | None = "accurate", 
     help : str
         What the option does for this command.
     """
-    p.add_argument("--preset", "--tol", dest="preset", default=default, type=preset_name, metavar="PRESET", help=help)
+    p.add_argument("--preset", "--tol", dest="preset", default=default, type=preset_setting, metavar="PRESET", help=help)
 
 
-def preset_name(text: str) -> str:
-    """The preset *text* names, checked (``fast``, ``accurate`` or a tolerance, as ``1e-05``)."""
+def preset_setting(text: str) -> Preset:
+    """The preset *text* names (``fast``, ``accurate`` or a tolerance, as ``1e-05``): the one place
+    the command line turns a preset's name into its settings."""
     try:
-        return get_preset(text).name
+        return get_preset(text)
     except InputError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
 

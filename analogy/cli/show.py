@@ -24,7 +24,6 @@ def animate_command(args) -> int:
     args : argparse.Namespace
         The parsed command line.
     """
-    from ..presets import preset as get_preset
     from ..solvers.registry import solve
     from ..study.motion import motion
     from ..study.work import check_work
@@ -39,7 +38,7 @@ def animate_command(args) -> int:
     if not 2 <= args.frames <= 2000:
         raise InputError(f"--frames takes 2 to 2000 frames, got {args.frames}")
     system = built_system(sc)
-    check_work(system, get_preset(args.preset), spice=args.solver == "spice")    # refused before it runs
+    check_work(system, args.preset, spice=args.solver == "spice")    # refused before it runs
     run = solve(system, args.solver, preset=args.preset)
     if not run.success:
         raise SimulationError(f"{args.solver}: {run.message}")
@@ -71,7 +70,7 @@ def report_command(args) -> int:
         sc = load_scene(args.scene_file)
     else:
         sc = scene_from_args(args).replace(preset=args.preset or "accurate")
-    changes = {k: v for k, v in (("dynamics", args.dynamics), ("preset", args.preset),
+    changes = {k: v for k, v in (("dynamics", args.dynamics), ("preset", args.preset and args.preset.name),
                                   ("solvers", solver_list(args.solvers))) if v is not None and v != getattr(sc, k)}
     sc = validated(sc.replace(**changes)) if changes else sc
     out = Path(args.output_dir)

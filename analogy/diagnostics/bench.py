@@ -14,7 +14,7 @@ import numpy as np
 from ..files import write_figure
 from ..solvers.transient import netlist
 from ..errors import AnalogyError
-from ..presets import PRESETS, Preset, tolerance_preset
+from ..presets import PRESETS, Preset, SpiceSettings, tolerance_preset
 from ..progress import Progress
 from ..results.metrics import output_errors
 from ..results.output import write_rows
@@ -272,7 +272,7 @@ def nonlinear_spice_grid() -> list[tuple]:
     grid = [(f"{m} default tolerances tmax=T/{ms}", {"method": m}, ms, 1e-3)
             for m in ("trap", "gear") for ms in (500, 2000, 20000)]
     grid.append(("trap reltol=1e-6 trtol=1 tmax=T/2000", {"method": "trap", "reltol": 1e-6, "trtol": 1}, 2000, 1e-6))
-    grid += [(f"preset-{name}", dict(p.behavioural_options), p.behavioural_max_steps, 1e-3)
+    grid += [(f"preset-{name}", dict(p.spice.behavioural_options), p.spice.behavioural_max_steps, 1e-3)
              for name, p in PRESETS.items()]
     return grid + tolerance_grid()
 
@@ -328,8 +328,8 @@ def _timed(kind: str, system, g, repeats: int) -> tuple:
             check_work(system, opts, spice=True)
             text = netlist(system, opts, printing=False)
         else:
-            text = netlist(system, Preset("bench", opts, steps=ms // 2, max_steps=ms, behavioural_options=opts,
-                                          behavioural_max_steps=ms), printing=False)
+            text = netlist(system, Preset("bench", steps=ms // 2, spice=SpiceSettings(
+                opts, max_steps=ms, behavioural_options=opts, behavioural_max_steps=ms)), printing=False)
         sess = session()
 
         def run():

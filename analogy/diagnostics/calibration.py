@@ -82,8 +82,10 @@ def calibration_circuits() -> Iterator[tuple[str, object]]:
 
 def _rung(reltol: float) -> Preset:
     # the accurate preset's print step and first step, whose abstol floor the runs share
-    return replace(PRESETS["accurate"], name=f"reltol {reltol:g}", spice_options=calibrated_options(reltol),
-                   max_steps=CALIBRATED_MAX_STEPS, phase_step=math.inf, calibrated=False)
+    accurate = PRESETS["accurate"]
+    return replace(accurate, name=f"reltol {reltol:g}", spice=replace(
+        accurate.spice, options=calibrated_options(reltol), max_steps=CALIBRATED_MAX_STEPS, phase_step=math.inf,
+        calibrated=False))
 
 
 def calibration_runs(reltols=CALIBRATION_RELTOLS, progress: bool = True) -> list[CalibrationRun]:

@@ -53,9 +53,9 @@ def _pyspice_loop(payload):
                 src.scale * float(src.waveform.values[0]))
         sim = c.simulator(simulator="ngspice-shared")
         sim.initial_condition(**{n: float(v) for n, v in zip(s.nodes, s.initial_voltages)})
-        sim.options(**p.spice_options)
+        sim.options(**p.spice.options)
         analysis = sim.transient(step_time=s.t_stop / p.steps, end_time=s.t_stop,
-                                 max_time=s.t_stop / p.max_steps, use_initial_condition=True)
+                                 max_time=s.t_stop / p.spice.max_steps, use_initial_condition=True)
         t = np.array(analysis.time)
         v = np.column_stack([np.array(analysis[n]) for n in s.nodes])
         ex = solve_exact(s, t).rates

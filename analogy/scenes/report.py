@@ -11,7 +11,7 @@ from pathlib import Path
 from ..files import write_text
 from .. import __version__
 from ..errors import InputError
-from ..presets import DEFAULT_SOLVERS, preset as get_preset
+from ..presets import DEFAULT_SOLVERS
 from ..solvers.transient import netlist as make_netlist
 from ..results.output import data_uri, figure_uri
 from ..study.comparison import Comparison, compare
@@ -143,7 +143,7 @@ def scene_report(scene, *, animation: bool = True, frames: int = 48) -> SceneRep
         Frames of the animation.
     """
     system = scene.system()
-    p = get_preset(scene.preset)
+    p = scene.settings
     solvers = scene.solvers or DEFAULT_SOLVERS
     comparison = compare(system, p, solvers)
     ran = getattr(comparison.results.get("spice"), "settings", None)

@@ -12,7 +12,6 @@ import numpy as np
 from ..files import write_text
 from ..solvers.transient import netlist as make_netlist
 from ..errors import InputError
-from ..presets import preset as get_preset
 from ..study.comparison import Comparison, compare
 from ..results.metrics import output_errors
 from ..results.output import Tabular, html_table
@@ -63,7 +62,7 @@ def run_scene(scene: Scene, output_dir=None, progress=None) -> "SceneResult":
         if name:
             with keyed(scene.source), keyed(f"[outputs] {key}"):
                 scene.path(name, output_dir)
-    p = get_preset(scene.preset)
+    p = scene.settings
     system = scene.system()
     result = SceneResult(scene, system)
     save = save_names(scene, system)

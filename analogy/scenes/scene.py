@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Mapping
 
 from ..errors import InputError
 from ..model.dynamics import DYNAMICS, DynamicsKind
-from ..presets import DEFAULT_SOLVERS, DEFAULT_T_STOP, PresetName
+from ..presets import DEFAULT_SOLVERS, DEFAULT_T_STOP, Preset, PresetName
 from ..presets import preset as get_preset
 from .build import scene_model, scene_system, scene_systems, symbolic_model
 from .paths import inside_folder
@@ -178,6 +178,11 @@ class Scene:
         current.update(changes)
         name, model = current.pop("name"), current.pop("model")
         return Scene.of(name, model, **current)
+
+    @property
+    def settings(self) -> Preset:
+        """The settings of :attr:`preset`, the scene's accuracy (its bound, and what each solver receives)."""
+        return get_preset(self.preset)
 
     @property
     def parameter_values(self) -> dict[str, float]:

@@ -77,7 +77,7 @@ def solve_gnucap(system, preset: str | Preset = "accurate") -> Trajectory:
     program = shutil.which("gnucap")
     if program is None:
         raise SimulationError("gnucap is not installed (Debian: apt install gnucap)")
-    limit = p.timeout if p.timeout is not None and math.isfinite(p.timeout) else None
+    limit = p.budget.timeout if p.budget.timeout is not None and math.isfinite(p.budget.timeout) else None
     start = _time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="analogy-gnucap-") as folder:
         path = Path(folder) / "circuit.ckt"

@@ -359,10 +359,10 @@ class OdeSolver(Solver):
         preset : Preset
             The settings of the run to be judged.
         """
-        return [(replace(preset, ode_rtol=preset.ode_rtol / REFINE_RTOL), REFINE_RTOL / (REFINE_RTOL - 1))]
+        return [(replace(preset, ode=replace(preset.ode, rtol=preset.ode.rtol / REFINE_RTOL)), REFINE_RTOL / (REFINE_RTOL - 1))]
 
     def _solve(self, system, times, preset: Preset, *, save=(), positions=False) -> Trajectory:
-        """Integrate with ``preset.ode_method`` at ``preset.ode_rtol``; see :meth:`Solver.solve`.
+        """Integrate with ``preset.ode.method`` at ``preset.ode.rtol``; see :meth:`Solver.solve`.
 
         Parameters
         ----------
@@ -377,8 +377,8 @@ class OdeSolver(Solver):
         positions : bool
             Also return node positions where the system has springs.
         """
-        return solve_ode(system, times, preset.ode_method, preset.ode_rtol, positions=positions,
-                         timeout=preset.timeout)
+        return solve_ode(system, times, preset.ode.method, preset.ode.rtol, positions=positions,
+                         timeout=preset.budget.timeout)
 
 
 SOLVER = OdeSolver()

@@ -208,9 +208,9 @@ class Solver:
         times : array_like or None
             Requested output times.
         preset : Preset
-            Its ``steps`` set the default grid.
+            Its :meth:`~analogy.presets.Preset.grid` is the default.
         """
-        return system.time_points(np.linspace(0.0, system.t_stop, preset.steps + 1) if times is None else times)
+        return system.time_points(preset.grid(system.t_stop) if times is None else times)
 
     def solve_many(self, systems: Sequence, times, preset: Preset, *, save: Sequence[str] = (),
                    positions: bool = False) -> Sequence[Trajectory]:

@@ -58,10 +58,10 @@ def _limit(scales, t_stop: float, preset: Preset, size: float) -> float | None:
     unit); None runs in the foreground, which costs a quarter millisecond less, and less waiting
     for the GIL where other threads run Python (no background thread to hand back to). *size* is
     :func:`run_size` of the run's independent circuits."""
-    if scales is None or preset.timeout is None or not math.isfinite(preset.timeout):
+    if scales is None or preset.budget.timeout is None or not math.isfinite(preset.budget.timeout):
         return None
-    short = scales.fastest(preset.bound) * t_stop <= 1e4 and preset.max_steps * size <= 1e8
-    return None if short else preset.timeout
+    short = scales.fastest(preset.bound) * t_stop <= 1e4 and preset.spice.max_steps * size <= 1e8
+    return None if short else preset.budget.timeout
 
 
 def run_size(dofs) -> float:
@@ -98,6 +98,7 @@ def solve_spice(system, times=None, *, preset="accurate", save=None) -> Trajecto
     save : sequence of str, optional
         Element names whose currents to return in :attr:`Trajectory.currents`.
     """
+    preset = get_preset(preset)
     circ = circuit(system, realizable=getattr(system, "realizable", False), describe=False)
     names = [e for e in (save or []) if e not in system.nodes] + circ.state_nodes + circ.monitors
     vectors = save_vectors(circ, list(system.nodes) + names)
@@ -113,7 +114,7 @@ def solve_spice(system, times=None, *, preset="accurate", save=None) -> Trajecto
         text = write_netlist(circ, settings, list(system.nodes) + names, printing=False)
         try:
             size = run_size([system.dof]) if system.kind == "linear" else point_operations(system)
-            data = sess.run(text, vectors, stats, timeout=_limit(scales, system.t_stop, get_preset(preset), size))
+            data = sess.run(text, vectors, stats, timeout=_limit(scales, system.t_stop, preset, size))
             break
         except SimulationError as exc:
             waited += stats.get("waited", 0.0)

@@ -80,7 +80,7 @@ def _bought(p: Preset, t_stop: float, step: float, scales: Scales | None, operat
         return math.inf
     points = t_stop / step
     each = operations if operations is not None else float(scales.size) ** 3 if scales is not None else 0.0
-    return step if points <= p.step_budget and points * each <= p.operation_budget else math.inf
+    return step if points <= p.budget.steps and points * each <= p.budget.operations else math.inf
 
 
 def _step_limits(p: Preset, t_stop: float, scales: Scales, first: float, tmax: float, calibrated: bool,
@@ -88,7 +88,7 @@ def _step_limits(p: Preset, t_stop: float, scales: Scales, first: float, tmax: f
     """The first step and the step cap the circuit's *scales* ask, within *first* and *tmax*: the first
     step holds the fastest rate's phase, the cap each lasting rate's phase and decay and, on a linear
     *trapezoidal* circuit under the preset's own caps, its modes' phase error over t_stop."""
-    need = scales.step_limit(p.first_phase_step, p.bound / 10)
+    need = scales.step_limit(p.spice.first_phase_step, p.bound / 10)
     if not need > 0:                   # zero or NaN: a rate past the float range
         raise InputError(f"the circuit's fastest rate ({scales.omega_max:.3g} rad/s) leaves the range "
                          "ngspice can step: rescale the masses, dampers or springs")
@@ -99,19 +99,19 @@ def _step_limits(p: Preset, t_stop: float, scales: Scales, first: float, tmax: f
     # it, at t_stop/50 steps, the slow root of an overdamped pair (stress b, ratio 1e2, ζ = 1e3) erred
     # 2.5e-6 at reltol 1e-10 against the 3e-7 promised, as ngspice's check judges it against a node it
     # shares with a mode a hundred times larger.
-    horizon = t_stop if not calibrated and math.isfinite(p.phase_step) else math.inf
+    horizon = t_stop if not calibrated and math.isfinite(p.spice.phase_step) else math.inf
     rate = scales.lasting(p.bound, horizon)
-    phase = math.inf if calibrated else p.phase_step
-    cap = min(phase / rate if rate > 0 else math.inf, scales.decay_limit(p.decay_step, p.bound, horizon))
-    if not calibrated and math.isfinite(p.phase_step) and trapezoidal:
+    phase = math.inf if calibrated else p.spice.phase_step
+    cap = min(phase / rate if rate > 0 else math.inf, scales.decay_limit(p.spice.decay_step, p.bound, horizon))
+    if not calibrated and math.isfinite(p.spice.phase_step) and trapezoidal:
         # the preset's own caps (not the calibration's or the bench's fixed settings) on a linear
         # trapezoidal circuit: the phase error of its own modes over t_stop sets the step
         cap = min(cap, _phase_cap(p, t_stop, scales, operations))
-    tmax = min(tmax, max(cap, t_stop / p.step_budget))
+    tmax = min(tmax, max(cap, t_stop / p.budget.steps))
     return first, tmax
 
 
-def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | None, *,
+def transient_settings(preset: Preset, t_stop: float, scales: Scales | None, *,
                        behavioural: bool = False, coupled: bool = False, constrained: bool = False,
                        breakpoints: np.ndarray | None = None, loosen: float = 1.0,
                        custom: bool = False, operations: float | None = None,
@@ -121,13 +121,13 @@ def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | Non
     The absolute tolerances are the preset's relative ones times the circuit's current,
     velocity and charge scales; abstol stays above :data:`ROUNDING_STEPS` roundings of a
     capacitor current at the shortest step the run takes (its first step, or a tenth of the
-    shortest interval between force breakpoints). The step cap is ``preset.phase_step``
-    of the fastest rate (within ``preset.step_budget``); the first step meets
-    ``preset.first_phase_step``; the print step is t_stop/``preset.steps``.
+    shortest interval between force breakpoints). The step cap is ``preset.spice.phase_step``
+    of the fastest rate (within ``preset.budget.steps``); the first step meets
+    ``preset.spice.first_phase_step``; the print step is t_stop/``preset.steps``.
 
     Parameters
     ----------
-    preset : str or Preset
+    preset : Preset
         The accuracy preset.
     t_stop : float
         End of the transient [s].
@@ -151,7 +151,7 @@ def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | Non
     custom : bool
         The circuit is beyond the calibration (:func:`beyond_calibration`): the preset's own settings,
         as for every circuit the error constants do not speak for (see
-        :data:`~analogy.presets.Preset.calibrated`; also one whose abstol's rounding floor passes
+        :data:`~analogy.presets.SpiceSettings.calibrated`; also one whose abstol's rounding floor passes
         :data:`~analogy.solvers.error_constants.FLOOR_LIMIT` times its current scale).
     operations : float, optional
         The circuit's operations a time point (:func:`analogy.circuit.elements.point_operations`; default n³):
@@ -159,31 +159,30 @@ def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | Non
     motion : float, optional
         The step a behavioural circuit's motion asks (:func:`~analogy.solvers.motion_step.motion_step`).
     """
-    p = get_preset(preset)
-    opts = dict(p.behavioural_options if behavioural else p.spice_options)
-    reltol = spice_run_reltol(p, scales, behavioural=behavioural or coupled or constrained or custom)
+    opts = dict(preset.spice.behavioural_options if behavioural else preset.spice.options)
+    reltol = spice_run_reltol(preset, scales, behavioural=behavioural or coupled or constrained or custom)
     calibrated = reltol is not None
     if calibrated:
         opts.update(calibrated_options(reltol))
-    if p.refine and p.refine_tolerances:  # abstol too: the rounding floor below keeps it where it binds
-        opts.update({k: f"{float(opts[k]) / REFINE ** (3 * p.refine):.3g}" for k in (*STEP_TOLERANCES, "abstol")
+    if preset.spice.refine and preset.spice.refine_tolerances:  # abstol too: the rounding floor below keeps it where it binds
+        opts.update({k: f"{float(opts[k]) / REFINE ** (3 * preset.spice.refine):.3g}" for k in (*STEP_TOLERANCES, "abstol")
                      if k in opts})
     if not behavioural:     # a flag: KLU where ngspice has it (46; 39 ignores it). ngspice 46 aborts a
         opts["klu"] = ""    # behavioural circuit under KLU ("out of memory": an .ic on a node with no diagonal entry)
     if coupled:
         opts["method"] = "gear"
     if constrained:
-        opts["reltol"] = f"{min(float(opts.get('reltol', NGSPICE_RELTOL)), 10 * p.bound):.3g}"
-    tmax = t_stop / (p.behavioural_max_steps if behavioural else
-                     CALIBRATED_MAX_STEPS if calibrated else p.max_steps)
-    if behavioural and motion is not None and math.isfinite(_bought(p, t_stop, motion, scales, operations)):
+        opts["reltol"] = f"{min(float(opts.get('reltol', NGSPICE_RELTOL)), 10 * preset.bound):.3g}"
+    tmax = t_stop / (preset.spice.behavioural_max_steps if behavioural else
+                     CALIBRATED_MAX_STEPS if calibrated else preset.spice.max_steps)
+    if behavioural and motion is not None and math.isfinite(_bought(preset, t_stop, motion, scales, operations)):
         # at most half the print step: where a step spans about one, ngspice's interpolated printing
         # is not the run (the UR5 at fast: 8.0e-3 printed against 1.1e-4 at its points; equal at half)
-        tmax = min(motion, 0.5 * t_stop / p.steps)
-    tstep = t_stop / p.steps
+        tmax = min(motion, 0.5 * t_stop / preset.steps)
+    tstep = t_stop / preset.steps
     first = NGSPICE_FIRST_STEP * tstep
     if scales is not None:
-        first, tmax = _step_limits(p, t_stop, scales, first, tmax, calibrated, not (behavioural or coupled),
+        first, tmax = _step_limits(preset, t_stop, scales, first, tmax, calibrated, not (behavioural or coupled),
                                    operations)
         shortest = min(first, 0.1 * _shortest_gap(np.zeros(0) if breakpoints is None else breakpoints, t_stop))
         rounding = ROUNDING_STEPS * scales.rounding_current(shortest)
@@ -194,7 +193,7 @@ def transient_settings(preset: str | Preset, t_stop: float, scales: Scales | Non
                                       constrained=constrained, breakpoints=breakpoints, loosen=loosen, custom=True,
                                       operations=operations, motion=motion)
         _scale_tolerances(opts, scales, rounding, loosen)
-    tmax /= REFINE ** p.refine            # an estimate's second run: every step REFINE^refine times shorter
+    tmax /= REFINE ** preset.spice.refine            # an estimate's second run: every step REFINE^refine times shorter
     impedance = None
     if scales is not None and scales.current > 0 and math.isfinite(scales.peak_velocity / scales.current):
         impedance = scales.peak_velocity / scales.current
@@ -216,10 +215,10 @@ def _scale_tolerances(opts: dict, scales: Scales, rounding: float, loosen: float
         opts[key] = f"{value:.3g}"
 
 
-def refined(preset: str | Preset, tolerances: bool = True) -> Preset:
+def refined(preset: Preset, tolerances: bool = True) -> Preset:
     """*preset* with every step of ngspice :data:`REFINE` times shorter: the step cap, and the
     steps its truncation check chooses (:data:`STEP_TOLERANCES` REFINE³ times tighter), applied by
-    :func:`transient_settings` on top of what the preset gives the circuit (:attr:`Preset.refine`).
+    :func:`transient_settings` on top of what the preset gives the circuit (:attr:`SpiceSettings.refine`).
     The trapezoidal rule's error falls REFINE² times, so the difference of the two runs is
     (1 − 1/REFINE²) of the first run's error: Richardson's estimate of it.
 
@@ -227,24 +226,23 @@ def refined(preset: str | Preset, tolerances: bool = True) -> Preset:
     step is kept: a shorter first step would raise that floor, and a floor looser than the
     first run's abstol let the refined run step longer (a stiff oscillator took 60,910 points
     against 82,776 when both were halved). The first step's error is kept under 5 % of the
-    bound (:attr:`Preset.first_phase_step`), so the estimate leaves that much out. The
+    bound (:attr:`SpiceSettings.first_phase_step`), so the estimate leaves that much out. The
     behavioural circuits keep ngspice's default tolerances (see :class:`~analogy.presets.Preset`),
     so only their cap is shortened.
 
     Parameters
     ----------
-    preset : str or Preset
+    preset : Preset
         The preset of the run to be judged.
     tolerances : bool
         Tighten the step tolerances too (False: the step cap alone).
     """
-    p = get_preset(preset)
     more = int(REFINE)
-    return replace(p, refine=p.refine + 1, refine_tolerances=tolerances, step_budget=p.step_budget * more, work_budget=p.work_budget * more,
-                   operation_budget=p.operation_budget * more)
+    return replace(preset, spice=replace(preset.spice, refine=preset.spice.refine + 1, refine_tolerances=tolerances),
+                   budget=preset.budget.scaled(more))
 
 
-def spice_run_reltol(preset: str | Preset, scales: Scales | None, *, behavioural: bool = False) -> float | None:
+def spice_run_reltol(preset: Preset, scales: Scales | None, *, behavioural: bool = False) -> float | None:
     """The reltol the error constants give a circuit with *scales* at *preset*, or None where the preset's
     own settings run: a preset that is not calibrated, no scales, a circuit that rings or is *behavioural*
     (nonlinear, coupled, constrained or beyond the calibration: the constants measured plain linear circuits
@@ -252,17 +250,16 @@ def spice_run_reltol(preset: str | Preset, scales: Scales | None, *, behavioural
 
     Parameters
     ----------
-    preset : str or Preset
+    preset : Preset
         The accuracy preset.
     scales : Scales or None
         The circuit's scales.
     behavioural : bool
         The circuit is of a kind the constants do not speak for.
     """
-    p = get_preset(preset)
-    if not p.calibrated or scales is None or behavioural:
+    if not preset.spice.calibrated or scales is None or behavioural:
         return None
-    return calibrated_reltol(p.bound, scales.ringing(p.bound))
+    return calibrated_reltol(preset.bound, scales.ringing(preset.bound))
 
 
 def beyond_calibration(system) -> bool:
@@ -278,7 +275,7 @@ def beyond_calibration(system) -> bool:
     return name not in CALIBRATED_TOPOLOGIES or (name == "serial" and system.dof > SERIAL_NODE_LIMIT)
 
 
-def circuit_settings(system, c: Circuit, preset, loosen: float = 1.0) -> TransientSettings:
+def circuit_settings(system, c: Circuit, preset: Preset, loosen: float = 1.0) -> TransientSettings:
     """The transient settings of *system*'s circuit *c* at *preset*: what a run and its netlist share.
 
     Parameters
@@ -287,16 +284,15 @@ def circuit_settings(system, c: Circuit, preset, loosen: float = 1.0) -> Transie
         The system.
     c : Circuit
         Its circuit.
-    preset : str or Preset
+    preset : Preset
         The accuracy preset.
     loosen : float
         Factor on abstol and vntol (the retries after a collapsed step).
     """
-    p = get_preset(preset)
     motion = None
     if c.behavioural and not c.constraints and getattr(system, "kind", None) == "nonlinear":
-        motion = motion_step(system, p.bound, SAFETY, timeout=p.timeout)
-    return transient_settings(p, system.t_stop, system_scales(system), behavioural=bool(c.behavioural),
+        motion = motion_step(system, preset.bound, SAFETY, timeout=preset.budget.timeout)
+    return transient_settings(preset, system.t_stop, system_scales(system), behavioural=bool(c.behavioural),
                               coupled=bool(c.couplings), constrained=bool(c.constraints),
                               breakpoints=system.breakpoints(), loosen=loosen, custom=beyond_calibration(system),
                               operations=point_operations(system), motion=motion)
@@ -335,6 +331,7 @@ def netlist(system, preset: str | Preset = "accurate", save: Iterable[str] | Non
         The settings a run took (:attr:`Trajectory.settings`: a retry's, a refined run's),
         instead of those *preset* gives.
     """
+    preset = get_preset(preset)
     if isinstance(system, Circuit):
         settings = transient_settings(preset, system.t_stop, None, behavioural=bool(system.behavioural),
                                       coupled=bool(system.couplings), constrained=bool(system.constraints),
@@ -366,7 +363,7 @@ def subcircuit_netlist(system, preset: str | Preset = "accurate", name: str | No
     realizable : bool, optional
         Negative elements behind inverting couplings (default: as the system says).
     """
-    real = getattr(system, "realizable", False) if realizable is None else realizable
+    preset, real = get_preset(preset), getattr(system, "realizable", False) if realizable is None else realizable
     unforced = system.driven([0.0] * system.dof, None)
     c = describe(unforced, ZERO_TOL, real)
     try:
@@ -394,6 +391,7 @@ def batch_netlist(systems: Sequence, preset: str | Preset = "fast", scales: Scal
     """
     if not systems:
         raise InputError("a batch needs at least one system")
+    preset = get_preset(preset)
     ends = sorted({s.t_stop for s in systems})
     scales = scales or run_scales(systems)
     points = [s.breakpoints() for s in systems if s.forces is not systems[0].forces] + [systems[0].breakpoints()]

@@ -449,7 +449,7 @@ def _comparison(k: int, system, runs: StackRuns, order: list[str], skipped: dict
     for n, errors in (measured.items() if ref else ()):
         records[n].errors = errors
     records.update((n, SolverRecord(n, "skipped", why)) for n, why in skipped.items())
-    grid = runs.grids[k] if runs.grids[k] is not None else runs.uniform(system.t_stop)
+    grid = runs.grids[k] if runs.grids[k] is not None else runs.preset.grid(system.t_stop)
     return Comparison(system, runs.preset.name, grid, records, ref, runs.preset.bound)
 
 

@@ -8,7 +8,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..presets import Preset
-from ..presets import preset as get_preset
 from ..results.trajectory import Trajectory
 from ..solvers.registry import solve
 
@@ -56,7 +55,7 @@ class Predictability:
                 "predictability horizon measure the motion's sensitivity, not a solver's")
 
 
-def predictability(system, preset: str | Preset = "accurate", nominal: Trajectory | None = None) -> Predictability:
+def predictability(system, preset: Preset, nominal: Trajectory | None = None) -> Predictability:
     """The predictability horizon of a nonlinear *system*'s motion, from the ODE's divergence.
 
     The initial joint rates are moved by :data:`PERTURBATION` of each rate's peak (of its
@@ -66,25 +65,24 @@ def predictability(system, preset: str | Preset = "accurate", nominal: Trajector
     ----------
     system : NonlinearNodeSystem
         The motion.
-    preset : str or Preset
+    preset : Preset
         Its settings and bound.
     nominal : Trajectory, optional
         The ODE's motion already computed at those settings (run here otherwise).
     """
-    p = get_preset(preset)
     if nominal is None or not nominal.success:
-        nominal = solve(system, "ode", None, p)
+        nominal = solve(system, "ode", None, preset)
     if not nominal.success:
-        return Predictability(None, p.bound, math.nan, system.t_stop)
+        return Predictability(None, preset.bound, math.nan, system.t_stop)
     peak = np.max(np.abs(nominal.rates), axis=0)
     scale = np.maximum(np.maximum(peak, np.abs(system.initial_rates)), np.finfo(float).tiny)
     moved = system.driven(initial_rates=system.initial_rates + PERTURBATION * scale)
-    other = solve(moved, "ode", nominal.time, p)
+    other = solve(moved, "ode", nominal.time, preset)
     if not other.success:
-        return Predictability(None, p.bound, math.nan, system.t_stop)
+        return Predictability(None, preset.bound, math.nan, system.t_stop)
     part = np.max(np.abs(other.rates - nominal.rates) / np.where(peak > 0, peak, scale), axis=1)
-    past = np.flatnonzero(part > p.bound)
+    past = np.flatnonzero(part > preset.bound)
     if not past.size:
-        return Predictability(None, p.bound, math.nan, system.t_stop)
+        return Predictability(None, preset.bound, math.nan, system.t_stop)
     t = float(nominal.time[past[0]])
-    return Predictability(t, p.bound, math.log(p.bound / PERTURBATION) / t if t > 0 else math.inf, system.t_stop)
+    return Predictability(t, preset.bound, math.log(preset.bound / PERTURBATION) / t if t > 0 else math.inf, system.t_stop)

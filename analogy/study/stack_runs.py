@@ -84,16 +84,6 @@ class StackRuns:
                  for t in dict.fromkeys(ends)}
         return cls(systems, preset, True, ends, [given[t] for t in ends])
 
-    def uniform(self, t_stop: float) -> np.ndarray:
-        """The preset's uniform grid over [0, *t_stop*]: the shared points where no solver set them.
-
-        Parameters
-        ----------
-        t_stop : float
-            The horizon.
-        """
-        return np.linspace(0.0, t_stop, self.preset.steps + 1)
-
     def solved(self, name: str) -> TrajectoryStack:
         """*name*'s runs where its errors are measured: on its own points if it has them.
 
@@ -130,7 +120,7 @@ class StackRuns:
                                        for k, (tr, s) in enumerate(zip(trs, systems))])
             self.grids = [tr.time if tr.success and g is None else g for g, tr in zip(self.grids, trs)]
         else:
-            default = {t: self.uniform(t) for t in dict.fromkeys(self.ends)}    # one per horizon
+            default = {t: self.preset.grid(t) for t in dict.fromkeys(self.ends)}    # one per horizon
             self.grids = [default[t] if g is None else g for g, t in zip(self.grids, self.ends)]
             groups = _by_grid(self.grids)
             if len(groups) == 1:

@@ -34,7 +34,7 @@ def estimate_work(system, preset: Preset, scales=None, stacked: int = 1) -> Work
     """The time points and force segments a solver run of *system* needs at *preset*.
 
     The points follow the fastest rate the preset resolves (one step per
-    ``preset.phase_step`` radians of it, the SPICE step cap and the ODE's step size
+    ``preset.spice.phase_step`` radians of it, the SPICE step cap and the ODE's step size
     alike) and no fewer than the preset's ``max_steps``, plus a few per force breakpoint. A linear
     system at a calibrated preset takes the steps of its reltol on its fastest oscillation
     (:func:`~analogy.solvers.error_constants.step_phase`) or of the decay cap, whichever are more.
@@ -57,10 +57,10 @@ def estimate_work(system, preset: Preset, scales=None, stacked: int = 1) -> Work
     reltol = _reltol(system, preset, scales)
     if reltol is not None:      # the steps the truncation check takes on the fastest oscillation, the decay cap
         points = max(system.t_stop * scales.omega_max / step_phase(reltol),
-                     system.t_stop / scales.decay_limit(preset.decay_step, preset.bound))
+                     system.t_stop / scales.decay_limit(preset.spice.decay_step, preset.bound))
     else:
         # as the step policy caps them: a decay over well before t_stop sets no steps after it
-        phase = preset.phase_step if math.isfinite(preset.phase_step) else 1.0
+        phase = preset.spice.phase_step if math.isfinite(preset.spice.phase_step) else 1.0
         points = system.t_stop * scales.lasting(preset.bound, system.t_stop) / phase
     points = max(points, _fewest(system, preset, reltol is not None)) + _POINTS_PER_SEGMENT * segments
     points = points if math.isfinite(points) else math.inf
@@ -79,19 +79,19 @@ def _fewest(system, preset: Preset, calibrated: bool | None = None) -> int:
     1,500 to 23,000 at accurate, ``analogy/solvers/calibration_runs.csv``)."""
     if calibrated is None:
         calibrated = _reltol(system, preset, system_scales(system)) is not None
-    return max(CALIBRATED_MAX_STEPS if calibrated else preset.max_steps, 2 * preset.steps)
+    return max(CALIBRATED_MAX_STEPS if calibrated else preset.spice.max_steps, 2 * preset.steps)
 
 
 def check_work(system, preset: Preset, scales=None, *, stacked: int = 1, spice: bool = True) -> WorkEstimate:
-    """:func:`estimate_work`, refused in one sentence past ``preset.work_budget``, ``preset.segment_budget``
-    or, where SPICE runs, ``preset.operation_budget``.
+    """:func:`estimate_work`, refused in one sentence past ``preset.budget.points``, ``preset.budget.segments``
+    or, where SPICE runs, ``preset.budget.operations``.
 
     Parameters
     ----------
     system : NodeSystem or NonlinearNodeSystem
         A node system; a nonlinear one is estimated from its start (x = 0 and r0).
     preset : Preset
-        The accuracy preset; ``dataclasses.replace(preset, work_budget=…)`` raises the budget.
+        The accuracy preset; ``dataclasses.replace(preset, budget=preset.budget.scaled(…))`` raises the budget.
     scales : Scales, optional
         The system's scales, or the combined scales of a stack sharing its forces and t_stop.
     stacked : int
@@ -100,26 +100,26 @@ def check_work(system, preset: Preset, scales=None, *, stacked: int = 1, spice: 
         Whether SPICE is among the solvers, so that the circuit's operations count.
     """
     work = estimate_work(system, preset, scales, stacked)
-    if work.segments > preset.segment_budget:
+    if work.segments > preset.budget.segments:
         raise InputError(f"the forces have {work.segments:,} segments between breakpoints (pwl points, pulse "
-                         f"edges), more than the budget of {preset.segment_budget:,}: use fewer, or raise "
+                         f"edges), more than the budget of {preset.budget.segments:,}: use fewer, or raise "
                          "the preset's segment budget", field="budget")
     # a nonlinear point evaluates M(q), c and G (and SPICE its expressions) where a linear one multiplies
     nonlinear = system.kind != "linear"
-    budget = preset.work_budget / (NONLINEAR_POINT_COST if nonlinear else 1.0)
+    budget = preset.budget.points / (NONLINEAR_POINT_COST if nonlinear else 1.0)
     if work.points > budget:
         each = f" for a nonlinear run (a point of it counts {NONLINEAR_POINT_COST:g})" if nonlinear else ""
         raise InputError(f"the run would need about {work.points:.3g} time points (the fastest rate, "
                          f"{work.fastest:.3g} rad/s, over t_stop = {system.t_stop:g} s), more than the budget "
                          f"of {budget:.3g}{each}: shorten t_stop, or raise the preset's work budget",
                          field="budget")
-    if spice and work.operations > preset.operation_budget:
+    if spice and work.operations > preset.budget.operations:
         size = f"{stacked} circuits of {system.dof} nodes" if stacked > 1 else f"{system.dof} nodes"
         shorter = ", shorten t_stop" if work.points > _fewest(system, preset) + _POINTS_PER_SEGMENT * work.segments \
             else ""
         raise InputError(f"the SPICE circuit ({size}) would need about {work.operations:.3g} operations "
                          f"({work.points:.3g} time points of {work.operations / work.points:.3g}), more than "
-                         f"the budget of {preset.operation_budget:.3g}: solve it without spice{shorter}, "
+                         f"the budget of {preset.budget.operations:.3g}: solve it without spice{shorter}, "
                          "or raise the preset's operation budget", field="budget")
     return work
 

@@ -216,7 +216,8 @@ def validate_estimates(quick: bool = False, families: str = ALL_FAMILIES, timeou
             continue
         floor = reference_floor(system)
         for name in PRESETS:
-            p = replace(PRESETS[name], timeout=timeout, step_budget=min(PRESETS[name].step_budget, 1_000_000))
+            p = replace(PRESETS[name], budget=replace(PRESETS[name].budget, timeout=timeout,
+                                                              steps=min(PRESETS[name].budget.steps, 1_000_000)))
             try:
                 c = compare(system, p, ("spice", "ode"), estimate=True)
             except AnalogyError as exc:         # refused before it ran (a work budget): a row, not a lost report

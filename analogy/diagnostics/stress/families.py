@@ -74,7 +74,7 @@ class StressCase:
 
 def _timed(p: Preset, seconds: float) -> Preset:
     # bounded work per run: ODE wall time, and at most 10^6 SPICE steps (then flagged)
-    return replace(p, timeout=seconds, step_budget=min(p.step_budget, 1_000_000))
+    return replace(p, budget=replace(p.budget, timeout=seconds, steps=min(p.budget.steps, 1_000_000)))
 
 
 def spd_with_spectrum(eigenvalues, seed: int = 0) -> np.ndarray:
@@ -123,8 +123,8 @@ def _time_scales(quick: bool, p: Preset) -> Iterator[StressCase]:
 
 def _long_runs(quick: bool, p: Preset) -> Iterator[StressCase]:
     periods = (10, 30) if quick else (10, 100, 1000, 10000)
-    gear = replace(p, name=p.name, spice_options=dict(p.spice_options, method="gear"))
-    lsoda = replace(p, ode_method="LSODA")
+    gear = replace(p, spice=replace(p.spice, options=dict(p.spice.options, method="gear")))
+    lsoda = replace(p, ode=replace(p.ode, method="LSODA"))
     runs = (("spice", p), ("spice/gear", gear), ("ode", p), ("ode/LSODA", lsoda), ("exact", p))
     for k in periods:
         def build(k=k):
