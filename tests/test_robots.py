@@ -384,9 +384,10 @@ def test_long_serial_arms_are_numeric_and_their_symbolic_model_is_refused_with_a
 
 
 def test_every_robot_family_is_one_registry_entry_that_builds():
-    """A name resolves to exactly one family; each family builds its linear system from its
-    entry alone, and an unknown name lists every family in one sentence."""
+    """A name resolves to exactly one family, built-in or read from a URDF; each family builds its
+    linear system from its entry alone, and an unknown name lists every family in one sentence."""
     from analogy.errors import InputError
+    from analogy.model.base import RobotModel
     from analogy.model.catalog import FAMILIES, robot_family
     from analogy.scenes.builtin import SCENES
     from analogy.scenes.scene import Scene
@@ -397,14 +398,18 @@ def test_every_robot_family_is_one_registry_entry_that_builds():
         if family.flexible:
             continue                        # seconds of sympy each: tests/test_flexible.py builds them
         model = Scene.of(name, ModelSpec(robot=name)).numeric_model()
+        assert isinstance(model, RobotModel) and model.closed_chain == name.startswith("parallel")
+        if family.urdf is not None:         # its file's joints, each named
+            assert model.rigid_tree and len(model.joint_names) == model.dof == len(family.joints or model.joints)
+            continue                        # the named robots' scenes: tests/test_robot_defaults.py
         # a robot's own scene where it has one (a closed chain assembles only near its pose)
         sc = SCENES.get(name) or Scene.of(name, ModelSpec(robot=name), q=(0.1,) * len(model.coordinates),
                                           forces=(1.0,) * model.dof)
         system = sc.system()
         assert system.provenance.robot == name and system.dof == model.dof
     assert robot_family("serial2")[0].name == "serial2"       # a fixed name before its family
-    with pytest.raises(InputError, match=r"unknown robot 'ur5': use redundant, .*serial<N>.*random<N>"):
-        robot_family("ur5")
+    with pytest.raises(InputError, match=r"unknown robot 'ur6': use redundant, .*serial<N>.*random<N>.*ur5, ur10, panda"):
+        robot_family("ur6")
 
 
 def test_a_symbolic_model_shows_itself_briefly_and_as_rendered_maths():

@@ -17,7 +17,6 @@ from ..model.catalog import robot_family
 from ..model.dynamics import DYNAMICS
 from ..model.expressions import parse_number
 from ..model.quantities import ANY, COORDINATE, RATE, Measured, check_joint_dimensions, check_parameter_units
-from ..model.urdf_robots import URDF_ROBOTS
 from ..presets import preset as get_preset
 from .store import RESERVED_COLUMNS
 from ..scenes.build import scene_model
@@ -350,7 +349,7 @@ def _check_units(base: Scene, name: str, kind: str, joint: int, values: list) ->
                 check_joint_dimensions(vector, joints, rates=kind == "rate", name="q" if kind == "q" else "r")
         elif kind == "parameter":
             spec = base.model
-            urdf = spec.urdf is not None or spec.robot in URDF_ROBOTS
+            urdf = spec.from_urdf
             # a model given by its matrices declares no units: its parameters are not judged
             units = {"g": "m/s^2"} if urdf else robot_family(spec.robot)[0].parameter_units(
                 [name]) if spec.robot is not None else {}

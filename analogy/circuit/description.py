@@ -77,7 +77,7 @@ def circuit(system, zero_tol: float = ZERO_TOL, realizable: bool = False, descri
     InputError
         If leaving out the capacitors under the tolerance makes the circuit singular.
     """
-    if system.kind != "linear" and hasattr(system.model, "passive"):
+    if system.kind != "linear" and system.model is not None and system.model.closed_chain:
         from .constrained_circuit import constrained_circuit  # sympy: only for nonlinear circuits
         return constrained_circuit(system, zero_tol, describe)
     if system.kind != "linear":

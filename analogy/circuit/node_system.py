@@ -9,6 +9,7 @@ import numpy as np
 
 from ..errors import InputError, concerning
 from ..presets import DEFAULT_T_STOP
+from ..model.base import RobotModel
 from ..model.dynamics import DynamicsKind
 from ..model.provenance import Provenance
 from ..model.joint import (
@@ -375,15 +376,15 @@ def node_system(model: Evaluable | JointSpace, q: Sequence[float] | None = None,
 
 def _evaluated(model, q, parameters, topology):
     """The joint space of *model* at *q*, the topology to use and the report fields."""
-    if hasattr(model, "joint_space"):   # Model, ClosedChainModel or CompiledModel
+    if isinstance(model, RobotModel):
         joint = model.joint_space(q, parameters)
         top_spec = topology if topology is not None else model.topology
         values = dict(model.parameters, **(parameters or {}))
         base_info = {"robot": model.name, "parameters": values,
                      "configuration": dict(zip((str(c) for c in model.coordinates), q or [])),
-                     "units": model.units, "joints": getattr(model, "joint_names", None)}
-        if q is not None and (note := getattr(model, "pose_note", None)) is not None:   # a closed chain
-            base_info["notes"] = tuple(filter(None, [note(q, parameters)]))
+                     "units": model.units, "joints": model.joint_names}
+        if q is not None and (note := model.pose_note(q, parameters)) is not None:
+            base_info["notes"] = (note,)
     elif isinstance(model, JointSpace):
         joint = model
         top_spec = topology if topology is not None else "parallel"
@@ -437,8 +438,8 @@ def node_systems(model, qs, *, parameters: Mapping[str, float] | None = None,
     info : mapping, optional
         Extra report fields.
     """
-    if not hasattr(model, "joint_stack"):
-        raise InputError("node_systems needs a Model or CompiledModel, not a JointSpace")
+    if not isinstance(model, RobotModel):
+        raise InputError(f"node_systems needs a robot model, not a {type(model).__name__}")
     q = configuration_stack(model.name, [str(c) for c in model.coordinates], qs)
     kw = dict(topology=topology, forces=forces, initial_rates=initial_rates, t_stop=t_stop, info=info)
     varying = {k: np.asarray(v, dtype=float) for k, v in (parameters or {}).items() if np.ndim(v)}

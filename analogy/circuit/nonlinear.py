@@ -10,6 +10,7 @@ import numpy as np
 from ..model.provenance import Provenance
 from ..errors import InputError, concerning
 from ..presets import DEFAULT_T_STOP
+from ..model.base import RobotModel
 from ..model.dynamics import DynamicsKind, MechanicalFunctions
 from ..model.joint import check_square_symmetric, check_vector
 from .joint_forces import force_breakpoints, waveforms
@@ -247,7 +248,7 @@ class NonlinearNodeSystem(NodeCoordinates):
             A solution with positions.
         """
         model = self.model
-        if not hasattr(model, "passive") or trajectory.positions is None:
+        if not model.closed_chain or trajectory.positions is None:
             return None
         q = self.configuration(trajectory.positions)
         names = [f"x{self.dof + k + 1}" for k in range(len(model.passive))]
@@ -332,9 +333,9 @@ def nonlinear_system(model, q: Sequence[float], *, parameters: Mapping[str, floa
     info : mapping, optional
         Extra report fields.
     """
-    if not hasattr(model, "mechanical_functions"):
-        raise InputError(f"model {getattr(model, 'name', model)!r} has no symbolic M(q): "
-                         "nonlinear dynamics need a symbolic model")
+    if not isinstance(model, RobotModel):
+        raise InputError("nonlinear dynamics need a robot model (a Model, a URDF or a built-in robot), "
+                         f"not a {type(model).__name__}")
     functions = model.mechanical_functions(parameters)
     n = model.dof
     spec = model.topology if topology is None else topology
@@ -343,14 +344,14 @@ def nonlinear_system(model, q: Sequence[float], *, parameters: Mapping[str, floa
         j = model.joint_space(list(q), parameters)
         at_start = (j.mass_matrix, j.damping, j.stiffness)
     top = make_topology(spec, n, at_start)
-    if hasattr(model, "passive") and not np.array_equal(top.matrix, np.eye(n)):
+    if model.closed_chain and not np.array_equal(top.matrix, np.eye(n)):
         # its circuit has a node per joint of the loop, the active ones first: v = r
         raise InputError(f"{model.name} is a closed chain: its nonlinear circuit takes the parallel "
                          "topology (a node per joint)", field="topology")
     values = dict(model.parameters, **(parameters or {}))
     base = Provenance.of(info, robot=model.name, parameters=values,
                          configuration=dict(zip((str(c) for c in model.coordinates), list(q))),
-                         units=model.units, joints=getattr(model, "joint_names", None))
+                         units=model.units, joints=model.joint_names)
     return NonlinearNodeSystem(functions, q, top, waveforms(forces, n),
                                np.zeros(n) if initial_rates is None else initial_rates, t_stop, base,
                                model, values)

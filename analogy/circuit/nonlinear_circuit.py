@@ -81,7 +81,7 @@ def node_lagrangian(system) -> NodeLagrangian:
     n = system.dof
     x = list(sp.symbols(f"x1:{n + 1}", real=True))
     v = list(sp.symbols(f"v1:{n + 1}", real=True))
-    if hasattr(model, "tree"):          # a rigid tree: its recursions, one shared expression per quantity
+    if model.rigid_tree:          # its recursions, one shared expression per quantity
         tree = model.with_parameters(system.parameters).tree        # at the system's g, as its functions are
         return NodeLagrangian(x, v, *tree_lagrangian(tree, system.q0, system.topology.inverse, x, v))
     subs = {sym: system.parameters[name] for name, sym in model.symbols.items()}

@@ -29,7 +29,7 @@ from .diagnostics import bench_command, memory_command, stress_command, throughp
 from .outputs import accuracy_exit, check_writable, write_outputs
 from .parser import build_parser
 from .scene_options import built_system, scene_from_args, solver_list
-from ..model.urdf_robots import URDF_ROBOTS
+from ..model.catalog import URDF_NAMES
 from ..scenes.builtin import SCENES, scene
 from ..scenes.scene import Scene
 
@@ -331,7 +331,7 @@ def _cmd_ac(args) -> int:
 def _cmd_scenes(args) -> int:
     for name, sc in SCENES.items():
         print(f"{name:<16} {sc.description}")
-    for name in URDF_ROBOTS:            # derived from the file when run: not loaded to be listed
+    for name in URDF_NAMES:            # derived from the file when run: not loaded to be listed
         print(f"{name:<16} {name} from example-robot-data: hanging (or g = 0 where it cannot hang within its "
               "joint limits), steps sized to the robot, a horizon from its modes")
     return EXIT_OK

@@ -8,7 +8,7 @@ from dataclasses import replace
 
 from ..circuit.topology import TOPOLOGY_NAMES
 from ..errors import InputError
-from ..model.catalog import MAX_SERIAL, ROBOT_NAMES
+from ..model.catalog import MAX_SERIAL, ROBOT_NAMES, URDF_NAMES
 from ..model.conventions import CONVENTIONS, JOINT_FRAMES, LINK_MODES
 from ..model.expressions import (
     parse_expression,
@@ -26,7 +26,6 @@ from ..scenes.builtin import SCENES, scene
 from ..scenes.scene import Scene
 from ..scenes.spec import ModelSpec
 from ..model.urdf_file import read_urdf
-from ..model.urdf_robots import URDF_ROBOTS
 
 __all__ = ["CLI_KEYS", "PRESET_HELP", "built_system", "scene_from_args", "scene_options", "solver_list"]
 
@@ -76,7 +75,7 @@ def scene_options(p: argparse.ArgumentParser, preset: str = "accurate") -> None:
     g.add_argument("--scene", default="default", help="built-in scene to start from (see 'analogy scenes')")
     g.add_argument("--robot", help=f"built-in robot: {', '.join(ROBOT_NAMES)}, serial<N> (a planar "
                                    f"N-joint arm, e.g. serial4, N up to {MAX_SERIAL}) or random<N>; or from "
-                                   f"example-robot-data (pip install 'analogy[robots]'): {', '.join(URDF_ROBOTS)}. "
+                                   f"example-robot-data (pip install 'analogy[robots]'): {', '.join(URDF_NAMES)}. "
                                    "A robot with a built-in scene of its name "
                                    f"({', '.join(s for s in SCENES if s != 'default')}) "
                                    "starts from that scene, its pose, forces and initial rates included; "
@@ -218,7 +217,7 @@ def _model_changes(args, sc: Scene, params: dict, chosen: dict, changes: dict) -
         names = None if args.joints is None else tuple(n.strip() for n in args.joints.split(",") if n.strip())
         spec = ModelSpec(urdf=_option("--urdf", read_urdf, args.urdf), joints=names or None)
         changes.update(_urdf_defaults(spec, spec.label, params, args))
-    elif args.robot in URDF_ROBOTS:
+    elif args.robot in URDF_NAMES:
         changes.update(_urdf_defaults(ModelSpec(robot=args.robot, **chosen), args.robot, params, args))
     elif args.joints is not None:
         raise InputError("--joints selects the joints of a --urdf robot")

@@ -1,4 +1,4 @@
-"""The built-in robots: one registry entry per robot family, read without deriving anything (no sympy)."""
+"""Every named robot: one registry entry per robot or family, built-in or from a URDF, read without deriving anything."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from typing import Callable
 
 from ..errors import InputError
 
-__all__ = ["RobotFamily", "FAMILIES", "ROBOT_NAMES", "robot_family", "family_builder",
+__all__ = ["RobotFamily", "FAMILIES", "ROBOT_NAMES", "URDF_NAMES", "robot_family", "family_builder",
            "MAX_SERIAL", "MAX_SYMBOLIC_SERIAL", "MAX_RANDOM"]
 
 MAX_SERIAL = 500
@@ -46,6 +46,11 @@ class RobotFamily:
     outline : str or None
         ``"module:function"`` that draws the links at each configuration
         (:mod:`analogy.model.mechanism`); None: drawn as its circuit's nodes.
+    urdf : str or None
+        The robot's URDF file under example-robot-data's robots folder
+        (:func:`~analogy.model.urdf_robots.urdf_robot`); None: a built-in model.
+    joints : tuple of str or None
+        The URDF's joints kept (the others frozen); None: every movable joint.
     units : tuple of (str, str)
         The SI unit of each parameter, as (name, unit) with a trailing ``#`` for the
         numbered ones (``("l#", "m")`` covers l1, l2 …); ``"1"`` is a pure number. A value
@@ -63,6 +68,8 @@ class RobotFamily:
     seeded: bool = False
     args: tuple = ()
     outline: str | None = None
+    urdf: str | None = None
+    joints: tuple[str, ...] | None = None
     units: tuple[tuple[str, str], ...] = ()
     description: str = ""
 
@@ -121,10 +128,25 @@ FAMILIES: tuple[RobotFamily, ...] = (
                 outline=_DRAWN + "planar_chain_outline", units=_SERIAL, description="a planar N-joint arm"),
     RobotFamily("random", None, "analogy.model.robots:random_spd_model", sizes=MAX_RANDOM, seeded=True,
                 description="a random SPD N-joint system"),
+    # Real arms from example-robot-data's URDF files, derived when first asked for (their default
+    # scenes: analogy.scenes.robot_defaults)
+    RobotFamily("ur3", urdf="ur_description/urdf/ur3_robot.urdf", description="Universal Robots UR3, 6 joints"),
+    RobotFamily("ur5", urdf="ur_description/urdf/ur5_robot.urdf", description="Universal Robots UR5, 6 joints"),
+    RobotFamily("ur10", urdf="ur_description/urdf/ur10_robot.urdf", description="Universal Robots UR10, 6 joints"),
+    # the fingers are mimic joints: the arm's seven are kept and the fingers frozen
+    RobotFamily("panda", urdf="panda_description/urdf/panda.urdf",
+                joints=tuple(f"panda_joint{k}" for k in range(1, 8)), description="Franka Emika Panda, 7 joints"),
+    RobotFamily("kinova", urdf="kinova_description/robots/kinova.urdf", description="Kinova Jaco2 (j2s6s200), 6 joints"),
+    RobotFamily("xarm7", urdf="xarm_description/urdf/xarm7.urdf", description="UFACTORY xArm7, 7 joints"),
+    RobotFamily("z1", urdf="z1_description/urdf/z1.urdf", description="Unitree Z1, 6 joints and its gripper"),
+    RobotFamily("double_pendulum", urdf="double_pendulum_description/urdf/double_pendulum.urdf",
+                description="a planar double pendulum, 2 joints"),
 )
 
-#: Names of the single built-in robots (the families are ``serial<N>`` and ``random<N>``).
-ROBOT_NAMES: tuple[str, ...] = tuple(f.name for f in FAMILIES if not f.sizes)
+#: Names of the single built-in models (the families are ``serial<N>`` and ``random<N>``).
+ROBOT_NAMES: tuple[str, ...] = tuple(f.name for f in FAMILIES if not f.sizes and f.urdf is None)
+#: Names of the robots loaded from example-robot-data's URDF files.
+URDF_NAMES: tuple[str, ...] = tuple(f.name for f in FAMILIES if f.urdf is not None)
 
 
 def robot_family(name) -> tuple[RobotFamily, int | None]:
@@ -144,7 +166,8 @@ def robot_family(name) -> tuple[RobotFamily, int | None]:
             if family.sizes and name.startswith(family.name) and tail.isdigit() and 1 <= int(tail) <= family.sizes:
                 return family, int(tail)
     sized = ", ".join(f"{f.name}<N> ({f.description}, N = 1 to {f.sizes})" for f in FAMILIES if f.sizes)
-    raise InputError(f"unknown robot {name!r}: use {', '.join(ROBOT_NAMES)} or {sized}")
+    raise InputError(f"unknown robot {name!r}: use {', '.join(ROBOT_NAMES)}, {sized}, "
+                     f"or a URDF robot ({', '.join(URDF_NAMES)})")
 
 
 def family_builder(path: str) -> Callable:

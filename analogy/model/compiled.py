@@ -11,12 +11,11 @@ import numpy as np
 
 from ..errors import InputError
 from ..units import joint_units
+from .base import RobotModel
 from .joint import (
-    JointSpace,
     JointStack,
     configuration_stack,
     evaluate_entries,
-    evaluation_arguments,
     stack_arguments,
     part_shapes,
 )
@@ -50,7 +49,7 @@ def _key(name: str) -> str:
     return h.hexdigest()[:24]
 
 
-class CompiledModel:
+class CompiledModel(RobotModel):
     """A model's numeric functions, loaded from generated source: M, B, K, G at (q, parameters)."""
 
     def __init__(self, module):
@@ -62,7 +61,7 @@ class CompiledModel:
         self.description = module.DESCRIPTION
         self.joints = module.JOINTS
         self.baked = bool(getattr(module, "BAKED", False))
-        self.elastic = tuple(getattr(module, "ELASTIC", ()))
+        self._elastic = tuple(getattr(module, "ELASTIC", ()))
 
     @property
     def units(self) -> tuple[str, ...] | None:
@@ -73,22 +72,13 @@ class CompiledModel:
     def dof(self) -> int:
         return self._m.DOF
 
-    def joint_space(self, q=None, parameters=None) -> JointSpace:
-        """Evaluate at configuration *q*; same contract as :meth:`analogy.model.symbolic.Model.joint_space`.
-
-        Parameters
-        ----------
-        q : sequence of float, optional
-            Configuration.
-        parameters : mapping, optional
-            Parameter overrides.
-        """
-        self._same_parameters(parameters)
-        args = evaluation_arguments(self.name, self.coordinates, self.parameters, q, parameters)
-        return JointSpace(*(evaluate_entries(self.name, f, args, shape) for f, shape in self._parts()))
+    @property
+    def elastic(self) -> tuple[int, ...]:
+        """The coordinates with a spring of the model's own, found when its source was generated."""
+        return self._elastic
 
     def joint_stack(self, qs, parameters=None) -> JointStack:
-        """Evaluate at every row of *qs* at once; same contract as :meth:`analogy.model.symbolic.Model.joint_stack`.
+        """Evaluate at every row of *qs* at once (:meth:`~analogy.model.base.RobotModel.joint_stack`).
 
         Parameters
         ----------

@@ -2,17 +2,18 @@
 
 from __future__ import annotations
 
-from typing import Mapping, Sequence
+from typing import Mapping
 
 import numpy as np
 
 from ..errors import InputError
-from .joint import JointSpace, JointStack, configuration_stack
+from .base import RobotModel
+from .joint import JointStack, configuration_stack
 
 __all__ = ["ConstantModel"]
 
 
-class ConstantModel:
+class ConstantModel(RobotModel):
     """Constant M, B, K (no coordinates, no parameters): the same contract as a compiled model.
 
     Parameters
@@ -44,22 +45,6 @@ class ConstantModel:
     def _check(self, parameters):
         if parameters:
             raise InputError(f"model {self.name!r} has no parameters (got {', '.join(parameters)})")
-
-    def joint_space(self, q: Sequence[float] | None = None,
-                    parameters: Mapping[str, float] | None = None) -> JointSpace:
-        """The constant matrices (a configuration, if given, must be empty).
-
-        Parameters
-        ----------
-        q : sequence of float, optional
-            Configuration: the model has no coordinates.
-        parameters : mapping, optional
-            Must be empty.
-        """
-        self._check(parameters)
-        if q is not None and len(q):
-            raise InputError(f"model {self.name!r} has no joint coordinates (got {len(q)} values)")
-        return self.joint
 
     def joint_stack(self, qs, parameters: Mapping[str, float] | None = None) -> JointStack:
         """The matrices repeated for every (empty) row of *qs*.

@@ -19,12 +19,7 @@ def elastic_coordinates(model) -> list[int]:
     model : Model or CompiledModel
         A symbolic model, or one compiled from it.
     """
-    if hasattr(model, "elastic"):          # compiled: found when its source was generated
-        return list(model.elastic)
-    k = getattr(model, "stiffness", None)
-    if k is None:
-        return []
-    return [i for i in range(k.rows) if any(not entry.is_zero for entry in k.row(i))]
+    return list(model.elastic)
 
 
 def static_equilibrium(model, q: Sequence[float], parameters: Mapping[str, float] | None = None, *,

@@ -20,7 +20,7 @@ from sympy.simplify.fu import TR8
 from ..errors import InputError
 from .assembly import SINGULAR_CONDITION, AssemblySolver
 from .dynamics import MechanicalFunctions
-from .joint import JointStack, configuration_stack
+from .joint import JointSpace, JointStack, configuration_stack, evaluate_entries, evaluation_arguments
 from .symbolic import Model
 
 __all__ = ["link_mass_matrix", "ClosedChainModel"]
@@ -102,6 +102,7 @@ class ClosedChainModel(Model):
     tree_gravity: object = None
     branch: Callable | None = None
 
+    closed_chain = True
     #: Largest first Newton correction (rad, or m) accepted in one continuation step.
     max_correction = 0.2
     #: Equilibrated condition number of Φ_p (see :meth:`pose_condition`) above which q is singular:
@@ -301,8 +302,17 @@ class ClosedChainModel(Model):
         parameters : mapping, optional
             Parameter overrides.
         """
-        q = configuration_stack(self.name, [str(c) for c in self.coordinates], qs)
-        return JointStack.of([self.joint_space(row, parameters) for row in q])
+        if self.builder is not None and parameters:
+            rebuilt = self.with_parameters(parameters)
+            if rebuilt is not self:
+                return rebuilt.joint_stack(qs)
+        fns, qnames, _ = self._compiled or self._compile()
+        spaces = []
+        for row in configuration_stack(self.name, qnames, qs):
+            args = evaluation_arguments(self.name, qnames, self.parameters, row, parameters)
+            spaces.append(JointSpace(*(evaluate_entries(self.name, f, args, shape)
+                                       for f, shape in zip(fns, self._shapes()))))
+        return JointStack.of(spaces)
 
     def _compile(self):
         # Lambdify once per model; every evaluation reuses these functions.

@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
-from typing import Mapping, Sequence
+from typing import Mapping
 
 import numpy as np
 
-from .joint import JointSpace, JointStack, configuration_stack, evaluation_arguments
+from .base import RobotModel
+from .joint import JointStack, configuration_stack, evaluation_arguments
 
 __all__ = ["SerialChain", "serial_defaults"]
 
@@ -26,7 +27,7 @@ def serial_defaults(n: int) -> dict[str, float]:
     return out
 
 
-class SerialChain:
+class SerialChain(RobotModel):
     """The planar nR arm of :func:`~analogy.model.robots.planar_serial`, numerically.
 
     Point mass d_k at the end of link k, at p_k = Σ_{i≤k} l_i·(cos θ_i, sin θ_i) with
@@ -37,7 +38,7 @@ class SerialChain:
 
     evaluated with cumulative sums in O(n²) per configuration. Gravity along −y gives
     G_j = g·Σ_{i≥j} S_i·l_i·cos θ_i and the linearised stiffness ∂G_j/∂q_m =
-    −g·Σ_{i≥max(j,m)} S_i·l_i·sin θ_i. The same contract as a compiled model.
+    −g·Σ_{i≥max(j,m)} S_i·l_i·sin θ_i. Its linear parts only (:class:`~analogy.model.base.RobotModel`).
 
     Parameters
     ----------
@@ -98,18 +99,3 @@ class SerialChain:
         bend = g * np.cumsum((suffix * ux)[:, ::-1], axis=1)[:, ::-1]   # −g·Σ_{i≥j} S_i l_i sin θ_i
         stiffness = bend[:, np.maximum.outer(np.arange(self.n), np.arange(self.n))]
         return JointStack(mass, b, stiffness.reshape(count, self.n, self.n), gravity)
-
-    def joint_space(self, q: Sequence[float] | None = None,
-                    parameters: Mapping[str, float] | None = None) -> JointSpace:
-        """M, B, K, G at one configuration *q* (default all zeros).
-
-        Parameters
-        ----------
-        q : sequence of float, optional
-            Configuration.
-        parameters : mapping, optional
-            Parameter overrides.
-        """
-        qs = np.zeros((1, self.n)) if q is None else np.atleast_2d(np.asarray(q, dtype=float))
-        m, b, k, g = self.joint_stack(qs, parameters)
-        return JointSpace(m[0], b[0], None if k is None else k[0], None if g is None else g[0])

@@ -11,13 +11,12 @@ import sympy as sp
 
 from ..units import joint_units
 from ..errors import InputError
+from .base import RobotModel
 from .dynamics import MechanicalFunctions
 from .joint import (
-    JointSpace,
     JointStack,
     configuration_stack,
     evaluate_entries,
-    evaluation_arguments,
     stack_arguments,
     part_shapes,
 )
@@ -128,7 +127,7 @@ def _bad_string(name):
 
 
 @dataclass
-class Model:
+class Model(RobotModel):
     """A robot or mechanism: M(q), B(q), K(q), G(q), symbolic or numeric.
 
     Parameters
@@ -271,9 +270,19 @@ class Model:
             return None
         return self.stiffness * (sp.Matrix(self.coordinates) - sp.Matrix(self.spring_rest))
 
+    nonlinear = True
+
     @property
     def dof(self) -> int:
         return self.mass_matrix.rows
+
+    @property
+    def elastic(self) -> tuple[int, ...]:
+        """The coordinates (0-based) that carry a spring of the model's own: the rows of K that are not zero."""
+        k = self.stiffness
+        if k is None:
+            return ()
+        return tuple(i for i in range(k.rows) if any(not entry.is_zero for entry in k.row(i)))
 
     @property
     def symbols(self):
@@ -303,26 +312,6 @@ class Model:
 
     def _shapes(self):
         return part_shapes(self.dof)
-
-    def joint_space(self, q: Sequence[float] | None = None,
-                    parameters: Mapping[str, float] | None = None) -> JointSpace:
-        """Evaluate the model numerically at configuration *q*.
-
-        Parameters
-        ----------
-        q : sequence of float, optional
-            Joint coordinates, one per entry of :attr:`coordinates`.
-        parameters : mapping, optional
-            Overrides of :attr:`parameters` by name.
-        """
-        if self.builder is not None and parameters:
-            rebuilt = self.with_parameters(parameters)
-            if rebuilt is not self:
-                return rebuilt.joint_space(q)
-        fns, qnames, pnames = self._compiled or self._compile()
-        args = evaluation_arguments(self.name, qnames, self.parameters, q, parameters)
-        m, b, k, g = (evaluate_entries(self.name, f, args, shape) for f, shape in zip(fns, self._shapes()))
-        return JointSpace(m, b, k, g)
 
     def joint_stack(self, qs, parameters: Mapping[str, float] | None = None) -> JointStack:
         """Evaluate at every row of *qs* at once (vectorised over configurations).

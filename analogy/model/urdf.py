@@ -17,7 +17,8 @@ from . import urdf_file as urdf_file_module
 from .articulated_body import pinocchio_functions
 from .compiled import cache_dir
 from .dynamics import MechanicalFunctions
-from .joint import JointSpace, JointStack, configuration_stack
+from .base import RobotModel
+from .joint import JointStack, configuration_stack
 from .joint_limits import JointLimits, joint_limits
 from .urdf_file import MOVING_JOINTS, parse_urdf, urdf_number
 from .rigid_tree import RigidTree, axis_rotation, body_inertia, placement_frame, plucker, spatial_inertia
@@ -203,7 +204,7 @@ def _cached_tree(text: str, g: float, joints, pose) -> tuple:
     return name, tree, names, kinds, damping, limits, root
 
 
-class UrdfModel:
+class UrdfModel(RobotModel):
     """A URDF robot: M(q) and G(q) from its tree, numeric at every pose (no sympy).
 
     Joint damping from ``<dynamics damping>`` is a resistor per joint; ``friction``
@@ -226,6 +227,8 @@ class UrdfModel:
 
     topology = "parallel"
     description = ""
+    nonlinear = True
+    rigid_tree = True
 
     def __init__(self, text: str, joints: Sequence[str] | None = None, pose: Mapping[str, float] | None = None,
                  g: float = STANDARD_GRAVITY, name: str | None = None):
@@ -270,21 +273,6 @@ class UrdfModel:
             return self
         return urdf_model(self.text, None if self._selection is None else tuple(self._selection),
                           None if not self._pose else tuple(sorted(self._pose.items())), g, self._label)
-
-    def joint_space(self, q: Sequence[float] | None = None,
-                    parameters: Mapping[str, float] | None = None) -> JointSpace:
-        """M(q), the joint dampers, gravity's stiffness ∂G/∂q and the load G(q), at *q*.
-
-        Parameters
-        ----------
-        q : sequence of float
-            Joint coordinates [rad, m].
-        parameters : mapping, optional
-            ``g``.
-        """
-        q = configuration_stack(self.name, self.coordinates, [[] if q is None else list(q)])
-        m, b, k, g = self._parts(q, parameters)
-        return JointSpace(m[0], b[0], None if k is None else k[0], None if g is None else g[0])
 
     def _parts(self, qs: np.ndarray, parameters) -> tuple:
         """M, B, ∂G/∂q and G at every row of *qs* (the last two None without gravity)."""

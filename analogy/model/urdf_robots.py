@@ -1,4 +1,4 @@
-"""Named robots from URDF files of the example-robot-data package: ur5, panda and other arms."""
+"""The named robots' URDF files, read from the example-robot-data package: ur5, panda and other arms."""
 
 from __future__ import annotations
 
@@ -6,22 +6,14 @@ from importlib import metadata
 from pathlib import Path
 
 from ..errors import InputError
+from .catalog import FAMILIES, robot_family
 from .urdf_file import read_urdf
 
 __all__ = ["URDF_ROBOTS", "urdf_robot"]
 
-#: Name: (the file under example-robot-data's robots folder, the joints kept or None for all).
-URDF_ROBOTS: dict[str, tuple[str, tuple | None]] = {
-    "ur3": ("ur_description/urdf/ur3_robot.urdf", None),
-    "ur5": ("ur_description/urdf/ur5_robot.urdf", None),
-    "ur10": ("ur_description/urdf/ur10_robot.urdf", None),
-    # the fingers are mimic joints: the arm's seven are kept and the fingers frozen
-    "panda": ("panda_description/urdf/panda.urdf", tuple(f"panda_joint{k}" for k in range(1, 8))),
-    "kinova": ("kinova_description/robots/kinova.urdf", None),
-    "xarm7": ("xarm_description/urdf/xarm7.urdf", None),
-    "z1": ("z1_description/urdf/z1.urdf", None),
-    "double_pendulum": ("double_pendulum_description/urdf/double_pendulum.urdf", None),
-}
+#: Name: (the file under example-robot-data's robots folder, the joints kept or None for all): the
+#: registry's URDF entries (:data:`~analogy.model.catalog.FAMILIES`), seen by name.
+URDF_ROBOTS: dict[str, tuple[str, tuple | None]] = {f.name: (f.urdf, f.joints) for f in FAMILIES if f.urdf}
 
 
 def _robots_folder() -> Path:
@@ -46,5 +38,7 @@ def urdf_robot(name: str) -> tuple[str, tuple | None]:
     name : str
         One of :data:`URDF_ROBOTS`.
     """
-    relative, joints = URDF_ROBOTS[name]
-    return read_urdf(_robots_folder() / relative), joints
+    family = robot_family(name)[0]
+    if family.urdf is None:
+        raise InputError(f"robot {name!r} is built in, not read from a URDF file", field="robot")
+    return read_urdf(_robots_folder() / family.urdf), family.joints

@@ -12,11 +12,12 @@ from ..circuit.joint_forces import waveforms
 from ..circuit.node_system import node_system, node_systems
 from ..circuit.nonlinear import nonlinear_system
 from ..errors import InputError
+from ..model.base import RobotModel
 from ..model.catalog import family_builder, robot_family
 from ..model.compiled import compile_model, load_compiled
 from ..model.equilibrium import static_equilibrium
 from ..model.urdf import STANDARD_GRAVITY, urdf_model
-from ..model.urdf_robots import URDF_ROBOTS, urdf_robot
+from ..model.urdf_robots import urdf_robot
 from ..model.expressions import parse_expression, parse_number, reserved_name
 from ..model.joint import JointSpace
 from ..model.quantities import FORCE, check_joint_dimensions, check_parameter_units
@@ -216,17 +217,17 @@ def scene_model(scene: SceneData) -> object:
     with _where(scene):
         if spec.urdf is not None:
             return _urdf(spec, params, keys)
-        if spec.robot in URDF_ROBOTS:
-            with keyed(keys["robot"]):
-                text, joints = urdf_robot(spec.robot)
-            return _urdf(ModelSpec(urdf=text, joints=joints), params, keys, spec.robot)
         if spec.robot is not None:
+            with keyed(keys["robot"]):
+                family = robot_family(spec.robot)[0]
+            if family.urdf is not None:         # read from its file: the registry entry says which
+                with keyed(keys["robot"]):
+                    text, joints = urdf_robot(spec.robot)
+                return _urdf(ModelSpec(urdf=text, joints=joints), params, keys, spec.robot)
             for label in ("mass", "damping", "stiffness", "gravity"):
                 if getattr(spec, label) is not None:
                     raise InputError(f"{keys[label]}: a built-in robot has its own; set its parameters "
                                      "instead, or give a mass matrix without a robot")
-            with keyed(keys["robot"]):
-                family = robot_family(spec.robot)[0]
             try:
                 check_parameter_units(params, family.parameter_units(params))
             except InputError as exc:
@@ -239,9 +240,9 @@ def scene_model(scene: SceneData) -> object:
                 with keyed(keys["parameters"] if flexible and params else keys["robot"]):
                     model = _MODELS[cache] = _robot(spec, scene.dynamics, params if flexible else None)
             _check_names(params, model, spec.robot, keys)
-            if getattr(model, "builder", None) is not None and params:
+            if params:
                 with keyed(keys["parameters"]):
-                    return model.with_parameters(params)    # mode shapes follow the parameters
+                    return model.with_parameters(params)    # a flexible arm's mode shapes follow them
             return model
         if spec.mass is None:
             raise InputError(f"{keys['model']}: give a built-in robot or a mass matrix")
@@ -292,7 +293,7 @@ def symbolic_model(scene: SceneData) -> object:
     scene : SceneData
         The scene.
     """
-    if scene.model.robot is not None:
+    if scene.model.robot is not None and not scene.model.from_urdf:
         with _where(scene), keyed(_keys(scene)["robot"]):
             return _robot(scene.model, "nonlinear")
     model = scene_model(scene.replace(dynamics="nonlinear"))
@@ -326,10 +327,10 @@ def _robot(spec: ModelSpec, dynamics: str, parameters: Mapping[str, float] | Non
 
 
 def _configuration(scene: SceneData, model, keys: dict) -> list[float] | None:
-    coords = [str(c) for c in getattr(model, "coordinates", ())]
     with keyed(keys["q"]):
-        if isinstance(model, JointSpace) or not coords:
-            return None
+        if not isinstance(model, RobotModel) or not model.coordinates:
+            return None                 # a JointSpace, or a model of constant matrices
+        coords = [str(c) for c in model.coordinates]
         what = f"robot {scene.model.robot}" if scene.model.robot else "the model"
         if not scene.q:
             raise InputError(f"missing: {what} needs {len(coords)} joint coordinates ({', '.join(coords)})")
@@ -338,7 +339,7 @@ def _configuration(scene: SceneData, model, keys: dict) -> list[float] | None:
                              f"{len(coords)} joint coordinates ({', '.join(coords)})")
         if not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in scene.q):
             raise InputError("configuration q must be a list of numbers")
-        check_joint_dimensions(scene.q, getattr(model, "joints", None))
+        check_joint_dimensions(scene.q, model.joints)
         return [float(x) for x in scene.q]
 
 

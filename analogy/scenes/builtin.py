@@ -8,7 +8,7 @@ from typing import Sequence
 from ..files import write_text
 from ..solvers.transient import netlist
 from ..errors import InputError
-from ..model.urdf_robots import URDF_ROBOTS
+from ..model.catalog import URDF_NAMES
 from .scene import Scene
 from .spec import ModelSpec
 
@@ -72,11 +72,11 @@ def scene(name: str) -> Scene:
     """
     if name in SCENES:
         return SCENES[name]
-    if name in URDF_ROBOTS:        # derived from the robot's file when first asked for
+    if name in URDF_NAMES:        # derived from the robot's file when first asked for
         from .robot_defaults import robot_scene
         return robot_scene(name)
     raise InputError(f"unknown scene {name!r}: use {', '.join(SCENES)} or a named robot "
-                     f"({', '.join(URDF_ROBOTS)})")
+                     f"({', '.join(URDF_NAMES)})")
 
 
 def write_netlists(directory, names: Sequence[str] = PAPER_EXAMPLES, preset: str = "accurate") -> list[Path]:

@@ -9,7 +9,6 @@ import numpy as np
 from scipy.optimize import minimize
 
 from ..model.urdf import UrdfModel
-from ..model.urdf_robots import URDF_ROBOTS
 from ..results.modes import system_poles
 from .scene import Scene
 
@@ -142,7 +141,7 @@ def unstable_note(system, scene: Scene) -> str | None:
         return None
     rate = growth_rate(joint.mass_matrix, joint.damping, joint.stiffness)
     pose = ", ".join(f"{x:.4g}" for x in scene.q)
-    urdf = scene.model.urdf is not None or scene.model.robot in URDF_ROBOTS
+    urdf = scene.model.from_urdf
     way = "leave out --q for the hanging pose, or --param g=0" if urdf else \
         "--param g=0 turns gravity off; --equilibrium settles a flexible arm's elastic coordinates"
     return (f"q = ({pose}) is an unstable equilibrium: the fastest mode grows as e^({rate:.4g}·t), "
@@ -241,7 +240,7 @@ def base_note(model: UrdfModel) -> str | None:
 
 
 def robot_scene(name: str) -> Scene:
-    """The default scene of a named URDF robot (:data:`~analogy.model.urdf_robots.URDF_ROBOTS`).
+    """The default scene of a named URDF robot (:data:`~analogy.model.catalog.URDF_NAMES`).
 
     Parameters
     ----------

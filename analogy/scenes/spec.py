@@ -6,6 +6,8 @@ import re
 from dataclasses import dataclass
 from typing import Any, Mapping, Protocol
 
+from ..model.catalog import URDF_NAMES
+
 __all__ = ["ModelSpec", "SceneData", "freeze"]
 
 #: A URDF's robot name, read without parsing the file; kept to what a file name may hold.
@@ -87,6 +89,11 @@ class ModelSpec:
         """The flexible-arm conventions set (link_modes, joint_frame, geometric_stiffness), by name."""
         return {k: getattr(self, k) for k in ("link_modes", "joint_frame", "geometric_stiffness")
                 if getattr(self, k) is not None}
+
+    @property
+    def from_urdf(self) -> bool:
+        """Whether the robot is read from a URDF: given as its text, or named in the registry with its file."""
+        return self.urdf is not None or (isinstance(self.robot, str) and self.robot in URDF_NAMES)
 
     @property
     def label(self) -> str:
