@@ -7,7 +7,7 @@ import sys
 from dataclasses import replace
 
 from ..circuit.topology import TOPOLOGY_NAMES
-from ..errors import InputError
+from ..errors import InputError, located, rendered
 from ..model.catalog import MAX_SERIAL, ROBOT_NAMES, URDF_NAMES
 from ..model.conventions import CONVENTIONS, JOINT_FRAMES, LINK_MODES
 from ..model.expressions import (
@@ -137,11 +137,9 @@ def _split_param(text: str) -> tuple[str, float]:
 
 
 def _option(flag: str, parse, *args, **kwargs):
-    """*parse* of an option's text, its errors prefixed with the option."""
-    try:
+    """*parse* of an option's text, its errors placed at the option."""
+    with located(flag):
         return parse(*args, **kwargs)
-    except InputError as exc:
-        raise InputError(f"{flag}: {exc}", field=exc.field) from None
 
 
 def _entries(text: str | None, label: str):
@@ -206,8 +204,8 @@ def _model_changes(args, sc: Scene, params: dict, chosen: dict, changes: dict) -
                 if "unknown name" not in str(exc):
                     raise InputError(f"--mass: {exc}") from None
             raise InputError("--mass must be a matrix like [[m1, m3], [m3, m2]]")
-        spec = ModelSpec.of(None, mass=mass, **{k: _entries(getattr(args, k), f"--{k}")
-                                                for k in ("damping", "stiffness", "gravity")})
+        spec = ModelSpec.of(None, mass=mass, **chosen, **{k: _entries(getattr(args, k), f"--{k}")
+                                                          for k in ("damping", "stiffness", "gravity")})
         n = len(mass)
         changes.update(model=spec, parameters=params, q=(0.0,) * n, initial_rates=None, topology=None,
                        forces=(1.0,) * n)
@@ -215,10 +213,11 @@ def _model_changes(args, sc: Scene, params: dict, chosen: dict, changes: dict) -
         if args.robot is not None:
             raise InputError("--robot and --urdf both name the robot: give one")
         names = None if args.joints is None else tuple(n.strip() for n in args.joints.split(",") if n.strip())
-        spec = ModelSpec(urdf=_option("--urdf", read_urdf, args.urdf), joints=names or None)
+        spec = ModelSpec(urdf=_option("--urdf", read_urdf, args.urdf), joints=names or None, **chosen)
         changes.update(_urdf_defaults(spec, spec.label, params, args))
-    elif args.robot in URDF_NAMES:
-        changes.update(_urdf_defaults(ModelSpec(robot=args.robot, **chosen), args.robot, params, args))
+    elif args.robot in URDF_NAMES:      # its joints are the registry's: a --joints is refused by the rules
+        joints = None if args.joints is None else tuple(n.strip() for n in args.joints.split(","))
+        changes.update(_urdf_defaults(ModelSpec(robot=args.robot, joints=joints, **chosen), args.robot, params, args))
     elif args.joints is not None:
         raise InputError("--joints selects the joints of a --urdf robot")
     elif args.damping or args.stiffness or args.gravity:
@@ -233,10 +232,7 @@ def _model_changes(args, sc: Scene, params: dict, chosen: dict, changes: dict) -
         forces = tuple(float(kind != "modal") for kind in joints)
         changes.update(model=spec, q=(0.0,) * len(model.coordinates), parameters=params,
                        forces=forces, initial_rates=None, topology=None)
-    elif chosen and sc.model.robot is None:
-        flag = "--" + next(iter(chosen)).replace("_", "-")
-        raise InputError(f"{flag} applies to the flexible arms: give --robot flex1, flex2 or flexpar")
-    elif chosen or params:              # the scene's own arm, with these conventions and parameters
+    elif chosen or params:              # conventions on a model that is not a flexible arm: the rules refuse              # the scene's own arm, with these conventions and parameters
         if chosen:
             changes["model"] = replace(sc.model, **chosen)
         if params:
@@ -295,10 +291,11 @@ def scene_from_args(args) -> Scene:
     chosen = {k: getattr(args, k) for k in CONVENTIONS if getattr(args, k, None) is not None}
     if "geometric_stiffness" in chosen:
         chosen["geometric_stiffness"] = chosen["geometric_stiffness"] == "on"
-    _model_changes(args, sc, params, chosen, changes)
-    _motion_changes(args, sc, coords, changes)
-    robot_note = changes.pop("robot_note", None)
-    new = sc.replace(**changes)
+    with rendered(CLI_KEYS):            # a scene rule's refusal, said at its option
+        _model_changes(args, sc, params, chosen, changes)
+        _motion_changes(args, sc, coords, changes)
+        robot_note = changes.pop("robot_note", None)
+        new = sc.replace(**changes)
     if robot_note is not None:      # a URDF robot: its own name, and how its defaults were chosen
         new = new.replace(name=new.model.label, description=robot_note.partition(": ")[2])
     elif new.key != sc.key:         # name and describe what was actually built

@@ -3,15 +3,14 @@
 from __future__ import annotations
 
 import re
-from contextlib import contextmanager
-from typing import Iterator, Mapping
+from typing import Mapping
 
 import numpy as np
 
 from ..circuit.joint_forces import waveforms
 from ..circuit.node_system import node_system, node_systems
 from ..circuit.nonlinear import nonlinear_system
-from ..errors import InputError
+from ..errors import InputError, located
 from ..model.base import RobotModel
 from ..model.catalog import family_builder, robot_family
 from ..model.compiled import compile_model, load_compiled
@@ -24,7 +23,7 @@ from ..model.quantities import FORCE, check_joint_dimensions, check_parameter_un
 from .spec import ModelSpec, SceneData
 
 __all__ = ["scene_model", "symbolic_model", "scene_system", "scene_systems", "entry_value", "TOML_KEYS",
-           "LABELS", "keyed", "COMMAND_LINE", "CLI_KEYS"]
+           "LABELS", "COMMAND_LINE", "CLI_KEYS"]
 
 #: How errors name each part of a scene: in a scene file, and on the command line.
 TOML_KEYS = {"robot": "[model] robot", "mass": "[model] mass", "damping": "[model] damping",
@@ -34,7 +33,7 @@ TOML_KEYS = {"robot": "[model] robot", "mass": "[model] mass", "damping": "[mode
              "parameters": "[parameters]", "model": "[model]", "inputs": "[inputs]",
              "dynamics": "dynamics", "link_modes": "[model] link_modes",
              "joint_frame": "[model] joint_frame", "geometric_stiffness": "[model] geometric_stiffness", "urdf": "[model] urdf",
-             "joints": "[model] joints"}
+             "joints": "[model] joints", "preset": "[solvers] preset", "step": "[solvers] step"}
 
 #: The source of a scene made from command-line flags.
 COMMAND_LINE = "command line"
@@ -46,30 +45,13 @@ CLI_KEYS = {"robot": "--robot", "mass": "--mass", "damping": "--damping", "stiff
             "initial_rates": "--r0", "t_stop": "--t-stop", "parameters": "--param", "model": "--mass",
             "inputs": "--force", "dynamics": "--dynamics", "link_modes": "--link-modes", "urdf": "--urdf",
             "joint_frame": "--joint-frame", "geometric_stiffness": "--geometric-stiffness",
-            "joints": "--joints", "numbered": False}
+            "joints": "--joints", "preset": "--preset", "step": "--step", "numbered": False}
 
 #: How errors name each part of a scene, by the scene's source: the command line by its flags;
 #: any other source (a scene file, the API) by the scene-file keys.
 LABELS: dict[str, dict] = {COMMAND_LINE: CLI_KEYS}
 _QNAME = re.compile(r"^q[0-9]+$")
 _MODELS: dict = {}
-
-
-@contextmanager
-def keyed(key: str | None) -> Iterator[None]:
-    """Prefix an :class:`InputError` raised inside with *key* (``[model] mass: …``).
-
-    Parameters
-    ----------
-    key : str or None
-        The label; None leaves the message alone.
-    """
-    try:
-        yield
-    except InputError as exc:
-        if key is None:
-            raise
-        raise InputError(f"{key}: {' '.join(str(exc).split())}") from None
 
 
 def _keys(scene: SceneData) -> dict:
@@ -79,7 +61,7 @@ def _keys(scene: SceneData) -> dict:
 def _where(scene: SceneData):
     """Prefix errors with the scene file, when the scene came from one."""
     src = scene.source
-    return keyed(src if src not in (None, COMMAND_LINE) else None)
+    return located(src if src not in (None, COMMAND_LINE) else None)
 
 
 def entry_value(value, where: str = "") -> float | str:
@@ -141,15 +123,15 @@ def _vector(value, n: int) -> list:
 
 def _matrices(spec: ModelSpec, keys: dict) -> tuple[dict, bool]:
     parts = {}
-    with keyed(keys["mass"]):
+    with located(keys["mass"]):
         parts["mass"] = _square(spec.mass, None, "square matrix")
     n = len(parts["mass"])
     for label in ("damping", "stiffness"):
         if getattr(spec, label) is not None:
-            with keyed(keys[label]):
+            with located(keys[label]):
                 parts[label] = _matrix_or_diagonal(getattr(spec, label), n)
     if spec.gravity is not None:
-        with keyed(keys["gravity"]):
+        with located(keys["gravity"]):
             parts["gravity"] = _vector(spec.gravity, n)
     symbolic = any(isinstance(x, str) for p in parts.values() for row in p
                    for x in (row if isinstance(row, list) else [row]))
@@ -168,7 +150,7 @@ def _symbolic(parts: dict, params: Mapping[str, float], keys: dict):
 
     def convert(label, value, where):
         if isinstance(value, str):
-            with keyed(keys[label]):
+            with located(keys[label]):
                 try:
                     return parse_expression(value, symbols)
                 except InputError as exc:
@@ -188,7 +170,7 @@ def _symbolic(parts: dict, params: Mapping[str, float], keys: dict):
         if symbols[key] not in free:
             raise InputError(f"{keys['parameters']} {key} is not used by the model's entries")
     used_q = [s for s in qs if s in free]
-    with keyed(keys["model"]):
+    with located(keys["model"]):
         return Model("custom", mats["mass"], damping=mats.get("damping"), stiffness=mats.get("stiffness"),
                      gravity=None if "gravity" not in mats else list(mats["gravity"]),
                      parameters=dict(params), coordinates=qs if used_q else (), topology="parallel")
@@ -218,16 +200,12 @@ def scene_model(scene: SceneData) -> object:
         if spec.urdf is not None:
             return _urdf(spec, params, keys)
         if spec.robot is not None:
-            with keyed(keys["robot"]):
+            with located(keys["robot"]):
                 family = robot_family(spec.robot)[0]
             if family.urdf is not None:         # read from its file: the registry entry says which
-                with keyed(keys["robot"]):
+                with located(keys["robot"]):
                     text, joints = urdf_robot(spec.robot)
                 return _urdf(ModelSpec(urdf=text, joints=joints), params, keys, spec.robot)
-            for label in ("mass", "damping", "stiffness", "gravity"):
-                if getattr(spec, label) is not None:
-                    raise InputError(f"{keys[label]}: a built-in robot has its own; set its parameters "
-                                     "instead, or give a mass matrix without a robot")
             try:
                 check_parameter_units(params, family.parameter_units(params))
             except InputError as exc:
@@ -237,11 +215,11 @@ def scene_model(scene: SceneData) -> object:
             model = _MODELS.get(cache)
             if model is None:
                 # a flexible arm is built for its parameters: its builder names an unknown one
-                with keyed(keys["parameters"] if flexible and params else keys["robot"]):
+                with located(keys["parameters"] if flexible and params else keys["robot"]):
                     model = _MODELS[cache] = _robot(spec, scene.dynamics, params if flexible else None)
             _check_names(params, model, spec.robot, keys)
             if params:
-                with keyed(keys["parameters"]):
+                with located(keys["parameters"]):
                     return model.with_parameters(params)    # a flexible arm's mode shapes follow them
             return model
         if spec.mass is None:
@@ -281,7 +259,7 @@ def _urdf(spec: ModelSpec, params: Mapping[str, float], keys: dict, name: str | 
         check_parameter_units(params, {"g": "m/s^2"})
     except InputError as exc:
         raise InputError(f"{keys['parameters']} {exc}") from None
-    with keyed(keys.get("urdf", keys["robot"])):
+    with located(keys.get("urdf", keys["robot"])):
         return urdf_model(spec.urdf, spec.joints, None, float(params.get("g", STANDARD_GRAVITY)), name)
 
 
@@ -294,7 +272,7 @@ def symbolic_model(scene: SceneData) -> object:
         The scene.
     """
     if scene.model.robot is not None and not scene.model.from_urdf:
-        with _where(scene), keyed(_keys(scene)["robot"]):
+        with _where(scene), located(_keys(scene)["robot"]):
             return _robot(scene.model, "nonlinear")
     model = scene_model(scene.replace(dynamics="nonlinear"))
     return model
@@ -327,7 +305,7 @@ def _robot(spec: ModelSpec, dynamics: str, parameters: Mapping[str, float] | Non
 
 
 def _configuration(scene: SceneData, model, keys: dict) -> list[float] | None:
-    with keyed(keys["q"]):
+    with located(keys["q"]):
         if not isinstance(model, RobotModel) or not model.coordinates:
             return None                 # a JointSpace, or a model of constant matrices
         coords = [str(c) for c in model.coordinates]
@@ -352,24 +330,24 @@ def _topology(scene: SceneData):
 
 def _inputs(scene: SceneData, n: int, keys: dict, joints=None) -> dict:
     forces = scene.forces
-    with keyed(keys["forces"]):
+    with located(keys["forces"]):
         if not forces:
             raise InputError("missing: give one force per joint, e.g. [1.0, \"sine(0, 1, 2)\"]")
         if len(forces) != n:
             raise InputError(f"expected {n} entries (one per joint), got {len(forces)}")
     out = []
     for k, item in enumerate(forces):
-        with keyed(f"{keys['forces']}[{k + 1}]" if keys.get("numbered", True) else keys["forces"]):
+        with located(f"{keys['forces']}[{k + 1}]" if keys.get("numbered", True) else keys["forces"]):
             if isinstance(item, tuple) and not item:
                 raise InputError("an empty list: give a number or a waveform such as \"step(1)\"")
             out.append(waveforms([item], 1)[0])
-    with keyed(keys["forces"]):
+    with located(keys["forces"]):
         # a force written with a unit: a torque on a revolute joint, a force on a sliding one
         check_joint_dimensions([parse_number(f, FORCE) if isinstance(f, str) and "(" not in f else 0.0
                                 for f in forces], joints, quantity="force", name="F")
     r0 = None
     if scene.initial_rates is not None:
-        with keyed(keys["initial_rates"]):
+        with located(keys["initial_rates"]):
             r0 = [entry_value(x) for x in scene.initial_rates]
             if len(r0) != n or any(isinstance(x, str) for x in r0):
                 raise InputError(f"expected {n} numbers, got {len(r0)}")

@@ -11,11 +11,10 @@ import numpy as np
 
 from ..files import write_text
 from ..solvers.transient import netlist as make_netlist
-from ..errors import InputError
+from ..errors import InputError, located
 from ..study.comparison import Comparison, compare
 from ..results.metrics import output_errors
 from ..results.output import Tabular, html_table
-from .build import keyed
 from .scene import Scene
 
 if TYPE_CHECKING:
@@ -60,7 +59,7 @@ def run_scene(scene: Scene, output_dir=None, progress=None) -> "SceneResult":
     # Every output path is checked before any work, so a refused one costs nothing.
     for key, name in (("netlist", scene.netlist_file), ("csv", scene.csv_file), ("plot", scene.plot_file)):
         if name:
-            with keyed(scene.source), keyed(f"[outputs] {key}"):
+            with located(scene.source), located(f"[outputs] {key}"):
                 scene.path(name, output_dir)
     p = scene.settings
     system = scene.system()

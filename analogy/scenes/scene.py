@@ -3,18 +3,18 @@
 from __future__ import annotations
 
 import hashlib
-import math
 from dataclasses import dataclass, fields
 from functools import lru_cache
 from pathlib import Path
 from typing import TYPE_CHECKING, Mapping
 
 from ..errors import InputError
-from ..model.dynamics import DYNAMICS, DynamicsKind
+from ..model.dynamics import DynamicsKind
 from ..presets import DEFAULT_SOLVERS, DEFAULT_T_STOP, Preset, PresetName
 from ..presets import preset as get_preset
 from .build import scene_model, scene_system, scene_systems, symbolic_model
 from .paths import inside_folder
+from .rules import check_scene
 from .spec import ModelSpec, freeze
 
 if TYPE_CHECKING:
@@ -132,12 +132,7 @@ class Scene:
     def __post_init__(self):
         if not isinstance(self.model, ModelSpec):
             raise InputError(f"scene {self.name!r}: model must be a ModelSpec")
-        if self.dynamics not in DYNAMICS:
-            raise InputError(f"unknown dynamics {self.dynamics!r}: use {', '.join(DYNAMICS)}")
-        # a name, or a tolerance written as its name ("1e-5", 1e-5 and "0.00001" are "1e-05": one key)
-        object.__setattr__(self, "preset", get_preset(self.preset).name)
-        if not (isinstance(self.t_stop, (int, float)) and math.isfinite(self.t_stop) and self.t_stop > 0):
-            raise InputError(f"t_stop must be a positive time, got {self.t_stop!r}")
+        object.__setattr__(self, "preset", check_scene(self))
         try:
             hash(self)
         except TypeError:

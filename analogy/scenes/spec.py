@@ -7,6 +7,7 @@ from dataclasses import dataclass
 from typing import Any, Mapping, Protocol
 
 from ..model.catalog import URDF_NAMES
+from .rules import check_model_spec
 
 __all__ = ["ModelSpec", "SceneData", "freeze"]
 
@@ -70,6 +71,9 @@ class ModelSpec:
     joints: tuple | None = None
     joint_frame: str | None = None
     geometric_stiffness: bool | None = None
+
+    def __post_init__(self):
+        check_model_spec(self)
 
     @classmethod
     def of(cls, robot: str | None = None, **parts) -> "ModelSpec":

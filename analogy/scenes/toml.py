@@ -37,17 +37,18 @@ import tomllib
 from contextlib import contextmanager
 from pathlib import Path
 
-from ..errors import InputError
+from ..errors import InputError, located, rendered
 from ..model.conventions import CONVENTIONS
-from ..model.dynamics import DYNAMICS
 from ..model.urdf_file import read_urdf
 from ..model.expressions import parse_number
 from ..model.quantities import ANY, COORDINATE, RATE
-from ..presets import DEFAULT_SOLVERS, preset as get_preset
+from ..presets import DEFAULT_SOLVERS
 from ..results.output import check_plot_path
 from ..solvers.registry import SOLVER_NAMES
 from .paths import check_relative_name
 from .scene import OUTPUTS, Scene
+from .build import TOML_KEYS
+from .rules import MATRICES
 from .spec import ModelSpec, freeze
 from .validate import validated
 
@@ -75,21 +76,26 @@ def _one_line(text) -> str:
 
 
 class _Context:
-    """Names the file and key in every error."""
+    """Names the file and key in every error: a key it reads, or the field a scene rule names."""
 
     def __init__(self, source: str):
         self.source = source
 
     def error(self, key: str | None, message: str) -> InputError:
         where = f"{self.source}: {key}: " if key else f"{self.source}: "
-        return InputError(where + _one_line(message))
+        exc = InputError(where + _one_line(message))
+        exc.located = True
+        return exc
+
+    def key(self, key: str):
+        """Errors raised inside are at *key* of this file."""
+        return located(f"{self.source}: {key}")
 
     @contextmanager
-    def key(self, key: str):
-        try:
+    def fields(self):
+        """Errors of the scene's rules (:mod:`~analogy.scenes.rules`) raised inside are at their field's key."""
+        with located(self.source), rendered(TOML_KEYS):
             yield
-        except InputError as exc:
-            raise self.error(key, str(exc)) from None
 
     def table(self, data: dict, name: str):
         value = data.get(name)
@@ -260,8 +266,6 @@ def scene_from_table(data: dict, source="scene.toml") -> Scene:
             raise ctx.error(key, f"expected a string, got {_kind(value)}")
     if not name.strip():
         raise ctx.error("name", "must not be empty")
-    if dynamics not in DYNAMICS:
-        raise ctx.error("dynamics", f"unknown dynamics {dynamics!r}: use {', '.join(DYNAMICS)}")
     for table in _TABLES:                  # unknown keys first, before anything else
         if isinstance(data.get(table), dict):
             ctx.table(data, table)
@@ -281,28 +285,51 @@ def scene_from_table(data: dict, source="scene.toml") -> Scene:
         if outputs[key] is not None and not needs:
             raise ctx.error(f"[outputs] {key}", "needs joint_rates, node_voltages or element_currents")
     nv, ec = outputs["node_voltages"], outputs["element_currents"]
-    return Scene.of(name, fields.pop("model"), description=description, source=str(path),
-                    dynamics=dynamics, joint_rates=outputs["joint_rates"],
-                    node_voltages=nv if nv is True else tuple(nv or ()),
-                    element_currents=ec if ec is True else tuple(ec or ()),
-                    netlist=outputs["netlist"], netlist_file=outputs["netlist_file"],
-                    csv_file=outputs["csv"], plot_file=outputs["plot"], solvers=tuple(use),
-                    preset=solvers["preset"], errors=solvers["errors"], estimate=solvers["estimate"],
-                    refine=solvers["refine"], step=solvers["step"], **fields)
+    with ctx.fields():
+        return Scene.of(name, fields.pop("model"), description=description, source=str(path),
+                        dynamics=dynamics, joint_rates=outputs["joint_rates"],
+                        node_voltages=nv if nv is True else tuple(nv or ()),
+                        element_currents=ec if ec is True else tuple(ec or ()),
+                        netlist=outputs["netlist"], netlist_file=outputs["netlist_file"],
+                        csv_file=outputs["csv"], plot_file=outputs["plot"], solvers=tuple(use),
+                        preset=solvers["preset"], errors=solvers["errors"], estimate=solvers["estimate"],
+                        refine=solvers["refine"], step=solvers["step"], **fields)
 
 
-def _urdf_spec(ctx: _Context, model: dict) -> ModelSpec:
-    """A URDF robot: the file relative to the scene file's folder, or anywhere (read, never written)."""
+def _urdf_parts(ctx: _Context, model: dict) -> dict:
+    """A URDF robot's text, the file relative to the scene file's folder or anywhere (read, never
+    written), and its joints kept."""
     name, joints = model["urdf"], model.get("joints")
     if not isinstance(name, str):
         raise ctx.error("[model] urdf", f"expected a file name, got {_kind(name)}")
-    if extra := [k for k in ("mass", "damping", "stiffness", "gravity") if k in model]:
-        raise ctx.error(f"[model] {extra[0]}", "a URDF robot has its own")
+    with ctx.key("[model] urdf"):
+        return {"urdf": read_urdf(Path(str(ctx.source)).parent / name)}
+
+
+def _model_spec(ctx: _Context, model: dict) -> ModelSpec:
+    """The [model] table's spec: each value checked for its type here, and how they go together by
+    the scene's rules (:func:`~analogy.scenes.rules.check_model_spec`)."""
+    if not any(k in model for k in ("robot", "urdf", "mass")):
+        raise ctx.error("[model]", "give robot = \"serial2\" (a built-in robot), urdf = \"arm.urdf\" or "
+                                   "mass = [[...]]")
+    if "robot" in model and not isinstance(model["robot"], str):
+        raise ctx.error("[model] robot", f"expected a robot name, got {_kind(model['robot'])}")
+    chosen = {k: model[k] for k in CONVENTIONS if k in model}
+    for key, value in chosen.items():       # 1 == True: a choice must have the choices' type too
+        if value not in CONVENTIONS[key] or type(value) is not type(CONVENTIONS[key][0]):
+            shown = json.dumps(value) if isinstance(value, (str, bool)) else _kind(value)
+            raise ctx.error(f"[model] {key}", f"expected {' or '.join(map(json.dumps, CONVENTIONS[key]))}, "
+                                              f"got {shown}")
+    joints = model.get("joints")
     if joints is not None and not (isinstance(joints, list) and joints and all(isinstance(j, str) for j in joints)):
         raise ctx.error("[model] joints", "expected a list of joint names")
-    with ctx.key("[model] urdf"):
-        text = read_urdf(Path(str(ctx.source)).parent / name)
-    return ModelSpec(urdf=text, joints=None if joints is None else tuple(joints))
+    parts = _urdf_parts(ctx, model) if "urdf" in model else {}
+    for key in MATRICES:
+        if key in model:
+            with ctx.key(f"[model] {key}"):
+                parts[key] = _entries(model[key], key)
+    with ctx.fields():
+        return ModelSpec.of(model.get("robot"), joints=None if joints is None else tuple(joints), **chosen, **parts)
 
 
 def _model_fields(ctx: _Context, data: dict) -> dict:
@@ -321,37 +348,7 @@ def _model_fields(ctx: _Context, data: dict) -> dict:
         with ctx.key(f"[parameters] {_label(key)}"):
             params[key] = _number(value, ANY)      # the model judges the unit's dimension
     out["parameters"] = params
-    if "robot" in model:
-        if not isinstance(model["robot"], str):
-            raise ctx.error("[model] robot", f"expected a robot name, got {_kind(model['robot'])}")
-        for key in ("mass", "damping", "stiffness", "gravity"):
-            if key in model:
-                raise ctx.error(f"[model] {key}", "a built-in robot has its own; set its [parameters] "
-                                                  "instead, or give mass = [[...]] without robot")
-        chosen = {k: model[k] for k in CONVENTIONS if k in model}
-        for key, value in chosen.items():       # 1 == True: a choice must have the choices' type too
-            if value not in CONVENTIONS[key] or type(value) is not type(CONVENTIONS[key][0]):
-                shown = json.dumps(value) if isinstance(value, (str, bool)) else _kind(value)
-                raise ctx.error(f"[model] {key}", f"expected {' or '.join(map(json.dumps, CONVENTIONS[key]))}, "
-                                                  f"got {shown}")
-        out["model"] = ModelSpec(robot=model["robot"], **chosen)
-    elif any(k in model for k in CONVENTIONS):
-        raise ctx.error(f"[model] {next(k for k in CONVENTIONS if k in model)}",
-                        "applies to the flexible arms: give robot = \"flex2\" (or flex1, flexpar)")
-    elif "urdf" in model:
-        out["model"] = _urdf_spec(ctx, model)
-    elif "mass" in model:
-        parts = {}
-        for key in ("mass", "damping", "stiffness", "gravity"):
-            if key in model:
-                with ctx.key(f"[model] {key}"):
-                    parts[key] = _entries(model[key], key)
-        out["model"] = ModelSpec.of(None, **parts)
-    else:
-        raise ctx.error("[model]", "give robot = \"serial2\" (a built-in robot), urdf = \"arm.urdf\" or "
-                                   "mass = [[...]]")
-    if "joints" in model and "urdf" not in model:
-        raise ctx.error("[model] joints", "selects the joints of a urdf robot")
+    out["model"] = _model_spec(ctx, model)
     if "q" in config:
         with ctx.key("[configuration] q"):
             out["q"] = tuple(_numbers(config["q"], dimension=COORDINATE))
@@ -387,10 +384,7 @@ def _model_fields(ctx: _Context, data: dict) -> dict:
             out["initial_rates"] = tuple(_numbers(inputs["initial_rates"], dimension=RATE))
     if "t_stop" in inputs:
         with ctx.key("[inputs] t_stop"):
-            t_stop = _number(inputs["t_stop"], "time")
-            if t_stop <= 0:
-                raise InputError(f"must be a positive time, got {t_stop!r}")
-            out["t_stop"] = t_stop
+            out["t_stop"] = _number(inputs["t_stop"], "time")
     return out
 
 
@@ -502,19 +496,15 @@ def _solvers(ctx, data) -> dict:
             if s not in SOLVER_NAMES:
                 raise ctx.error(key, f"unknown solver {s!r}: use {', '.join(SOLVER_NAMES)}")
         out["use"] = list(dict.fromkeys(use))
-    if "preset" in table:
-        with ctx.key("[solvers] preset"):
-            if isinstance(table["preset"], bool) or not isinstance(table["preset"], (str, int, float)):
-                raise InputError(f"expected a preset name or a tolerance, got {_kind(table['preset'])}")
-            out["preset"] = get_preset(table["preset"]).name
+    if "preset" in table:               # a name or a tolerance: the scene's rules judge it
+        if isinstance(table["preset"], bool) or not isinstance(table["preset"], (str, int, float)):
+            raise ctx.error("[solvers] preset", f"expected a preset name or a tolerance, got {_kind(table['preset'])}")
+        out["preset"] = table["preset"]
     for flag in ("errors", "estimate", "refine"):
         if not isinstance(table.get(flag, False), bool):
             raise ctx.error(f"[solvers] {flag}", f"expected true or false, got {_kind(table[flag])}")
         out[flag] = table.get(flag, out[flag])
     if "step" in table:
         with ctx.key("[solvers] step"):
-            step = _number(table["step"])
-            if step <= 0:
-                raise InputError(f"must be a positive time, got {step!r}")
-            out["step"] = step
+            out["step"] = _number(table["step"])
     return out

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from ..circuit.currents import check_element_names
 from ..circuit.description import circuit
-from ..errors import InputError
-from .build import COMMAND_LINE, keyed
+from ..errors import InputError, located
+from .build import COMMAND_LINE
 from .scene import Scene
 
 __all__ = ["validated"]
@@ -36,12 +36,12 @@ def validated(scene: Scene) -> Scene:
     """
     system = scene.system()
     changes = {}
-    with keyed(scene.source if scene.source not in (None, COMMAND_LINE) else None):
-        with keyed("[outputs] node_voltages"):
+    with located(scene.source if scene.source not in (None, COMMAND_LINE) else None):
+        with located("[outputs] node_voltages"):
             nv = scene.node_voltages
             changes["node_voltages"] = tuple(system.nodes) if nv is True else \
                 (_check_nodes(system, nv) if nv else ())
-        with keyed("[outputs] element_currents"):
+        with located("[outputs] element_currents"):
             ec = scene.element_currents
             if ec and system.kind != "linear":
                 raise InputError("element currents need the linear circuit (dynamics = \"linear\")")
