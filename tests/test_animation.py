@@ -167,3 +167,59 @@ def test_an_mp4_without_ffmpeg_says_how_to_get_it(monkeypatch):
     monkeypatch.setattr(shutil, "which", lambda name: None)
     with pytest.raises(analogy.InputError, match="needs ffmpeg"):
         check_animation_path("arm.mp4")
+
+
+def test_a_urdf_arm_is_drawn_from_the_joint_frames_pinocchio_places():
+    """Each joint's origin and axis in the base frame, and the last body's centre of mass, as
+    Pinocchio's forward kinematics gives them at random poses: to rounding of a few products of
+    rotations along the chain (16·n·ε of the reach)."""
+    pin = pytest.importorskip("pinocchio")
+    from analogy.model.mechanism import tree_outline
+    from analogy.model.urdf import urdf_model
+    from analogy.model.urdf_robots import URDF_ROBOTS, _robots_folder, urdf_robot
+    rng = np.random.default_rng(3)
+    for name in ("ur5", "double_pendulum"):
+        text, joints = urdf_robot(name)
+        model = urdf_model(text, joints)
+        pm = pin.buildModelFromUrdf(str(_robots_folder() / URDF_ROBOTS[name][0]))
+        data = pm.createData()
+        qs = rng.uniform(-np.pi, np.pi, (20, model.dof))
+        origin, axis, _ = model.tree.joint_frames(qs)
+        outline, axes = tree_outline(model.tree, qs)
+        n = model.dof
+        for k, q in enumerate(qs):
+            pin.forwardKinematics(pm, data, q)
+            pin.computeJointJacobians(pm, data, q)
+            reach = max(np.linalg.norm(data.oMi[j].translation) for j in range(1, n + 1))
+            tol = 16 * n * EPS * reach
+            for j in range(n):
+                assert np.allclose(origin[k, j], data.oMi[j + 1].translation, rtol=0, atol=tol)
+                spin = pin.getJointJacobian(pm, data, j + 1, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)[3:, j]
+                assert np.allclose(axis[k, j], spin, rtol=0, atol=16 * n * EPS)
+            (chain,) = outline[k]          # a serial arm: one polyline, base → joints → last body's centre
+            assert np.array_equal(chain[0], np.zeros(3)) and np.allclose(chain[1:-1], origin[k], rtol=0, atol=0)
+            centre = data.oMi[n].act(pm.inertias[n].lever)
+            assert np.allclose(chain[-1], centre, rtol=0, atol=tol)
+            # each axis segment is centred on its joint, along its axis
+            assert np.allclose(axes[k].mean(axis=1), origin[k], rtol=0, atol=tol)
+            assert np.allclose(np.cross(axes[k, :, 1] - axes[k, :, 0], axis[k]), 0.0, rtol=0, atol=tol)
+
+
+def test_a_urdf_scene_moves_in_space_from_its_own_pose():
+    """The drawn robot starts at the scene's pose and follows q0 + T⁻¹·∫v dt: frame 0 is the pose,
+    the last frame the pose the run's voltages integrate to."""
+    from analogy.model.mechanism import tree_outline
+    sc = analogy.scene("double_pendulum")
+    system = sc.system()
+    model = sc.numeric_model()
+    run = analogy.solve(system, "exact", np.linspace(0.0, system.t_stop, 2001))
+    shown = motion(system, run, frames=5, model=model)
+    assert shown.spatial and shown.joint_axes.shape == (5, model.dof, 2, 3)
+    start, _ = tree_outline(model.tree, np.array([sc.q]))
+    assert all(np.array_equal(a, b) for a, b in zip(shown.outline[0], start[0]))
+    moved = np.array(sc.q) + system.joint_rates(shown.displacements[-1])
+    end, _ = tree_outline(model.tree, moved[None])
+    assert all(np.array_equal(a, b) for a, b in zip(shown.outline[-1], end[0]))
+    assert "azimuth" in shown.note and "linear circuit" in shown.note
+    png = shown.frame_png(-1, dpi=40)
+    assert png[:8] == b"\x89PNG\r\n\x1a\n"

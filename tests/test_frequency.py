@@ -7,7 +7,8 @@ from analogy.cli import main
 from analogy.errors import InputError
 from analogy.model.joint import JointSpace
 from analogy.circuit.node_system import node_system
-from analogy.results.frequency import exact_mobility, frequency_grid
+from analogy.results.frequency import frequency_grid
+from analogy.solvers.exact import exact_mobility
 from analogy.results.modes import natural_modes
 from analogy.scenes.scene import Scene
 from analogy.scenes.spec import ModelSpec

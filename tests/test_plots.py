@@ -103,7 +103,7 @@ def _one_joint():
 
 def test_a_bode_plot_without_resonances_does_not_promise_their_lines():
     from analogy.results.plots import plot_bode
-    from analogy.results.frequency import exact_mobility
+    from analogy.solvers.exact import exact_mobility
     response = exact_mobility(scene("default").system(), np.logspace(-2, 2, 81))
     title = plot_bode(response).axes[0].get_title()
     assert len(response.resonances()) == 0 and "no resonance in the band" in title

@@ -42,7 +42,7 @@ def animate_command(args) -> int:
     run = solve(system, args.solver, preset=args.preset)
     if not run.success:
         raise SimulationError(f"{args.solver}: {run.message}")
-    shown = motion(system, run, args.frames, conventions=sc.model.conventions)
+    shown = motion(system, run, args.frames, conventions=sc.model.conventions, model=sc.numeric_model())
     print(f"{shown.frames} frames, {shown.frames / args.fps:.3g} s at {args.fps:g} fps"
           + (f": {shown.note}" if shown.note else ""))
     write_outputs([(args.output, lambda: shown.save(args.output, args.fps)),

@@ -1,4 +1,4 @@
-"""Mechanism: where a robot's links are at each configuration, as polylines in its plane, for drawings."""
+"""Mechanism: where a robot's links are at each configuration, as polylines in its plane or in space, for drawings."""
 
 from __future__ import annotations
 
@@ -12,9 +12,10 @@ from .conventions import link_modes_for
 from .catalog import family_builder, robot_family
 
 __all__ = ["Outline", "planar_chain_outline", "five_bar_outline", "flexible_arm_outline",
-           "flexible_parallel_outline", "mechanism_outline"]
+           "flexible_parallel_outline", "tree_outline", "mechanism_outline"]
 
-#: Links at each of F configurations: a list of link polylines per frame, each (k, 2) in metres.
+#: Links at each of F configurations: a list of link polylines per frame, each (k, 2) in metres
+#: (a planar robot) or (k, 3) (a URDF's tree, in its base frame).
 Outline = list[list[np.ndarray]]
 
 #: Points drawn along a flexible link: enough for its fourth mode's three nodes to show.
@@ -161,6 +162,36 @@ def flexible_parallel_outline(q: np.ndarray, parameters: Mapping[str, float], *,
         elbow = lower[-1]
         frames.append([lower, upper, np.array([np.zeros(2), back, elbow + back, elbow])])
     return frames
+
+
+def tree_outline(tree, q: np.ndarray) -> tuple[Outline, np.ndarray]:
+    """A rigid tree drawn from its joint frames: per frame one polyline from the base's origin through
+    each joint's origin to each leaf body's centre of mass; and each joint's axis, shape (F, n, 2, 3),
+    a segment through its origin a twentieth of the reach long.
+
+    Parameters
+    ----------
+    tree : RigidTree
+        The robot's kinematic tree (:attr:`analogy.model.urdf.UrdfModel.tree`).
+    q : ndarray, shape (F, n)
+        Joint coordinates, one row per frame.
+    """
+    origin, axis, centre = tree.joint_frames(np.atleast_2d(np.asarray(q, dtype=float)))
+    parents = list(tree.parents)
+    leaves = [i for i in range(len(parents)) if i not in parents]
+    chains = []
+    for leaf in leaves:
+        chain, j = [], leaf
+        while j >= 0:
+            chain.append(j)
+            j = parents[j]
+        chains.append(chain[::-1])
+    base = np.zeros((len(origin), 1, 3))
+    lines = [np.concatenate([base, origin[:, chain], centre[:, chain[-1:]]], axis=1) for chain in chains]
+    reach = max(float(np.max(np.linalg.norm(line - line[:, :1], axis=2))) for line in lines) or 1.0
+    half = 0.05 * reach * axis
+    axes = np.stack([origin - half, origin + half], axis=2)
+    return [[line[k] for line in lines] for k in range(len(origin))], axes
 
 
 def mechanism_outline(robot: str, q: np.ndarray, parameters: Mapping[str, float],

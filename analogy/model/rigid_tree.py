@@ -333,6 +333,23 @@ class RigidTree:
             x[:, children] = x[:, children] @ x[:, parents]
         return x
 
+    def joint_frames(self, qs) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Where each joint is at every row of *qs*, in the base frame: its origin, its unit axis and
+        its body's centre of mass, each of shape (poses, n, 3) [m].
+
+        Parameters
+        ----------
+        qs : array_like, shape (poses, n)
+            Joint coordinates [rad or m].
+        """
+        world = self._world(np.atleast_2d(np.asarray(qs, dtype=float)))
+        rotation = world[..., :3, :3].transpose(0, 1, 3, 2)        # each body's axes in the base frame
+        px = -rotation @ world[..., 3:, :3]
+        origin = np.stack([px[..., 2, 1], px[..., 0, 2], px[..., 1, 0]], axis=-1)
+        centres = np.array([body_inertia(i)[1] for i in self.inertias])
+        return (origin, np.einsum("pnij,nj->pni", rotation, np.asarray(self.axes, dtype=float)),
+                origin + np.einsum("pnij,nj->pni", rotation, centres))
+
     def dynamics(self, qs, rates) -> tuple[np.ndarray, np.ndarray]:
         """(M(q), c(q, q̇) + G(q)) at every row from one kinematics pass, shape ((p, n, n), (p, n)).
 

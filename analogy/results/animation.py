@@ -6,6 +6,7 @@ import io
 import logging
 import re
 import shutil
+import textwrap
 from dataclasses import dataclass
 from html import escape
 from pathlib import Path
@@ -21,7 +22,7 @@ from ..errors import InputError
 if TYPE_CHECKING:
     from matplotlib.animation import FuncAnimation
 
-__all__ = ["Motion", "ANIMATION_FORMATS", "AnimationFormat", "check_animation_path", "offline"]
+__all__ = ["Motion", "ANIMATION_FORMATS", "AnimationFormat", "VIEW", "check_animation_path", "offline"]
 
 #: What an animation is written as, by the file's suffix.
 AnimationFormat = Literal[".gif", ".mp4", ".html"]
@@ -30,6 +31,8 @@ ANIMATION_FORMATS: tuple[str, ...] = (".gif", ".mp4", ".html")
 _MOST_TRACES = 6
 #: Frames the tip's trail reaches back.
 _TRAIL = 20
+#: The view of a robot drawn in space: matplotlib's azimuth and elevation [degrees].
+VIEW = (-60.0, 25.0)
 
 
 @dataclass(frozen=True, eq=False)
@@ -49,13 +52,16 @@ class Motion:
     frame_times : ndarray, shape (F,)
         Times of the frames.
     outline : list of list of ndarray, or None
-        Per frame, the link polylines (k, 2) [m]; None: the nodes are drawn as masses on rails.
+        Per frame, the link polylines (k, 2) in the robot's plane, or (k, 3) in space [m]; None: the
+        nodes are drawn as masses on rails.
     displacements : ndarray, shape (F, n)
         Node positions x = ∫v dt at the frames (the rails' blocks when there is no outline).
     capacitances : ndarray, shape (F, n, n), or None
         M'(x) at the frames, for a circuit whose capacitances change (nonlinear runs).
     note : str
         What the drawing shows (its scale, its exaggeration).
+    joint_axes : ndarray, shape (F, n, 2, 3), or None
+        A robot drawn in space: each joint's axis at each frame, as a short segment through it.
     """
 
     title: str
@@ -67,6 +73,12 @@ class Motion:
     displacements: np.ndarray
     capacitances: np.ndarray | None = None
     note: str = ""
+    joint_axes: np.ndarray | None = None
+
+    @property
+    def spatial(self) -> bool:
+        """Whether the mechanism is drawn in space (a URDF's tree) rather than in its plane."""
+        return self.outline is not None and self.outline[0][0].shape[1] == 3
 
     def __repr__(self) -> str:
         drawn = "links" if self.outline is not None else "nodes on rails"
@@ -190,9 +202,10 @@ def _figure(motion: Motion):
     varying = motion.capacitances is not None
     fig = Figure(figsize=(10.0, 4.6 if varying else 4.0), layout="constrained")
     grid = fig.add_gridspec(2 if varying else 1, 2, width_ratios=(1.0, 1.25))
-    arm = fig.add_subplot(grid[:, 0])
+    arm = fig.add_subplot(grid[:, 0], projection="3d" if motion.spatial else None)
     volts = fig.add_subplot(grid[0, 1])
-    moving = _draw_outline(arm, motion) if motion.outline is not None else _draw_rails(arm, motion)
+    draw = _draw_space if motion.spatial else _draw_outline if motion.outline is not None else _draw_rails
+    moving = draw(arm, motion)
     cursors = [volts.axvline(0.0, color="0.3", lw=0.8)]
     peaks = np.max(np.abs(motion.voltages), axis=0) if motion.voltages.size else np.zeros(0)
     dots = []
@@ -259,6 +272,40 @@ def _draw_outline(ax, motion: Motion):
         joints.set_data(ends[:, 0], ends[:, 1])
         trail.set_data(tips[max(k - _TRAIL, 0):k + 1, 0], tips[max(k - _TRAIL, 0):k + 1, 1])
         return links + [joints, trail]
+    return moving
+
+
+def _draw_space(ax, motion: Motion):
+    """The links as 3-D polylines with each joint's axis, in a cube around every frame, seen from :data:`VIEW`."""
+    frames, axes = motion.outline, motion.joint_axes
+    every = np.concatenate([p for frame in frames for p in frame])
+    low, high = every.min(axis=0), every.max(axis=0)
+    middle, half = (low + high) / 2, max(float(np.max(high - low)) / 2, 1e-9) * 1.05
+    for set_limits, c in zip((ax.set_xlim, ax.set_ylim, ax.set_zlim), middle):
+        set_limits(c - half, c + half)
+    ax.set_box_aspect((1.0, 1.0, 1.0))
+    ax.view_init(azim=VIEW[0], elev=VIEW[1])
+    ax.plot([0.0], [0.0], [0.0], marker="s", ms=8, color="0.35")      # the base, held fixed
+    links = [ax.plot([], [], [], lw=3.0, solid_capstyle="round", color=f"C{i}")[0] for i in range(len(frames[0]))]
+    joints = ax.plot([], [], [], "o", ms=5, mfc="white", mec="0.2")[0]
+    spins = [ax.plot([], [], [], lw=1.2, color="0.25")[0] for _ in range(0 if axes is None else axes.shape[1])]
+    tips = np.array([frame[-1][-1] for frame in frames])
+    trail = ax.plot([], [], [], lw=0.8, color="0.6")[0]
+    for name, set_label in (("x", ax.set_xlabel), ("y", ax.set_ylabel), ("z", ax.set_zlabel)):
+        set_label(f"{name} [m]", fontsize=8, labelpad=-2)
+    ax.tick_params(labelsize=6, pad=0)
+    ax.set_title(textwrap.fill(motion.note or "the robot", 48), fontsize=8)
+
+    def moving(k: int):
+        for line, points in zip(links, frames[k]):
+            line.set_data_3d(points[:, 0], points[:, 1], points[:, 2])
+        ends = np.concatenate([p[1:-1] for p in frames[k]])         # the joints: neither base nor tip
+        joints.set_data_3d(ends[:, 0], ends[:, 1], ends[:, 2])
+        for line, segment in zip(spins, [] if axes is None else axes[k]):
+            line.set_data_3d(segment[:, 0], segment[:, 1], segment[:, 2])
+        back = tips[max(k - _TRAIL, 0):k + 1]
+        trail.set_data_3d(back[:, 0], back[:, 1], back[:, 2])
+        return links + [joints, trail] + spins
     return moving
 
 

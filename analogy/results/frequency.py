@@ -14,7 +14,7 @@ from .output import Tabular
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-__all__ = ["FrequencyResponse", "exact_mobility", "frequency_grid", "sweep_range", "resonance_report", "MAX_FREQUENCIES"]
+__all__ = ["FrequencyResponse", "frequency_grid", "sweep_range", "resonance_report", "MAX_FREQUENCIES"]
 
 
 #: Most frequencies in one sweep (a mobility matrix each).
@@ -41,27 +41,6 @@ def frequency_grid(f_start: float, f_stop: float, per_decade: int) -> np.ndarray
                          "frequencies: narrow the range or take fewer points per decade")
     count = int(math.floor(per_decade * math.log10(f_stop / f_start) + 1e-9)) + 1
     return f_start * 10.0 ** (np.arange(count) / per_decade)
-
-
-def exact_mobility(system, frequencies) -> "FrequencyResponse":
-    """Y(s)·T⁻ᵀ with Y = (M'·s + B' + K'/s)⁻¹ at s = 2πj·f: node velocity per unit joint force.
-
-    Parameters
-    ----------
-    system : NodeSystem
-        A linear node system.
-    frequencies : array_like
-        Frequencies [Hz], positive.
-    """
-    f = np.asarray(frequencies, dtype=float)
-    if f.ndim != 1 or not np.all(f > 0):
-        raise InputError("frequencies must be a 1-D array of positive values [Hz]")
-    s = 2j * np.pi * f[:, None, None]
-    k = np.zeros_like(system.mass) if system.stiffness is None else system.stiffness
-    impedance = system.mass * s + system.damping + k / s
-    mobility = np.linalg.solve(impedance, np.broadcast_to(system.current_map, impedance.shape).astype(complex))
-    return FrequencyResponse(f, mobility, "exact", np.linalg.inv(system.topology.matrix),
-                             system.provenance.units, tuple(system.provenance.configuration) or None)
 
 
 @dataclass(eq=False)

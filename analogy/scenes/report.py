@@ -157,7 +157,7 @@ def scene_report(scene, *, animation: bool = True, frames: int = 48) -> SceneRep
         run = next((comparison.results[s] for s in ("spice", *comparison.results) if s in comparison.results
                     and comparison.results[s].success), None)
         if run is not None:
-            shown = motion(system, run, frames, conventions=scene.model.conventions)
+            shown = motion(system, run, frames, conventions=scene.model.conventions, model=scene.numeric_model())
             sections.append((f"Motion ({run.solver})", shown.to_jshtml()))
     link = data_uri(text.encode(), "text/plain")
     sections.append(("Netlist", f"<p><a download='{escape(scene.name)}.cir' href='{link}'>download</a> "

@@ -9,12 +9,13 @@ import numpy as np
 
 from ..circuit.node_stack import NodeStack, inputs_key
 from ..circuit.topology import symmetric_part
-from ..errors import SimulationError
+from ..errors import InputError, SimulationError
 from ..presets import Preset
+from ..results.frequency import FrequencyResponse
 from ..results.trajectory import SolverStats, Trajectory
 from .registry import Solver, stacked_trajectories
 
-__all__ = ["solve_exact", "solve_exact_many", "phi1", "phi2", "ExactSolver", "SOLVER"]
+__all__ = ["solve_exact", "solve_exact_many", "exact_mobility", "phi1", "phi2", "ExactSolver", "SOLVER"]
 
 
 def _expm1(x: np.ndarray) -> np.ndarray:
@@ -367,3 +368,24 @@ class ExactSolver(Solver):
 
 
 SOLVER = ExactSolver()
+
+
+def exact_mobility(system, frequencies) -> FrequencyResponse:
+    """Y(s)·T⁻ᵀ with Y = (M'·s + B' + K'/s)⁻¹ at s = 2πj·f: node velocity per unit joint force.
+
+    Parameters
+    ----------
+    system : NodeSystem
+        A linear node system.
+    frequencies : array_like
+        Frequencies [Hz], positive.
+    """
+    f = np.asarray(frequencies, dtype=float)
+    if f.ndim != 1 or not np.all(f > 0):
+        raise InputError("frequencies must be a 1-D array of positive values [Hz]")
+    s = 2j * np.pi * f[:, None, None]
+    k = np.zeros_like(system.mass) if system.stiffness is None else system.stiffness
+    impedance = system.mass * s + system.damping + k / s
+    mobility = np.linalg.solve(impedance, np.broadcast_to(system.current_map, impedance.shape).astype(complex))
+    return FrequencyResponse(f, mobility, "exact", np.linalg.inv(system.topology.matrix),
+                             system.provenance.units, tuple(system.provenance.configuration) or None)

@@ -6,7 +6,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..results.frequency import FrequencyResponse, exact_mobility, resonance_report, sweep_range
+from ..results.frequency import FrequencyResponse, resonance_report, sweep_range
+from ..solvers.exact import exact_mobility
 from ..results.modes import natural_modes
 from ..solvers.ac import spice_mobility
 

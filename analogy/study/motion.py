@@ -10,8 +10,9 @@ from scipy.integrate import cumulative_trapezoid
 
 from ..errors import InputError
 from ..model.dynamics import NodeDynamics
-from ..model.mechanism import mechanism_outline
-from ..results.animation import Motion
+from ..model.base import RobotModel
+from ..model.mechanism import mechanism_outline, tree_outline
+from ..results.animation import VIEW, Motion
 from ..results.trajectory import Trajectory
 
 __all__ = ["motion", "DEFLECTION_SHOWN"]
@@ -29,7 +30,7 @@ def _nice(factor: float) -> float:
 
 
 def motion(system: NodeDynamics, trajectory: Trajectory, frames: int = 60, *,
-           conventions: Mapping[str, Any] | None = None) -> Motion:
+           conventions: Mapping[str, Any] | None = None, model: RobotModel | None = None) -> Motion:
     """The run *trajectory* of *system* as frames: the pose q = q0 + T⁻¹·∫v dt and, where M' varies, M'(x).
 
     Positions are integrated from the solver's own voltages by the trapezoidal rule,
@@ -46,6 +47,9 @@ def motion(system: NodeDynamics, trajectory: Trajectory, frames: int = 60, *,
     conventions : mapping, optional
         A flexible arm's conventions as its model was built (``link_modes``,
         ``joint_frame``; see :attr:`analogy.scenes.spec.ModelSpec.conventions`).
+    model : RobotModel, optional
+        The system's model, where it is drawn from its own kinematics (a URDF's tree, in space;
+        default: a nonlinear system's own model). The built-in arms are drawn from their parameters.
     """
     if not trajectory.success:
         raise InputError(f"the {trajectory.solver} run failed, so there is no motion to draw: "
@@ -64,10 +68,15 @@ def motion(system: NodeDynamics, trajectory: Trajectory, frames: int = 60, *,
         at = list(provenance.configuration.values())        # in the model's coordinate order
         q0 = np.array(at, dtype=float) if len(at) == system.dof else np.zeros(system.dof)
     q = q0 + system.joint_rates(x_shown)
-    outline, note = None, ""
+    outline, note, joint_axes = None, "", None
     drawn = dict(conventions or {})
     parameters = dict(provenance.parameters)
-    if parameters:
+    if model is None and system.kind == "nonlinear":
+        model = system.model
+    if isinstance(model, RobotModel) and model.rigid_tree:
+        outline, joint_axes = tree_outline(model.tree, q)
+        note = f"from its joint frames, seen from azimuth {VIEW[0]:g}°, elevation {VIEW[1]:g}°"
+    elif parameters:
         outline = mechanism_outline(provenance.robot, q, parameters, **drawn)
     if outline is not None and provenance.robot.startswith("flex"):
         stiff = mechanism_outline(provenance.robot, q, parameters, **drawn, exaggeration=0.0)
@@ -80,10 +89,10 @@ def motion(system: NodeDynamics, trajectory: Trajectory, frames: int = 60, *,
                                         exaggeration=factor)
         note = f"deflections drawn x{factor:g} (largest {bend * 1e3:.3g} mm)"
     elif outline is not None and system.kind == "linear":
-        note = "the motion the linear circuit predicts about q0"
+        note = "the motion the linear circuit predicts about q0" + (f"; {note}" if note else "")
     capacitances = np.array([system.node_mass(row) for row in x_shown]) if system.kind == "nonlinear" else None
     title = f"{provenance.robot} {system.kind}, {trajectory.solver}"
     nodes = list(system.nodes)
     if provenance.joints and np.array_equal(system.topology.matrix, np.eye(system.dof)):
         nodes = [f"{node}: {name}" for node, name in zip(nodes, provenance.joints)]     # node k is joint k
-    return Motion(title, t, v, nodes, shown, outline, x_shown, capacitances, note)
+    return Motion(title, t, v, nodes, shown, outline, x_shown, capacitances, note, joint_axes)
