@@ -223,3 +223,53 @@ def test_a_urdf_scene_moves_in_space_from_its_own_pose():
     assert "azimuth" in shown.note and "linear circuit" in shown.note
     png = shown.frame_png(-1, dpi=40)
     assert png[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.parametrize("name", ["default", "springs3.toml"])
+def test_the_circuit_in_motion_keeps_kirchhoffs_current_law_at_every_node_and_frame(name):
+    """The currents drawn on the schematic are the circuit's: at every frame the sources' currents into
+    each node equal its elements' currents out of it, to rounding of the sum of their sizes."""
+    from pathlib import Path
+    from analogy.circuit.description import circuit
+    from analogy.scenes.toml import load_scene
+    sc = load_scene(Path(__file__).parent.parent / "examples" / "scenes" / name) if name.endswith(".toml") \
+        else analogy.scene(name)
+    system = sc.system()
+    run = analogy.solve(system, "exact", np.linspace(0.0, system.t_stop, 1001), positions=True)
+    shown = motion(system, run, frames=11)
+    c = circuit(system)
+    assert set(shown.schematic.parts) == {p.name for p in c.parts} | {s.name for s in c.sources}
+    index = {name: k for k, name in enumerate(shown.schematic.parts)}
+    balance = np.zeros((shown.frames, system.dof))
+    size = np.zeros((shown.frames, system.dof))
+    for s in c.sources:                              # scale·f(t) into a, out of b
+        for node, sign in ((s.a, 1.0), (s.b, -1.0)):
+            if node:
+                balance[:, node - 1] += sign * shown.currents[:, index[s.name]]
+                size[:, node - 1] += np.abs(shown.currents[:, index[s.name]])
+    for e in c.parts:                                # from a through the part to b
+        for node, sign in ((e.a, -1.0), (e.b, 1.0)):
+            if node:
+                balance[:, node - 1] += sign * shown.currents[:, index[e.name]]
+                size[:, node - 1] += np.abs(shown.currents[:, index[e.name]])
+    # each capacitor's current is c·dv/dt from M'⁻¹ of the same sum: rounding of cond(M')·ε of it
+    assert np.all(np.abs(balance) <= 64 * np.linalg.cond(system.mass) * EPS * size)
+    assert np.all(shown.current_peaks > 0) and np.max(np.abs(shown.currents)) <= np.max(shown.current_peaks)
+    assert shown.frame_png(5, dpi=40)[:4] == b"\x89PNG"
+
+
+def test_a_circuit_past_a_schematic_moves_as_a_map_of_its_branch_currents():
+    """Past the schematic's size the currents are drawn by node pair: antisymmetric off the diagonal,
+    and each row sums to the node's injected current T⁻ᵀ·F(t) (Kirchhoff), to rounding of cond(M')·ε."""
+    sc = analogy.scene("random10")
+    system = sc.system()
+    run = analogy.solve(system, "exact", np.linspace(0.0, system.t_stop, 1001))
+    shown = motion(system, run, frames=11)         # every frame on a point of the run
+    assert shown.schematic is None and shown.branches.shape == (11, system.dof, system.dof)
+    b = shown.branches
+    off = b - np.einsum("fii->fi", b)[:, :, None] * np.eye(system.dof)
+    assert np.array_equal(off, -off.transpose(0, 2, 1))
+    injected = system.node_currents(shown.frame_times)
+    size = np.abs(b).sum(axis=2) + np.abs(injected)
+    assert np.all(np.abs(b.sum(axis=2) - injected) <= 64 * np.linalg.cond(system.mass) * EPS * size)
+    assert shown.frame_png(3, dpi=40)[:4] == b"\x89PNG"

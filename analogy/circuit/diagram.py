@@ -28,18 +28,18 @@ from typing import TYPE_CHECKING, Callable, Sequence
 import numpy as np
 import schemdraw
 import schemdraw.elements as elm
-from schemdraw.segments import Segment, SegmentCircle, SegmentPoly
 
 from ..files import write_figure
 from ..errors import InputError
 from ..units import mechanical_units
 from .description import circuit
 from .elements import ZERO_TOL
+from .mechanical_symbols import Dashpot, Force, LinkGround, MassBlock, MPModel, Spring
 
 if TYPE_CHECKING:
     from .node_system import NodeSystem
 
-__all__ = ["draw_circuit", "draw_mechanism", "draw", "schematic_fits", "FORMATS",
+__all__ = ["Schematic", "schematic", "draw_circuit", "draw_mechanism", "draw", "schematic_fits", "FORMATS",
            "MAX_SCHEMATIC_NODES", "MAX_SCHEMATIC_FLOATING"]
 
 #: File formats written when a path has no suffix.
@@ -50,7 +50,6 @@ MAX_SCHEMATIC_NODES = 6
 MAX_SCHEMATIC_FLOATING = 12
 
 _XY = tuple[float, float]
-_GAP = (float("nan"), float("nan"))   # pen up inside a schemdraw segment path
 
 # Layout, in drawing units.
 _NODE_MARGIN = 1.0     # bar start to first hanging element (room for the node label)
@@ -205,77 +204,6 @@ def _label_width(p: _Part) -> float:
     return chars * _FONT * 0.62 / 72 / _INCHES_PER_UNIT
 
 
-# Mechanical symbols. Segment 0 spans the symbol; schemdraw extends leads from its ends.
-
-class _MassBlock(elm.Element2Term):
-    """A mass: a block on its node, tied to the ground reference by a dotted line."""
-
-    def __init__(self, length: float = _DROP, **kwargs):
-        super().__init__(**kwargs)
-        self.segments.append(Segment([(0, 0), _GAP, (length, 0)]))
-        self.segments.append(Segment([(0, 0), (0.8, 0)]))
-        self.segments.append(SegmentPoly([(0.8, -0.55), (1.9, -0.55), (1.9, 0.55), (0.8, 0.55)],
-                                         fill="#d9d9d9"))
-        self.segments.append(Segment([(1.9, 0), (length, 0)], ls=":"))
-
-
-class _MPModel(elm.Element2Term):
-    """An MP (mass/pulley) model: a two-terminal box holding a double pulley and its mass."""
-
-    def __init__(self, **kwargs):
-        super().__init__(**kwargs)
-        self.segments.append(Segment([(0, 0), _GAP, (1.6, 0)]))
-        self.segments.append(SegmentPoly([(0, -0.45), (1.6, -0.45), (1.6, 0.45), (0, 0.45)], fill="#e3ecf7"))
-        self.segments.append(SegmentCircle((0.55, 0.08), 0.2))
-        self.segments.append(SegmentCircle((1.05, 0.08), 0.2))
-        self.segments.append(Segment([(0.8, 0.08), (0.8, -0.22)]))
-        self.segments.append(SegmentPoly([(0.68, -0.22), (0.92, -0.22), (0.92, -0.38), (0.68, -0.38)],
-                                         fill="black"))
-
-
-class _Dashpot(elm.Element2Term):
-    """A damper: a cylinder open to one side and a piston."""
-
-    def __init__(self, **kwargs):
-        super().__init__(**kwargs)
-        self.segments.append(Segment([(0, 0), _GAP, (1.1, 0)]))
-        self.segments.append(Segment([(0.75, 0.28), (0, 0.28), (0, -0.28), (0.75, -0.28)]))
-        self.segments.append(Segment([(0.4, 0.2), (0.4, -0.2)], lw=2.5))
-        self.segments.append(Segment([(0.4, 0), (1.1, 0)]))
-
-
-class _Spring(elm.Element2Term):
-    """A spring: a zigzag."""
-
-    def __init__(self, **kwargs):
-        super().__init__(**kwargs)
-        pts = [(0.0, 0.0)] + [(0.1 + 0.15 * i, 0.25 * (-1) ** i) for i in range(8)] + [(1.3, 0.0)]
-        self.segments.append(Segment(pts))
-
-
-class _Force(elm.Element2Term):
-    """A force: a bold arrow from the reacting terminal to the driven one."""
-
-    def __init__(self, **kwargs):
-        super().__init__(**kwargs)
-        self.segments.append(Segment([(0, 0), _GAP, (1.0, 0)]))
-        self.segments.append(Segment([(0, 0), (1.0, 0)], arrow="->", lw=3,
-                                     arrowwidth=0.4, arrowlength=0.45))
-
-
-class _LinkGround(elm.Element):
-    """Mechanical ground: a hatched line."""
-
-    _element_defaults = {"theta": 0, "drop": (0, 0)}
-
-    def __init__(self, **kwargs):
-        super().__init__(**kwargs)
-        self.segments.append(Segment([(-0.4, 0), (0.4, 0)], lw=2))
-        for x in np.linspace(-0.35, 0.35, 5):
-            self.segments.append(Segment([(x + 0.05, 0), (x - 0.1, -0.2)]))
-        self.anchors["start"] = (0, 0)
-
-
 def _wave(p: _Part) -> str:
     return p.waveform if len(p.waveform) <= 24 else p.waveform[:21] + "..."
 
@@ -311,8 +239,8 @@ def _circuit_symbol(p: _Part) -> elm.Element2Term:
 
 def _mechanism_symbol(p: _Part) -> elm.Element2Term:
     if p.kind == "C":
-        return _MPModel() if p.b else _MassBlock()
-    return {"R": _Dashpot, "L": _Spring, "I": _Force}[p.kind]()
+        return MPModel() if p.b else MassBlock(_DROP)
+    return {"R": Dashpot, "L": Spring, "I": Force}[p.kind]()
 
 
 def _render(layout: _Layout, symbol: Callable[[_Part], elm.Element2Term],
@@ -357,6 +285,48 @@ def _title(system: NodeSystem, what: str) -> str:
     return f"{system.provenance.robot} ({system.topology.name} topology): {what}"
 
 
+@dataclass(frozen=True)
+class Schematic:
+    """A circuit's schematic and where each node and part of it is drawn, to show values on them.
+
+    Attributes
+    ----------
+    drawing : schemdraw.Drawing
+        The schematic (:func:`draw_circuit` draws it).
+    bars : tuple of (float, float)
+        Node k's bar, from x to x at y = 0, in drawing units.
+    parts : dict of str to ((float, float), (float, float))
+        Each part's symbol, from one end to the other: the elements and the force sources, by their
+        netlist names.
+    """
+
+    drawing: schemdraw.Drawing
+    bars: tuple
+    parts: dict
+
+
+def schematic(system: NodeSystem, zero_tol: float = ZERO_TOL, title: str | None = None,
+              caption: str = "force = current, velocity = node voltage, mass = C, damper = R (1/b), "
+                             "spring = L (1/k); red values are negative") -> Schematic:
+    """The equivalent circuit of *system* as a schematic, with where it draws each node and part.
+
+    Parameters
+    ----------
+    system : NodeSystem
+        The linear system.
+    zero_tol : float
+        Relative tolerance under which an element is left out (as in the netlist).
+    title : str, optional
+        Heading; default names the robot and topology.
+    caption : str
+        The line under it.
+    """
+    layout = _layout(_parts(system, zero_tol), system.dof)
+    d = _render(layout, _circuit_symbol, _circuit_label, node="n", bar_lw=3.5, ground=lambda: elm.Ground(lead=False),
+                title=title or _title(system, "equivalent circuit"), caption=caption)
+    return Schematic(d, tuple(layout.bars), {item.part.name: (item.start, item.end) for item in layout.placed})
+
+
 def draw_circuit(system: NodeSystem, path: str | Path | None = None, *, zero_tol: float = ZERO_TOL,
                  title: str | None = None) -> schemdraw.Drawing:
     """Draw the equivalent circuit of *system*.
@@ -378,12 +348,7 @@ def draw_circuit(system: NodeSystem, path: str | Path | None = None, *, zero_tol
         current source of the netlist; each label is the netlist name (``C1_2``,
         ``I2``) above its value (``= −0.764 F``, ``= f2``).
     """
-    parts = _parts(system, zero_tol)
-    d = _render(_layout(parts, system.dof), _circuit_symbol, _circuit_label,
-                node="n", bar_lw=3.5, ground=lambda: elm.Ground(lead=False),
-                title=title or _title(system, "equivalent circuit"),
-                caption="force = current, velocity = node voltage, mass = C, "
-                        "damper = R (1/b), spring = L (1/k); red values are negative")
+    d = schematic(system, zero_tol, title).drawing
     if path is not None:
         _save(d, path)
     return d
@@ -411,7 +376,7 @@ def draw_mechanism(system: NodeSystem, path: str | Path | None = None, *, zero_t
     """
     parts = _parts(system, zero_tol)
     d = _render(_layout(parts, system.dof), _mechanism_symbol, _mechanism_label,
-                node="v", bar_lw=6, ground=_LinkGround,
+                node="v", bar_lw=6, ground=LinkGround,
                 title=title or _title(system, "mechanical model"),
                 caption="links move with velocities v_k; masses are referred to ground (dotted), "
                         "MP = mass/pulley model; red values are negative")

@@ -62,6 +62,16 @@ class Motion:
         What the drawing shows (its scale, its exaggeration).
     joint_axes : ndarray, shape (F, n, 2, 3), or None
         A robot drawn in space: each joint's axis at each frame, as a short segment through it.
+    schematic : Schematic or None
+        A linear circuit small enough to draw (:func:`analogy.circuit.diagram.schematic`), shown with
+        its nodes coloured by their voltages and its parts by their currents.
+    currents : ndarray, shape (F, parts), or None
+        Each part of the schematic's current at the frames [A], in the order of ``schematic.parts``.
+    current_peaks : ndarray, shape (parts,), or None
+        Each part's largest |current| over the run's own points: the circles' scale.
+    branches : ndarray, shape (F, n, n), or None
+        A linear circuit too large for a schematic: at each frame, the current from node i to node j
+        through the elements between them, and on the diagonal each node's current to ground.
     """
 
     title: str
@@ -74,6 +84,10 @@ class Motion:
     capacitances: np.ndarray | None = None
     note: str = ""
     joint_axes: np.ndarray | None = None
+    schematic: object = None
+    currents: np.ndarray | None = None
+    current_peaks: np.ndarray | None = None
+    branches: np.ndarray | None = None
 
     @property
     def spatial(self) -> bool:
@@ -168,9 +182,13 @@ class Motion:
         """
         import matplotlib.image as mpimg
         picks = np.unique(np.linspace(0, self.frames - 1, max(count, 1)).round().astype(int))
-        sheet = Figure(figsize=(5.0 * len(picks), 2.5), layout="constrained")
-        for ax, k in zip(sheet.subplots(1, len(picks), squeeze=False)[0], picks):
-            ax.imshow(mpimg.imread(io.BytesIO(self.frame_png(int(k))), format="png"))
+        images = [mpimg.imread(io.BytesIO(self.frame_png(int(k))), format="png") for k in picks]
+        wide = images[0].shape[1] > 2.5 * images[0].shape[0]       # three panels: one frame a row
+        sheet = Figure(figsize=(10.0, 3.3 * len(picks)) if wide else (5.0 * len(picks), 2.5), layout="constrained")
+        panes = sheet.subplots(len(picks), 1, squeeze=False)[:, 0] if wide else \
+            sheet.subplots(1, len(picks), squeeze=False)[0]
+        for ax, k, image in zip(panes, picks, images):
+            ax.imshow(image)
             ax.set_axis_off()
             ax.set_title(f"frame {k + 1} of {self.frames}, t = {self.frame_times[k]:.3g} s", fontsize=9)
         sheet.suptitle(self.title, fontsize=10)
@@ -199,11 +217,14 @@ def check_animation_path(path) -> str:
 
 def _figure(motion: Motion):
     """The figure at frame 0 and ``update(k)``, which moves every artist to frame k."""
-    varying = motion.capacitances is not None
-    fig = Figure(figsize=(10.0, 4.6 if varying else 4.0), layout="constrained")
-    grid = fig.add_gridspec(2 if varying else 1, 2, width_ratios=(1.0, 1.25))
+    varying, drawn = motion.capacitances is not None, motion.schematic is not None or motion.branches is not None
+    fig = Figure(figsize=(15.0 if drawn else 10.0, 4.6 if varying or drawn else 4.0), layout="constrained")
+    grid = fig.add_gridspec(2 if varying else 1, 3 if drawn else 2,
+                            width_ratios=(1.0, 1.6, 1.1) if drawn else (1.0, 1.25))
     arm = fig.add_subplot(grid[:, 0], projection="3d" if motion.spatial else None)
-    volts = fig.add_subplot(grid[0, 1])
+    volts = fig.add_subplot(grid[0, -1])
+    glowing = (_draw_circuit if motion.schematic is not None else _draw_branches)(fig.add_subplot(grid[:, 1]), motion) \
+        if drawn else (lambda k: [])
     draw = _draw_space if motion.spatial else _draw_outline if motion.outline is not None else _draw_rails
     moving = draw(arm, motion)
     cursors = [volts.axvline(0.0, color="0.3", lw=0.8)]
@@ -235,7 +256,7 @@ def _figure(motion: Motion):
         for dot, values in dots:
             dot.set_data([t], [np.interp(t, motion.time, values)])
         heading.set_text(f"{motion.title}   t = {t:.3f} s")
-        return moving(k) + cursors + [d for d, _ in dots] + [heading]
+        return moving(k) + glowing(k) + cursors + [d for d, _ in dots] + [heading]
 
     update(0)
     fig.draw_without_rendering()
@@ -306,6 +327,58 @@ def _draw_space(ax, motion: Motion):
         back = tips[max(k - _TRAIL, 0):k + 1]
         trail.set_data_3d(back[:, 0], back[:, 1], back[:, 2])
         return links + [joints, trail] + spins
+    return moving
+
+
+def _draw_circuit(ax, motion: Motion):
+    """The schematic, each node bar coloured by its voltage over its own peak and each part marked by a
+    circle sized by its current over its own peak (red positive, blue negative)."""
+    from matplotlib import colormaps
+    s = motion.schematic
+    ax.set_axis_off()
+    ax.set_aspect("equal")
+    s.drawing.draw(show=False, canvas=ax)
+    s.drawing.fig = None            # drawn again on the next figure (a frame, a sheet)
+    box = s.drawing.get_bbox()
+    ax.set_xlim(box.xmin - 0.3, box.xmax + 0.3)
+    ax.set_ylim(box.ymin - 0.3, box.ymax + 0.3)
+    shades = colormaps["coolwarm"]
+    peaks = np.max(np.abs(motion.voltages), axis=0) if motion.voltages.size else np.zeros(0)
+    scaled = motion.voltages / np.where(peaks > 0, peaks, 1.0)
+    bars = [ax.plot([xs, xe], [0.0, 0.0], lw=10, alpha=0.6, solid_capstyle="butt", zorder=0)[0]
+            for xs, xe in s.bars]
+    middles = np.array([[(a[0] + b[0]) / 2, (a[1] + b[1]) / 2] for a, b in s.parts.values()])
+    glow = ax.scatter(middles[:, 0], middles[:, 1], s=np.zeros(len(middles)), alpha=0.45, zorder=0,
+                      edgecolors="none")
+    currents = motion.currents / np.where(motion.current_peaks > 0, motion.current_peaks, 1.0)
+
+    def moving(k: int):
+        t = motion.frame_times[k]
+        for j, bar in enumerate(bars):
+            bar.set_color(shades(0.5 + 0.5 * float(np.interp(t, motion.time, scaled[:, j]))))
+        now = currents[k]
+        glow.set_sizes(500.0 * np.abs(now))
+        glow.set_color([shades(0.5 + 0.5 * np.sign(c)) for c in now])
+        return bars + [glow]
+    return moving
+
+
+def _draw_branches(ax, motion: Motion):
+    """The circuit's currents by node pair, each over its own peak over the frames (red +, blue −)."""
+    b = motion.branches
+    n = b.shape[1]
+    peaks = np.max(np.abs(b), axis=0)
+    scaled = b / np.where(peaks > 0, peaks, 1.0)
+    image = ax.imshow(scaled[0], cmap="coolwarm", vmin=-1.0, vmax=1.0)
+    ticks = range(0, n, max(1, n // 10))
+    ax.set_xticks(list(ticks), [f"n{k + 1}" for k in ticks], fontsize=7)
+    ax.set_yticks(list(ticks), [f"n{k + 1}" for k in ticks], fontsize=7)
+    ax.set_title("current from node i to node j (diagonal: to ground), each over its own peak", fontsize=8)
+    ax.figure.colorbar(image, ax=ax, shrink=0.7, label="current / its peak")
+
+    def moving(k: int):
+        image.set_data(scaled[k])
+        return [image]
     return moving
 
 

@@ -8,6 +8,9 @@ from typing import Any, Mapping
 import numpy as np
 from scipy.integrate import cumulative_trapezoid
 
+from ..circuit.currents import element_currents
+from ..circuit.description import circuit
+from ..circuit.diagram import schematic, schematic_fits
 from ..errors import InputError
 from ..model.dynamics import NodeDynamics
 from ..model.base import RobotModel
@@ -91,8 +94,43 @@ def motion(system: NodeDynamics, trajectory: Trajectory, frames: int = 60, *,
     elif outline is not None and system.kind == "linear":
         note = "the motion the linear circuit predicts about q0" + (f"; {note}" if note else "")
     capacitances = np.array([system.node_mass(row) for row in x_shown]) if system.kind == "nonlinear" else None
+    drawn_circuit, currents, peaks = _circuit_in_motion(system, t, v, x, shown)
+    branches = _branches_in_motion(system, t, v, x, shown) if system.kind == "linear" and drawn_circuit is None else None
     title = f"{provenance.robot} {system.kind}, {trajectory.solver}"
     nodes = list(system.nodes)
     if provenance.joints and np.array_equal(system.topology.matrix, np.eye(system.dof)):
         nodes = [f"{node}: {name}" for node, name in zip(nodes, provenance.joints)]     # node k is joint k
-    return Motion(title, t, v, nodes, shown, outline, x_shown, capacitances, note, joint_axes)
+    return Motion(title, t, v, nodes, shown, outline, x_shown, capacitances, note, joint_axes, drawn_circuit,
+                  currents, peaks, branches)
+
+
+def _branches_in_motion(system: NodeDynamics, t: np.ndarray, v: np.ndarray, x: np.ndarray,
+                        shown: np.ndarray) -> np.ndarray:
+    """A circuit too large for a schematic, as a map of its currents at the frames, shape (F, n, n): entry
+    (i, j) the current from node i to node j through the elements between them, (i, i) node i's to ground."""
+    flows = element_currents(system, t, v, x)
+    out = np.zeros((len(shown), system.dof, system.dof))
+    for e in circuit(system).parts:
+        i = np.interp(shown, t, flows[e.name])
+        a, b = e.a - 1, (e.b - 1 if e.b else e.a - 1)
+        out[:, a, b] += i
+        if e.b:
+            out[:, b, a] -= i
+    return out
+
+
+def _circuit_in_motion(system: NodeDynamics, t: np.ndarray, v: np.ndarray, x: np.ndarray,
+                       shown: np.ndarray) -> tuple:
+    """A linear circuit small enough to draw: its schematic, each part's current at the frames (the
+    elements' from the node voltages, the sources' their forces) and its peak on the run's points; else
+    Nones. A nonlinear circuit's capacitances change: its panel is M'(x)."""
+    if system.kind != "linear" or not schematic_fits(system):
+        return None, None, None
+    drawn = schematic(system, title=" ", caption="node: its voltage over its peak; circle: a part's current "
+                                                  "over its peak (red +, blue −)")
+    flows = element_currents(system, t, v, x)
+    for src in circuit(system).sources:
+        flows[src.name] = src.scale * np.broadcast_to(src.waveform(t), t.shape)
+    names = list(drawn.parts)
+    peaks = np.array([np.max(np.abs(flows[name])) for name in names])
+    return drawn, np.column_stack([np.interp(shown, t, flows[name]) for name in names]), peaks
