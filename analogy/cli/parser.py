@@ -148,6 +148,16 @@ def _report(sub) -> None:
     p.add_argument("--no-animation", action="store_true", help="leave the animation out (a smaller page)")
 
 
+def _lab(sub) -> None:
+    """``analogy lab``: a scene as a lab page in the browser."""
+    p = sub.add_parser("lab", help="a scene as one offline page: sliders re-write its netlist, ngspice compiled "
+                                   "to WebAssembly runs it, and the exact solution is set beside it")
+    scene_options(p)
+    p.add_argument("-o", "--output-dir", required=True, metavar="DIR", help="folder for index.html")
+    p.add_argument("--engine", metavar="FILE.mjs", help="eecircuit-engine's dist/eecircuit-engine.mjs (npm "
+                   "eecircuit-engine; default $ANALOGY_WASM_ENGINE, else the copy bash setup.sh test installs)")
+
+
 def _run(sub) -> None:
     """``analogy run``: scene files run."""
     p = sub.add_parser("run", help="run scene files (TOML): exactly what each asks for")
@@ -230,7 +240,7 @@ def _throughput(sub) -> None:
 
 
 #: Each adds its subcommand, in the order ``analogy --help`` lists them.
-_SUBCOMMANDS = (_netlist, _compare, _modes, _ac, _verify, _draw, _animate, _report, _run, batch_options,
+_SUBCOMMANDS = (_netlist, _compare, _modes, _ac, _verify, _draw, _animate, _report, _lab, _run, batch_options,
                 _bench, _stress, _check, _memory, _throughput)
 
 

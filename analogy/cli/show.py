@@ -8,7 +8,7 @@ from ..results.output import check_plot_path
 from .outputs import accuracy_exit, check_folder, check_writable, write_outputs
 from .scene_options import built_system, scene_from_args, solver_list
 
-__all__ = ["animate_command", "report_command"]
+__all__ = ["animate_command", "report_command", "lab_command"]
 
 #: The flags that describe a scene (beside a scene file they are refused, not ignored).
 _SCENE_FLAGS = ("robot", "urdf", "joints", "mass", "damping", "stiffness", "gravity", "param", "link_modes",
@@ -85,3 +85,24 @@ def report_command(args) -> int:
     print(f"wrote {path} ({len(report.html) / 1e6:.2f} MB)")
     c = report.comparison
     return EXIT_FAILED if c.failures else accuracy_exit(c.outside_bound(), c.preset, c.bound, c)
+
+
+def lab_command(args) -> int:
+    """``analogy lab``: the scene the flags describe as an offline page of sliders, ngspice and the exact solution.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+    """
+    from pathlib import Path
+
+    from ..scenes.lab_page import write_lab
+    sc = scene_from_args(args)
+    out = Path(args.output_dir)
+    check_folder(out, "the lab")
+    if out.is_dir():
+        check_writable(out / "index.html")
+    path = write_lab(sc, out, args.engine)
+    print(f"wrote {path} ({path.stat().st_size / 1e6:.1f} MB): open it in a browser, no network needed")
+    return EXIT_OK
