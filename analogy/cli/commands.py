@@ -286,6 +286,11 @@ def _cmd_report(args) -> int:
     return report_command(args)
 
 
+def _cmd_drive(args) -> int:
+    from .show import drive_command
+    return drive_command(args)
+
+
 def _cmd_lab(args) -> int:
     from .show import lab_command
     return lab_command(args)
@@ -347,7 +352,8 @@ _COMMANDS = {"netlist": _cmd_netlist, "compare": _cmd_compare, "verify": _cmd_ve
              "throughput": throughput_command, "stress": stress_command, "batch": _cmd_batch,
              "memory": memory_command,
              "check": _cmd_check,
-             "animate": _cmd_animate, "report": _cmd_report, "lab": _cmd_lab}
+             "animate": _cmd_animate, "report": _cmd_report, "lab": _cmd_lab,
+             "drive": _cmd_drive}
 
 
 #: How the command line changes what an input error concerns, where a flag does.

@@ -158,6 +158,23 @@ def _lab(sub) -> None:
                    "eecircuit-engine; default $ANALOGY_WASM_ENGINE, else the copy bash setup.sh test installs)")
 
 
+def _drive(sub) -> None:
+    """``analogy drive``: the robot driven by its motors."""
+    p = sub.add_parser("drive", help="the robot driven by DC motors through gearboxes: the windings' loops "
+                                     "around its subcircuit run in ngspice, against the exact solution")
+    scene_options(p)
+    p.add_argument("--motors", required=True, metavar="FILE.toml",
+                   help="motor file: [default] and/or a table per joint (its name or number) with resistance, "
+                        "inductance, torque_constant, rotor_inertia, gear_ratio, viscous, coulomb, voltage_limit, "
+                        "current_limit (numbers in SI, or strings with units such as \"0.5 mH\")")
+    p.add_argument("--voltage", action="append", default=[], metavar="WAVEFORM",
+                   help="the voltage on each motor, in joint order, once per motor: a number or a waveform such "
+                        "as step(12) (the exact solution needs steps from t = 0)")
+    p.add_argument("-o", "--output", metavar="FILE.cir", help="write the netlist that ran (it runs in ngspice -b)")
+    p.add_argument("--csv", metavar="FILE", help="write the joint rates and winding currents, SPICE and exact")
+    p.add_argument("--plot", metavar="FILE.png", help="write a plot of them")
+
+
 def _run(sub) -> None:
     """``analogy run``: scene files run."""
     p = sub.add_parser("run", help="run scene files (TOML): exactly what each asks for")
@@ -240,7 +257,8 @@ def _throughput(sub) -> None:
 
 
 #: Each adds its subcommand, in the order ``analogy --help`` lists them.
-_SUBCOMMANDS = (_netlist, _compare, _modes, _ac, _verify, _draw, _animate, _report, _lab, _run, batch_options,
+_SUBCOMMANDS = (_netlist, _compare, _modes, _ac, _verify, _draw, _animate, _report, _lab, _drive, _run,
+                batch_options,
                 _bench, _stress, _check, _memory, _throughput)
 
 

@@ -1,14 +1,16 @@
-"""The commands that show a scene to a class: ``animate`` (the arm moving with its circuit) and ``report``."""
+"""The commands that show a scene: ``animate``, ``report``, the browser ``lab`` and the motors' ``drive``."""
 
 from __future__ import annotations
 
-from ..errors import EXIT_FAILED, EXIT_OK, InputError, SimulationError
+import sys
+
+from ..errors import EXIT_ACCURACY, EXIT_FAILED, EXIT_OK, InputError, SimulationError
 from ..results.animation import check_animation_path
 from ..results.output import check_plot_path
 from .outputs import accuracy_exit, check_folder, check_writable, write_outputs
 from .scene_options import built_system, scene_from_args, solver_list
 
-__all__ = ["animate_command", "report_command", "lab_command"]
+__all__ = ["animate_command", "report_command", "lab_command", "drive_command"]
 
 #: The flags that describe a scene (beside a scene file they are refused, not ignored).
 _SCENE_FLAGS = ("robot", "urdf", "joints", "mass", "damping", "stiffness", "gravity", "param", "link_modes",
@@ -106,3 +108,49 @@ def lab_command(args) -> int:
     path = write_lab(sc, out, args.engine)
     print(f"wrote {path} ({path.stat().st_size / 1e6:.1f} MB): open it in a browser, no network needed")
     return EXIT_OK
+
+
+def drive_command(args) -> int:
+    """``analogy drive``: the scene's robot driven by the motors of a motor file, in ngspice and exactly.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+    """
+    from ..model.motors import load_motors
+    from ..solvers.drive import drive
+    from ..study.drive_run import run_drive
+    from ..files import write_text
+    sc = scene_from_args(args)
+    if args.csv:
+        check_writable(args.csv)
+    if args.plot:
+        check_plot_path(args.plot)
+    system = built_system(sc)
+    joints = list(system.provenance.joints or [f"q{j + 1}" for j in range(system.dof)])
+    motors = load_motors(args.motors, joints)
+    driven = [j for j, m in enumerate(motors) if m is not None]
+    if len(args.voltage) != len(driven):
+        raise InputError(f"--voltage: give one per motor, in joint order ({', '.join(joints[j] for j in driven)}): "
+                         f"got {len(args.voltage)}")
+    voltages = [None] * system.dof
+    for j, text in zip(driven, args.voltage):
+        voltages[j] = text
+    run = run_drive(drive(system, motors, voltages), args.preset)
+    if args.output:
+        write_text(args.output, run.netlist)
+        print(f"wrote {args.output}")
+    print(run.table())
+    if run.note:
+        print(f"analogy: note: the run was {run.note}", file=sys.stderr)
+    if args.csv:
+        print(f"wrote {run.to_csv(args.csv)}")
+    if args.plot:
+        run.plot(args.plot)
+        print(f"wrote {args.plot}")
+    flags = {**run.outside_bound()}
+    for name, why in run.over_limits().items():
+        print(f"analogy: limit: {name}'s winding carried {why}", file=sys.stderr)
+    code = accuracy_exit(flags, args.preset.name, args.preset.bound)
+    return code or (EXIT_ACCURACY if run.over_limits() else EXIT_OK)

@@ -28,11 +28,20 @@ _TOKEN = re.compile(r"\s*(?:(?P<name>[A-Za-zµμ°Ω_]+)|(?P<int>[+-]?[0-9]+)|(?
 #: The physical dimensions a field may ask of its unit, as pint dimensionalities. An angle is
 #: dimensionless in SI (rad = m/m), so a bare number and rad, deg or turn all pass as one.
 Dimension = Literal["time", "length", "angle", "mass", "frequency", "angular rate", "velocity", "force",
-                    "torque"]
+                    "torque", "resistance", "inductance", "voltage", "current", "torque constant", "inertia",
+                    "rotary damping"]
 DIMENSIONS: dict[str, str] = {"time": "[time]", "length": "[length]", "angle": "dimensionless",
                               "mass": "[mass]", "frequency": "1 / [time]", "angular rate": "1 / [time]",
                               "velocity": "[length] / [time]", "force": "[mass] * [length] / [time] ** 2",
-                              "torque": "[mass] * [length] ** 2 / [time] ** 2"}
+                              "torque": "[mass] * [length] ** 2 / [time] ** 2",
+                              # a motor's (analogy.model.motors)
+                              "resistance": "[mass] * [length] ** 2 / [time] ** 3 / [current] ** 2",
+                              "inductance": "[mass] * [length] ** 2 / [time] ** 2 / [current] ** 2",
+                              "voltage": "[mass] * [length] ** 2 / [time] ** 3 / [current]",
+                              "current": "[current]",
+                              "torque constant": "[mass] * [length] ** 2 / [time] ** 2 / [current]",
+                              "inertia": "[mass] * [length] ** 2",
+                              "rotary damping": "[mass] * [length] ** 2 / [time]"}
 #: A joint coordinate (an angle or a travel) and its rate, before the model says which joint is which.
 COORDINATE: tuple[Dimension, ...] = ("angle", "length")
 RATE: tuple[Dimension, ...] = ("angular rate", "velocity")

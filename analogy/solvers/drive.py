@@ -1,0 +1,299 @@
+"""A robot driven by DC motors: each winding's loop around the robot's subcircuit, and the exact solution of the whole."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Sequence
+
+import numpy as np
+from scipy.integrate import cumulative_trapezoid
+from scipy.linalg import expm
+
+from ..circuit.description import circuit as describe
+from ..circuit.elements import ZERO_TOL
+from ..circuit.netlist import comment_text, first_step_lines
+from ..errors import InputError
+from ..model.motors import Motor, reflected
+from ..presets import Preset
+from ..waveforms import Waveform, parse_waveform
+from .run_settings import TransientSettings
+from .transient import circuit_settings, subcircuit_netlist
+
+__all__ = ["Drive", "drive", "drive_settings", "drive_netlist", "exact_drive", "node_matrices", "power_balance"]
+
+
+@dataclass(frozen=True, eq=False)
+class Drive:
+    """A linear robot circuit with a DC motor on some joints, each driven by a voltage.
+
+    Attributes
+    ----------
+    system : NodeSystem
+        The robot's linear circuit; its own applied forces are left out (the motors drive it),
+        gravity's load at the pose stays.
+    motors : tuple of Motor or None
+        One per joint (None: the joint is undriven).
+    voltages : tuple of Waveform or None
+        The voltage across each motor's winding terminals.
+    """
+
+    system: object
+    motors: tuple
+    voltages: tuple
+
+    @property
+    def driven(self) -> list[int]:
+        """The joints (0-based) with a motor."""
+        return [j for j, m in enumerate(self.motors) if m is not None]
+
+    @property
+    def windings(self) -> list[int]:
+        """The driven joints whose winding has an inductance: its current is a state."""
+        return [j for j in self.driven if self.motors[j].inductance > 0]
+
+
+def drive(system, motors: Sequence[Motor | None], voltages: Sequence[str | float | Waveform | None]) -> Drive:
+    """*system* driven by *motors* at *voltages*, checked.
+
+    Parameters
+    ----------
+    system : NodeSystem
+        A linear robot circuit.
+    motors : sequence of Motor or None
+        One per joint.
+    voltages : sequence
+        One per joint: a waveform (``"step(12)"``, a number for a constant), None where the joint has
+        no motor.
+    """
+    if system.kind != "linear":
+        raise InputError("a drive takes the robot's linear circuit (its nonlinear one is not driven yet)")
+    n = system.dof
+    if len(motors) != n or len(voltages) != n:
+        raise InputError(f"a drive needs a motor (or None) and a voltage for each of the {n} joints")
+    waves = []
+    for j, (m, v) in enumerate(zip(motors, voltages)):
+        if m is None:
+            if v is not None:
+                raise InputError(f"joint {j + 1} has no motor to take the voltage {v!r}")
+            waves.append(None)
+            continue
+        if m.coulomb:
+            raise InputError(f"joint {j + 1}'s motor has Coulomb friction ({m.coulomb:g} N·m), which is not linear: "
+                             "the linear drive leaves none out in silence, so give coulomb = 0")
+        w = v if isinstance(v, Waveform) else parse_waveform(str(v if v is not None else 0.0))
+        peak = float(np.max(np.abs(w(np.linspace(0.0, system.t_stop, 2001)))))
+        if peak > m.voltage_limit:
+            raise InputError(f"joint {j + 1}'s voltage reaches {peak:g} V, past its motor's limit of "
+                             f"{m.voltage_limit:g} V")
+        waves.append(w)
+    unforced = system.driven([0.0] * n)
+    return Drive(unforced, tuple(motors), tuple(waves))
+
+
+def node_matrices(d: Drive) -> tuple:
+    """M'', B'' (the robot's with the rotors reflected and, for windings without inductance, the
+    back-EMF's damping n²/R) and K', in node coordinates; and the current map C = T⁻ᵀ.
+
+    Parameters
+    ----------
+    d : Drive
+        The drive.
+    """
+    s = d.system
+    c = np.asarray(s.current_map, float)
+    armature, viscous = reflected(d.motors)
+    quick = np.array([m.ratio ** 2 / m.resistance if m is not None and m.inductance == 0 else 0.0
+                      for m in d.motors])
+    mass = s.mass + c @ np.diag(armature) @ c.T
+    damping = s.damping + c @ np.diag(viscous + quick) @ c.T
+    return mass, damping, s.stiffness, c
+
+
+def _state(d: Drive) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """The state matrix A of y = [x (with springs), v, i (windings with L)], the map U from the joints'
+    voltages to y', the constant load into y' (gravity's), and the index where v starts."""
+    mass, damping, stiffness, c = node_matrices(d)
+    n, w = d.system.dof, d.windings
+    springs = stiffness is not None
+    first = n if springs else 0
+    size = first + n + len(w)
+    a, u, load = np.zeros((size, size)), np.zeros((size, n)), np.zeros(size)
+    inv = np.linalg.inv(mass)
+    if springs:
+        a[:n, first:first + n] = np.eye(n)
+        a[first:first + n, :n] = -inv @ stiffness
+    a[first:first + n, first:first + n] = -inv @ damping
+    load[first:first + n] = inv @ d.system.node_currents(np.zeros(1))[0]
+    for k, j in enumerate(w):               # L·i' = V − R·i − n·r_j, and n·i onto joint j
+        m, row = d.motors[j], first + n + k
+        a[first:first + n, row] = inv @ c[:, j] * m.ratio
+        a[row, first:first + n] = -m.ratio * c[:, j] / m.inductance
+        a[row, row] = -m.resistance / m.inductance
+        u[row, j] = 1.0 / m.inductance
+    for j in d.driven:                      # without L: the current (V − n·r)/R, its torque n·V/R
+        m = d.motors[j]
+        if m.inductance == 0:
+            u[first:first + n, j] = inv @ c[:, j] * m.ratio / m.resistance
+    return a, u, load, first
+
+
+def exact_drive(d: Drive, times) -> tuple[np.ndarray, np.ndarray]:
+    """The joint rates and the windings' currents at *times* under constant (step) voltages, exactly: the
+    augmented state [y; 1] carried by the matrix exponential over each step.
+
+    Parameters
+    ----------
+    d : Drive
+        The drive; each voltage a step from t = 0.
+    times : array_like
+        Increasing times from 0 [s].
+    """
+    t = np.asarray(times, float)
+    volts = np.array([float(w(0.0)) if w is not None else 0.0 for w in d.voltages])
+    for w in d.voltages:
+        if w is not None and np.ptp(w(np.linspace(0.0, d.system.t_stop, 101))) != 0:
+            raise InputError("the exact drive takes constant voltages (steps from t = 0)")
+    a, u, load, first = _state(d)
+    size = len(a)
+    z = np.zeros((size + 1, size + 1))
+    z[:size, :size], z[:size, size] = a, u @ volts + load
+    y = np.zeros(size + 1)
+    y[first:first + d.system.dof] = d.system.initial_voltages
+    y[size] = 1.0
+    states, last, steps = [], 0.0, {}
+    for now in t:
+        h = now - last
+        if h > 0:
+            key = round(h, 15)
+            if key not in steps:
+                steps[key] = expm(z * h)
+            y = steps[key] @ y
+        last = now
+        states.append(y.copy())
+    states = np.array(states)
+    v = states[:, first:first + d.system.dof]
+    rates = d.system.joint_rates(v)
+    currents = np.zeros((len(t), d.system.dof))
+    for k, j in enumerate(d.windings):
+        currents[:, j] = states[:, first + d.system.dof + k]
+    for j in d.driven:
+        m = d.motors[j]
+        if m.inductance == 0:
+            currents[:, j] = (volts[j] - m.ratio * rates[:, j]) / m.resistance
+    return rates, currents
+
+
+def drive_settings(d: Drive, preset: Preset) -> TransientSettings:
+    """The robot circuit's transient settings at *preset*, its step cap made short enough for the fastest
+    lasting rate of the whole (a winding's decay that is over before t_stop sets the first step only).
+
+    Parameters
+    ----------
+    d : Drive
+        The drive.
+    preset : Preset
+        The accuracy preset.
+    """
+    s = d.system
+    settings = circuit_settings(s, describe(s, ZERO_TOL, False), preset)
+    rates = np.linalg.eigvals(_state(d)[0])
+    # a mode that decays under the bound before t_stop (a winding's L/R) sets the first step, not the cap
+    lasting = rates[rates.real * s.t_stop > math.log(preset.bound)]
+    fastest, cap = float(np.max(np.abs(rates), initial=0.0)), float(np.max(np.abs(lasting), initial=0.0))
+    if cap > 0 and math.isfinite(preset.spice.phase_step):
+        settings = replace(settings, max_step=min(settings.max_step, preset.spice.phase_step / cap))
+    if fastest > 0 and math.isfinite(preset.spice.first_phase_step):
+        settings = replace(settings, first_step=min(settings.first_step, preset.spice.first_phase_step / fastest))
+    return settings
+
+
+def drive_netlist(d: Drive, preset: Preset, title: str | None = None, settings=None) -> str:
+    """The robot's subcircuit with each motor's winding loop on its port, as ``ngspice -b`` runs it.
+
+    Winding j is a loop: its voltage source, R, L, a zero-volt source sensing its current i, and the
+    back-EMF n·v(p_j) (an E source on the joint's port); an F source drives n·i into the port. The
+    rotor's N²·J is a capacitor and its N²·b a conductance on the port. The port voltages (the
+    joint rates) and the winding currents are saved.
+
+    Parameters
+    ----------
+    d : Drive
+        The drive.
+    preset : Preset
+        The accuracy preset: its ``.options``, with the step cap made short enough for the fastest
+        rate of the whole (the windings' L/R, the back-EMF's damping).
+    title : str, optional
+        First line.
+    settings : TransientSettings, optional
+        The settings to write (a retry's), instead of :func:`drive_settings`.
+    """
+    s = d.system
+    name = "robot"
+    inner = subcircuit_netlist(s, preset, name=name)
+    settings = settings or drive_settings(d, preset)
+    ports = " ".join(f"p{j + 1}" for j in range(s.dof))
+    joints = s.provenance.joints or [f"q{j + 1}" for j in range(s.dof)]
+    lines = [f"* {comment_text(title or 'analogy drive: ' + s.provenance.robot + ' driven by its motors')}",
+             "* each motor: its voltage, R and L in a loop with the back-EMF n*r (an E source on the joint's",
+             "* port) and a zero-volt source sensing its current i; an F source drives the torque n*i into",
+             "* the port; the rotor's N^2*J is a capacitor, its N^2*b a conductance on the port",
+             inner.rstrip("\n"), f"X1 {ports} {name}"]
+    save = [f"v(p{j + 1})" for j in range(s.dof)]
+    for j in d.driven:
+        m, k = d.motors[j], j + 1
+        lines.append("* " + comment_text(f"motor on joint {k} ({joints[j]}): R = {m.resistance:g} ohm, L = {m.inductance:g} H, "
+                                         f"n = N·k = {m.gear_ratio:g}·{m.torque_constant:g} = {m.ratio:g}"))
+        lines.append(f"Vd{k} d{k} 0 {d.voltages[j].spice(1.0, s.t_stop)}")
+        lines.append(f"Rw{k} d{k} w{k}a {m.resistance!r}" if m.inductance else f"Rw{k} d{k} w{k}b {m.resistance!r}")
+        if m.inductance:
+            lines.append(f"Lw{k} w{k}a w{k}b {m.inductance!r}")
+        lines += [f"Vs{k} w{k}b w{k}c DC 0", f"Eb{k} w{k}c 0 p{k} 0 {m.ratio!r}", f"Fm{k} 0 p{k} Vs{k} {m.ratio!r}"]
+        if m.armature:
+            lines.append(f"Ca{k} p{k} 0 {m.armature!r}")
+        if m.reflected_viscous:
+            lines.append(f"Rv{k} p{k} 0 {1.0 / m.reflected_viscous!r}")
+        save.append(f"i(vs{k})")
+    lines += first_step_lines(settings, "p1")      # the winding's fast decay: a short first step
+    options = " ".join(f"{k}={v}" if v != "" else k for k, v in settings.options)
+    ic = " ".join(f"v(p{j + 1})={float(r)!r}" for j, r in enumerate(s.joint_rates(s.initial_voltages)))
+    lines += [f".ic {ic}", f".options {options}",
+              f".tran {settings.print_step!r} {settings.stop!r} 0 {settings.max_step!r} uic",
+              f".save {' '.join(save)}", ".end"]
+    return "\n".join(lines) + "\n"
+
+
+def power_balance(d: Drive, t: np.ndarray, rates: np.ndarray, currents: np.ndarray) -> np.ndarray:
+    """The power the drives put in, less what the windings' R and L, the robot's dampers and rotors, its
+    springs and its kinetic energy take, at each of *t* [W]: zero but for the error of the run.
+
+    Σ V·i = Σ R·i² + d/dt Σ ½·L·i² + vᵀ·B''·v + d/dt(½·vᵀ·M''·v + ½·xᵀ·K'·x) − i₀ᵀ·v, with v = T·r, x = ∫v
+    and i₀ gravity's constant load; the time derivatives by second-order differences.
+
+    Parameters
+    ----------
+    d : Drive
+        The drive.
+    t : ndarray, shape (N,)
+        Times of a run.
+    rates, currents : ndarray, shape (N, n)
+        Its joint rates and winding currents (zero where a joint has no motor).
+    """
+    mass, damping, stiffness, _ = node_matrices(d)
+    s = d.system
+    v = rates @ np.asarray(s.topology.matrix, float).T
+    volts = np.column_stack([w(t) if w is not None else np.zeros_like(t) for w in d.voltages])
+    r_w = np.array([m.resistance if m else 0.0 for m in d.motors])
+    l_w = np.array([m.inductance if m else 0.0 for m in d.motors])
+    # a winding without L: its R's loss is in B'' as the back-EMF's damping's share; count it once
+    r_loss = np.where(l_w > 0, r_w, 0.0)
+    stored = 0.5 * np.einsum("ti,ij,tj->t", v, mass, v) + 0.5 * np.sum(l_w * currents ** 2, axis=1)
+    if stiffness is not None:
+        x = cumulative_trapezoid(v, t, axis=0, initial=0.0)
+        stored = stored + 0.5 * np.einsum("ti,ij,tj->t", x, stiffness, x)
+    quick_in = np.where(l_w == 0, 1.0, 0.0) * np.array([m.ratio / m.resistance if m else 0.0 for m in d.motors])
+    # without L the drive's power into the joint is n·V/R·r (its own R's loss n²r²/R is in B'')
+    given = np.sum(np.where(l_w > 0, volts * currents, volts * quick_in * rates), axis=1)
+    given = given + v @ s.node_currents(np.zeros(1))[0]
+    lost = np.sum(r_loss * currents ** 2, axis=1) + np.einsum("ti,ij,tj->t", v, damping, v)
+    return given - lost - np.gradient(stored, t, edge_order=2)

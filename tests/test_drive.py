@@ -1,0 +1,127 @@
+"""Motors and gearboxes: the robot as a load in its drives' circuit. The winding loops around its
+subcircuit agree with the exact solution of the whole, the rotors reflect as Pinocchio's armature,
+and the power the drives put in is what the windings, the dampers and the stored energy take."""
+
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import analogy
+from analogy.errors import InputError
+from analogy.model.motors import Motor, motors_from_table
+from analogy.presets import PRESETS
+from analogy.solvers.drive import drive, drive_netlist, exact_drive, node_matrices, power_balance
+from analogy.study.drive_run import run_drive
+
+EPS = np.finfo(float).eps
+#: A motor with a winding inductance (its current a state) and one without (its current follows its voltage).
+WOUND = Motor(resistance=0.6, torque_constant=0.07, inductance=5e-4, rotor_inertia=1e-5, gear_ratio=50, viscous=1e-5)
+QUICK = Motor(resistance=1.2, torque_constant=0.05, rotor_inertia=2e-5, gear_ratio=30)
+
+pytestmark = pytest.mark.ngspice
+
+
+def test_the_rotor_reflects_through_its_gear_as_pinocchios_armature():
+    """M + N²·J on the diagonal is Pinocchio's CRBA with ``model.armature`` = N²·J, at random poses of the
+    UR5, to the rounding of the CRBA (64·n·ε of M's largest entry)."""
+    pin = pytest.importorskip("pinocchio")
+    from analogy.model.urdf_robots import URDF_ROBOTS, _robots_folder
+    sc = analogy.scene("ur5")
+    system = sc.system()
+    rng = np.random.default_rng(5)
+    motors = [Motor(resistance=1.0, torque_constant=0.1, rotor_inertia=float(j), gear_ratio=float(n))
+              for j, n in zip(rng.uniform(1e-6, 1e-4, 6), rng.uniform(20, 160, 6))]
+    pm = pin.buildModelFromUrdf(str(_robots_folder() / URDF_ROBOTS["ur5"][0]))
+    pm.armature = np.array([m.armature for m in motors])
+    data = pm.createData()
+    model = sc.numeric_model()
+    for q in [np.array(sc.q)] + list(rng.uniform(-np.pi, np.pi, (5, 6))):
+        ours = model.joint_space(q).mass_matrix + np.diag([m.armature for m in motors])
+        theirs = pin.crba(pm, data, q)
+        theirs = np.triu(theirs) + np.triu(theirs, 1).T
+        assert np.allclose(ours, theirs, rtol=0, atol=64 * 6 * EPS * np.max(np.abs(theirs)))
+    # the drive's node mass is the same, mapped to the nodes (the UR5's parallel circuit: T = I)
+    mass, _, _, _ = node_matrices(drive(system, motors, ["step(1)"] * 6))
+    at = model.joint_space(sc.q).mass_matrix + np.diag([m.armature for m in motors])
+    assert np.allclose(mass, at, rtol=0, atol=64 * 6 * EPS * np.max(np.abs(at)))
+
+
+@pytest.mark.parametrize("name", ["default", "double_pendulum"])
+def test_the_drives_circuit_holds_the_bound_against_the_exact_solution_of_the_whole(name):
+    """Every joint rate and winding current within the accurate bound of its own peak; the hanging
+    double pendulum brings gravity's stiffness (inductors) into the robot."""
+    system = analogy.scene(name).system()
+    run = run_drive(drive(system, [WOUND, QUICK], ["step(2)", "step(-1)"]), PRESETS["accurate"])
+    assert set(run.errors) == {"r1", "r2", "i1", "i2"}
+    assert max(run.errors.values()) <= PRESETS["accurate"].bound, run.errors
+    # a step of voltage into a wound winding starts its current from zero; without L at once
+    assert run.currents[0, 0] == 0.0 and run.currents[0, 1] == pytest.approx(-1.0 / QUICK.resistance, rel=1e-12)
+
+
+def test_the_power_put_in_is_what_the_windings_dampers_and_stored_energy_take():
+    """The balance is exact up to its time derivative's second-order differences: on the exact solution
+    its residual falls four times as the grid's step halves, where the grid resolves the winding's
+    L/R = 0.83 ms (20 µs to 5 µs over its first 20 ms, where the inrush makes the residual largest)."""
+    d = drive(analogy.scene("default").system(), [WOUND, QUICK], ["step(2)", "step(-1)"])
+    peaks = []
+    for steps in (1000, 2000, 4000):
+        t = np.linspace(0.0, 0.02, steps + 1)
+        rates, currents = exact_drive(d, t)
+        given = 2.0 * currents[:, 0] - 1.0 * currents[:, 1]
+        residual = power_balance(d, t, rates, currents)
+        peaks.append(float(np.max(np.abs(residual[1:-1]))) / float(np.max(np.abs(given))))
+    assert 3.5 < peaks[0] / peaks[1] < 4.5 and 3.5 < peaks[1] / peaks[2] < 4.5, peaks
+
+
+@pytest.mark.skipif(shutil.which("ngspice") is None, reason="ngspice's executable is not installed")
+def test_the_drive_netlist_runs_in_plain_ngspice_as_it_ran_in_process(tmp_path):
+    d = drive(analogy.scene("default").system(), [WOUND, QUICK], ["step(2)", "step(-1)"])
+    run = run_drive(d, PRESETS["accurate"])
+    text = run.netlist.replace(".end\n", ".print tran v(p1) v(p2)\n.control\nset numdgt=15\n.endc\n.end\n")
+    (tmp_path / "drive.cir").write_text(text)
+    out = subprocess.run(["ngspice", "-b", str(tmp_path / "drive.cir")], capture_output=True, text=True,
+                         timeout=300).stdout
+    rows = [ln.split() for ln in out.splitlines() if ln.split()[:1] and ln.split()[0].isdigit()]
+    last = [float(x) for x in rows[-1][2:4]]
+    # the same run, printed: its last row is t_stop's, as the run's own last point
+    assert np.allclose(last, run.rates[-1], rtol=1e-12, atol=0)
+
+
+def test_a_motor_file_names_each_field_and_joint_or_is_refused_in_one_sentence():
+    table = {"default": {"resistance": "0.6 ohm", "torque_constant": "70 mN*m/A", "inductance": "0.5 mH",
+                         "rotor_inertia": "10 kg*cm^2", "gear_ratio": 50},
+             "elbow": {"gear_ratio": 30}}
+    first, second = motors_from_table(table, ["shoulder", "elbow"])
+    assert first.torque_constant == pytest.approx(0.07) and first.rotor_inertia == pytest.approx(1e-3)
+    assert second.gear_ratio == 30 and second.resistance == 0.6 and second.armature == pytest.approx(0.9)
+    for broken, said in (({"default": {"resistance": 1}}, "needs its torque_constant"),
+                         ({"default": {"resistance": "1 kg", "torque_constant": 1}}, "expected a resistance"),
+                         ({"default": {"resistance": -1, "torque_constant": 1}}, "must be positive"),
+                         ({"default": {"resistance": 1, "torque_constant": 1, "colour": 1}}, "unknown field"),
+                         ({"wrist": {"resistance": 1, "torque_constant": 1}}, "not a joint")):
+        with pytest.raises(InputError, match=said):
+            motors_from_table(broken, ["shoulder", "elbow"])
+    with pytest.raises(InputError, match="not linear"):
+        drive(analogy.scene("default").system(), [Motor(1.0, 0.1, coulomb=0.2), None], ["step(1)", None])
+    with pytest.raises(InputError, match="past its motor's limit"):
+        drive(analogy.scene("default").system(), [Motor(1.0, 0.1, voltage_limit=12), None], ["step(24)", None])
+
+
+def test_the_command_line_drives_a_robot_and_flags_a_winding_past_its_current_limit(tmp_path):
+    motors = tmp_path / "motors.toml"
+    motors.write_text('[default]\nresistance = "0.6 ohm"\ninductance = "0.5 mH"\ntorque_constant = 0.07\n'
+                      'rotor_inertia = "1e-5 kg*m^2"\ngear_ratio = 50\ncurrent_limit = "10 A"\n')
+
+    def cli(*args):
+        return subprocess.run([sys.executable, "-m", "analogy", "drive", "--motors", str(motors), *args],
+                              capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    ok = cli("--voltage", "step(2)", "--voltage", "step(-1)", "-o", "drive.cir")
+    assert ok.returncode == 0, ok.stderr
+    assert "power balance" in ok.stdout and (tmp_path / "drive.cir").read_text().startswith("* analogy drive")
+    hot = cli("--voltage", "step(12)", "--voltage", "step(-1)")
+    assert hot.returncode == 3 and "past its limit of 10 A" in hot.stderr
+    few = cli("--voltage", "step(2)")
+    assert few.returncode == 2 and "one per motor" in few.stderr and "Traceback" not in few.stderr
