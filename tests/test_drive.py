@@ -125,3 +125,15 @@ def test_the_command_line_drives_a_robot_and_flags_a_winding_past_its_current_li
     assert hot.returncode == 3 and "past its limit of 10 A" in hot.stderr
     few = cli("--voltage", "step(2)")
     assert few.returncode == 2 and "one per motor" in few.stderr and "Traceback" not in few.stderr
+
+
+def test_a_urdfs_transmissions_give_the_gear_ratios_a_motor_file_leaves_out():
+    from analogy.model.urdf_file import transmissions
+    from analogy.model.urdf_robots import urdf_robot
+    reductions = transmissions(urdf_robot("xarm7")[0])
+    assert reductions == {f"joint{k}": 100.0 for k in range(1, 8)}
+    assert transmissions(urdf_robot("panda")[0]) == {}
+    joints = [f"joint{k}" for k in range(1, 8)]
+    table = {"default": {"resistance": 1.0, "torque_constant": 0.05}, "joint7": {"gear_ratio": 50}}
+    motors = motors_from_table(table, joints, "m.toml", reductions)
+    assert [m.gear_ratio for m in motors] == [100.0] * 6 + [50.0]      # the file's own ratio wins

@@ -119,6 +119,7 @@ def drive_command(args) -> int:
         The parsed command line.
     """
     from ..model.motors import load_motors
+    from ..model.urdf_file import transmissions
     from ..solvers.drive import drive
     from ..study.drive_run import run_drive
     from ..files import write_text
@@ -129,7 +130,9 @@ def drive_command(args) -> int:
         check_plot_path(args.plot)
     system = built_system(sc)
     joints = list(system.provenance.joints or [f"q{j + 1}" for j in range(system.dof)])
-    motors = load_motors(args.motors, joints)
+    model = sc.numeric_model()
+    # a URDF's transmissions give the gear ratios the motor file leaves out
+    motors = load_motors(args.motors, joints, transmissions(model.text) if model.rigid_tree else None)
     driven = [j for j, m in enumerate(motors) if m is not None]
     if len(args.voltage) != len(driven):
         raise InputError(f"--voltage: give one per motor, in joint order ({', '.join(joints[j] for j in driven)}): "

@@ -103,9 +103,11 @@ def _motor(entry: Mapping, where: str) -> Motor:
     return Motor(**values)
 
 
-def motors_from_table(table: Mapping, joints: Sequence[str], where: str = "motors") -> tuple[Motor | None, ...]:
+def motors_from_table(table: Mapping, joints: Sequence[str], where: str = "motors",
+                      reductions: Mapping[str, float] | None = None) -> tuple[Motor | None, ...]:
     """Each joint's motor from a table ``{default: {...}, <joint name or number>: {...}}``: a joint's own
-    fields over the default's; None for a joint with neither.
+    fields over the default's, and over a URDF's gear ratio for it (*reductions*); None for a joint
+    with neither table.
 
     Parameters
     ----------
@@ -115,6 +117,9 @@ def motors_from_table(table: Mapping, joints: Sequence[str], where: str = "motor
         The robot's joint names, in order (``q1`` … for the built-in arms).
     where : str
         The source, named in errors.
+    reductions : mapping of str to float, optional
+        Gear ratios by joint name, from a URDF's transmissions (:func:`~analogy.model.urdf_file.transmissions`):
+        a motor table without ``gear_ratio`` takes its joint's.
     """
     default = table.get("default", {})
     own: dict[int, Mapping] = {}
@@ -135,14 +140,16 @@ def motors_from_table(table: Mapping, joints: Sequence[str], where: str = "motor
         if k not in own and not default:
             out.append(None)
             continue
-        entry = {**default, **own.get(k, {})} if isinstance(own.get(k, {}), Mapping) else own[k]
+        urdf = {"gear_ratio": (reductions or {})[name]} if name in (reductions or {}) else {}
+        entry = {**urdf, **default, **own.get(k, {})} if isinstance(own.get(k, {}), Mapping) else own[k]
         out.append(_motor(entry, f"{where}: [{name if k in own else 'default'}]"))
     if not any(out):
         raise InputError(f"{where}: no joint has a motor (give [default] or a table per joint)")
     return tuple(out)
 
 
-def load_motors(path: str | Path, joints: Sequence[str]) -> tuple[Motor | None, ...]:
+def load_motors(path: str | Path, joints: Sequence[str],
+                reductions: Mapping[str, float] | None = None) -> tuple[Motor | None, ...]:
     """The motors of a motor file (TOML, see :func:`motors_from_table`).
 
     Parameters
@@ -151,6 +158,8 @@ def load_motors(path: str | Path, joints: Sequence[str]) -> tuple[Motor | None, 
         The file.
     joints : sequence of str
         The robot's joint names.
+    reductions : mapping of str to float, optional
+        A URDF's gear ratios by joint name.
     """
     p = Path(path)
     try:
@@ -159,7 +168,7 @@ def load_motors(path: str | Path, joints: Sequence[str]) -> tuple[Motor | None, 
         raise InputError(f"cannot read the motor file {p}: {exc.strerror or exc}") from None
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise InputError(f"{p}: not a TOML motor file ({exc})") from None
-    return motors_from_table(table, list(joints), str(p))
+    return motors_from_table(table, list(joints), str(p), reductions)
 
 
 def reflected(motors: Sequence[Motor | None]) -> tuple[np.ndarray, np.ndarray]:

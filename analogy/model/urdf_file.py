@@ -17,7 +17,8 @@ from ..errors import InputError
 if TYPE_CHECKING:
     import yourdfpy
 
-__all__ = ["MAX_URDF_BYTES", "MOVING_JOINTS", "read_urdf", "parse_urdf", "urdf_number", "urdf_triple"]
+__all__ = ["MAX_URDF_BYTES", "MOVING_JOINTS", "read_urdf", "parse_urdf", "transmissions", "urdf_number",
+           "urdf_triple"]
 
 #: A URDF larger than this is refused before it is parsed (the Panda's is 20 kB).
 MAX_URDF_BYTES = 10_000_000
@@ -215,6 +216,32 @@ def parse_urdf(text: str) -> "yourdfpy.Robot":
             raise InputError(f"the URDF's {kind} {missing[0]} is lost by its parser ({len(missing)} "
                              f"{kind}(s) in all): is the file damaged?", field="robot")
     return robot
+
+
+def transmissions(text: str) -> dict[str, float]:
+    """Each joint's gear ratio from the URDF's ``<transmission>`` elements: the ``mechanicalReduction`` of
+    a transmission that names one joint and one reduction (ROS's simple transmission, in its old and new
+    forms); the others are left out.
+
+    Parameters
+    ----------
+    text : str
+        The URDF (checked as :func:`parse_urdf` checks it).
+    """
+    data = _document_bytes(text)
+    if "<!DOCTYPE" in text or "<!ENTITY" in text:
+        raise InputError("the URDF has a DTD (<!DOCTYPE or <!ENTITY>): URDF files need none", field="robot")
+    try:
+        root = ElementTree.fromstring(data)
+    except ElementTree.ParseError as exc:
+        raise InputError(f"not a readable URDF (malformed XML: {exc})", field="robot") from None
+    out = {}
+    for element in root.findall("transmission"):
+        joints = [j.get("name") for j in element.findall("joint")]
+        reductions = [r.text for r in element.iter("mechanicalReduction")]
+        if len(joints) == 1 and len(reductions) == 1 and joints[0]:
+            out[joints[0]] = urdf_number(reductions[0], f"transmission {element.get('name')}'s mechanicalReduction")
+    return out
 
 
 def urdf_number(value, what: str) -> float:
