@@ -12,7 +12,7 @@ from .errors import InputError
 from .model.expressions import parse_call, parse_number
 from .model.quantities import FORCE
 
-__all__ = ["Waveform", "Step", "PWL", "Pulse", "Sine", "Piece", "parse_waveform", "pwl_sum"]
+__all__ = ["Waveform", "Step", "PWL", "Pulse", "PWM", "Sine", "Piece", "parse_waveform", "pwl_sum"]
 
 
 def _num(x: float) -> str:
@@ -274,6 +274,27 @@ class Pulse(Waveform):
         return self._pwl_cache(float(np.max(t)) if t.size else 1.0)(t)
 
 
+class PWM(Pulse):
+    """An H-bridge's output: +*supply* for the share *duty* of each period of 1/*frequency*, −*supply* for the
+    rest, each switching edge a share *edge* of the period long (SPICE sources cannot jump)."""
+
+    def __init__(self, supply, duty, frequency, edge=1e-3):
+        supply, duty, frequency, edge = float(supply), float(duty), float(frequency), float(edge)
+        if not (0.0 < frequency < math.inf and 0.0 < edge < 0.05):
+            raise InputError("pwm needs a positive, finite frequency and an edge under 5% of the period")
+        period = 1.0 / frequency
+        if not edge <= duty <= 1.0 - edge:
+            raise InputError(f"pwm duty must be from {edge:g} to {1 - edge:g} (its edges take {edge:g} of the period)")
+        self.supply, self.duty, self.frequency, self.edge = supply, duty, frequency, edge
+        super().__init__(-supply, supply, 0.0, edge * period, edge * period, (duty - edge) * period, period)
+
+    def __repr__(self):
+        return f"PWM({self.supply!r}, {self.duty!r}, {self.frequency!r}, {self.edge!r})"
+
+    def label(self) -> str:
+        return _call("pwm", (self.supply, self.duty, self.frequency, self.edge), 3)
+
+
 class Sine(Waveform):
     """SPICE SIN: offset + amplitude·exp(−damping·τ)·sin(2π·frequency·τ + phase), τ = t − delay ≥ 0.
 
@@ -327,6 +348,7 @@ class Sine(Waveform):
 _WAVEFORMS = {
     "step": Step,
     "pulse": Pulse,
+    "pwm": PWM,
     "sine": Sine, "sin": Sine,
     "pwl": None,
 }

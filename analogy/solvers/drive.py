@@ -17,6 +17,7 @@ from ..errors import InputError
 from ..model.motors import Motor, reflected
 from ..presets import Preset
 from ..waveforms import Waveform, parse_waveform
+from .exact import phi1, phi2
 from .run_settings import TransientSettings
 from .transient import circuit_settings, subcircuit_netlist
 
@@ -63,8 +64,8 @@ def drive(system, motors: Sequence[Motor | None], voltages: Sequence[str | float
     motors : sequence of Motor or None
         One per joint.
     voltages : sequence
-        One per joint: a waveform (``"step(12)"``, a number for a constant), None where the joint has
-        no motor.
+        One per joint: a waveform (``"step(12)"``, a number for a constant, ``"pwm(24, 0.6, 20e3)"``),
+        None where the joint has no motor.
     """
     if system.kind != "linear":
         raise InputError("a drive takes the robot's linear circuit (its nonlinear one is not driven yet)")
@@ -104,7 +105,7 @@ def node_matrices(d: Drive) -> tuple:
     c = np.asarray(s.current_map, float)
     armature, viscous = reflected(d.motors)
     quick = np.array([m.ratio ** 2 / m.resistance if m is not None and m.inductance == 0 else 0.0
-                      for m in d.motors])
+                      for j, m in enumerate(d.motors)])
     mass = s.mass + c @ np.diag(armature) @ c.T
     damping = s.damping + c @ np.diag(viscous + quick) @ c.T
     return mass, damping, s.stiffness, c
@@ -138,49 +139,89 @@ def _state(d: Drive) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     return a, u, load, first
 
 
+class _Stepper:
+    """y' = A·y + U·(a + b·σ) + load carried exactly over a step h from σ = 0.
+
+    Through A's modes where they are well conditioned: each mode w = V⁻¹·y moves as
+    e^{λh}·w + h·φ₁(λh)·V⁻¹·(U·a + load) + h²·φ₂(λh)·V⁻¹·U·b. Otherwise by one matrix exponential
+    of y with the input as states, z = [y; a; p; b; 1] with p = b·σ (p' = b), cached per step length.
+    """
+
+    def __init__(self, d: Drive):
+        self.a, self.u, self.load, self.first = _state(d)
+        self.size, self.n = len(self.a), d.system.dof
+        lam, vec = np.linalg.eig(self.a) if self.size else (np.zeros(0), np.zeros((0, 0)))
+        self.modal = self.size > 0 and np.linalg.cond(vec) < 1e8
+        if self.modal:
+            self.lam, self.vec, self.inv = lam, vec, np.linalg.inv(vec)
+            self.inv_u, self.inv_load = self.inv @ self.u, self.inv @ self.load
+        else:
+            size, n = self.size, self.n
+            z = np.zeros((size + 3 * n + 1, size + 3 * n + 1))
+            z[:size, :size], z[:size, size:size + n], z[:size, size + n:size + 2 * n] = self.a, self.u, self.u
+            z[size + n:size + 2 * n, size + 2 * n:size + 3 * n] = np.eye(n)
+            z[:size, -1] = self.load
+            self.z, self.cache = z, {}
+
+    def __call__(self, y: np.ndarray, h: np.ndarray, level: np.ndarray, slope: np.ndarray) -> np.ndarray:
+        """The states after each step of *h* (shape (k,)) from *y*, shape (k, size)."""
+        h = np.asarray(h, float)
+        if self.modal:
+            x = self.lam[None, :] * h[:, None]
+            w = (np.exp(x) * (self.inv @ y) + h[:, None] * phi1(x) * (self.inv_u @ level + self.inv_load)
+                 + (h * h)[:, None] * phi2(x) * (self.inv_u @ slope))
+            return (w @ self.vec.T).real
+        n, out = self.n, []
+        for step in h:
+            key = round(float(step), 15)
+            if key not in self.cache:
+                self.cache[key] = expm(self.z * step)
+            out.append((self.cache[key] @ np.concatenate([y, level, np.zeros(n), slope, [1.0]]))[:self.size])
+        return np.array(out).reshape(len(h), self.size)
+
+
 def exact_drive(d: Drive, times) -> tuple[np.ndarray, np.ndarray]:
-    """The joint rates and the windings' currents at *times* under constant (step) voltages, exactly: the
-    augmented state [y; 1] carried by the matrix exponential over each step.
+    """The joint rates and the windings' currents at *times*, exactly, under piecewise-linear voltages
+    (steps, ramps, PWL, pulse trains such as a PWM drive's): between the voltages' corners the state and
+    the voltages' pieces are carried together exactly (:class:`_Stepper`).
 
     Parameters
     ----------
     d : Drive
-        The drive; each voltage a step from t = 0.
+        The drive.
     times : array_like
-        Increasing times from 0 [s].
+        Increasing times from 0 to the system's t_stop [s].
     """
     t = np.asarray(times, float)
-    volts = np.array([float(w(0.0)) if w is not None else 0.0 for w in d.voltages])
-    for w in d.voltages:
-        if w is not None and np.ptp(w(np.linspace(0.0, d.system.t_stop, 101))) != 0:
-            raise InputError("the exact drive takes constant voltages (steps from t = 0)")
-    a, u, load, first = _state(d)
-    size = len(a)
-    z = np.zeros((size + 1, size + 1))
-    z[:size, :size], z[:size, size] = a, u @ volts + load
-    y = np.zeros(size + 1)
-    y[first:first + d.system.dof] = d.system.initial_voltages
-    y[size] = 1.0
-    states, last, steps = [], 0.0, {}
-    for now in t:
-        h = now - last
-        if h > 0:
-            key = round(h, 15)
-            if key not in steps:
-                steps[key] = expm(z * h)
-            y = steps[key] @ y
-        last = now
-        states.append(y.copy())
-    states = np.array(states)
-    v = states[:, first:first + d.system.dof]
+    n, stop = d.system.dof, max(float(t[-1]) if t.size else 0.0, d.system.t_stop)
+    waves = [(j, w) for j, w in enumerate(d.voltages) if w is not None]
+    corners = np.unique(np.concatenate([np.asarray(w.breakpoints(stop), float) for _, w in waves] + [[0.0]]))
+    step = _Stepper(d)
+    size, first = step.size, step.first
+    y = np.zeros(size)
+    y[first:first + n] = d.system.initial_voltages
+    edges = np.concatenate([[0.0], corners[(corners > 0) & (corners < stop)], [stop]])
+    states = np.empty((t.size, size))
+    for start, end in zip(edges[:-1], edges[1:]):
+        level, slope = np.zeros(n), np.zeros(n)
+        for j, w in waves:
+            piece = w.piece(start, end)
+            if piece.c:
+                raise InputError("the exact drive takes piecewise-linear voltages (steps, ramps, pulses); "
+                                 f"joint {j + 1}'s is {w.label()}")
+            level[j], slope[j] = piece.a, piece.b
+        inside = slice(np.searchsorted(t, start, "left"), np.searchsorted(t, end, "right"))
+        states[inside] = step(y, t[inside] - start, level, slope)       # each point from the segment's start
+        y = step(y, np.array([end - start]), level, slope)[0]
+    v = states[:, first:first + n]
     rates = d.system.joint_rates(v)
-    currents = np.zeros((len(t), d.system.dof))
-    for k, j in enumerate(d.windings):
-        currents[:, j] = states[:, first + d.system.dof + k]
-    for j in d.driven:
+    currents = np.zeros((len(t), n))
+    for i, j in enumerate(d.windings):
+        currents[:, j] = states[:, first + n + i]
+    for j, w in waves:
         m = d.motors[j]
         if m.inductance == 0:
-            currents[:, j] = (volts[j] - m.ratio * rates[:, j]) / m.resistance
+            currents[:, j] = (w(t) - m.ratio * rates[:, j]) / m.resistance
     return rates, currents
 
 
