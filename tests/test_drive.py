@@ -55,10 +55,12 @@ def test_the_drives_circuit_holds_the_bound_against_the_exact_solution_of_the_wh
     double pendulum brings gravity's stiffness (inductors) into the robot."""
     system = analogy.scene(name).system()
     run = run_drive(drive(system, [WOUND, QUICK], ["step(2)", "step(-1)"]), PRESETS["accurate"])
-    assert set(run.errors) == {"r1", "r2", "i1", "i2"}
-    assert max(run.errors.values()) <= PRESETS["accurate"].bound, run.errors
+    assert set(run.errors) == {"spice", "ode"} and set(run.errors["spice"]) == {"r1", "r2", "i1", "i2"}
+    assert max(run.errors["spice"].values()) <= PRESETS["accurate"].bound, run.errors
+    assert max(run.errors["ode"].values()) <= PRESETS["accurate"].bound, run.errors
     # a step of voltage into a wound winding starts its current from zero; without L at once
-    assert run.currents[0, 0] == 0.0 and run.currents[0, 1] == pytest.approx(-1.0 / QUICK.resistance, rel=1e-12)
+    spice = run.traces["spice"]
+    assert spice.currents[0, 0] == 0.0 and spice.currents[0, 1] == pytest.approx(-1.0 / QUICK.resistance, rel=1e-12)
 
 
 def test_the_power_put_in_is_what_the_windings_dampers_and_stored_energy_take():
@@ -87,7 +89,7 @@ def test_the_drive_netlist_runs_in_plain_ngspice_as_it_ran_in_process(tmp_path):
     rows = [ln.split() for ln in out.splitlines() if ln.split()[:1] and ln.split()[0].isdigit()]
     last = [float(x) for x in rows[-1][2:4]]
     # the same run, printed: its last row is t_stop's, as the run's own last point
-    assert np.allclose(last, run.rates[-1], rtol=1e-12, atol=0)
+    assert np.allclose(last, run.traces["spice"].rates[-1], rtol=1e-12, atol=0)
 
 
 def test_a_motor_file_names_each_field_and_joint_or_is_refused_in_one_sentence():
@@ -143,22 +145,22 @@ def test_a_pwm_drive_holds_the_bound_against_the_exact_solution_with_the_same_sw
     """An H-bridge's ±12 V at 2 kHz and 60% duty (edges of 0.1% of a period) on the shoulder: ngspice's
     run of the winding loop against the exact solution carried across every switching corner."""
     system = analogy.scene("default").system().driven(None, 0.02)
-    run = run_drive(drive(system, [WOUND, None], ["pwm(12, 0.6, 2000)", None]), PRESETS["accurate"])
-    assert set(run.errors) == {"r1", "r2", "i1"}
-    assert max(run.errors.values()) <= PRESETS["accurate"].bound, run.errors
+    run = run_drive(drive(system, [WOUND, None], ["pwm(12, 0.6, 2000)", None]), PRESETS["accurate"], ("spice", "exact"))
+    assert set(run.errors["spice"]) == {"r1", "r2", "i1"}
+    assert max(run.errors["spice"].values()) <= PRESETS["accurate"].bound, run.errors
     # the winding's current ripples at the carrier: it rises while +12 V is on and falls while −12 V is
-    late = run.time > 0.01
-    assert np.ptp(run.currents[late, 0]) > 0.1 * np.max(np.abs(run.currents[:, 0]))
+    late, i = run.time > 0.01, run.traces["spice"].currents[:, 0]
+    assert np.ptp(i[late]) > 0.1 * np.max(np.abs(i))
 
 
 def test_the_exact_drive_is_an_integration_of_the_whole_state_space():
     """Under a ramp and a pulse the exact drive agrees with scipy's Radau integration of the same state
     space at rtol 1e-11 (its own error about that of the peak)."""
     from scipy.integrate import solve_ivp
-    from analogy.solvers.drive import _state
+    from analogy.solvers.drive import drive_state
     d = drive(analogy.scene("default").system().driven(None, 0.2), [WOUND, QUICK],
               ["pwl(0, 0, 0.1, 3, 0.2, 3)", "pulse(0, -1, 0.05, 0.001, 0.001, 0.02, 0.04)"])
-    a, u, load, first = _state(d)
+    a, u, load, first = drive_state(d)
     t = np.linspace(0.0, 0.2, 401)
     volts = lambda s: np.array([w(s) if w is not None else 0.0 for w in d.voltages], float)
     corners = sorted({0.0, 0.2, *(float(c) for w in d.voltages for c in w.breakpoints(0.2))})

@@ -78,6 +78,11 @@ def _cmd_netlist(args) -> int:
 
 def _cmd_compare(args) -> int:
     from ..study.comparison import compare
+    if args.motors or args.voltage:
+        if not args.motors:
+            raise InputError("--voltage drives motors: give them with --motors FILE")
+        from .show import drive_command
+        return drive_command(args)
     sc = scene_from_args(args)
     solvers = [s.strip() for s in args.solvers.split(",") if s.strip()]
     if not solvers:

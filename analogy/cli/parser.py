@@ -72,6 +72,7 @@ def _compare(sub) -> None:
     p.add_argument("--csv", metavar="FILE", help="write joint rates of every solver to CSV (past 100,000 "
                    "time points, every k-th of them as computed, unless --step or --csv-all)")
     p.add_argument("--csv-all", action="store_true", help="write every time point to the CSV, however many")
+    _motor_options(p, required=False)
     p.add_argument("--plot", metavar="FILE.png", help="write a plot of rates and errors")
     p.add_argument("--no-plot", action="store_true", help="never import the plotting library")
 
@@ -163,16 +164,21 @@ def _drive(sub) -> None:
     p = sub.add_parser("drive", help="the robot driven by DC motors through gearboxes: the windings' loops "
                                      "around its subcircuit run in ngspice, against the exact solution")
     scene_options(p)
-    p.add_argument("--motors", required=True, metavar="FILE.toml",
+    _motor_options(p, required=True)
+    p.add_argument("-o", "--output", metavar="FILE.cir", help="write the netlist that ran (it runs in ngspice -b)")
+    p.add_argument("--csv", metavar="FILE", help="write the joint rates and winding currents of every solver")
+    p.add_argument("--plot", metavar="FILE.png", help="write a plot of them")
+
+
+def _motor_options(p, required: bool) -> None:
+    """``--motors`` and ``--voltage``."""
+    p.add_argument("--motors", required=required, metavar="FILE.toml",
                    help="motor file: [default] and/or a table per joint (its name or number) with resistance, "
                         "inductance, torque_constant, rotor_inertia, gear_ratio, viscous, coulomb, voltage_limit, "
                         "current_limit (numbers in SI, or strings with units such as \"0.5 mH\")")
     p.add_argument("--voltage", action="append", default=[], metavar="WAVEFORM",
                    help="the voltage on each motor, in joint order, once per motor: a number or a waveform such "
-                        "as step(12) (the exact solution needs steps from t = 0)")
-    p.add_argument("-o", "--output", metavar="FILE.cir", help="write the netlist that ran (it runs in ngspice -b)")
-    p.add_argument("--csv", metavar="FILE", help="write the joint rates and winding currents, SPICE and exact")
-    p.add_argument("--plot", metavar="FILE.png", help="write a plot of them")
+                        "as step(12) or pwm(24, 0.6, 20e3) (the exact solution needs piecewise-linear voltages)")
 
 
 def _run(sub) -> None:

@@ -140,8 +140,8 @@ def drive_command(args) -> int:
     voltages = [None] * system.dof
     for j, text in zip(driven, args.voltage):
         voltages[j] = text
-    run = run_drive(drive(system, motors, voltages), args.preset)
-    if args.output:
+    run = run_drive(drive(system, motors, voltages), args.preset, ("spice", "ode", "exact"))
+    if getattr(args, "output", None):      # analogy drive -o; compare --motors writes no netlist
         write_text(args.output, run.netlist)
         print(f"wrote {args.output}")
     print(run.table())

@@ -21,7 +21,8 @@ from .exact import phi1, phi2
 from .run_settings import TransientSettings
 from .transient import circuit_settings, subcircuit_netlist
 
-__all__ = ["Drive", "drive", "drive_settings", "drive_netlist", "exact_drive", "node_matrices", "power_balance"]
+__all__ = ["Drive", "drive", "drive_settings", "drive_netlist", "drive_state", "exact_drive", "node_matrices",
+           "power_balance"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -111,9 +112,15 @@ def node_matrices(d: Drive) -> tuple:
     return mass, damping, s.stiffness, c
 
 
-def _state(d: Drive) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
-    """The state matrix A of y = [x (with springs), v, i (windings with L)], the map U from the joints'
-    voltages to y', the constant load into y' (gravity's), and the index where v starts."""
+def drive_state(d: Drive) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """The drive's linear state space y' = A·y + U·V(t) + load, y = [x (with springs), v, i (windings with L)]:
+    A, U, the constant load (gravity's), and the index where v starts in y.
+
+    Parameters
+    ----------
+    d : Drive
+        The drive.
+    """
     mass, damping, stiffness, c = node_matrices(d)
     n, w = d.system.dof, d.windings
     springs = stiffness is not None
@@ -148,7 +155,7 @@ class _Stepper:
     """
 
     def __init__(self, d: Drive):
-        self.a, self.u, self.load, self.first = _state(d)
+        self.a, self.u, self.load, self.first = drive_state(d)
         self.size, self.n = len(self.a), d.system.dof
         lam, vec = np.linalg.eig(self.a) if self.size else (np.zeros(0), np.zeros((0, 0)))
         self.modal = self.size > 0 and np.linalg.cond(vec) < 1e8
@@ -238,7 +245,7 @@ def drive_settings(d: Drive, preset: Preset) -> TransientSettings:
     """
     s = d.system
     settings = circuit_settings(s, describe(s, ZERO_TOL, False), preset)
-    rates = np.linalg.eigvals(_state(d)[0])
+    rates = np.linalg.eigvals(drive_state(d)[0])
     # a mode that decays under the bound before t_stop (a winding's L/R) sets the first step, not the cap
     lasting = rates[rates.real * s.t_stop > math.log(preset.bound)]
     fastest, cap = float(np.max(np.abs(rates), initial=0.0)), float(np.max(np.abs(lasting), initial=0.0))

@@ -2,29 +2,43 @@
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
+from scipy.integrate import solve_ivp
 
 from ..errors import InputError, SimulationError
 from ..files import write_figure
 from ..presets import Preset
 from ..results.metrics import output_errors
 from ..results.output import Tabular
-from ..solvers.drive import Drive, drive_netlist, drive_settings, exact_drive, power_balance
+from ..solvers.drive import Drive, drive_netlist, drive_settings, drive_state, exact_drive, power_balance
 from ..solvers.spice import run_netlist
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-__all__ = ["DriveRun", "run_drive"]
+__all__ = ["DriveRun", "DriveTrace", "run_drive"]
+
+
+class DriveTrace(NamedTuple):
+    """One solver's joint rates and winding currents on the run's points, and its power balance."""
+
+    time: np.ndarray
+    rates: np.ndarray
+    currents: np.ndarray
+    balance: np.ndarray
+    seconds: float
 
 
 @dataclass(frozen=True, eq=False)
 class DriveRun(Tabular):
-    """The joint rates and winding currents of a drive's netlist as ngspice ran it, against the exact
-    solution where the voltages are steps, and its power balance.
+    """A drive's joint rates and winding currents by each solver on ngspice's points: ``spice`` (its
+    netlist as ngspice ran it), ``ode`` (scipy on the whole state space, at the preset's method and
+    tolerance) and ``exact`` (where the voltages are piecewise linear), with each output's error
+    over its own peak against the exact solution and each run's power balance.
 
     Attributes
     ----------
@@ -32,31 +46,21 @@ class DriveRun(Tabular):
         What ran.
     netlist : str
         The netlist ngspice ran (what ``analogy drive -o`` writes).
-    time : ndarray, shape (N,)
-        ngspice's own points.
-    rates, currents : ndarray, shape (N, n)
-        Joint rates and winding currents (zero for a joint without a motor).
-    exact_rates, exact_currents : ndarray or None
-        The exact solution at the same points (None: the voltages are not steps).
-    errors : dict of str to float
-        Each output's largest error over its own peak (``r1``, ``i1`` …); empty without the exact solution.
-    balance : ndarray, shape (N,)
-        :func:`~analogy.solvers.drive.power_balance` of the run [W].
+    traces : dict of str to DriveTrace
+        Each solver's run on ngspice's points (t = 0 added).
+    errors : dict of str to dict of str to float
+        Per solver, each output's largest error over its own peak (``r1``, ``i1`` …); empty without
+        the exact solution.
     bound : float
         The preset's bound.
     note : str
-        How the run was retried after its step collapsed, if it was.
+        How ngspice's run was retried after its step collapsed, if it was.
     """
 
     drive: Drive
     netlist: str
-    time: np.ndarray
-    rates: np.ndarray
-    currents: np.ndarray
-    exact_rates: np.ndarray | None
-    exact_currents: np.ndarray | None
+    traces: dict
     errors: dict
-    balance: np.ndarray
     bound: float
     note: str = ""
 
@@ -65,67 +69,92 @@ class DriveRun(Tabular):
         """The robot's circuit."""
         return self.drive.system
 
+    @property
+    def time(self) -> np.ndarray:
+        """ngspice's points, t = 0 added."""
+        return self.traces["spice"].time
+
     def __repr__(self) -> str:
-        worst = f", worst {max(self.errors.values()):.2g} of its peak" if self.errors else ""
+        worst = max((e for errs in self.errors.values() for e in errs.values()), default=None)
+        shown = f", worst {worst:.2g} of its peak" if worst is not None else ""
         return (f"<DriveRun {self.system.provenance.robot}: {len(self.drive.driven)} motors, "
-                f"{len(self.time)} points{worst}>")
+                f"{'+'.join(self.traces)}, {len(self.time)} points{shown}>")
 
-    @property
-    def power_in(self) -> np.ndarray:
-        """Σ V·i, the power the drives put in [W]."""
-        volts = np.column_stack([w(self.time) if w is not None else np.zeros_like(self.time)
+    def power_in(self, solver: str = "spice") -> np.ndarray:
+        """Σ V·i, the power the drives put in on *solver*'s run [W].
+
+        Parameters
+        ----------
+        solver : str
+            A solver that ran.
+        """
+        trace = self.traces[solver]
+        volts = np.column_stack([w(trace.time) if w is not None else np.zeros_like(trace.time)
                                  for w in self.drive.voltages])
-        return np.sum(volts * self.currents, axis=1)
+        return np.sum(volts * trace.currents, axis=1)
 
-    @property
-    def balance_error(self) -> float:
-        """The power balance's largest residual over the largest power put in."""
-        peak = float(np.max(np.abs(self.power_in)))
-        return float(np.max(np.abs(self.balance))) / peak if peak > 0 else 0.0
+    def balance_error(self, solver: str = "spice") -> float:
+        """*solver*'s power balance: its largest residual over the largest power put in.
+
+        Parameters
+        ----------
+        solver : str
+            A solver that ran.
+        """
+        peak = float(np.max(np.abs(self.power_in(solver))))
+        return float(np.max(np.abs(self.traces[solver].balance))) / peak if peak > 0 else 0.0
 
     def over_limits(self) -> dict[str, str]:
-        """Each motor whose winding carried more than its current limit, and by how much."""
+        """Each motor whose winding carried more than its current limit in ngspice's run, and by how much."""
         out = {}
         for j in self.drive.driven:
-            limit, peak = self.drive.motors[j].current_limit, float(np.max(np.abs(self.currents[:, j])))
+            limit, peak = self.drive.motors[j].current_limit, float(np.max(np.abs(self.traces["spice"].currents[:, j])))
             if peak > limit:
                 out[f"i{j + 1}"] = f"{peak:.3g} A, past its limit of {limit:g} A"
         return out
 
     def outside_bound(self) -> dict[str, float]:
-        """The outputs past the preset's bound, with their errors."""
-        return {k: e for k, e in self.errors.items() if e > self.bound}
+        """The solvers' outputs past the preset's bound (``spice i1``), with their errors."""
+        return {f"{name} {k}": e for name, errs in self.errors.items() for k, e in errs.items() if e > self.bound}
+
+    def outputs(self) -> list[tuple[str, str]]:
+        """Each output's key and what it is: every joint's rate, each driven winding's current."""
+        joints = self.system.provenance.joints or [f"q{j + 1}" for j in range(self.system.dof)]
+        out = []
+        for j in range(self.system.dof):
+            out.append((f"r{j + 1}", f"{joints[j]} rate"))
+            if j in self.drive.driven:
+                out.append((f"i{j + 1}", f"{joints[j]} winding"))
+        return out
 
     def table(self) -> str:
-        """One line per output: its peak, and its error over its own peak against the exact solution."""
-        joints = self.system.provenance.joints or [f"q{j + 1}" for j in range(self.system.dof)]
-        lines = [f"{'output':<28}{'peak':>12}{'error / peak':>16}"]
-        for j in range(self.system.dof):
-            for key, values, unit in ((f"r{j + 1}", self.rates[:, j], "rate"), (f"i{j + 1}", self.currents[:, j], "A")):
-                if key.startswith("i") and j not in self.drive.driven:
-                    continue
-                what = f"{key} ({joints[j]} {'rate' if unit == 'rate' else 'winding'})"
-                err = f"{self.errors[key]:.2e}" if key in self.errors else "no exact"
-                lines.append(f"{what:<28}{np.max(np.abs(values)):>12.4g}{err:>16}")
-        lines.append(f"power balance: largest residual {self.balance_error:.2e} of the largest power put in "
-                     f"({np.max(np.abs(self.power_in)):.4g} W)")
+        """Each output's peak and each solver's error over it; the power balance's residual of each run."""
+        solvers = [s for s in self.traces if s != "exact"]
+        lines = [f"{'output':<30}{'peak':>11}" + "".join(f"{s + ' error':>14}" for s in solvers)]
+        reference = self.traces.get("exact", self.traces["spice"])
+        for key, what in self.outputs():
+            j = int(key[1:]) - 1
+            values = reference.rates[:, j] if key[0] == "r" else reference.currents[:, j]
+            errs = "".join(f"{self.errors[s][key]:>14.2e}" if key in self.errors.get(s, {}) else f"{'no exact':>14}"
+                           for s in solvers)
+            lines.append(f"{key + ' (' + what + ')':<30}{np.max(np.abs(values)):>11.4g}{errs}")
+        lines.append(f"{'power balance residual / peak':<41}" + "".join(f"{self.balance_error(s):>14.2e}"
+                                                                          for s in solvers))
+        lines.append(f"(largest power put in {np.max(np.abs(self.power_in())):.4g} W; "
+                     + ", ".join(f"{s} {t.seconds:.3g} s" for s, t in self.traces.items()) + ")")
         return "\n".join(lines)
 
     def columns(self) -> dict[str, np.ndarray]:
-        """``time``, each joint's rate ``r<j>_spice`` and each winding's current ``i<j>_spice``, and the exact ones."""
+        """``time``, then each joint's rate ``r<j>_<solver>`` and each winding's current ``i<j>_<solver>``."""
         cols: dict[str, np.ndarray] = {"time": self.time}
-        for j in range(self.system.dof):
-            cols[f"r{j + 1}_spice"] = self.rates[:, j]
-            if self.exact_rates is not None:
-                cols[f"r{j + 1}_exact"] = self.exact_rates[:, j]
-        for j in self.drive.driven:
-            cols[f"i{j + 1}_spice"] = self.currents[:, j]
-            if self.exact_currents is not None:
-                cols[f"i{j + 1}_exact"] = self.exact_currents[:, j]
+        for key, _ in self.outputs():
+            j = int(key[1:]) - 1
+            for name, trace in self.traces.items():
+                cols[f"{key}_{name}"] = trace.rates[:, j] if key[0] == "r" else trace.currents[:, j]
         return cols
 
     def plot(self, path=None) -> "Figure":
-        """Joint rates and winding currents, SPICE over the exact solution.
+        """Joint rates and winding currents, each solver over the exact solution.
 
         Parameters
         ----------
@@ -135,15 +164,16 @@ class DriveRun(Tabular):
         from matplotlib.figure import Figure
         fig = Figure(figsize=(10.0, 6.0), layout="constrained")
         rates, currents = fig.subplots(2, 1, sharex=True)
-        for ax, values, exact, label, which in ((rates, self.rates, self.exact_rates, "joint rate", range(self.system.dof)),
-                                                (currents, self.currents, self.exact_currents, "winding current [A]",
-                                                 self.drive.driven)):
+        for ax, kind, label, which in ((rates, "rates", "joint rate", range(self.system.dof)),
+                                       (currents, "currents", "winding current [A]", self.drive.driven)):
             for j in which:
-                line, = ax.plot(self.time, values[:, j], lw=1.0, label=f"{j + 1}: spice")
-                if exact is not None:
-                    ax.plot(self.time, exact[:, j], lw=4.0, alpha=0.3, color=line.get_color(), label=f"{j + 1}: exact")
+                colour = f"C{j}"
+                for name, trace in self.traces.items():
+                    wide = name == "exact"
+                    ax.plot(trace.time, getattr(trace, kind)[:, j], lw=4.0 if wide else 1.0, alpha=0.3 if wide else 1.0,
+                            color=colour, ls="--" if name == "ode" else "-", label=f"{j + 1}: {name}")
             ax.set_ylabel(label)
-            ax.legend(fontsize=7, ncol=4)
+            ax.legend(fontsize=7, ncol=6)
         currents.set_xlabel("t [s]")
         fig.suptitle(f"{self.system.provenance.robot} driven by its motors", fontsize=10)
         if path is not None:
@@ -151,19 +181,12 @@ class DriveRun(Tabular):
         return fig
 
 
-def run_drive(d: Drive, preset: Preset) -> DriveRun:
-    """Run *d*'s netlist in ngspice and measure it against the exact solution (where its voltages are steps).
-
-    Parameters
-    ----------
-    d : Drive
-        The drive.
-    preset : Preset
-        The accuracy preset.
-    """
+def _spice(d: Drive, preset: Preset) -> tuple[str, str, DriveTrace]:
+    """ngspice's run of the drive's netlist (retried where its step collapses): the netlist, the note, the run."""
     n = d.system.dof
     names = ["time"] + [f"v(p{j + 1})" for j in range(n)] + [f"vs{j + 1}#branch" for j in d.driven]
     ladder, note = drive_settings(d, preset).retries(), ""
+    start = time.perf_counter()
     for k, settings in enumerate(ladder):       # a collapsed step: the next settings, said in the note
         text = drive_netlist(d, preset, settings=settings)
         try:
@@ -173,6 +196,7 @@ def run_drive(d: Drive, preset: Preset) -> DriveRun:
             if "time step too small" not in str(exc) or k == len(ladder) - 1:
                 raise
             note = f"retried with {'gear' if ladder[k + 1].method != settings.method else 'looser abstol and vntol'} ({exc})"
+    seconds = time.perf_counter() - start
     r0 = d.system.joint_rates(d.system.initial_voltages)
     t = np.concatenate([[0.0], data["time"]]) if data["time"][0] > 0 else data["time"]
     first = len(t) - len(data["time"])         # t = 0 added where ngspice's points start after it
@@ -182,14 +206,86 @@ def run_drive(d: Drive, preset: Preset) -> DriveRun:
         m = d.motors[j]
         at_start = 0.0 if m.inductance else (float(d.voltages[j](0.0)) - m.ratio * r0[j]) / m.resistance
         currents[:, j] = np.concatenate([[at_start]] * first + [data[f"vs{j + 1}#branch"]])
+    return text, note, DriveTrace(t, rates, currents, power_balance(d, t, rates, currents), seconds)
+
+
+def _ode(d: Drive, preset: Preset, t: np.ndarray, scale: np.ndarray) -> DriveTrace:
+    """scipy's integration of the drive's state space at the preset's method and rtol (atol that of each
+    state's *scale*), between the voltages' corners, read on the points *t*."""
+    a, u, load, first = drive_state(d)
+    n = d.system.dof
+    corners = np.unique(np.concatenate([np.asarray(w.breakpoints(t[-1]), float) for w in d.voltages if w is not None]
+                                       + [[0.0, t[-1]]]))
+    corners = corners[(corners >= 0) & (corners <= t[-1])]
+    def rhs(s, y):
+        return a @ y + u @ np.array([w(s) if w is not None else 0.0 for w in d.voltages], float) + load
+    y = np.zeros(len(a))
+    y[first:first + n] = d.system.initial_voltages
+    states = np.empty((t.size, len(a)))
+    start = time.perf_counter()
+    atol = preset.ode.rtol * np.maximum(scale, np.finfo(float).tiny)
+    for lo, hi in zip(corners[:-1], corners[1:]):
+        sol = solve_ivp(rhs, (lo, hi), y, method=preset.ode.method, rtol=preset.ode.rtol, atol=atol, dense_output=True)
+        if not sol.success:
+            raise SimulationError(f"the ODE of the drive failed: {sol.message}")
+        inside = slice(np.searchsorted(t, lo, "left"), np.searchsorted(t, hi, "right"))
+        states[inside] = sol.sol(t[inside]).T
+        y = sol.y[:, -1]
+    seconds = time.perf_counter() - start
+    rates = d.system.joint_rates(states[:, first:first + n])
+    currents = np.zeros((t.size, n))
+    for i, j in enumerate(d.windings):
+        currents[:, j] = states[:, first + n + i]
+    for j in d.driven:
+        m = d.motors[j]
+        if m.inductance == 0:
+            currents[:, j] = (d.voltages[j](t) - m.ratio * rates[:, j]) / m.resistance
+    return DriveTrace(t, rates, currents, power_balance(d, t, rates, currents), seconds)
+
+
+def run_drive(d: Drive, preset: Preset, solvers: tuple[str, ...] = ("spice", "ode", "exact")) -> DriveRun:
+    """Run *d* in ngspice and (where its voltages are piecewise linear) exactly and by scipy's ODE solver,
+    on ngspice's points, and measure each against the exact solution.
+
+    Parameters
+    ----------
+    d : Drive
+        The drive.
+    preset : Preset
+        The accuracy preset.
+    solvers : tuple of str
+        Those to run beside ``spice``: ``ode`` and ``exact``.
+    """
+    text, note, spice = _spice(d, preset)
+    traces = {"spice": spice}
+    t = spice.time
     try:
-        exact_r, exact_i = exact_drive(d, t)
-    except InputError:                      # voltages that are not steps: no exact solution here
-        exact_r = exact_i = None
-    errors = {}
-    if exact_r is not None:
-        for key, got, want in [(f"r{j + 1}", rates[:, j], exact_r[:, j]) for j in range(n)] + \
-                [(f"i{j + 1}", currents[:, j], exact_i[:, j]) for j in d.driven]:
-            errors[key] = float(output_errors(got[:, None], want[:, None])[1][0])
-    return DriveRun(d, text, t, rates, currents, exact_r, exact_i, errors, power_balance(d, t, rates, currents),
-                    preset.bound, note)
+        start = time.perf_counter()
+        rates, currents = exact_drive(d, t)
+        exact = DriveTrace(t, rates, currents, power_balance(d, t, rates, currents), time.perf_counter() - start)
+    except InputError:                      # voltages that are not piecewise linear: no exact solution
+        exact = None
+    if "ode" in solvers:
+        a, _, _, first = drive_state(d)
+        scale = np.full(len(a), 1.0)
+        if exact is not None:               # each state's size, from the exact run
+            n = d.system.dof
+            v = exact.rates @ np.asarray(d.system.topology.matrix, float).T
+            scale[first:first + n] = np.max(np.abs(v), axis=0)
+            for i, j in enumerate(d.windings):
+                scale[first + n + i] = np.max(np.abs(exact.currents[:, j]))
+        traces["ode"] = _ode(d, preset, t, scale)
+    if exact is not None and "exact" in solvers:
+        traces["exact"] = exact
+    errors: dict = {}
+    if exact is not None:
+        for name, trace in traces.items():
+            if name == "exact":
+                continue
+            # the rates together, the currents together: a peak under 1e-10 of its group's largest (a joint
+            # the drive does not move) is judged against that floor, as every comparison judges it
+            rates = output_errors(trace.rates, exact.rates)[1]
+            currents = output_errors(trace.currents[:, d.driven], exact.currents[:, d.driven])[1]
+            errors[name] = {**{f"r{j + 1}": float(e) for j, e in enumerate(rates)},
+                            **{f"i{j + 1}": float(e) for j, e in zip(d.driven, currents)}}
+    return DriveRun(d, text, traces, errors, preset.bound, note)
