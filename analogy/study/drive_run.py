@@ -15,7 +15,7 @@ from ..presets import Preset
 from ..results.metrics import output_errors
 from ..results.output import Tabular
 from ..solvers.drive import Drive, drive_netlist, drive_settings, drive_state, exact_drive, power_balance
-from ..solvers.spice import run_netlist
+from ..solvers.ngspice import session
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -190,7 +190,8 @@ def _spice(d: Drive, preset: Preset) -> tuple[str, str, DriveTrace]:
     for k, settings in enumerate(ladder):       # a collapsed step: the next settings, said in the note
         text = drive_netlist(d, preset, settings=settings)
         try:
-            data = run_netlist(text, names)
+            # a wall-time limit: ngspice 39 was seen to stall at a PWM's corners without failing
+            data = session().run(text, names, timeout=preset.budget.timeout)
             break
         except SimulationError as exc:
             if "time step too small" not in str(exc) or k == len(ladder) - 1:
