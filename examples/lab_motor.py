@@ -177,7 +177,7 @@ b.set_ylabel("shoulder rate [rad/s]")
 b.legend()
 fig.savefig(out / "motor_pwm.png", dpi=110)
 _lab.show(out / "motor_pwm.png")
-pwm.to_csv(out / "motor_pwm.csv", every=20)
+print(f"wrote {pwm.to_csv(out / 'motor_pwm.csv', every=20)}")
 
 # %% [markdown]
 # ## 4. Where the power goes
