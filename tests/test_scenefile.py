@@ -612,7 +612,7 @@ def test_a_scene_file_chooses_the_flexible_arm_s_joint_frame_and_geometric_stiff
         parse_scene(text.replace('"tip"', '"bent"'))
     with pytest.raises(InputError, match=r"\[model\] geometric_stiffness: expected true or false, got a number"):
         parse_scene(text.replace('joint_frame = "tip"', "geometric_stiffness = 1"))
-    with pytest.raises(InputError, match="apply to the flexible arms"):
+    with pytest.raises(InputError, match=r"\[model\] joint_frame: applies to the flexible arms .*not to serial2"):
         parse_scene(text.replace('"flex2"', '"serial2"').replace("q = [0.3, 0.5, 0, 0, 0, 0]", "q = [0, 0.3]")
                     .replace("forces = [1, 1, 0, 0, 0, 0]", "forces = [1, 1]"))
 

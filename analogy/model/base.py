@@ -81,6 +81,10 @@ class RobotModel(ABC):
         parameters : mapping, optional
             Parameter overrides by name.
         """
+        if parameters:
+            rebuilt = self.with_parameters(parameters)
+            if rebuilt is not self:     # other parameters made another model (a flexible arm's mode count)
+                return rebuilt.joint_space(q)
         names = [str(c) for c in self.coordinates]
         q = [] if q is None else list(q)
         if len(q) != len(names):
