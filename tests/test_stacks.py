@@ -101,11 +101,24 @@ def test_stack_shapes_for_one_joint_and_for_no_coordinates():
 
 def test_rows_of_a_stack_cannot_change_each_other():
     systems = scene("default").systems([[0.0, 0.1], [0.0, 0.2]])
-    with pytest.raises(ValueError):
-        systems[0].mass[0, 0] = 1.0
-    systems[0].initial_rates[0] = 5.0
+    for array in (systems[0].mass, systems[0].initial_rates, systems[0].initial_voltages):
+        with pytest.raises(ValueError, match="read-only"):
+            array[0] = 5.0
+    with pytest.raises(AttributeError, match="immutable"):
+        systems[0].t_stop = 1.0
     systems[0].provenance.parameters["l1"] = 7.0
     assert systems[1].initial_rates[0] == 0.0 and systems[1].provenance.parameters["l1"] == 1.0
+
+
+def test_a_driven_system_is_a_new_one_whose_cached_inputs_follow_its_own():
+    """driven() leaves the system alone; the new one's segments and inputs key are of its own forces."""
+    system = scene("default").system()
+    before = (system.inputs_key, system.breakpoints().copy())
+    other = system.driven(forces=("pulse(0, 1, 0.5, 0.1, 0.1, 1)", 0.0), t_stop=4.0)
+    assert system.inputs_key == before[0] and np.array_equal(system.breakpoints(), before[1])
+    assert other.inputs_key != system.inputs_key and other.t_stop == 4.0
+    assert 0.5 in other.breakpoints() and other.breakpoints()[-1] == 4.0
+    assert other.mass is system.mass            # the matrices are shared, never copied
 
 
 def test_joint_stack_of_symbolic_and_compiled_models_agree():

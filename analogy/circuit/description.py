@@ -8,7 +8,7 @@ import numpy as np
 
 from ..errors import InputError
 from .elements import ZERO_TOL, Element, element_table, laplacian_split, spice_value
-from .node_stack import NodeStack, inputs_key
+from .node_stack import NodeStack
 from .parts import (
     BehaviouralCurrent,
     BehaviouralVoltage,
@@ -132,7 +132,7 @@ def circuits(systems: Sequence, zero_tol: float = ZERO_TOL) -> list[Circuit]:
         shared = group.shares_inputs
         for j, k in enumerate(idx):
             s = systems[k]
-            key = (group.dof, no_springs) if shared else inputs_key(s)[:2]
+            key = (group.dof, no_springs) if shared else s.inputs_key[:2]
             src = sources.get(key)
             if src is None:
                 src = sources[key] = current_sources(s, zero_tol)

@@ -9,28 +9,7 @@ import numpy as np
 if TYPE_CHECKING:
     from ..model.dynamics import NodeDynamics
 
-__all__ = ["NodeStack", "inputs_key"]
-
-
-def inputs_key(system) -> tuple:
-    """What a system is driven by, as a hashable value: topology, forces and t_stop.
-
-    Systems with equal keys share their current sources and time segments, so a solver
-    derives those once for all of them.
-
-    Parameters
-    ----------
-    system : linear NodeDynamics
-        A linear node system.
-    """
-    key = getattr(system, "_inputs_key", None)
-    if key is None:
-        key = (system.topology.key, tuple(tuple(w.key() for w in ws) for ws in system.forces), system.t_stop)
-        try:
-            system._inputs_key = key
-        except AttributeError:      # a system type without room for it: computed again next time
-            pass
-    return key
+__all__ = ["NodeStack"]
 
 
 class NodeStack(Sequence):
@@ -108,8 +87,8 @@ class NodeStack(Sequence):
     def shares_inputs(self) -> bool:
         """True when every row has the same topology, forces and t_stop."""
         if not self._shared:
-            first = inputs_key(self.systems[0])
-            self._shared = all(inputs_key(s) == first for s in self.systems[1:])
+            first = self.systems[0].inputs_key
+            self._shared = all(s.inputs_key == first for s in self.systems[1:])
         return self._shared
 
     def _stacked(self, attr: str) -> np.ndarray:
@@ -187,7 +166,7 @@ class NodeStack(Sequence):
         Parameters
         ----------
         by_inputs : bool
-            Also split by topology, forces and t_stop (:func:`inputs_key`).
+            Also split by topology, forces and t_stop (:attr:`~analogy.circuit.node_system.NodeCoordinates.inputs_key`).
         """
         springs = [s.stiffness is not None for s in self.systems]
         if all(springs) or not any(springs):
@@ -195,5 +174,5 @@ class NodeStack(Sequence):
                 return [(list(range(len(self))), self)]
         groups: dict = {}
         for k, s in enumerate(self.systems):
-            groups.setdefault((springs[k], inputs_key(s) if by_inputs else None), []).append(k)
+            groups.setdefault((springs[k], s.inputs_key if by_inputs else None), []).append(k)
         return [(rows, self._take(rows, by_inputs)) for rows in groups.values()]

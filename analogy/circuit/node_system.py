@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import copy
-from typing import Iterator, Mapping, Protocol, Sequence, TypeVar
+from typing import Mapping, Protocol, Sequence
 
 import numpy as np
 
@@ -21,7 +21,8 @@ from ..model.joint import (
     stack_fault,
 )
 from ..waveforms import Step
-from .joint_forces import force_breakpoints, joint_forces, waveforms
+from .joint_forces import waveforms
+from .node_coordinates import NodeCoordinates, check_t_stop, output_times
 from .node_stack import NodeStack
 from .topology import Topology, symmetric_part
 from .topology import topology as make_topology
@@ -46,136 +47,7 @@ class Evaluable(Protocol):
             Parameter overrides.
         """
 
-__all__ = ["Evaluable", "NodeCoordinates", "NodeSystem", "check_t_stop", "node_system", "node_systems",
-           "output_times"]
-
-
-_System = TypeVar("_System", bound="NodeCoordinates")
-
-
-def check_t_stop(t_stop) -> float:
-    """*t_stop* as a float, refused in one sentence outside 1 ns to 1e9 s.
-
-    Parameters
-    ----------
-    t_stop : float
-        End of the simulated interval [s].
-    """
-    try:
-        t = float(t_stop)
-    except (TypeError, ValueError):
-        t = float("nan")
-    if not (np.isfinite(t) and 1e-9 <= t <= 1e9):
-        raise InputError("t_stop must be a time between 1e-9 s and 1e9 s", field="t_stop")
-    return t
-
-
-class NodeCoordinates:
-    """What every node system shares: node names, v = T·r, the forces and their segments in time.
-
-    A subclass sets ``topology``, ``current_map``, ``forces``, ``t_stop`` and ``dof``.
-    """
-
-    @property
-    def nodes(self) -> list[str]:
-        """SPICE node names, n1 … nN."""
-        return [f"n{k + 1}" for k in range(self.dof)]
-
-    def node_currents(self, t) -> np.ndarray:
-        """Node currents i(t) = T⁻ᵀ·F(t), shape (len(t), n).
-
-        Parameters
-        ----------
-        t : float or array_like
-            Times.
-        """
-        return self.force(t) @ self.current_map.T
-
-    def joint_rates(self, node_voltages: np.ndarray) -> np.ndarray:
-        """R = T⁻¹·v for node voltages of shape (..., n).
-
-        Parameters
-        ----------
-        node_voltages : ndarray, shape (..., n)
-            Node velocities v.
-        """
-        return self.topology.joint_rates(node_voltages)
-
-    def time_points(self, times=None, default: int = 1001) -> np.ndarray:
-        """Sorted output times in [0, t_stop] (default: uniform); a time a rounding past
-        t_stop, as SPICE's last point can be, is taken as t_stop.
-
-        Parameters
-        ----------
-        times : array_like, optional
-            Requested times.
-        default : int
-            Number of uniform points without *times*.
-        """
-        return output_times(self.t_stop, times, default)
-
-    def force(self, t) -> np.ndarray:
-        """Joint forces F(t), shape (len(t), n) for an array of times.
-
-        Parameters
-        ----------
-        t : float or array_like
-            Times.
-        """
-        return joint_forces(self.forces, t)
-
-    def breakpoints(self) -> np.ndarray:
-        """Segment ends 0 < t_1 < … < t_stop between which every force is smooth (kept: forces are immutable)."""
-        kept = self.__dict__.get("_breakpoints")
-        if kept is None or kept[0] is not self.forces or kept[1] != self.t_stop:
-            points = force_breakpoints(self.forces, self.t_stop)
-            points.setflags(write=False)
-            kept = self.__dict__["_breakpoints"] = (self.forces, self.t_stop, points)
-        return kept[2]
-
-    def driven(self: _System, forces=None, t_stop: float | None = None, initial_rates=None) -> _System:
-        """This system under other joint forces, over another horizon or from other joint rates:
-        the solve's own inputs.
-
-        The new system shares every matrix and the configuration; only what is given
-        changes, checked as :func:`node_system` checks it. Gravity stays where the
-        system holds it (a constant force in a linear system, G(q) in a nonlinear one).
-
-        Parameters
-        ----------
-        forces : sequence, optional
-            One entry per joint, as :func:`node_system` takes them.
-        t_stop : float, optional
-            End of the simulated interval [s].
-        initial_rates : sequence of float, optional
-            Joint rates at t = 0.
-        """
-        out = copy.copy(self)
-        for cache in ("_breakpoints", "_inputs_key"):       # this class's own, of the inputs that change
-            out.__dict__.pop(cache, None)
-        if t_stop is not None:
-            out.t_stop = check_t_stop(t_stop)
-        if initial_rates is not None:
-            with concerning("initial_rates"):
-                out.initial_rates = check_vector("initial rates r0", initial_rates, self.dof)
-            out.initial_voltages = self.topology.matrix @ out.initial_rates
-        if forces is not None:
-            with concerning("forces"):
-                out.forces = self._with_gravity(waveforms(forces, self.dof))
-        with concerning("forces"):
-            out.breakpoints()       # every waveform checked against the horizon before any solver runs
-        return out
-
-    def _with_gravity(self, ws: tuple) -> tuple:
-        """Joint waveforms *ws* with the system's constant loads added (none here)."""
-        return ws
-
-    def segments(self) -> Iterator[tuple[float, float]]:
-        """Yield (t0, t1) intervals on which all forces are given by one closed form."""
-        t0 = 0.0
-        for t1 in self.breakpoints():
-            yield t0, float(t1)
-            t0 = float(t1)
+__all__ = ["Evaluable", "NodeSystem", "node_system", "node_systems"]
 
 
 class NodeSystem(NodeCoordinates):
@@ -216,9 +88,7 @@ class NodeSystem(NodeCoordinates):
         realizable : bool
             False gives back the signed circuit.
         """
-        out = copy.copy(self)
-        out.realizable = bool(realizable)
-        return out
+        return self._replaced(realizable=bool(realizable))
 
     def __init__(self, joint: JointSpace, topology: Topology, forces: tuple, initial_rates,
                  t_stop: float, info: Mapping | None = None):
@@ -248,6 +118,7 @@ class NodeSystem(NodeCoordinates):
         self._store(joint, topology, tuple(forces), r0, float(t_stop), info, mass, damping, stiffness)
         with concerning("forces"):
             self.breakpoints()      # checks every waveform against t_stop before any solver runs
+        self._seal()
 
     def _store(self, joint, topology, forces, r0, t_stop, info, mass, damping, stiffness):
         self.joint, self.topology, self.forces = joint, topology, forces
@@ -286,6 +157,7 @@ class NodeSystem(NodeCoordinates):
         """
         obj = cls.__new__(cls)
         obj._store(joint, topology, forces, initial_rates, t_stop, info, mass, damping, stiffness)
+        obj._seal()
         return obj
 
     def _with_gravity(self, ws: tuple) -> tuple:
@@ -321,27 +193,6 @@ class NodeSystem(NodeCoordinates):
             Time.
         """
         return np.zeros(self.dof)
-
-
-def output_times(t_stop: float, times=None, default: int = 1001) -> np.ndarray:
-    """Sorted output times in [0, *t_stop*]: *times* checked, or *default* uniform points.
-
-    Parameters
-    ----------
-    t_stop : float
-        End time.
-    times : array_like, optional
-        Requested times.
-    default : int
-        Number of uniform points without *times*.
-    """
-    if times is None:
-        return np.linspace(0.0, t_stop, default)
-    t = np.asarray(times, dtype=float).reshape(-1)
-    if t.size and (np.any(np.diff(t) < 0) or t[0] < 0 or t[-1] > t_stop * (1 + 1e-9)
-                   or not np.all(np.isfinite(t))):
-        raise InputError("output times must be sorted and within [0, t_stop]")
-    return np.minimum(t, t_stop)
 
 
 def node_system(model: Evaluable | JointSpace, q: Sequence[float] | None = None, *,

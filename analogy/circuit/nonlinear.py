@@ -13,8 +13,8 @@ from ..presets import DEFAULT_T_STOP
 from ..model.base import RobotModel
 from ..model.dynamics import DynamicsKind, MechanicalFunctions
 from ..model.joint import check_square_symmetric, check_vector
-from .joint_forces import force_breakpoints, waveforms
-from .node_system import NodeCoordinates, check_t_stop
+from .joint_forces import waveforms
+from .node_coordinates import NodeCoordinates, check_t_stop
 from .topology import Topology
 from .topology import topology as make_topology
 
@@ -81,7 +81,8 @@ class NonlinearNodeSystem(NodeCoordinates):
         if not np.all(np.isfinite(load)):
             raise InputError("the gravity and velocity terms h(x, v) are not finite at the start (a parameter "
                              "such as g past the floating-point range?)", field="gravity")
-        force_breakpoints(self.forces, self.t_stop)
+        self.breakpoints()
+        self._seal()
 
     def __repr__(self) -> str:
         return (f"NonlinearNodeSystem({self.provenance.robot}, {self.dof} nodes, "

@@ -7,7 +7,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ..circuit.node_stack import NodeStack, inputs_key
+from ..circuit.node_stack import NodeStack
 from ..circuit.topology import symmetric_part
 from ..errors import InputError, SimulationError
 from ..presets import Preset
@@ -188,7 +188,7 @@ def _states(systems: NodeStack, t, n: int, springs: bool) -> np.ndarray:
         shared[None] = (first.forces, list(range(count)))
     else:
         for i, s in enumerate(systems):
-            shared.setdefault(inputs_key(s)[1], (s.forces, []))[1].append(i)
+            shared.setdefault(s.inputs_key[1], (s.forces, []))[1].append(i)
     for t0, t1 in first.segments():
         last = t1 >= first.t_stop
         mask = (t >= t0) & ((t <= t1) if last else (t < t1))
@@ -231,9 +231,9 @@ def _solve_parts(systems, t) -> np.ndarray | list[np.ndarray]:
     groups: dict = {}
     breaks: dict = {}
     for k, s in enumerate(systems):
-        b = breaks.get(inputs_key(s))
+        b = breaks.get(s.inputs_key)
         if b is None:
-            b = breaks[inputs_key(s)] = tuple(s.breakpoints().tolist())
+            b = breaks[s.inputs_key] = tuple(s.breakpoints().tolist())
         groups.setdefault((s.dof, s.stiffness is not None, b), []).append(k)
     if len(groups) == 1:
         (n, springs, _), = groups
