@@ -6,7 +6,8 @@
 # Missing pieces: the ngspice shared library and executable (Debian libngspice0, ngspice),
 # Python's venv module, and a virtual environment .venv with analogy and its dependencies;
 # for the tests also Chromium (Debian chromium) and a font, for the browser check of the report,
-# gnucap, and where npm exists ngspice compiled to WebAssembly (npm eecircuit-engine, in .engines/wasm).
+# gnucap, and where npm exists ngspice compiled to WebAssembly (npm eecircuit-engine, in .engines/wasm);
+# for the deep pass (test -m deep) KiCad 9 from bookworm-backports, whose kicad-cli reads our schematics.
 set -euo pipefail
 cd "$(dirname "$0")"
 task="${1:-run}"
@@ -28,14 +29,40 @@ if [ "$task" != run ]; then
     ls /usr/lib/*/gnucap*/gnucap-default-plugins.so >/dev/null 2>&1 || packages+=(gnucap-default-plugins0)
 fi
 
+if [ "$(id -u)" -eq 0 ]; then sudo=(); elif command -v sudo >/dev/null; then sudo=(sudo); else sudo=(false); fi
 if [ "${#packages[@]}" -gt 0 ]; then
     echo "setup: installing Debian packages: ${packages[*]}"
-    if [ "$(id -u)" -eq 0 ]; then sudo=(); elif command -v sudo >/dev/null; then sudo=(sudo); else
-        echo "setup: need root (or sudo) to install ${packages[*]}" >&2; exit 1; fi
+    [ "${sudo[*]}" = false ] && { echo "setup: need root (or sudo) to install ${packages[*]}" >&2; exit 1; }
     "${sudo[@]}" apt-get update -qq
     DEBIAN_FRONTEND=noninteractive "${sudo[@]}" apt-get install -y -qq --no-install-recommends \
         "${packages[@]}" >/dev/null
 fi
+
+# bookworm-backports from the archive the machine's own apt configuration names for bookworm, as a
+# sources file at $1 (never a hard-coded address)
+backports_sources() {
+    grep -q '^12' /etc/debian_version 2>/dev/null || { echo "setup: bookworm-backports is for Debian 12 only" >&2; return 1; }
+    local site
+    site="$(apt-get indextargets --format '$(SITE) $(RELEASE)' 2>/dev/null | awk '$2 == "bookworm" {print $1; exit}')"
+    [ -n "$site" ] || { echo "setup: the apt configuration names no bookworm archive" >&2; return 1; }
+    printf 'Types: deb\nURIs: %s\nSuites: bookworm-backports\nComponents: main\nSigned-By: /usr/share/keyrings/debian-archive-keyring.gpg\n' \
+        "$site" > "$1"
+}
+
+# KiCad 9 for the deep pass's schematic check (kicad-cli; Debian 12's own KiCad 6 has none): installed
+# from bookworm-backports by one apt call that reads the system's sources plus backports
+kicad9() {
+    command -v kicad-cli >/dev/null 2>&1 && return 0
+    [ "${sudo[*]}" != false ] || return 1
+    local parts=.engines/apt-kicad
+    rm -rf "$parts" && mkdir -p "$parts"
+    cp /etc/apt/sources.list.d/*.sources /etc/apt/sources.list.d/*.list "$parts"/ 2>/dev/null || true
+    backports_sources "$parts/backports.sources" || return 1
+    local apt=(apt-get -qq -o Dir::Etc::sourceparts="$PWD/$parts")
+    echo "setup: installing KiCad 9 (kicad-cli) from bookworm-backports for the schematic check"
+    "${sudo[@]}" "${apt[@]}" update && DEBIAN_FRONTEND=noninteractive "${sudo[@]}" "${apt[@]}" install -y \
+        --no-install-recommends kicad/bookworm-backports >/dev/null
+}
 
 # ngspice 46 beside the system's: unpacked from bookworm-backports into .engines/ngspice-46, with
 # its own lists (the system's apt sources are left alone) and its code-model paths pointed there
@@ -45,12 +72,7 @@ ngspice46() {
     grep -q '^12' /etc/debian_version 2>/dev/null || { echo "setup: ngspice 46 is fetched on Debian 12 only" >&2; return 1; }
     rm -rf "$root" "$lists"
     mkdir -p "$lists/lists/partial" "$lists/cache/archives/partial"
-    # the backports suite from the archive the machine's own apt configuration names for bookworm
-    local site
-    site="$(apt-get indextargets --format '$(SITE) $(RELEASE)' 2>/dev/null | awk '$2 == "bookworm" {print $1; exit}')"
-    [ -n "$site" ] || { echo "setup: the apt configuration names no bookworm archive to fetch ngspice 46 from" >&2; return 1; }
-    printf 'Types: deb\nURIs: %s\nSuites: bookworm-backports\nComponents: main\nSigned-By: /usr/share/keyrings/debian-archive-keyring.gpg\n' \
-        "$site" > "$lists/backports.sources"
+    backports_sources "$lists/backports.sources" || return 1
     local apt=(apt-get -qq -o Dir::Etc::sourcelist="$PWD/$lists/backports.sources" -o Dir::Etc::sourceparts=-
                -o Dir::State::Lists="$PWD/$lists/lists" -o Dir::Cache="$PWD/$lists/cache")
     "${apt[@]}" update || return 1
@@ -85,6 +107,10 @@ if [ "$task" = test ] && command -v npm >/dev/null 2>&1 && [ ! -d .engines/wasm/
     mkdir -p .engines/wasm
     npm install --silent --prefix .engines/wasm eecircuit-engine >/dev/null 2>&1 \
         || echo "setup: npm could not install eecircuit-engine; its tests will skip" >&2
+fi
+
+if [ "$task" = test ] && [[ " $* " == *" deep"* ]]; then
+    kicad9 || echo "setup: KiCad 9 could not be installed here; the KiCad schematic check will skip" >&2
 fi
 
 if [ "$task" = run ]; then

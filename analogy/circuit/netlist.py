@@ -22,14 +22,17 @@ from .description import (
 )
 from .description import circuit as describe
 from .elements import ZERO_TOL
+from .ltspice import ltspice_netlist
 from .node_stack import NodeStack
 
-__all__ = ["Dialect", "DIALECTS", "write_netlist", "write_batch", "write_stack", "ac_netlist", "circuit_lines",
+__all__ = ["Dialect", "DIALECTS", "NETLIST_FORMATS", "write_netlist", "write_batch", "write_stack", "ac_netlist", "circuit_lines",
            "analysis_lines", "first_step_lines", "save_vectors", "comment_text", "spice_expression", "gnucap_lines"]
 
 #: The SPICE engines a netlist is written for: ngspice's language, and gnucap's (linear circuits).
-Dialect = Literal["ngspice", "gnucap"]
-DIALECTS: tuple[str, ...] = ("ngspice", "gnucap")
+Dialect = Literal["ngspice", "gnucap", "ltspice"]
+DIALECTS: tuple[str, ...] = ("ngspice", "gnucap", "ltspice")
+#: What ``analogy netlist`` writes: a dialect's netlist, or a KiCad schematic of ngspice's.
+NETLIST_FORMATS: tuple[str, ...] = DIALECTS + ("kicad",)
 #: ``.options`` gnucap reads as ngspice does; the others are ngspice's own.
 _GNUCAP_OPTIONS = ("method", "reltol", "abstol", "vntol", "chgtol", "trtol")
 _EPS = 2.0 ** -52
@@ -308,17 +311,21 @@ def write_netlist(c: Circuit, settings, save: Iterable[str] | None = None, title
         First line of the netlist.
     printing : bool
         End with ``.print tran`` of the saved vectors (see :func:`analysis_lines`).
-    dialect : {"ngspice", "gnucap"}
-        The engine that reads it (see :func:`gnucap_lines` for what gnucap needs).
+    dialect : {"ngspice", "gnucap", "ltspice"}
+        The engine that reads it (see :func:`gnucap_lines` for what gnucap needs, and
+        :func:`~analogy.circuit.ltspice.ltspice_netlist` for LTspice).
     """
     if dialect == "gnucap":
         return "\n".join(_header(c, title, bool(c.couplings)) + gnucap_lines(c, settings, save)) + "\n"
-    if dialect != "ngspice":
-        raise InputError(f"unknown netlist dialect {dialect!r}: use {' or '.join(DIALECTS)}")
+    if dialect not in DIALECTS:
+        raise InputError(f"unknown netlist dialect {dialect!r}: use {', '.join(DIALECTS)}")
     vectors = save_vectors(c, save)
     body = circuit_lines(c) + first_step_lines(settings, c.node_names[0])
     tail = analysis_lines(settings, c.initial, vectors, printing) + [".end"]
-    return "\n".join(_header(c, title, bool(c.couplings)) + body + tail) + "\n"
+    text = "\n".join(_header(c, title, bool(c.couplings)) + body + tail) + "\n"
+    if dialect == "ltspice":
+        return ltspice_netlist(text)
+    return text
 
 
 def gnucap_lines(c: Circuit, settings, save: Iterable[str] | None = None) -> list[str]:

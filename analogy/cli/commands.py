@@ -56,22 +56,35 @@ def _cmd_netlist(args) -> int:
     if args.realizable and args.dynamics != "linear":
         raise InputError("--realizable applies to the linear circuit, not to --dynamics nonlinear")
     check_writable(args.output)
+    if args.format == "ltspice" and args.output:
+        if Path(args.output).suffix.lower() == ".asc":
+            raise InputError("-o names the LTspice netlist (.cir, .net); its schematic is written beside it as .asc")
+        check_writable(str(Path(args.output).with_suffix(".asc")))
     save = None if args.save is None else [s.strip() for s in args.save.split(",") if s.strip()]
     system = built_system(sc, args.realizable)      # as compare --realizable does
     _say_pose(system, sc)
     if args.subckt is not None:
-        if args.dialect != "ngspice" or save is not None:
-            raise InputError("--subckt writes a subcircuit for ngspice that saves nothing: "
-                             "--dialect gnucap and --save do not apply to it")
+        if args.format != "ngspice" or save is not None:
+            raise InputError(f"--subckt writes a subcircuit for ngspice that saves nothing: "
+                             f"{'--save' if save is not None else '--format ' + args.format} does not apply to it")
         text = subcircuit_netlist(system, args.preset, name=args.subckt or None, title=_title(sc))
     else:
-        text = netlist(system, args.preset, save=save, title=_title(sc), dialect=args.dialect)
-    if args.output:
+        dialect = "ngspice" if args.format == "kicad" else args.format
+        text = netlist(system, args.preset, save=save, title=_title(sc), dialect=dialect)
+    files = {args.output: text} if args.output else {}
+    if args.format == "kicad":
+        from ..circuit.kicad import kicad_schematic
+        text = kicad_schematic(text, Path(args.output).stem if args.output else sc.name)
+        files = {args.output: text} if args.output else {}
+    elif args.format == "ltspice" and args.output:
+        from ..circuit.ltspice import ltspice_schematic
+        files[str(Path(args.output).with_suffix(".asc"))] = ltspice_schematic(text)
+    for path, content in files.items():
         try:
-            write_text(args.output, text)
+            write_text(path, content)
         except OSError as exc:
-            raise InputError(f"cannot write {args.output}: {exc.strerror}") from None
-    else:
+            raise InputError(f"cannot write {path}: {exc.strerror}") from None
+    if not files:
         sys.stdout.write(text)
     return EXIT_OK
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from .. import __version__
-from ..circuit.netlist import DIALECTS
+from ..circuit.netlist import NETLIST_FORMATS
 from ..errors import InputError
 from .batch import batch_options
 from .scene_options import preset_option, scene_options
@@ -30,9 +30,11 @@ def _netlist(sub) -> None:
     p.add_argument("--save", metavar="NAMES", help="nodes or elements to save, e.g. 'n1, C1_2' (default: all nodes)")
     p.add_argument("--realizable", action="store_true",
                    help="no negative values: negative elements behind 1:-1 couplings")
-    p.add_argument("--dialect", default="ngspice", choices=list(DIALECTS),
-                   help="the engine that reads it: ngspice (default, any circuit) or gnucap (linear circuits: "
-                        "IC= on each capacitor instead of .ic, .print before .tran)")
+    p.add_argument("--format", "--dialect", dest="format", default="ngspice", choices=list(NETLIST_FORMATS),
+                   help="what to write: ngspice's netlist (default, any circuit); gnucap's (linear circuits: IC= on "
+                        "each capacitor instead of .ic, .print before .tran); ltspice, LTspice's netlist, and with "
+                        "-o FILE its schematic FILE.asc beside it; or kicad, a KiCad 9 schematic (.kicad_sch) whose "
+                        "parts carry the ngspice lines")
     p.add_argument("--dynamics", default="linear", choices=["linear", "nonlinear"],
                    help="the circuit at q (linear), or the robot's full nonlinear circuit: "
                         "charge-defined capacitors, behavioural forces and integrators")

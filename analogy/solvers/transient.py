@@ -324,9 +324,10 @@ def netlist(system, preset: str | Preset = "accurate", save: Iterable[str] | Non
         which ``ngspice -b`` shows; the steps taken are the same without it.
     loosen : float
         Factor on abstol and vntol (see :class:`TransientSettings`).
-    dialect : {"ngspice", "gnucap"}
-        The engine that reads it: ngspice's language, or gnucap's for a linear circuit
-        (:func:`~analogy.circuit.netlist.gnucap_lines`).
+    dialect : {"ngspice", "gnucap", "ltspice"}
+        The engine that reads it: ngspice's language, gnucap's for a linear circuit
+        (:func:`~analogy.circuit.netlist.gnucap_lines`), or LTspice's
+        (:func:`~analogy.circuit.ltspice.ltspice_netlist`).
     settings : TransientSettings, optional
         The settings a run took (:attr:`Trajectory.settings`: a retry's, a refined run's),
         instead of those *preset* gives.
