@@ -14,6 +14,7 @@ from concurrent.futures import BrokenExecutor
 from dataclasses import replace
 from pathlib import Path
 
+from ..circuit.netlist import gnucap_size_note
 from ..files import write_text
 from ..solvers.transient import netlist, subcircuit_netlist
 from ..heap import retain_freed_memory
@@ -71,6 +72,8 @@ def _cmd_netlist(args) -> int:
     else:
         dialect = "ngspice" if args.format == "kicad" else args.format
         text = netlist(system, args.preset, save=save, title=_title(sc), dialect=dialect)
+        if dialect == "gnucap" and (note := gnucap_size_note(system.dof)):
+            print(f"analogy: warning: {note}", file=sys.stderr)
     files = {args.output: text} if args.output else {}
     if args.format == "kicad":
         from ..circuit.kicad import kicad_schematic
