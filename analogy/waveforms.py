@@ -133,7 +133,8 @@ class PWL(Waveform):
     def label(self) -> str:
         pairs = np.column_stack([self.times, self.values]).ravel()
         text = _call("pwl", pairs, len(pairs))
-        return text if len(pairs) <= 8 else f"{text[:40]}... ({len(self.times)} points)"
+        # a long table is cut where a reader stops, and says how long it is; a short one is whole
+        return text if len(text) <= 48 else f"{text[:40]}... ({len(self.times)} points)"
 
     def __call__(self, t):
         return np.interp(t, self.times, self.values)

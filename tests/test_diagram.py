@@ -178,6 +178,19 @@ def test_past_six_nodes_the_element_map_shows_every_element_once_with_its_sign(s
     assert any(v < 0 for v in values)               # negative MP capacitances are there, with their sign
 
 
+def test_a_waveform_label_is_drawn_whole_over_lines_never_cut(tmp_path):
+    forces = ("pulse(0, 2.5, 0.25, 0.1, 0.1, 1.5, 4)", "sine(0, 0.3, 1.5, 0.2, 0.1, 30)",
+              "pwl(0, 0, 1, 0.5, 2, 0.25, 3, 1, 4, 0)")
+    system = analogy.scene("serial3").replace(forces=forces).system()
+    paths = diagram.draw(system, tmp_path, "long", schematic=True)
+    for path in (paths[0], paths[2]):            # circuit and mechanism
+        texts = [t.replace(" ", "") for t in svg_texts(path)]
+        for force in forces:                    # on one line, or wrapped over two (in either order in the SVG)
+            whole = force.replace(" ", "")
+            assert any(whole in t for t in texts) or any(whole in a + b for a in texts for b in texts), force
+        assert not [t for t in texts if "..." in t]
+
+
 def test_with_gravity_each_source_is_labelled_with_its_own_term(tmp_path):
     """Gravity adds a step to each joint's force: a source per term, each labelled with its own
     waveform as a term of f_k, never with the whole force (which would count it twice)."""

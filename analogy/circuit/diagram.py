@@ -21,6 +21,8 @@ acceleration of its terminals).
 
 from __future__ import annotations
 
+import textwrap
+
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Sequence
@@ -205,7 +207,8 @@ def _label_width(p: _Part) -> float:
 
 
 def _wave(p: _Part) -> str:
-    return p.waveform if len(p.waveform) <= 24 else p.waveform[:21] + "..."
+    """The waveform whole, wrapped after its commas into lines of about 28 characters."""
+    return "\n".join(textwrap.wrap(p.waveform, 28, break_long_words=False, break_on_hyphens=False))
 
 
 def _source_label(name: str, p: _Part, unit: str) -> str:
