@@ -10,7 +10,8 @@ __all__ = ["AnalogyError", "InputError", "one_line", "SimulationError", "SpiceEr
 #: (``--mass`` on the command line, ``[model] mass`` in a scene file).
 InputField = Literal["robot", "urdf", "joints", "mass", "damping", "stiffness", "gravity", "parameters", "q",
                      "topology", "forces", "initial_rates", "t_stop", "step", "preset", "dynamics", "link_modes",
-                     "joint_frame", "geometric_stiffness", "model", "inputs", "budget", "output", "trajectories"]
+                     "joint_frame", "geometric_stiffness", "model", "inputs", "budget", "output", "trajectories",
+                     "motors", "voltages"]
 
 #: Exit codes of the command line: success, a simulation failed, bad input, a result outside its
 #: accuracy bound, and stopped by SIGINT or SIGTERM.

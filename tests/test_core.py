@@ -26,7 +26,7 @@ from analogy.model.robots import planar_serial, robot
 from analogy.model.symbolic import christoffel_symbols, velocity_terms
 from analogy.presets import preset
 from analogy.study.comparison import compare
-from analogy.results.metrics import output_errors, relative_error, stack_errors
+from analogy.results.metrics import PEAK_FLOOR, REFERENCE_ROUNDING, output_errors, relative_error, stack_errors
 from analogy.scenes.builtin import scene
 from analogy.scenes.toml import parse_toml
 from analogy.solvers.ode import solve_ode
@@ -183,6 +183,23 @@ def test_a_stack_s_errors_per_output_and_over_the_largest_peak_are_those_of_each
         assert whole[k] == relative_error(noisy[k], stack[k])
     assert whole[3] == 0.0 and whole[4] == math.inf
     assert np.isnan(stack_errors(np.empty((2, 0, 3)), np.empty((2, 0, 3)))[2]).all()
+
+
+def test_an_output_at_rounding_is_judged_no_closer_than_the_reference_reaches():
+    """Judged against a bound, an output's peak is floored at REFERENCE_ROUNDING / bound of the largest:
+    a still joint whose reference is rounding (peak 1e-14 of the largest) is judged in absolute terms
+    at 1e-12 of the largest peak, never at 1e-6 of its own rounding; large outputs keep their own peak."""
+    t = np.linspace(0.0, 1.0, 11)
+    ref = np.column_stack([np.sin(t), 1e-14 * np.cos(t), 1e-3 * t, 1e-14 * t])
+    off = ref + np.column_stack([1e-7 * t, 5e-13 * t, 2e-10 * t, 2e-12 * t])
+    err, loose = output_errors(off, ref)                 # no bound: PEAK_FLOOR of the largest
+    assert loose[1] == pytest.approx(5e-13 / (PEAK_FLOOR * np.sin(1.0)), rel=1e-12)
+    err, judged = output_errors(off, ref, 1e-6)
+    top = np.sin(1.0)
+    assert judged[1] == pytest.approx(5e-13 / (REFERENCE_ROUNDING / 1e-6 * top), rel=1e-12) and judged[1] < 1e-6
+    assert judged[0] == pytest.approx(1e-7 / top, rel=1e-12) and judged[2] == pytest.approx(2e-10 / 1e-3, rel=1e-12)
+    assert judged[3] > 1e-6             # past the reference's reach of the largest peak: flagged
+    np.testing.assert_array_equal(stack_errors(off[None], ref[None], 1e-6)[1][0], judged)
 
 
 # ---------------------------------------------------------------- circuit description

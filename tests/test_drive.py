@@ -178,3 +178,70 @@ def test_the_exact_drive_is_an_integration_of_the_whole_state_space():
     rates, _ = exact_drive(d, t)
     want = d.system.joint_rates(reference[:, first:first + 2])
     assert np.max(np.abs(rates - want)) <= 1e-9 * np.max(np.abs(want))
+
+
+DRIVE_SCENE = '''name = "arm-drive"
+[model]
+robot = "serial2"
+[configuration]
+q = [0.0, 0.3]
+[inputs]
+voltages = ["step(2)", "step(-1)"]
+t_stop = 5.0
+[motors.default]
+resistance = "0.6 ohm"
+inductance = "0.5 mH"
+torque_constant = "0.07 N*m/A"
+rotor_inertia = "1e-5 kg*m^2"
+gear_ratio = 50
+[motors.2]
+resistance = "1.2 ohm"
+gear_ratio = 30
+[outputs]
+joint_rates = true
+netlist = "drive.cir"
+'''
+
+
+def test_a_scene_file_s_motors_make_it_a_drive_run_as_the_command_line_runs_one(tmp_path):
+    """[motors] and [inputs] voltages: the drive of analogy drive --motors, the same netlist, each output in bound."""
+    from analogy.scenes.run import run_scene
+    from analogy.scenes.toml import load_scene
+    path = tmp_path / "drive.toml"
+    path.write_text(DRIVE_SCENE)
+    sc = load_scene(path)
+    assert sc.motors and sc.voltages == ("step(2)", "step(-1)") and sc.key != sc.replace(motors=(), voltages=(),
+                                                                                        forces=(0.0, 0.0)).key
+    result = run_scene(sc)
+    run = result.drive
+    assert set(run.errors) == {"spice", "ode"} and not run.outside_bound()
+    assert all(e <= sc.settings.bound for errs in run.errors.values() for e in errs.values())
+    assert "power balance" in result.table() and (tmp_path / "drive.cir").read_text() == run.netlist
+    motors = tmp_path / "motors.toml"
+    motors.write_text(DRIVE_SCENE.split("t_stop = 5.0\n")[1].split("[outputs]")[0].replace("[motors.", "["))
+    cli = subprocess.run([sys.executable, "-m", "analogy", "drive", "--motors", str(motors), "--q", "0, 0.3",
+                          "--t-stop", "5", "--voltage", "step(2)", "--voltage", "step(-1)", "-o", "cli.cir"],
+                         capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    assert cli.returncode == 0, cli.stderr
+    body = [line for line in run.netlist.splitlines() if not line.startswith("*")]
+    assert [line for line in (tmp_path / "cli.cir").read_text().splitlines() if not line.startswith("*")] == body
+
+
+@pytest.mark.parametrize("edit, said", [
+    (("[inputs]\n", "[inputs]\nforces = [1.0, 0.5]\n"), "[inputs] forces: the motors drive the joints"),
+    (("[motors.2]", "[motors.wrist]"), "[motors]: [wrist] is not a joint"),
+    (('resistance = "1.2 ohm"', 'resistance = "1.2 kg"'), "expected a resistance"),
+    (('voltages = ["step(2)", "step(-1)"]', 'voltages = ["step(2)"]'), "[inputs] voltages: give one per motor"),
+    (("dynamics", "dynamics"), None),
+])
+def test_a_broken_drive_scene_is_refused_in_one_sentence_naming_its_key(tmp_path, edit, said):
+    path = tmp_path / "drive.toml"
+    text = DRIVE_SCENE.replace(*edit)
+    if said is None:                # voltages without motors
+        text = text.split("[motors.default]")[0] + "[outputs]\njoint_rates = true\n"
+        said = "[inputs] voltages: voltages drive motors"
+    path.write_text(text)
+    out = subprocess.run([sys.executable, "-m", "analogy", "run", str(path)], capture_output=True, text=True,
+                         timeout=300, cwd=tmp_path)
+    assert out.returncode == 2 and said in out.stderr and "Traceback" not in out.stderr, out.stderr
+    assert len(out.stderr.strip().splitlines()) == 1

@@ -291,6 +291,9 @@ def _cmd_run(args) -> int:
             print(f"wrote {written}")
         if result.failures:
             codes.append(EXIT_FAILED)
+        elif result.drive is not None:
+            from .show import drive_exit
+            codes.append(drive_exit(result.drive, job.preset, job.settings.bound))
         elif result.comparison is not None:
             codes.append(accuracy_exit(result.comparison.outside_bound(), job.preset, job.settings.bound,
                                         result.comparison))

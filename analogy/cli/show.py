@@ -113,47 +113,52 @@ def lab_command(args) -> int:
 def drive_command(args) -> int:
     """``analogy drive``: the scene's robot driven by the motors of a motor file, in ngspice and exactly.
 
+    The motor file and the voltages make the scene a drive, as a scene file's ``[motors]`` does;
+    it runs as :func:`~analogy.scenes.run.run_scene` runs any scene.
+
     Parameters
     ----------
     args : argparse.Namespace
         The parsed command line.
     """
-    from ..model.motors import load_motors
-    from ..model.urdf_file import transmissions
-    from ..solvers.drive import drive
-    from ..study.drive_run import run_drive
-    from ..files import write_text
-    sc = scene_from_args(args)
-    if args.csv:
-        check_writable(args.csv)
+    from ..model.motors import read_motor_file
+    from ..scenes.run import run_scene
+    from ..scenes.validate import validated
+    if args.force:
+        raise InputError("--force: the motors drive the joints; give each motor its --voltage instead")
+    for path in (args.csv, getattr(args, "output", None)):
+        check_writable(path)
     if args.plot:
         check_plot_path(args.plot)
-    system = built_system(sc)
-    joints = list(system.provenance.joints or [f"q{j + 1}" for j in range(system.dof)])
-    model = sc.numeric_model()
-    # a URDF's transmissions give the gear ratios the motor file leaves out
-    motors = load_motors(args.motors, joints, transmissions(model.text) if model.rigid_tree else None)
-    driven = [j for j, m in enumerate(motors) if m is not None]
-    if len(args.voltage) != len(driven):
-        raise InputError(f"--voltage: give one per motor, in joint order ({', '.join(joints[j] for j in driven)}): "
-                         f"got {len(args.voltage)}")
-    voltages = [None] * system.dof
-    for j, text in zip(driven, args.voltage):
-        voltages[j] = text
-    run = run_drive(drive(system, motors, voltages), args.preset, ("spice", "ode", "exact"))
-    if getattr(args, "output", None):      # analogy drive -o; compare --motors writes no netlist
-        write_text(args.output, run.netlist)
-        print(f"wrote {args.output}")
-    print(run.table())
+    # compare --motors writes no netlist; analogy drive -o does
+    sc = scene_from_args(args).replace(motors=read_motor_file(args.motors), voltages=tuple(args.voltage), forces=(),
+                                       netlist=bool(getattr(args, "output", None)),
+                                       netlist_file=getattr(args, "output", None), csv_file=args.csv,
+                                       plot_file=args.plot, solvers=("spice", "ode", "exact"), description="")
+    result = run_scene(validated(sc))
+    print(result.table())
+    for written in result.written:
+        print(f"wrote {written}")
+    return drive_exit(result.drive, args.preset.name, args.preset.bound)
+
+
+def drive_exit(run, preset: str, bound: float) -> int:
+    """A drive's exit code, each broken promise said on stderr: an output past the bound, a winding past its
+    current limit (3), else 0.
+
+    Parameters
+    ----------
+    run : DriveRun
+        The drive's run.
+    preset : str
+        The preset's name.
+    bound : float
+        Its bound.
+    """
     if run.note:
         print(f"analogy: note: the run was {run.note}", file=sys.stderr)
-    if args.csv:
-        print(f"wrote {run.to_csv(args.csv)}")
-    if args.plot:
-        run.plot(args.plot)
-        print(f"wrote {args.plot}")
-    flags = {**run.outside_bound()}
-    for name, why in run.over_limits().items():
+    limits = run.over_limits()
+    for name, why in limits.items():
         print(f"analogy: limit: {name}'s winding carried {why}", file=sys.stderr)
-    code = accuracy_exit(flags, args.preset.name, args.preset.bound)
-    return code or (EXIT_ACCURACY if run.over_limits() else EXIT_OK)
+    code = accuracy_exit(run.outside_bound(), preset, bound)
+    return code or (EXIT_ACCURACY if limits else EXIT_OK)

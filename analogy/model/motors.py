@@ -14,7 +14,8 @@ from ..errors import InputError, located
 from .expressions import parse_number
 from .quantities import Dimension
 
-__all__ = ["Motor", "MOTOR_FIELDS", "motors_from_table", "load_motors", "reflected"]
+__all__ = ["Motor", "MOTOR_FIELDS", "motor_spec", "motor_table", "motors_from_table", "load_motors", "read_motor_file",
+           "reflected"]
 
 
 @dataclass(frozen=True)
@@ -81,8 +82,8 @@ MOTOR_FIELDS: dict[str, Dimension | None] = {
 _POSITIVE = ("resistance", "torque_constant", "gear_ratio", "voltage_limit", "current_limit")
 
 
-def _motor(entry: Mapping, where: str) -> Motor:
-    """One motor from a table of field values (numbers, or strings with units)."""
+def _fields(entry: Mapping, where: str) -> dict[str, float]:
+    """A motor table's fields as SI numbers, each checked (names, units, signs)."""
     if not isinstance(entry, Mapping):
         raise InputError(f"{where}: expected a table of a motor's fields")
     values = {}
@@ -97,10 +98,48 @@ def _motor(entry: Mapping, where: str) -> Motor:
             if not (math.isfinite(x) or key.endswith("_limit")) or x < 0 or (key in _POSITIVE and x == 0):
                 raise InputError(f"must be {'positive' if key in _POSITIVE else 'zero or positive'}, got {value!r}")
             values[key] = x
+    return values
+
+
+def _motor(entry: Mapping, where: str) -> Motor:
+    """One motor from a table of field values (numbers, or strings with units)."""
+    values = _fields(entry, where)
     missing = [k for k in ("resistance", "torque_constant") if k not in values]
     if missing:
         raise InputError(f"{where}: a motor needs its {' and '.join(missing)}")
     return Motor(**values)
+
+
+def motor_spec(table: Mapping, where: str = "motors") -> tuple:
+    """A motor table (a motor file's, or a scene file's ``[motors]``) as a hashable value, every field
+    checked: ``((joint name or number, or "default", ((field, value), …)), …)``, sorted.
+
+    Which joint each table names is judged when the robot is known (:func:`motors_from_table`).
+
+    Parameters
+    ----------
+    table : mapping
+        ``{default: {...}, <joint name or number>: {...}}``.
+    where : str
+        The source, named in errors.
+    """
+    if not isinstance(table, Mapping) or not table:
+        raise InputError(f"{where}: expected [default] or a table per joint (its name or number), each of a "
+                         "motor's fields")
+    for key, entry in table.items():
+        _fields(entry, f"{where}: [{key}]")
+    return tuple(sorted((str(key), tuple(sorted(entry.items()))) for key, entry in table.items()))
+
+
+def motor_table(spec: tuple) -> dict:
+    """The mapping a :func:`motor_spec` value stands for.
+
+    Parameters
+    ----------
+    spec : tuple
+        A :func:`motor_spec` value.
+    """
+    return {key: dict(entry) for key, entry in spec}
 
 
 def motors_from_table(table: Mapping, joints: Sequence[str], where: str = "motors",
@@ -161,6 +200,17 @@ def load_motors(path: str | Path, joints: Sequence[str],
     reductions : mapping of str to float, optional
         A URDF's gear ratios by joint name.
     """
+    return motors_from_table(read_motor_file(path), list(joints), str(path), reductions)
+
+
+def read_motor_file(path: str | Path) -> dict:
+    """A motor file's tables (TOML), every field checked (:func:`motor_spec`).
+
+    Parameters
+    ----------
+    path : str or Path
+        The file.
+    """
     p = Path(path)
     try:
         table = tomllib.loads(p.read_text(encoding="utf-8"))
@@ -168,7 +218,8 @@ def load_motors(path: str | Path, joints: Sequence[str],
         raise InputError(f"cannot read the motor file {p}: {exc.strerror or exc}") from None
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise InputError(f"{p}: not a TOML motor file ({exc})") from None
-    return motors_from_table(table, list(joints), str(p), reductions)
+    motor_spec(table, str(p))
+    return table
 
 
 def reflected(motors: Sequence[Motor | None]) -> tuple[np.ndarray, np.ndarray]:

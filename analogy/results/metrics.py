@@ -6,12 +6,36 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
-__all__ = ["relative_error", "absolute_error", "peak", "errors", "output_errors", "stack_errors", "OutputErrors", "PEAK_FLOOR"]
+__all__ = ["relative_error", "absolute_error", "peak", "errors", "output_errors", "stack_errors", "OutputErrors", "PEAK_FLOOR",
+           "REFERENCE_ROUNDING", "judged_peaks"]
 
 #: An output whose own peak is under this fraction of the largest output's is judged against
 #: this fraction instead: below it the reference itself is rounding (the exact and reference
 #: solvers reach about 1e-12 of the largest peak, n·ε·cond(M')), so no relative figure exists.
 PEAK_FLOOR = 1e-10
+#: How close the references come to the truth, as a fraction of the largest output's peak: the exact
+#: solver agrees with mpmath's matrix exponential and with the reference to 1e-12 of it
+#: (tests/test_solvers.py). Judged against a bound, an output's peak is floored at
+#: REFERENCE_ROUNDING / bound of the largest, so that no bound asks a solver to come closer to the
+#: reference than the reference is to the truth (at 1e-6: 1e-12 of the largest peak, absolute).
+REFERENCE_ROUNDING = 1e-12
+
+
+def judged_peaks(own: np.ndarray, top: np.ndarray, bound: float | None = None) -> np.ndarray:
+    """The peak each output's error is divided by: its own, floored at :data:`PEAK_FLOOR` of the
+    largest output's peak *top* and, under a *bound*, at :data:`REFERENCE_ROUNDING` / *bound* of it.
+
+    Parameters
+    ----------
+    own : ndarray
+        Each output's own peak.
+    top : ndarray
+        The largest output's peak, broadcast against *own*.
+    bound : float, optional
+        The error bound the outputs are judged against (a preset's).
+    """
+    floor = PEAK_FLOOR if bound is None or not bound > 0 else max(PEAK_FLOOR, REFERENCE_ROUNDING / bound)
+    return np.maximum(own, floor * top)
 
 
 def peak(reference: np.ndarray, axis=None) -> np.ndarray | float:
@@ -91,12 +115,12 @@ def relative_error(values: np.ndarray, reference: np.ndarray, axis=None) -> np.n
     return errors(values, reference, axis)[1]
 
 
-def output_errors(values: np.ndarray, reference: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def output_errors(values: np.ndarray, reference: np.ndarray, bound: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Per output (the last axis): max over time |x − x_ref| and that over the output's own peak.
 
-    The peak of an output is max |x_ref| over time, floored at :data:`PEAK_FLOOR` of the
-    largest output's peak; an all-zero reference gives 0 where the values are zero too, inf
-    elsewhere (as :func:`relative_error`).
+    The peak of an output is max |x_ref| over time, floored as :func:`judged_peaks` says;
+    an all-zero reference gives 0 where the values are zero too, inf elsewhere (as
+    :func:`relative_error`).
 
     Parameters
     ----------
@@ -104,6 +128,8 @@ def output_errors(values: np.ndarray, reference: np.ndarray) -> tuple[np.ndarray
         Values of the solver under test: N times, m outputs (a leading stack axis is kept).
     reference : array_like
         Reference values, of the same shape.
+    bound : float, optional
+        The bound the errors are judged against (see :data:`REFERENCE_ROUNDING`).
     """
     x, ref = np.asarray(values, dtype=float), np.asarray(reference, dtype=float)
     if x.shape != ref.shape:
@@ -114,11 +140,11 @@ def output_errors(values: np.ndarray, reference: np.ndarray) -> tuple[np.ndarray
     err = _time_max(np.abs(x - ref))
     own = _time_max(np.abs(ref))
     top = np.max(own, axis=-1, keepdims=True) if own.shape[-1] else own
-    floor = np.maximum(own, PEAK_FLOOR * top)
-    return err, _over(err, floor)
+    return err, _over(err, judged_peaks(own, top, bound))
 
 
-def stack_errors(values: np.ndarray, reference: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def stack_errors(values: np.ndarray, reference: np.ndarray,
+                 bound: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`output_errors` of a stack (count, N, m) and, per row, the largest error over the largest
     output's peak (:func:`relative_error` over each row's times and outputs), from one pass.
 
@@ -128,17 +154,19 @@ def stack_errors(values: np.ndarray, reference: np.ndarray) -> tuple[np.ndarray,
         Values of the solver under test.
     reference : array_like
         Reference values, of the same shape.
+    bound : float, optional
+        The bound the errors are judged against (see :data:`REFERENCE_ROUNDING`).
     """
     x, ref = np.asarray(values, dtype=float), np.asarray(reference, dtype=float)
     if x.shape != ref.shape:
         raise ValueError(f"values of shape {x.shape} cannot be compared with a reference of shape {ref.shape}")
     if x.shape[-2] == 0 or x.shape[-1] == 0:
-        err, rel = output_errors(x, ref)
+        err, rel = output_errors(x, ref, bound)
         return err, rel, np.full(x.shape[0], np.nan)
     err, own = _time_max(np.abs(x - ref)), _time_max(np.abs(ref))
     top = np.max(own, axis=-1)
     # the maxima over times, then over outputs, are the maxima over both
-    return err, _over(err, np.maximum(own, PEAK_FLOOR * top[:, None])), _over(np.max(err, axis=-1), top)
+    return err, _over(err, judged_peaks(own, top[:, None], bound)), _over(np.max(err, axis=-1), top)
 
 
 def _time_max(a: np.ndarray) -> np.ndarray:

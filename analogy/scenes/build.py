@@ -3,14 +3,15 @@
 from __future__ import annotations
 
 import re
-from typing import Mapping
+from contextlib import contextmanager
+from typing import Iterator, Mapping
 
 import numpy as np
 
 from ..circuit.joint_forces import waveforms
 from ..circuit.node_system import node_system, node_systems
 from ..circuit.nonlinear import nonlinear_system
-from ..errors import InputError, located
+from ..errors import InputError, located, rendered
 from ..model.base import RobotModel
 from ..model.catalog import family_builder, robot_family
 from ..model.compiled import compile_model, load_compiled
@@ -22,7 +23,7 @@ from ..model.joint import JointSpace
 from ..model.quantities import FORCE, check_joint_dimensions, check_parameter_units
 from .spec import ModelSpec, SceneData
 
-__all__ = ["scene_model", "symbolic_model", "scene_system", "scene_systems", "entry_value", "TOML_KEYS",
+__all__ = ["scene_model", "symbolic_model", "scene_system", "scene_systems", "entry_value", "placed", "TOML_KEYS",
            "LABELS", "COMMAND_LINE", "CLI_KEYS"]
 
 #: How errors name each part of a scene: in a scene file, and on the command line.
@@ -33,7 +34,8 @@ TOML_KEYS = {"robot": "[model] robot", "mass": "[model] mass", "damping": "[mode
              "parameters": "[parameters]", "model": "[model]", "inputs": "[inputs]",
              "dynamics": "dynamics", "link_modes": "[model] link_modes",
              "joint_frame": "[model] joint_frame", "geometric_stiffness": "[model] geometric_stiffness", "urdf": "[model] urdf",
-             "joints": "[model] joints", "preset": "[solvers] preset", "step": "[solvers] step"}
+             "joints": "[model] joints", "preset": "[solvers] preset", "step": "[solvers] step",
+             "motors": "[motors]", "voltages": "[inputs] voltages"}
 
 #: The source of a scene made from command-line flags.
 COMMAND_LINE = "command line"
@@ -45,7 +47,8 @@ CLI_KEYS = {"robot": "--robot", "mass": "--mass", "damping": "--damping", "stiff
             "initial_rates": "--r0", "t_stop": "--t-stop", "parameters": "--param", "model": "--mass",
             "inputs": "--force", "dynamics": "--dynamics", "link_modes": "--link-modes", "urdf": "--urdf",
             "joint_frame": "--joint-frame", "geometric_stiffness": "--geometric-stiffness",
-            "joints": "--joints", "preset": "--preset", "step": "--step", "numbered": False}
+            "joints": "--joints", "preset": "--preset", "step": "--step", "motors": "--motors",
+            "voltages": "--voltage", "numbered": False}
 
 #: How errors name each part of a scene, by the scene's source: the command line by its flags;
 #: any other source (a scene file, the API) by the scene-file keys.
@@ -62,6 +65,20 @@ def _where(scene: SceneData):
     """Prefix errors with the scene file, when the scene came from one."""
     src = scene.source
     return located(src if src not in (None, COMMAND_LINE) else None)
+
+
+@contextmanager
+def placed(scene: SceneData) -> Iterator[None]:
+    """Errors raised inside name their field as the scene's front end does (a scene-file key, an option),
+    after the scene's file.
+
+    Parameters
+    ----------
+    scene : SceneData
+        The scene the enclosed work is for.
+    """
+    with _where(scene), rendered(_keys(scene)):
+        yield
 
 
 def entry_value(value, where: str = "") -> float | str:
@@ -329,7 +346,8 @@ def _topology(scene: SceneData):
 
 
 def _inputs(scene: SceneData, n: int, keys: dict, joints=None) -> dict:
-    forces = scene.forces
+    # a drive leaves the applied forces out (its motors drive the joints): its circuit carries none
+    forces = scene.forces or (tuple([0.0] * n) if scene.motors else ())
     with located(keys["forces"]):
         if not forces:
             raise InputError("missing: give one force per joint, e.g. [1.0, \"sine(0, 1, 2)\"]")

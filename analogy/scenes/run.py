@@ -15,10 +15,13 @@ from ..errors import InputError, located
 from ..study.comparison import Comparison, compare
 from ..results.metrics import output_errors
 from ..results.output import Tabular, html_table
+from .build import placed
 from .scene import Scene
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
+
+    from ..study.drive_run import DriveRun
 
 __all__ = ["SceneResult", "run_scene", "save_names"]
 
@@ -62,6 +65,8 @@ def run_scene(scene: Scene, output_dir=None, progress=None) -> "SceneResult":
             with located(scene.source), located(f"[outputs] {key}"):
                 scene.path(name, output_dir)
     p = scene.settings
+    if scene.motors:
+        return _run_drive(scene, output_dir)
     system = scene.system()
     result = SceneResult(scene, system)
     save = save_names(scene, system)
@@ -104,6 +109,31 @@ def run_scene(scene: Scene, output_dir=None, progress=None) -> "SceneResult":
     return result
 
 
+def _run_drive(scene: Scene, output_dir) -> "SceneResult":
+    """A scene of motors: the drive's run (ngspice, the ODE, the exact solution) and its files."""
+    from ..study.drive_run import run_drive, scene_drive
+    with placed(scene):
+        d = scene_drive(scene)
+        run = run_drive(d, scene.settings, tuple(scene.solvers))
+    result = SceneResult(scene, d.system)
+    result.drive, result.netlist = run, run.netlist
+    try:
+        if scene.netlist_file:
+            result.written.append(_write_text(scene.path(scene.netlist_file, output_dir), run.netlist))
+        if scene.csv_file:
+            path = scene.path(scene.csv_file, output_dir)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            result.written.append(Path(run.to_csv(path)))
+        if scene.plot_file:
+            path = scene.path(scene.plot_file, output_dir)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            run.plot(path)
+            result.written.append(path)
+    except OSError as exc:
+        raise InputError(f"cannot write output: {exc}") from None
+    return result
+
+
 def _write_text(path: Path, text: str) -> Path:
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -129,6 +159,8 @@ class SceneResult(Tabular):
         The netlist text, when asked for.
     written : list of Path
         Files written.
+    drive : DriveRun or None
+        A scene of motors: its drive's run (joint rates and winding currents per solver).
     """
 
     scene: Scene
@@ -136,6 +168,7 @@ class SceneResult(Tabular):
     solved: Comparison | None = None
     netlist: str | None = None
     written: list = field(default_factory=list)
+    drive: "DriveRun | None" = None
 
     @property
     def comparison(self) -> Comparison | None:
@@ -236,7 +269,7 @@ class SceneResult(Tabular):
             y = np.column_stack([ref[k] for k in names])
             out[quantity] = {}
             for s, vals in by_solver.items():       # each output against its own peak, as the joint rates
-                err, rel = output_errors(np.column_stack([vals[k] for k in names]), y)
+                err, rel = output_errors(np.column_stack([vals[k] for k in names]), y, self.scene.settings.bound)
                 out[quantity][s] = (float(np.max(err)), float(np.max(rel)))
         return out
 
@@ -256,6 +289,8 @@ class SceneResult(Tabular):
         sc, system = self.scene, self.system
         heading = f"scene {sc.name}" + (f": {sc.description}" if sc.description else "")
         lines = [" ".join(heading.split())]         # a name or description prints as one line
+        if self.drive is not None:
+            return "\n".join(lines + [self.drive.table()])
         referenced = self.comparison is not None and self.reference is not None
         if self.comparison is not None:
             lines.append(self.comparison.table())

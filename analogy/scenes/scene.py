@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Mapping
 
 from ..errors import InputError
 from ..model.dynamics import DynamicsKind
+from ..model.motors import motor_spec
 from ..presets import DEFAULT_SOLVERS, DEFAULT_T_STOP, Preset, PresetName
 from ..presets import preset as get_preset
 from .build import scene_model, scene_system, scene_systems, symbolic_model
@@ -33,7 +34,7 @@ SCENE_SCHEMA = "analogy-scene-2"
 _NOT_CONTENT = ("name", "description", "source", "netlist_file", "csv_file", "plot_file")
 _WHEN_SET = ("urdf", "joints", "joint_frame", "geometric_stiffness")
 #: Scene fields added after SCENE_SCHEMA, in its key only when not at these defaults: earlier keys stand.
-_SCENE_WHEN_SET = {"estimate": False, "refine": False}
+_SCENE_WHEN_SET = {"estimate": False, "refine": False, "motors": (), "voltages": ()}
 
 
 @dataclass(frozen=True)
@@ -93,6 +94,12 @@ class Scene:
         Output step; None keeps SPICE's own points.
     source : str or None
         The scene file it came from (not part of the key).
+    motors : tuple
+        DC motors and gearboxes on the joints (:func:`~analogy.model.motors.motor_spec` of a
+        ``[motors]`` table); empty for the joint forces' current sources. With motors the
+        scene is a drive: its applied forces are left out and each motor takes a voltage.
+    voltages : tuple
+        One waveform per motor, in joint order (a number for a constant voltage).
     """
 
     name: str
@@ -120,6 +127,8 @@ class Scene:
     step: float | None = None
     description: str = ""
     source: str | None = None
+    motors: tuple = ()
+    voltages: tuple = ()
 
     def __repr__(self) -> str:
         m = self.model
@@ -155,8 +164,10 @@ class Scene:
         spec = model if isinstance(model, ModelSpec) else ModelSpec(robot=model)
         if isinstance(fields_.get("parameters"), Mapping):
             fields_["parameters"] = tuple(sorted(fields_["parameters"].items()))
+        if isinstance(fields_.get("motors"), Mapping):
+            fields_["motors"] = motor_spec(fields_["motors"])
         for key in ("q", "forces", "initial_rates", "topology", "node_voltages", "element_currents",
-                    "solvers", "parameters"):
+                    "solvers", "parameters", "voltages"):
             if key in fields_ and fields_[key] is not None and not isinstance(fields_[key], (str, bool)):
                 fields_[key] = freeze(fields_[key])
         return cls(name, spec, **fields_)

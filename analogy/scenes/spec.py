@@ -120,6 +120,7 @@ class SceneData(Protocol):
     parameters: tuple
     topology: Any
     forces: tuple
+    motors: tuple
     initial_rates: tuple | None
     t_stop: float
     dynamics: str

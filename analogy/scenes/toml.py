@@ -42,6 +42,7 @@ from ..model.conventions import CONVENTIONS
 from ..model.urdf_file import read_urdf
 from ..model.expressions import parse_number
 from ..model.quantities import ANY, COORDINATE, RATE
+from ..model.motors import motor_spec
 from ..presets import DEFAULT_SOLVERS
 from ..results.output import check_plot_path
 from ..solvers.registry import SOLVER_NAMES
@@ -58,9 +59,10 @@ _TABLES = {
     "model": ("robot", "mass", "damping", "stiffness", "gravity", *CONVENTIONS, "urdf", "joints"),
     "parameters": None,         # free names
     "configuration": ("q", "topology", "equilibrium"),
-    "inputs": ("forces", "initial_rates", "t_stop"),
+    "inputs": ("forces", "voltages", "initial_rates", "t_stop"),
     "outputs": ("joint_rates", "node_voltages", "element_currents", "netlist", "csv", "plot"),
     "solvers": ("use", "preset", "errors", "estimate", "refine", "step"),
+    "motors": None,             # [motors.default] and a table per joint (name or number)
 }
 _TOP = ("name", "description", "dynamics") + tuple(_TABLES)
 _BARE = re.compile(r"^[A-Za-z0-9_-]+$")
@@ -366,19 +368,27 @@ def _model_fields(ctx: _Context, data: dict) -> dict:
                 out["topology"] = spec
             else:
                 raise InputError(f"expected \"serial\", \"parallel\", \"modal\" or a matrix, got {_kind(spec)}")
-    with ctx.key("[inputs] forces"):
+    if "motors" in data:        # a drive: each motor takes a voltage, and no applied force is left out in silence
+        with ctx.key("[motors]"):
+            out["motors"] = motor_spec(data["motors"], "[motors]")
+        if "forces" in inputs:
+            raise ctx.error("[inputs] forces", "the motors drive the joints: give voltages = [...], one per motor")
+        inputs = {**inputs, "forces": inputs.get("voltages", [])}
+    elif "voltages" in inputs:
+        raise ctx.error("[inputs] voltages", "voltages drive motors: give them in [motors]")
+    with ctx.key("[inputs] voltages" if "motors" in data else "[inputs] forces"):
         if "forces" not in inputs:
             raise InputError("missing: give one force per joint, e.g. forces = [1.0, \"sine(0, 1, 2)\"]")
         raw = inputs["forces"]
         if not isinstance(raw, list):
             raise InputError(f"expected a list with one entry per joint, got {_kind(raw)}")
     for k, item in enumerate(raw):
-        with ctx.key(f"[inputs] forces[{k + 1}]"):
+        with ctx.key(f"[inputs] {'voltages' if 'motors' in out else 'forces'}[{k + 1}]"):
             for w in (item if isinstance(item, list) else [item]):
                 if isinstance(w, bool) or not isinstance(w, (int, float, str)):
                     raise InputError(f"expected a number or a waveform string such as \"step(1)\", "
                                      f"got {_kind(w)}")
-    out["forces"] = freeze(raw)
+    out["voltages" if "motors" in out else "forces"] = freeze(raw)
     if "initial_rates" in inputs:
         with ctx.key("[inputs] initial_rates"):
             out["initial_rates"] = tuple(_numbers(inputs["initial_rates"], dimension=RATE))

@@ -5,7 +5,7 @@ from __future__ import annotations
 from ..circuit.currents import check_element_names
 from ..circuit.description import circuit
 from ..errors import InputError, located
-from .build import COMMAND_LINE
+from .build import COMMAND_LINE, placed
 from .scene import Scene
 
 __all__ = ["validated"]
@@ -49,4 +49,11 @@ def validated(scene: Scene) -> Scene:
                 changes["element_currents"] = tuple(e.name for e in circuit(system).parts)
             else:
                 changes["element_currents"] = check_element_names(system, ec) if ec else ()
+        if scene.motors and (ec or nv):
+            raise InputError("a drive's outputs are its joint rates and winding currents: node_voltages "
+                             "and element_currents do not apply to it")
+    if scene.motors:                # each table's joint and each motor's voltage, before any run
+        from ..study.drive_run import scene_drive
+        with placed(scene):
+            scene_drive(scene)
     return scene.replace(**changes)

@@ -11,7 +11,7 @@ from scipy.interpolate import CubicSpline
 from ..circuit.currents import trajectory_currents
 from ..circuit.scales import system_scales
 from ..presets import Preset
-from ..results.metrics import PEAK_FLOOR, OutputErrors, output_errors
+from ..results.metrics import OutputErrors, judged_peaks, output_errors
 from ..results.trajectory import Trajectory
 from ..solvers.registry import run, run_many, solver
 from ..solvers.transient import REFINE
@@ -54,8 +54,9 @@ def on_points(tr: Trajectory, times: np.ndarray, breakpoints: np.ndarray) -> np.
     return out
 
 
-def _estimate(coarse: np.ndarray, fine: np.ndarray, factor: float, names: Sequence[str]) -> OutputErrors:
-    err, rel = output_errors(coarse, fine)
+def _estimate(coarse: np.ndarray, fine: np.ndarray, factor: float, names: Sequence[str],
+              bound: float | None = None) -> OutputErrors:
+    err, rel = output_errors(coarse, fine, bound)
     err, rel = err * factor, rel * factor
     worst = int(np.argmax(np.where(np.isnan(rel), -np.inf, rel)))
     top = float(np.max(np.abs(fine))) if fine.size else np.nan
@@ -103,7 +104,7 @@ def unresolved_outputs(system, time: np.ndarray, rates: np.ndarray, bound: float
     out: dict[str, str] = {}
     for beta, share in zip(scales.decays, scales.shares):
         for j, peak in enumerate(own / top):
-            allowed = bound * max(float(peak), PEAK_FLOOR)
+            allowed = bound * float(judged_peaks(peak, 1.0, bound))
             if not (beta > 0 and share > allowed) or f"r{j + 1}" in out:
                 continue
             lasts = math.log(share / allowed) / beta         # until the decay is under the allowance
@@ -144,7 +145,7 @@ def _judged(system, coarse: Trajectory, fine: Trajectory, factor: float, names, 
             missing: dict, name: str) -> OutputErrors:
     """The estimate of *coarse* from *fine*; no claim where an output is one its steps cannot see."""
     values = on_points(fine, coarse.time, system.breakpoints()) if own_grid else fine.rates
-    est = _estimate(coarse.rates, values, factor, names)
+    est = _estimate(coarse.rates, values, factor, names, preset.bound)
     if not own_grid:
         return est
     whole = coarse.stats.steps is None or coarse.time.size > coarse.stats.steps   # not a subset of its points

@@ -116,7 +116,7 @@ def measure(systems, runs, native, ref_name, p, save=(), resampled=frozenset()) 
             for at in shapes.values():
                 group = [ok[j] for j in at]
                 a, b = _outputs(own.take(group), save), _outputs(refs.take(at), save)
-                err, rel, whole = stack_errors(a, b)
+                err, rel, whole = stack_errors(a, b, p.bound)
                 whole = whole.tolist()
                 worst = np.argmax(np.where(np.isnan(rel), -np.inf, rel), axis=1)
                 top, peaks, rows = np.max(err, axis=1).tolist(), rel[np.arange(len(group)), worst].tolist(), rel.tolist()
