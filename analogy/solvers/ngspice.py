@@ -16,12 +16,14 @@ from ..processes import halt_requests
 from .library_copy import library_copy
 from .ngspice_library import Library, VectorInfo, declared_ffi, library_path, mapped_file, short_calls, strings
 
-__all__ = ["NgspiceSession", "session", "run_netlist", "library_path", "vector_key"]
+__all__ = ["NgspiceSession", "collapsed", "session", "run_netlist", "library_path", "vector_key"]
 
 _INFO_PREFIXES = ("warning", "note", "using", "doing analysis", "reference value",
                   "circuit:", "no. of data rows")
 #: The longest a running circuit goes between looks at :data:`~analogy.processes.halt_requests` [s].
 _STOP_POLL = 0.05
+#: Seconds without progress after which a timed run is stalled (at least; a twentieth of its limit).
+_STALL_WINDOW = 5.0
 
 #: Held while a library copy initialises: ngspice reads its environment (SPICE_SCRIPTS) then.
 _LOADING = threading.RLock()
@@ -46,6 +48,19 @@ def vector_key(name: str) -> str:
     if key.startswith("v(") and key.endswith(")"):
         key = key[2:-1]
     return key
+
+
+def collapsed(exc: BaseException) -> bool:
+    """True for a run whose step collapsed: ngspice's "timestep too small", or a run stalled before
+    its time limit (:meth:`NgspiceSession.run`); a retry with looser settings may pass.
+
+    Parameters
+    ----------
+    exc : BaseException
+        The failure.
+    """
+    text = str(exc)
+    return "time step too small" in text or "run stalled" in text
 
 
 def _is_error(text: str) -> bool:
@@ -317,19 +332,36 @@ class NgspiceSession:
                 raise
 
     def _timed(self, timeout: float) -> list[tuple[str, str]]:
-        """``bg_run``, halted with ``bg_halt`` past *timeout*: ngspice's own steps have no other bound."""
+        """``bg_run``, halted with ``bg_halt`` past *timeout*, or once stalled: ngspice's own steps have
+        no other bound.
+
+        A run whose progress (ngspice's "tran: p%", to 0.1%) stays put for a twentieth of the time
+        limit cannot finish within it (the rest would take a thousand times as long), so it is halted
+        then as stalled rather than at the limit: ngspice 39 was seen to crawl without end where its
+        step sat near the tolerance, under PWM drives, and never say "timestep too small".
+        """
         self._ng.lines = []
         self._ng.finished.clear()
+        self._ng.progress = 0.0
         if self._lib.ngSpice_Command(b"bg_run"):
             raise SpiceError("ngspice rejected the command 'bg_run'")
-        end = _time.perf_counter() + timeout
+        start = _time.perf_counter()
+        end, window = start + timeout, max(_STALL_WINDOW, timeout / 20)
+        seen, since = self._ng.progress, start
+        stalled = False
         try:
             # in slices: a batch stopping its group threads halts the run
             while not (finished := self._ng.finished.wait(min(_STOP_POLL, max(end - _time.perf_counter(), 0.0)))):
                 if halt_requests.asked():       # a stop, as Ctrl-C makes one: no result at all
                     self._halt()
                     raise KeyboardInterrupt
-                if _time.perf_counter() >= end:
+                now = _time.perf_counter()
+                if self._ng.progress != seen:
+                    seen, since = self._ng.progress, now
+                elif self.prints and seen > 0 and now - since >= window:
+                    stalled = True      # a quiet library says no progress: only the time limit applies there
+                    break
+                if now >= end:
                     break
         except BaseException:           # a signal (Ctrl-C, SIGTERM) while ngspice runs: halt it first
             if not self._ng.finished.is_set():
@@ -337,6 +369,10 @@ class NgspiceSession:
             raise
         if not finished:
             self._halt()
+            if stalled:
+                raise SpiceError(f"ngspice's run stalled: it stayed at {seen:.1%} of its time span for "
+                                 f"{window:g} s, so it would pass its time limit of {timeout:g} s (its step "
+                                 "collapsing near the tolerance without saying so)")
             raise SpiceError(f"ngspice passed its time limit of {timeout:g} s: the circuit needs more "
                              "steps than that allows (raise the timeout, or use the fast preset)")
         return self._ng.lines

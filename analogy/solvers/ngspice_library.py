@@ -45,27 +45,41 @@ class Library:
     PySpice 1.5's ``NgSpiceShared`` declares the API afresh for each instance (a second one fails:
     "duplicate declaration of struct ngcomplex"), and its background callback returns None where
     ngspice wants an int and reads "thread ended" as "running". Rather than override its private
-    methods, the library gets callbacks of our own: what it prints, a request to exit, the end of a
-    background run; or, *talking* False, only the exit, so that no callback (each takes the GIL) slows a run.
+    methods, the library gets callbacks of our own: what it prints, how far a run has come, a request
+    to exit, the end of a background run; or, *talking* False, only the exit, so that no callback
+    (each takes the GIL) slows a run.
     """
 
     def __init__(self, ffi, path: str, talking: bool = True):
         self.lines: list[tuple[str, str]] = []      # what the last command printed: (stream, text)
         self.exited = False                         # ngspice asked to exit: its state is unusable
         self.finished = threading.Event()           # set when a background run ends
+        self.progress = 0.0                         # the share of a transient run done, as ngspice says
         self.lib = ffi.dlopen(path)
         null = ffi.NULL
         exit_ = ffi.callback("int(int, bool, bool, int, void *)", self._exit)
         printed = ffi.callback("int(char *, int, void *)", self._printed) if talking else null
+        status = ffi.callback("int(char *, int, void *)", self._status) if talking else null
         ended = ffi.callback("int(bool, int, void *)", self._background) if talking else null
-        self._callbacks = (exit_, printed, ended)       # alive as long as the library may call them
+        self._callbacks = (exit_, printed, status, ended)       # alive as long as the library may call them
         self._ffi = ffi
-        if self.lib.ngSpice_Init(printed, null, exit_, null, null, ended, null):
+        if self.lib.ngSpice_Init(printed, status, exit_, null, null, ended, null):
             raise SpiceError(f"cannot initialise the ngspice shared library {path}")
 
     def _printed(self, message, ident, user) -> int:     # the callbacks' signatures are ngspice's
         stream, _, text = self._ffi.string(message).decode("utf-8", "replace").partition(" ")
         self.lines.append((stream, text.strip()))
+        return 0
+
+    def _status(self, message, ident, user) -> int:
+        # "tran: 12.3%": how far a run has come (ngspice says it as the percentage changes)
+        text = self._ffi.string(message).decode("utf-8", "replace")
+        head, _, rest = text.partition(":")
+        if head.strip() == "tran" and rest.strip().endswith("%"):
+            try:
+                self.progress = float(rest.strip()[:-1]) / 100.0
+            except ValueError:
+                pass
         return 0
 
     def _background(self, ended, ident, user) -> int:

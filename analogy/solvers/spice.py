@@ -19,7 +19,7 @@ from ..presets import Preset
 from ..presets import preset as get_preset
 from ..results.trajectory import SolverStats, Trajectory
 from ..results.trajectory_stack import TrajectoryStack
-from .ngspice import NgspiceSession, library_path, run_netlist, session, vector_key
+from .ngspice import NgspiceSession, collapsed, library_path, run_netlist, session, vector_key
 from .quiet_ngspice import run_quietly
 from .registry import Solver, stacked_trajectories
 from .transient import REFINE, RETRY_LOOSEN, batch_netlist, circuit_settings, refined
@@ -119,7 +119,7 @@ def solve_spice(system, times=None, *, preset="accurate", save=None) -> Trajecto
         except SimulationError as exc:
             waited += stats.get("waited", 0.0)
             # a collapsed step: the next settings of the ladder, said in the message; the bound judges the result
-            if "time step too small" not in str(exc) or k == len(ladder) - 1:
+            if not collapsed(exc) or k == len(ladder) - 1:
                 raise
             after = ladder[k + 1]
             note = (f"retried with reltol {after.reltol:g} ({exc})" if after.reltol != settings.reltol else

@@ -17,7 +17,7 @@ from ..presets import Preset
 from ..results.metrics import output_errors
 from ..results.output import Tabular
 from ..solvers.drive import Drive, drive, drive_netlist, drive_settings, drive_state, exact_drive, power_balance
-from ..solvers.ngspice import session
+from ..solvers.ngspice import collapsed, session
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -196,7 +196,7 @@ def _spice(d: Drive, preset: Preset) -> tuple[str, str, DriveTrace]:
             data = session().run(text, names, timeout=preset.budget.timeout)
             break
         except SimulationError as exc:
-            if "time step too small" not in str(exc) or k == len(ladder) - 1:
+            if not collapsed(exc) or k == len(ladder) - 1:
                 raise
             note = f"retried with {'gear' if ladder[k + 1].method != settings.method else 'looser abstol and vntol'} ({exc})"
     seconds = time.perf_counter() - start
