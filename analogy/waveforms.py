@@ -12,7 +12,7 @@ from .errors import InputError
 from .model.expressions import parse_call, parse_number
 from .model.quantities import FORCE
 
-__all__ = ["Waveform", "Step", "PWL", "Pulse", "PWM", "Sine", "Piece", "parse_waveform", "pwl_sum"]
+__all__ = ["Waveform", "Step", "PWL", "Pulse", "PWM", "HBridge", "Sine", "Piece", "parse_waveform", "pwl_sum"]
 
 
 def _num(x: float) -> str:
@@ -296,6 +296,55 @@ class PWM(Pulse):
         return _call("pwm", (self.supply, self.duty, self.frequency, self.edge), 3)
 
 
+class HBridge(Pulse):
+    """An H-bridge of four ngspice switches around a winding: +*supply* for the share *duty* of each
+    period of 1/*frequency*, −*supply* for the rest, each switch *on_resistance* when on.
+
+    Two complementary control pulses turn the switches, each edge a share *edge* of the period; a
+    switch turns where its control ends its edge, a breakpoint on which ngspice lands a time point,
+    so the bridge switches at known instants: up at edge·T, down at (duty + edge)·T. As a waveform
+    (the exact solution's, the ODE's) it is that square wave, each jump a ramp of 1e-6 of the edge
+    ending at the instant. The netlist writes the switches (:func:`~analogy.solvers.drive.drive_netlist`).
+    """
+
+    def __init__(self, supply, duty, frequency, edge=1e-7, on_resistance=1e-3):
+        supply, duty, frequency = float(supply), float(duty), float(frequency)
+        edge, on_resistance = float(edge), float(on_resistance)
+        if not (0.0 < frequency < math.inf and 0.0 < edge < 0.05 and 0.0 < on_resistance < math.inf):
+            raise InputError("hbridge needs a positive, finite frequency, an edge under 5% of the period and a "
+                             "positive on-resistance")
+        if not edge <= duty <= 1.0 - 2.0 * edge:
+            raise InputError(f"hbridge duty must be from {edge:g} to {1 - 2 * edge:g} (its controls' edges take "
+                             f"{edge:g} of the period)")
+        period = 1.0 / frequency
+        self.supply, self.duty, self.frequency, self.edge = supply, duty, frequency, edge
+        self.on_resistance = on_resistance
+        jump = 1e-6 * edge * period
+        super().__init__(-supply, supply, edge * period - jump, jump, jump, duty * period - jump, period)
+
+    def __repr__(self):
+        return f"HBridge({self.supply!r}, {self.duty!r}, {self.frequency!r}, {self.edge!r}, {self.on_resistance!r})"
+
+    def label(self) -> str:
+        return _call("hbridge", (self.supply, self.duty, self.frequency, self.edge, self.on_resistance), 3)
+
+    def breakpoints(self, t_stop) -> list[float]:
+        # the controls' corners too: ngspice steps there, and the switches' jumps lie between them
+        period = 1.0 / self.frequency
+        starts = np.arange(0.0, t_stop, period)
+        edges = np.concatenate([starts, starts + self.duty * period])
+        own = np.asarray(super().breakpoints(t_stop), float)
+        return sorted(set(own.tolist()) | {float(x) for x in edges if 0.0 < x < t_stop})
+
+    def controls(self) -> tuple[str, str]:
+        """The SPICE sources of the two control pulses (0 to 1 V): the first turns the switches that put
+        +supply on the winding, the second the others."""
+        period = 1.0 / self.frequency
+        rise, width = self.edge * period, (self.duty - self.edge) * period
+        times = " ".join(_num(x) for x in (0.0, rise, rise, width, period))
+        return f"PULSE(0 1 {times})", f"PULSE(1 0 {times})"
+
+
 class Sine(Waveform):
     """SPICE SIN: offset + amplitude·exp(−damping·τ)·sin(2π·frequency·τ + phase), τ = t − delay ≥ 0.
 
@@ -349,7 +398,7 @@ class Sine(Waveform):
 _WAVEFORMS = {
     "step": Step,
     "pulse": Pulse,
-    "pwm": PWM,
+    "pwm": PWM, "hbridge": HBridge,
     "sine": Sine, "sin": Sine,
     "pwl": None,
 }

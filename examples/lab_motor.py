@@ -24,8 +24,8 @@
 #
 # 1. The gear: the inertia the motor feels, J + M_elbow/N², and where the rotor takes over.
 # 2. A step of voltage: the current's inrush (L/R) and the arm's slower response, in SPICE and exactly.
-# 3. An H-bridge on the 2-DOF arm's shoulder: a PWM of ±24 V at 5 kHz. The current ripples at the
-#    carrier by about 2·V·D·(1 − D)/(L·f); the arm filters it out and moves as under the PWM's average.
+# 3. An H-bridge of four ngspice switches on the elbow: ±24 V at 2 kHz. The current ripples at the
+#    carrier by about 2·V·D·(1 − D)/(L·f); the arm filters it out and moves as under the average.
 # 4. The power balance: what the drive puts in is what the winding, the dampers and the stored
 #    energy take.
 
@@ -119,65 +119,72 @@ fig.savefig(out / "motor_step.png", dpi=110)
 _lab.show(out / "motor_step.png")
 
 # %% [markdown]
-# ## 3. An H-bridge: a PWM of ±24 V at 2 kHz, duty 0.55
+# ## 3. An H-bridge of four switches: ±24 V at 2 kHz, duty 0.55
 #
-# The bridge puts +24 V across the winding for 55 % of each 0.5 ms period and −24 V for the rest:
-# on average (2·0.55 − 1)·24 = 2.4 V. The winding is an R–L circuit (τ = L/R = 0.83 ms) under a
-# square wave of ±V; the arm's back-EMF barely moves within a period. In steady state the current
-# then swings by Δi = (2V/R)·(1 − e^(−DT/τ))·(1 − e^(−(1−D)T/τ))/(1 − e^(−T/τ)): the **ripple**
-# (for T ≪ τ it is the familiar 2·V·D·(1 − D)/(L·f)). The arm, a low-pass filter far slower than
-# 2 kHz, moves as under the average voltage.
+# Four ngspice switches (`sw`) join the winding's two ends to a 24 V supply and to ground: while
+# one control pulse is high, S_a and S_d put +24 V across the winding; while the other is, S_b and
+# S_c put −24 V. Each closed switch is 1 mΩ, so the loop's resistance is R + 2·R_on. On average
+# the winding sees (2·0.55 − 1)·24 = 2.4 V. It is an R–L circuit (τ = L/R = 0.83 ms) under a square
+# wave of ±V, and the arm's back-EMF barely moves within a period, so in steady state its current
+# swings by Δi = (2V/R)·(1 − e^(−DT/τ))·(1 − e^(−(1−D)T/τ))/(1 − e^(−T/τ)): the **ripple** (for
+# T ≪ τ the familiar 2·V·D·(1 − D)/(L·f)). The arm, a low-pass filter far slower than 2 kHz,
+# moves as under the average voltage.
 #
-# This part drives the papers' 2-DOF arm's shoulder through the same motor and a 50:1 gear. On
-# the UR5 at g = 0, whose other joints have no dampers, ngspice 39 stalled at the PWM's first
-# corners (its time stopped advancing) at both presets; on the 2-DOF arm it runs at 2 kHz (it
-# stalled at 5 kHz too: the drive's run has a wall-time limit, so such a stall fails in one sentence).
+# A switch turns where its control pulse ends its edge (1e-7 of a period), a breakpoint ngspice
+# steps to, so the exact solution of the square wave with those instants judges the run. ngspice
+# cannot locate a switching instant more finely than its step inside the control's edge: the
+# winding's current is off by about (2V/L)·(edge), which is why the edge is that short.
 
 # %%
-_lab.section("3. The H-bridge")
-arm = analogy.scene("default").system().driven(None, 0.02)
-shoulder = [elbow_motor(50.0), None]
-pwm = run_drive(drive(arm, shoulder, ["pwm(24, 0.55, 2000)", None]), PRESETS["accurate"], ("spice", "exact"))
-print(pwm.table())
-assert max(pwm.errors["spice"].values()) <= PRESETS["accurate"].bound
-t, i = pwm.time, pwm.traces["spice"].currents[:, 0]
+_lab.section("3. The H-bridge, N = 100")
+bridge = run_drive(drive(system.driven(None, 0.02), motors(100.0), voltages("hbridge(24, 0.55, 2000)")),
+                   PRESETS["accurate"], ("spice", "exact"))
+print(bridge.table())
+assert max(bridge.errors["spice"].values()) <= PRESETS["accurate"].bound
+print("the bridge in the netlist:")
+print("\n".join(line for line in bridge.netlist.splitlines() if line[:2] in ("S3", "Vc", ".m", "Vb")))
+t, i = bridge.time, bridge.traces["spice"].currents[:, ELBOW]
 late = t > 0.015                               # past the inrush, a few periods
 ripple = float(np.ptp(i[late]))
-tau, period, duty = 5e-4 / 0.6, 1 / 2000, 0.55
-expected = (2 * 24 / 0.6) * (1 - np.exp(-duty * period / tau)) * (1 - np.exp(-(1 - duty) * period / tau)) \
+tau, period, duty = 5e-4 / (0.6 + 2e-3), 1 / 2000, 0.55
+expected = (2 * 24 / (0.6 + 2e-3)) * (1 - np.exp(-duty * period / tau)) * (1 - np.exp(-(1 - duty) * period / tau)) \
     / (1 - np.exp(-period / tau))
 print(f"current ripple {ripple:.4g} A; the R-L circuit's steady ripple {expected:.4g} A")
-# that formula holds the back-EMF constant over a period: the arm's rate changes by under 1% in one
+# that formula holds the back-EMF constant over a period: the elbow's rate changes by under 1% in one
 assert abs(ripple - expected) < 0.02 * expected
-average = drive(arm, shoulder, ["step(2.4)", None])
-r_pwm, r_avg = pwm.traces["exact"].rates[:, 0], exact_drive(average, t)[0][:, 0]
+average = drive(system.driven(None, 0.02), motors(100.0), voltages("step(2.4)"))
+r_pwm, r_avg = bridge.traces["exact"].rates[:, ELBOW], exact_drive(average, t)[0][:, ELBOW]
 # within a period the arm hardly feels the carrier: its rate ripples far less than the current
 grid = np.linspace(0.0195, 0.02, 201)                   # the last period, 200 steps
-last = exact_drive(pwm.drive, np.concatenate([[0.0], grid]))[0][1:, 0]
+last = exact_drive(bridge.drive, np.concatenate([[0.0], grid]))[0][1:, ELBOW]
 wobble = float(np.ptp(last - np.polyval(np.polyfit(grid, last, 1), grid)) / np.max(np.abs(r_pwm)))
-print(f"over the last period the shoulder's rate ripples by {wobble:.3%} of its peak, its current by "
+print(f"over the last period the elbow's rate ripples by {wobble:.3%} of its peak, its current by "
       f"{ripple / np.max(np.abs(i)):.0%} of its own")
 assert wobble < 0.05 * ripple / np.max(np.abs(i))         # at least twenty times less
-# its mean motion is the average voltage's but for the carrier's start: the first periods' current
-# transient (τ = L/R) leaves the arm an offset that decays only as fast as the arm's own motion
 gap = float(np.max(np.abs(r_pwm - r_avg)[late]) / np.max(np.abs(r_avg)))
-print(f"the PWM's motion and the 2.4 V average's differ by {gap:.1%} of the peak rate at 15-20 ms")
-fig, ((a, b),) = _lab.figure(1, 2, size=(12, 3.8))
-a.plot(t * 1e3, i, lw=0.8, label="PWM")
-a.plot(t * 1e3, exact_drive(average, t)[1][:, 0], label="2.4 V steady")
+print(f"the bridge's motion and the 2.4 V average's differ by {gap:.1%} of the peak rate at 15-20 ms")
+fig, ((a, b, c),) = _lab.figure(1, 3, size=(14, 3.8))
+a.plot(t * 1e3, i, lw=0.8, label="H-bridge")
+a.plot(t * 1e3, exact_drive(average, t)[1][:, ELBOW], label="2.4 V steady")
 a.set_xlim(15, 20)
+a.set_ylim(1.2 * i[late].min(), 1.2 * i[late].max())      # the carrier's swing, not the inrush
 a.set_xlabel("t [ms]")
 a.set_ylabel("winding current [A]")
 a.set_title(f"ripple {ripple:.2f} A at 2 kHz")
 a.legend()
-b.plot(t * 1e3, r_pwm, label="PWM")
-b.plot(t * 1e3, r_avg, ls="--", label="2.4 V steady")
+b.plot(t * 1e3, elbow_motor(100.0).ratio * i, lw=0.8)
+b.set_xlim(15, 20)
+b.set_ylim(1.2 * elbow_motor(100.0).ratio * i[late].min(), 1.2 * elbow_motor(100.0).ratio * i[late].max())
 b.set_xlabel("t [ms]")
-b.set_ylabel("shoulder rate [rad/s]")
-b.legend()
+b.set_ylabel("torque on the elbow n·i [N·m]")
+c.plot(t * 1e3, r_pwm, label="H-bridge")
+c.plot(t * 1e3, r_avg, ls="--", label="2.4 V steady")
+c.set_xlabel("t [ms]")
+c.set_ylabel("elbow rate [rad/s]")
+c.legend()
 fig.savefig(out / "motor_pwm.png", dpi=110)
 _lab.show(out / "motor_pwm.png")
-print(f"wrote {pwm.to_csv(out / 'motor_pwm.csv', every=20)}")
+print(f"wrote {bridge.to_csv(out / 'motor_pwm.csv', every=20)}")
 
 # %% [markdown]
 # ## 4. Where the power goes
@@ -189,7 +196,7 @@ print(f"wrote {pwm.to_csv(out / 'motor_pwm.csv', every=20)}")
 
 # %%
 _lab.section("4. The power balance")
-for name, run in (("step", step), ("PWM", pwm)):
+for name, run in (("step", step), ("H-bridge", bridge)):
     print(f"{name}: residual {run.balance_error():.2e} of the largest power put in "
           f"({np.max(np.abs(run.power_in())):.3g} W)")
 assert step.balance_error() < 1e-5

@@ -2,7 +2,6 @@
 subcircuit agree with the exact solution of the whole, the rotors reflect as Pinocchio's armature,
 and the power the drives put in is what the windings, the dampers and the stored energy take."""
 
-import os
 import shutil
 import subprocess
 import sys
@@ -11,7 +10,7 @@ import numpy as np
 import pytest
 
 import analogy
-from analogy.errors import InputError, SimulationError
+from analogy.errors import InputError
 from analogy.model.motors import Motor, motors_from_table
 from analogy.presets import PRESETS
 from analogy.solvers.drive import drive, drive_netlist, exact_drive, node_matrices, power_balance
@@ -142,9 +141,6 @@ def test_a_urdfs_transmissions_give_the_gear_ratios_a_motor_file_leaves_out():
     assert [m.gear_ratio for m in motors] == [100.0] * 6 + [50.0]      # the file's own ratio wins
 
 
-@pytest.mark.xfail(os.environ.get("ANALOGY_EXPECT_NGSPICE") == "46", raises=SimulationError, strict=False,
-                   reason="ngspice 46 aborted this run under KLU ('run simulation(s) aborted'), where ngspice 39 "
-                          "holds the bound; with the elbow driven too, 46 ran it and 39 stalled")
 def test_a_pwm_drive_holds_the_bound_against_the_exact_solution_with_the_same_switching_instants():
     """An H-bridge's ±12 V at 2 kHz and 60% duty (edges of 0.1% of a period) on the shoulder: ngspice's
     run of the winding loop against the exact solution carried across every switching corner."""
@@ -155,6 +151,24 @@ def test_a_pwm_drive_holds_the_bound_against_the_exact_solution_with_the_same_sw
     # the winding's current ripples at the carrier: it rises while +12 V is on and falls while −12 V is
     late, i = run.time > 0.01, run.traces["spice"].currents[:, 0]
     assert np.ptp(i[late]) > 0.1 * np.max(np.abs(i))
+
+
+def test_an_h_bridge_of_ngspice_switches_holds_the_bound_against_its_own_switching_instants():
+    """Four sw switches between a 12 V supply, the shoulder winding's ends and ground, turned by two
+    complementary 2 kHz control pulses (60% duty, edges of 1e-7 of the period): each switch turns where
+    its control ends its edge, a breakpoint ngspice lands on, so the exact solution of the square wave
+    with those instants (and the two closed switches' on-resistance in the loop) judges the run."""
+    system = analogy.scene("default").system().driven(None, 0.02)
+    d = drive(system, [WOUND, None], ["hbridge(12, 0.6, 2000)", None])
+    assert d.motors[0].resistance == WOUND.resistance + 2 * 1e-3          # two closed switches in the loop
+    run = run_drive(d, PRESETS["accurate"], ("spice", "exact"))
+    switches = [line for line in run.netlist.splitlines() if line.startswith("S1")]
+    assert len(switches) == 4 and ".model bridge1 sw" in run.netlist and "Vd1" not in run.netlist
+    assert max(run.errors["spice"].values()) <= PRESETS["accurate"].bound, run.errors
+    late, i = run.time > 0.01, run.traces["spice"].currents[:, 0]
+    assert np.ptp(i[late]) > 0.1 * np.max(np.abs(i))                        # it ripples at the carrier
+    # between the voltage's jumps the balance holds as well as the exact run's differences let it
+    assert run.balance_error("spice") <= 2 * run.balance_error("exact") + PRESETS["accurate"].bound
 
 
 @pytest.mark.deep

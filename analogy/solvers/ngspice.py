@@ -51,8 +51,9 @@ def vector_key(name: str) -> str:
 
 
 def collapsed(exc: BaseException) -> bool:
-    """True for a run whose step collapsed: ngspice's "timestep too small", or a run stalled before
-    its time limit (:meth:`NgspiceSession.run`); a retry with looser settings may pass.
+    """True for a run whose step collapsed: ngspice's "timestep too small", a run stalled before
+    its time limit (:meth:`NgspiceSession.run`), or ngspice 46's "run simulation(s) aborted" (seen
+    under KLU at a PWM's and a bridge's corners); a retry with looser settings may pass.
 
     Parameters
     ----------
@@ -60,7 +61,7 @@ def collapsed(exc: BaseException) -> bool:
         The failure.
     """
     text = str(exc)
-    return "time step too small" in text or "run stalled" in text
+    return "time step too small" in text or "run stalled" in text or "simulation(s) aborted" in text
 
 
 def _is_error(text: str) -> bool:

@@ -18,6 +18,7 @@ from ..results.metrics import output_errors
 from ..results.output import Tabular
 from ..solvers.drive import Drive, drive, drive_netlist, drive_settings, drive_state, exact_drive, power_balance
 from ..solvers.ngspice import collapsed, session
+from ..solvers.ode import stiff_method
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -104,7 +105,8 @@ class DriveRun(Tabular):
             A solver that ran.
         """
         peak = float(np.max(np.abs(self.power_in(solver))))
-        return float(np.max(np.abs(self.traces[solver].balance))) / peak if peak > 0 else 0.0
+        # NaN where its differences reach a voltage's corner (see power_balance)
+        return float(np.nanmax(np.abs(self.traces[solver].balance))) / peak if peak > 0 else 0.0
 
     def over_limits(self) -> dict[str, str]:
         """Each motor whose winding carried more than its current limit in ngspice's run, and by how much."""
@@ -227,12 +229,17 @@ def _ode(d: Drive, preset: Preset, t: np.ndarray, scale: np.ndarray) -> DriveTra
     states = np.empty((t.size, len(a)))
     start = time.perf_counter()
     atol = preset.ode.rtol * np.maximum(scale, np.finfo(float).tiny)
+    # an explicit method within its stability reach of the windings' fast decay, or Radau where that is stiff
+    method, _, longest = stiff_method(d.system, preset.ode.method, a, y)
+    extra = {"jac": a} if method == "Radau" else {"max_step": longest} if np.isfinite(longest) else {}
     for lo, hi in zip(corners[:-1], corners[1:]):
-        sol = solve_ivp(rhs, (lo, hi), y, method=preset.ode.method, rtol=preset.ode.rtol, atol=atol, dense_output=True)
+        sol = solve_ivp(rhs, (lo, hi), y, method=method, rtol=preset.ode.rtol, atol=atol, dense_output=True,
+                        **extra)
         if not sol.success:
             raise SimulationError(f"the ODE of the drive failed: {sol.message}")
         inside = slice(np.searchsorted(t, lo, "left"), np.searchsorted(t, hi, "right"))
-        states[inside] = sol.sol(t[inside]).T
+        if inside.stop > inside.start:      # a jump's ramp may hold no output point
+            states[inside] = sol.sol(t[inside]).T
         y = sol.y[:, -1]
     seconds = time.perf_counter() - start
     rates = d.system.joint_rates(states[:, first:first + n])
