@@ -106,8 +106,6 @@ def test_a_motor_file_names_each_field_and_joint_or_is_refused_in_one_sentence()
                          ({"wrist": {"resistance": 1, "torque_constant": 1}}, "not a joint")):
         with pytest.raises(InputError, match=said):
             motors_from_table(broken, ["shoulder", "elbow"])
-    with pytest.raises(InputError, match="not linear"):
-        drive(analogy.scene("default").system(), [Motor(1.0, 0.1, coulomb=0.2), None], ["step(1)", None])
     with pytest.raises(InputError, match="past its motor's limit"):
         drive(analogy.scene("default").system(), [Motor(1.0, 0.1, voltage_limit=12), None], ["step(24)", None])
 
@@ -169,6 +167,27 @@ def test_an_h_bridge_of_ngspice_switches_holds_the_bound_against_its_own_switchi
     assert np.ptp(i[late]) > 0.1 * np.max(np.abs(i))                        # it ripples at the carrier
     # between the voltage's jumps the balance holds as well as the exact run's differences let it
     assert run.balance_error("spice") <= 2 * run.balance_error("exact") + PRESETS["accurate"].bound
+
+
+def test_coulomb_friction_brakes_the_joint_to_its_steady_rate_with_no_exact_solution_left_silent():
+    """One joint (M = 2, B = 1) driven at 2 V through a motor with n = N·k = 1 and R = 1, its rotor's
+    Coulomb friction N·c = 0.2 N·m: in steady state (n/R)·(V − n·r) = B·r + N·c·tanh(r/ε), so
+    r = (2 − 0.2)/2 = 0.9 rad/s (tanh = 1 to rounding at r/ε = 900). No exact solution exists, so
+    scipy at a hundredth of the tolerance is the reference every output is judged against."""
+    from analogy.scenes.scene import Scene
+    from analogy.solvers.drive import COULOMB_SPEED, exact_drive
+    system = Scene.of("one", "serial1", q=(0.0,), forces=(0.0,), t_stop=20.0).system()
+    motor = Motor(resistance=1.0, torque_constant=0.1, gear_ratio=10.0, coulomb=0.02)
+    d = drive(system, [motor], ["step(2)"])
+    with pytest.raises(InputError, match="Coulomb friction has no exact solution"):
+        exact_drive(d, [0.0, 1.0])
+    run = run_drive(d, PRESETS["accurate"])
+    assert run.reference == "reference" and set(run.errors) == {"spice", "ode"}
+    assert max(e for errs in run.errors.values() for e in errs.values()) <= PRESETS["accurate"].bound, run.errors
+    assert f"I={{0.2*tanh(v(p1)/{COULOMB_SPEED!r})}}" in run.netlist
+    r = run.traces["spice"].rates[-1, 0]      # e^(−t/τ), τ = M/(B + n²/R) = 1 s: settled to 2e-9
+    assert abs(r - 0.9) <= PRESETS["accurate"].bound * 0.9
+    assert run.balance_error("spice") <= 1e-4           # the friction's loss is in the balance
 
 
 @pytest.mark.deep

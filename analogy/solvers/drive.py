@@ -21,8 +21,13 @@ from .exact import phi1, phi2
 from .run_settings import TransientSettings
 from .transient import circuit_settings, subcircuit_netlist
 
-__all__ = ["Drive", "drive", "drive_settings", "drive_netlist", "drive_state", "exact_drive", "node_matrices",
+__all__ = ["COULOMB_SPEED", "Drive", "drive", "drive_settings", "drive_netlist", "drive_state", "exact_drive", "node_matrices",
            "power_balance"]
+
+
+#: The joint rate [rad/s] over which Coulomb friction's sign is smoothed (tanh(r/COULOMB_SPEED)): well
+#: under the rates a drive is about, and wide enough for ngspice's Newton iteration to follow.
+COULOMB_SPEED = 1e-3
 
 
 @dataclass(frozen=True, eq=False)
@@ -54,6 +59,22 @@ class Drive:
         """The driven joints whose winding has an inductance: its current is a state."""
         return [j for j in self.driven if self.motors[j].inductance > 0]
 
+    @property
+    def coulomb(self) -> np.ndarray:
+        """Each joint's Coulomb friction torque N·c, as the joint feels it [N·m] (0 without a motor)."""
+        return np.array([m.gear_ratio * m.coulomb if m is not None else 0.0 for m in self.motors])
+
+    def friction(self, rates: np.ndarray) -> np.ndarray:
+        """The Coulomb friction torques N·c·tanh(r/COULOMB_SPEED) at joint *rates* (..., n): the sign of
+        the rate, smoothed over :data:`COULOMB_SPEED`.
+
+        Parameters
+        ----------
+        rates : ndarray, shape (..., n)
+            Joint rates.
+        """
+        return self.coulomb * np.tanh(np.asarray(rates, float) / COULOMB_SPEED)
+
 
 def drive(system, motors: Sequence[Motor | None], voltages: Sequence[str | float | Waveform | None]) -> Drive:
     """*system* driven by *motors* at *voltages*, checked.
@@ -80,9 +101,6 @@ def drive(system, motors: Sequence[Motor | None], voltages: Sequence[str | float
                 raise InputError(f"joint {j + 1} has no motor to take the voltage {v!r}")
             waves.append(None)
             continue
-        if m.coulomb:
-            raise InputError(f"joint {j + 1}'s motor has Coulomb friction ({m.coulomb:g} N·m), which is not linear: "
-                             "the linear drive leaves none out in silence, so give coulomb = 0")
         w = v if isinstance(v, Waveform) else parse_waveform(str(v if v is not None else 0.0))
         peak = float(np.max(np.abs(w(np.linspace(0.0, system.t_stop, 2001)))))
         if peak > m.voltage_limit:
@@ -96,7 +114,7 @@ def drive(system, motors: Sequence[Motor | None], voltages: Sequence[str | float
     return Drive(unforced, tuple(motors), tuple(waves))
 
 
-def node_matrices(d: Drive) -> tuple:
+def node_matrices(d: Drive, at_rest: bool = False) -> tuple:
     """M'', B'' (the robot's with the rotors reflected and, for windings without inductance, the
     back-EMF's damping n²/R) and K', in node coordinates; and the current map C = T⁻ᵀ.
 
@@ -104,6 +122,9 @@ def node_matrices(d: Drive) -> tuple:
     ----------
     d : Drive
         The drive.
+    at_rest : bool
+        Add Coulomb friction's slope at rest, N·c/COULOMB_SPEED, to B'': the steepest damping its
+        smoothed sign gives (the step's settings see it).
     """
     s = d.system
     c = np.asarray(s.current_map, float)
@@ -111,11 +132,12 @@ def node_matrices(d: Drive) -> tuple:
     quick = np.array([m.ratio ** 2 / m.resistance if m is not None and m.inductance == 0 else 0.0
                       for j, m in enumerate(d.motors)])
     mass = s.mass + c @ np.diag(armature) @ c.T
-    damping = s.damping + c @ np.diag(viscous + quick) @ c.T
+    slope = d.coulomb / COULOMB_SPEED if at_rest else 0.0
+    damping = s.damping + c @ np.diag(viscous + quick + slope) @ c.T
     return mass, damping, s.stiffness, c
 
 
-def drive_state(d: Drive) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+def drive_state(d: Drive, at_rest: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     """The drive's linear state space y' = A·y + U·V(t) + load, y = [x (with springs), v, i (windings with L)]:
     A, U, the constant load (gravity's), and the index where v starts in y.
 
@@ -123,8 +145,10 @@ def drive_state(d: Drive) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     ----------
     d : Drive
         The drive.
+    at_rest : bool
+        Linearise Coulomb friction at rest (see :func:`node_matrices`); otherwise it is left out.
     """
-    mass, damping, stiffness, c = node_matrices(d)
+    mass, damping, stiffness, c = node_matrices(d, at_rest)
     n, w = d.system.dof, d.windings
     springs = stiffness is not None
     first = n if springs else 0
@@ -202,6 +226,8 @@ def exact_drive(d: Drive, times) -> tuple[np.ndarray, np.ndarray]:
     times : array_like
         Increasing times from 0 to the system's t_stop [s].
     """
+    if np.any(d.coulomb):
+        raise InputError("the exact drive is linear: Coulomb friction has no exact solution")
     t = np.asarray(times, float)
     n, stop = d.system.dof, max(float(t[-1]) if t.size else 0.0, d.system.t_stop)
     waves = [(j, w) for j, w in enumerate(d.voltages) if w is not None]
@@ -248,7 +274,7 @@ def drive_settings(d: Drive, preset: Preset) -> TransientSettings:
     """
     s = d.system
     settings = circuit_settings(s, describe(s, ZERO_TOL, False), preset)
-    rates = np.linalg.eigvals(drive_state(d)[0])
+    rates = np.linalg.eigvals(drive_state(d, at_rest=True)[0])     # friction's steepest slope seen too
     # a mode that decays under the bound before t_stop (a winding's L/R) sets the first step, not the cap
     lasting = rates[rates.real * s.t_stop > math.log(preset.bound)]
     fastest, cap = float(np.max(np.abs(rates), initial=0.0)), float(np.max(np.abs(lasting), initial=0.0))
@@ -317,6 +343,10 @@ def drive_netlist(d: Drive, preset: Preset, title: str | None = None, settings=N
             lines.append(f"Ca{k} p{k} 0 {m.armature!r}")
         if m.reflected_viscous:
             lines.append(f"Rv{k} p{k} 0 {1.0 / m.reflected_viscous!r}")
+        if m.coulomb:           # the sign of the rate, smoothed: a behavioural load on the port
+            lines += [f"* joint {k}'s Coulomb friction N*c = {m.gear_ratio * m.coulomb:g} N m, its sign smoothed "
+                      f"over {COULOMB_SPEED:g} rad/s", f"Bc{k} p{k} 0 I={{{m.gear_ratio * m.coulomb!r}*"
+                      f"tanh(v(p{k})/{COULOMB_SPEED!r})}}"]
         save.append(f"i(vs{k})")
     lines += first_step_lines(settings, "p1")      # the winding's fast decay: a short first step
     options = " ".join(f"{k}={v}" if v != "" else k for k, v in settings.options)
@@ -364,7 +394,8 @@ def power_balance(d: Drive, t: np.ndarray, rates: np.ndarray, currents: np.ndarr
     # without L the drive's power into the joint is n·V/R·r (its own R's loss n²r²/R is in B'')
     given = np.sum(np.where(l_w > 0, volts * currents, volts * quick_in * rates), axis=1)
     given = given + v @ s.node_currents(np.zeros(1))[0]
-    lost = np.sum(r_loss * currents ** 2, axis=1) + np.einsum("ti,ij,tj->t", v, damping, v)
+    lost = np.sum(r_loss * currents ** 2, axis=1) + np.einsum("ti,ij,tj->t", v, damping, v) \
+        + np.sum(d.friction(rates) * rates, axis=1)
     residual = given - lost - np.gradient(stored, t, edge_order=2)
     # the derivative's differences are only good between the voltages' corners (a PWM's edges, a
     # bridge's jumps): points at a corner, or inside a cluster of corners closer than a typical step
