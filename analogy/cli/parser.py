@@ -167,6 +167,9 @@ def _drive(sub) -> None:
                                      "around its subcircuit run in ngspice, against the exact solution")
     scene_options(p)
     _motor_options(p, required=True)
+    p.add_argument("--dynamics", default="linear", choices=["linear", "nonlinear"],
+                   help="the robot's circuit at q (linear, default: ngspice against the exact solution) or its "
+                        "full nonlinear circuit (ngspice against scipy's integration of the whole, 100 times tighter)")
     p.add_argument("-o", "--output", metavar="FILE.cir", help="write the netlist that ran (it runs in ngspice -b)")
     p.add_argument("--csv", metavar="FILE", help="write the joint rates and winding currents of every solver")
     p.add_argument("--plot", metavar="FILE.png", help="write a plot of them")

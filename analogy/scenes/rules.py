@@ -69,7 +69,4 @@ def check_scene(scene) -> str:
         raise InputError(f"the output step must be a positive time, got {s!r}", field="step")
     if scene.voltages and not scene.motors:
         raise InputError("voltages drive motors: give them in [motors] (--motors FILE)", field="voltages")
-    if scene.motors and scene.dynamics != "linear":
-        raise InputError("motors drive the robot's linear circuit; its nonlinear one is not driven yet",
-                         field="dynamics")
     return name

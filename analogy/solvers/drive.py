@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from typing import Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 from scipy.integrate import cumulative_trapezoid
@@ -21,7 +21,7 @@ from .exact import phi1, phi2
 from .run_settings import TransientSettings
 from .transient import circuit_settings, subcircuit_netlist
 
-__all__ = ["COULOMB_SPEED", "Drive", "drive", "drive_settings", "drive_netlist", "drive_state", "exact_drive", "node_matrices",
+__all__ = ["COULOMB_SPEED", "drive_flow", "Drive", "drive", "drive_settings", "drive_netlist", "drive_state", "exact_drive", "node_matrices",
            "power_balance"]
 
 
@@ -89,8 +89,6 @@ def drive(system, motors: Sequence[Motor | None], voltages: Sequence[str | float
         One per joint: a waveform (``"step(12)"``, a number for a constant, ``"pwm(24, 0.6, 20e3)"``),
         None where the joint has no motor.
     """
-    if system.kind != "linear":
-        raise InputError("a drive takes the robot's linear circuit (its nonlinear one is not driven yet)")
     n = system.dof
     if len(motors) != n or len(voltages) != n:
         raise InputError(f"a drive needs a motor (or None) and a voltage for each of the {n} joints")
@@ -116,7 +114,8 @@ def drive(system, motors: Sequence[Motor | None], voltages: Sequence[str | float
 
 def node_matrices(d: Drive, at_rest: bool = False) -> tuple:
     """M'', B'' (the robot's with the rotors reflected and, for windings without inductance, the
-    back-EMF's damping n²/R) and K', in node coordinates; and the current map C = T⁻ᵀ.
+    back-EMF's damping n²/R) and K', in node coordinates; and the current map C = T⁻ᵀ. A nonlinear
+    robot's M'(x) is taken at its start pose.
 
     Parameters
     ----------
@@ -131,7 +130,8 @@ def node_matrices(d: Drive, at_rest: bool = False) -> tuple:
     armature, viscous = reflected(d.motors)
     quick = np.array([m.ratio ** 2 / m.resistance if m is not None and m.inductance == 0 else 0.0
                       for j, m in enumerate(d.motors)])
-    mass = s.mass + c @ np.diag(armature) @ c.T
+    own = s.mass if s.kind == "linear" else s.node_mass(np.zeros(s.dof))      # a nonlinear robot's at its start
+    mass = own + c @ np.diag(armature) @ c.T
     slope = d.coulomb / COULOMB_SPEED if at_rest else 0.0
     damping = s.damping + c @ np.diag(viscous + quick + slope) @ c.T
     return mass, damping, s.stiffness, c
@@ -228,6 +228,8 @@ def exact_drive(d: Drive, times) -> tuple[np.ndarray, np.ndarray]:
     """
     if np.any(d.coulomb):
         raise InputError("the exact drive is linear: Coulomb friction has no exact solution")
+    if d.system.kind != "linear":
+        raise InputError("the exact drive is linear: the robot's nonlinear motion has no exact solution")
     t = np.asarray(times, float)
     n, stop = d.system.dof, max(float(t[-1]) if t.size else 0.0, d.system.t_stop)
     waves = [(j, w) for j, w in enumerate(d.voltages) if w is not None]
@@ -261,6 +263,43 @@ def exact_drive(d: Drive, times) -> tuple[np.ndarray, np.ndarray]:
     return rates, currents
 
 
+def drive_flow(d: Drive) -> Callable[[float, np.ndarray], np.ndarray]:
+    """The drive's equations with the robot's full dynamics, y' = f(t, y) on y = [x, v, i (windings with
+    L)]: M''(x)·v' = C·τ − B''·v − K'·x − h(x, v) with M''(x) = M'(x) + C·diag(N²J)·Cᵀ, the joint torques
+    τ = n·i (or n·(V − n·r)/R without L) less Coulomb friction, and L·i' = V − R·i − n·r.
+
+    Parameters
+    ----------
+    d : Drive
+        A drive of a nonlinear robot.
+    """
+    s, n = d.system, d.system.dof
+    c = np.asarray(s.current_map, float)
+    tinv = np.asarray(s.topology.inverse, float)
+    armature, viscous = reflected(d.motors)
+    rotors = c @ np.diag(armature) @ c.T
+    damping = s.damping + c @ np.diag(viscous) @ c.T
+    winding = {j: k for k, j in enumerate(d.windings)}
+
+    def f(t: float, y: np.ndarray) -> np.ndarray:
+        x, v, i = y[:n], y[n:2 * n], y[2 * n:]
+        r = tinv @ v
+        torque = -d.friction(r)
+        di = np.zeros(len(i))
+        for j in d.driven:
+            m, volts = d.motors[j], float(d.voltages[j](t))
+            if j in winding:
+                torque[j] += m.ratio * i[winding[j]]
+                di[winding[j]] = (volts - m.resistance * i[winding[j]] - m.ratio * r[j]) / m.inductance
+            else:
+                torque[j] += m.ratio * (volts - m.ratio * r[j]) / m.resistance
+        net = c @ torque - damping @ v - s.node_load(x, v, t)
+        if s.stiffness is not None:
+            net = net - s.stiffness @ x
+        return np.concatenate([v, np.linalg.solve(s.node_mass(x) + rotors, net), di])
+    return f
+
+
 def drive_settings(d: Drive, preset: Preset) -> TransientSettings:
     """The robot circuit's transient settings at *preset*, its step cap made short enough for the fastest
     lasting rate of the whole (a winding's decay that is over before t_stop sets the first step only).
@@ -278,6 +317,8 @@ def drive_settings(d: Drive, preset: Preset) -> TransientSettings:
     # a mode that decays under the bound before t_stop (a winding's L/R) sets the first step, not the cap
     lasting = rates[rates.real * s.t_stop > math.log(preset.bound)]
     fastest, cap = float(np.max(np.abs(rates), initial=0.0)), float(np.max(np.abs(lasting), initial=0.0))
+    if s.kind != "linear":      # a nonlinear circuit's step has no truncation check: the cap must see every rate
+        cap = fastest
     if cap > 0 and math.isfinite(preset.spice.phase_step):
         settings = replace(settings, max_step=min(settings.max_step, preset.spice.phase_step / cap))
     if fastest > 0 and math.isfinite(preset.spice.first_phase_step):
@@ -381,19 +422,27 @@ def power_balance(d: Drive, t: np.ndarray, rates: np.ndarray, currents: np.ndarr
     mass, damping, stiffness, _ = node_matrices(d)
     s = d.system
     v = rates @ np.asarray(s.topology.matrix, float).T
+    x = cumulative_trapezoid(v, t, axis=0, initial=0.0)
     volts = np.column_stack([w(t) if w is not None else np.zeros_like(t) for w in d.voltages])
     r_w = np.array([m.resistance if m else 0.0 for m in d.motors])
     l_w = np.array([m.inductance if m else 0.0 for m in d.motors])
     # a winding without L: its R's loss is in B'' as the back-EMF's damping's share; count it once
     r_loss = np.where(l_w > 0, r_w, 0.0)
-    stored = 0.5 * np.einsum("ti,ij,tj->t", v, mass, v) + 0.5 * np.sum(l_w * currents ** 2, axis=1)
+    if s.kind == "linear":
+        kinetic = 0.5 * np.einsum("ti,ij,tj->t", v, mass, v)
+    else:                   # M''(x) along the motion; the velocity terms do no work (M's Christoffel form)
+        rotors = mass - s.node_mass(np.zeros(s.dof))
+        kinetic = 0.5 * np.einsum("ti,tij,tj->t", v, s.node_masses(x) + rotors, v)
+    stored = kinetic + 0.5 * np.sum(l_w * currents ** 2, axis=1)
     if stiffness is not None:
-        x = cumulative_trapezoid(v, t, axis=0, initial=0.0)
         stored = stored + 0.5 * np.einsum("ti,ij,tj->t", x, stiffness, x)
     quick_in = np.where(l_w == 0, 1.0, 0.0) * np.array([m.ratio / m.resistance if m else 0.0 for m in d.motors])
     # without L the drive's power into the joint is n·V/R·r (its own R's loss n²r²/R is in B'')
     given = np.sum(np.where(l_w > 0, volts * currents, volts * quick_in * rates), axis=1)
-    given = given + v @ s.node_currents(np.zeros(1))[0]
+    if s.kind == "linear":      # gravity's constant load at the pose
+        given = given + v @ s.node_currents(np.zeros(1))[0]
+    else:                       # gravity's power along the motion, G(q)·r
+        given = given - np.einsum("ti,ti->t", v, np.stack([s.node_gravity(p) for p in x]))
     lost = np.sum(r_loss * currents ** 2, axis=1) + np.einsum("ti,ij,tj->t", v, damping, v) \
         + np.sum(d.friction(rates) * rates, axis=1)
     residual = given - lost - np.gradient(stored, t, edge_order=2)

@@ -16,7 +16,7 @@ from ..files import write_figure
 from ..presets import Preset
 from ..results.metrics import output_errors
 from ..results.output import Tabular
-from ..solvers.drive import (COULOMB_SPEED, Drive, drive, drive_netlist, drive_settings, drive_state,
+from ..solvers.drive import (COULOMB_SPEED, Drive, drive, drive_flow, drive_netlist, drive_settings, drive_state,
                              exact_drive, node_matrices, power_balance)
 from ..solvers.ngspice import collapsed, session
 from ..solvers.ode import stiff_method
@@ -223,6 +223,8 @@ def _spice(d: Drive, preset: Preset) -> tuple[str, str, DriveTrace]:
 def _ode(d: Drive, preset: Preset, t: np.ndarray, scale: np.ndarray) -> DriveTrace:
     """scipy's integration of the drive's state space at the preset's method and rtol (atol that of each
     state's *scale*), between the voltages' corners, read on the points *t*."""
+    if d.system.kind != "linear":
+        return _nonlinear_ode(d, preset, t)
     a, u, load, first = drive_state(d)
     n = d.system.dof
     mass, _, _, cmap = node_matrices(d)
@@ -268,6 +270,42 @@ def _ode(d: Drive, preset: Preset, t: np.ndarray, scale: np.ndarray) -> DriveTra
     currents = np.zeros((t.size, n))
     for i, j in enumerate(d.windings):
         currents[:, j] = states[:, first + n + i]
+    for j in d.driven:
+        m = d.motors[j]
+        if m.inductance == 0:
+            currents[:, j] = (d.voltages[j](t) - m.ratio * rates[:, j]) / m.resistance
+    return DriveTrace(t, rates, currents, power_balance(d, t, rates, currents), seconds)
+
+
+def _nonlinear_ode(d: Drive, preset: Preset, t: np.ndarray) -> DriveTrace:
+    """scipy's integration of the drive with the robot's full dynamics (:func:`drive_flow`), between the
+    voltages' corners, on the points *t*; its step within the explicit method's stability reach of the
+    drive's fastest rate at the start pose."""
+    n, flow = d.system.dof, drive_flow(d)
+    y = np.zeros(2 * n + len(d.windings))
+    y[n:2 * n] = d.system.initial_voltages
+    corners = np.unique(np.concatenate([np.asarray(w.breakpoints(t[-1]), float) for w in d.voltages if w is not None]
+                                       + [[0.0, t[-1]]]))
+    corners = corners[(corners >= 0) & (corners <= t[-1])]
+    a = drive_state(d, at_rest=True)[0]
+    method, _, longest = stiff_method(d.system, preset.ode.method, a, np.zeros(len(a)))
+    extra = {"max_step": longest} if method != "Radau" and np.isfinite(longest) else {}
+    states = np.empty((t.size, len(y)))
+    start = time.perf_counter()
+    for lo, hi in zip(corners[:-1], corners[1:]):
+        sol = solve_ivp(flow, (lo, hi), y, method=method, rtol=preset.ode.rtol, atol=preset.ode.rtol,
+                        dense_output=True, **extra)
+        if not sol.success:
+            raise SimulationError(f"the ODE of the drive failed: {sol.message}")
+        inside = slice(np.searchsorted(t, lo, "left"), np.searchsorted(t, hi, "right"))
+        if inside.stop > inside.start:
+            states[inside] = sol.sol(t[inside]).T
+        y = sol.y[:, -1]
+    seconds = time.perf_counter() - start
+    rates = d.system.joint_rates(states[:, n:2 * n])
+    currents = np.zeros((t.size, n))
+    for i, j in enumerate(d.windings):
+        currents[:, j] = states[:, 2 * n + i]
     for j in d.driven:
         m = d.motors[j]
         if m.inductance == 0:
