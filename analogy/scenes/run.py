@@ -94,19 +94,24 @@ def run_scene(scene: Scene, output_dir=None, progress=None) -> "SceneResult":
     if scene.netlist and spice is not None and spice.settings is not None:
         write_netlist(spice.settings)   # what ran, where it differs: a retry's settings, or a refined run's
     result.solved = comparison
+    _write_outputs(scene, output_dir, result, result)
+    return result
+
+
+def _write_outputs(scene: Scene, output_dir, result: "SceneResult", source) -> None:
+    """The scene's CSV and plot of *source* (its result, or its drive's run), in *result*'s written files."""
     try:
         if scene.csv_file:          # a scene's files may sit in subfolders of its output folder
             path = scene.path(scene.csv_file, output_dir)
             path.parent.mkdir(parents=True, exist_ok=True)
-            result.written.append(result.to_csv(path))
+            result.written.append(Path(source.to_csv(path)))
         if scene.plot_file:
             path = scene.path(scene.plot_file, output_dir)
             path.parent.mkdir(parents=True, exist_ok=True)
-            result.plot(path)
+            source.plot(path)
             result.written.append(path)
     except OSError as exc:
         raise InputError(f"cannot write output: {exc}") from None
-    return result
 
 
 def _run_drive(scene: Scene, output_dir) -> "SceneResult":
@@ -117,20 +122,9 @@ def _run_drive(scene: Scene, output_dir) -> "SceneResult":
         run = run_drive(d, scene.settings, tuple(scene.solvers))
     result = SceneResult(scene, d.system)
     result.drive, result.netlist = run, run.netlist
-    try:
-        if scene.netlist_file:
-            result.written.append(_write_text(scene.path(scene.netlist_file, output_dir), run.netlist))
-        if scene.csv_file:
-            path = scene.path(scene.csv_file, output_dir)
-            path.parent.mkdir(parents=True, exist_ok=True)
-            result.written.append(Path(run.to_csv(path)))
-        if scene.plot_file:
-            path = scene.path(scene.plot_file, output_dir)
-            path.parent.mkdir(parents=True, exist_ok=True)
-            run.plot(path)
-            result.written.append(path)
-    except OSError as exc:
-        raise InputError(f"cannot write output: {exc}") from None
+    if scene.netlist_file:
+        result.written.append(_write_text(scene.path(scene.netlist_file, output_dir), run.netlist))
+    _write_outputs(scene, output_dir, result, run)
     return result
 
 
