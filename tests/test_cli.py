@@ -132,7 +132,7 @@ def test_help_says_what_the_tool_does():
 
 
 @pytest.mark.parametrize("args, fragment", [
-    (["--force", "stp(1)", "--force", "1"], "'stp(1)' is not one of pulse(...), pwl(...)"),
+    (["--force", "stp(1)", "--force", "1"], "'stp(1)' is not one of hbridge(...), pulse(...), pwl(...)"),
     (["--force", "step(1,2,3,4)", "--force", "1"], "step takes 1 to 3 arguments (amplitude, delay, rise), got 4"),
     (["--robot", "serialN"], "serial<N> (a planar N-joint arm"),
     (["--mass", "[[1, -1], [-1, 1.0000000000001]]"], "F is below the zero tolerance (1e-12"),
