@@ -273,3 +273,23 @@ def test_a_circuit_past_a_schematic_moves_as_a_map_of_its_branch_currents():
     size = np.abs(b).sum(axis=2) + np.abs(injected)
     assert np.all(np.abs(b.sum(axis=2) - injected) <= 64 * np.linalg.cond(system.mass) * EPS * size)
     assert shown.frame_png(3, dpi=40)[:4] == b"\x89PNG"
+
+
+def test_a_wide_schematic_in_the_middle_panel_keeps_its_labels_apart():
+    """The five-bar's circuit is wide and flat: drawn into the animation's middle column at under 0.7 of
+    its own size, its labels shrink with it, so no two of them overlap in the rendered frame."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from analogy.results.animation import _figure
+    system = analogy.scene("parallel2").system()
+    run = analogy.solve(system, "exact", np.linspace(0.0, system.t_stop, 501), positions=True)
+    fig, _ = _figure(motion(system, run, frames=3))
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    middle = max(fig.axes, key=lambda ax: len(ax.texts))          # the schematic's panel
+    boxes = [t.get_window_extent(canvas.get_renderer()) for t in middle.texts if t.get_text().strip()]
+    assert len(boxes) >= 8
+    # a text's box holds its line's leading: two lines of one label touch by a pixel or two, so each
+    # box is taken without a fifth of its height; a collision of two labels is far larger than that
+    inner = [b.shrunk(1.0, 0.8) for b in boxes]
+    crossing = [(a, b) for k, a in enumerate(inner) for b in inner[k + 1:] if a.overlaps(b)]
+    assert not crossing, crossing[:3]

@@ -330,6 +330,21 @@ def _draw_space(ax, motion: Motion):
     return moving
 
 
+def _fit_labels(ax, box, inches_per_unit: float) -> None:
+    """Labels that fit the panel: a schematic drawn under 0.7 of its own size (a wide one in the middle
+    column) has its labels' font shrunk with the drawing, not under 6 pt, so they no longer overlap."""
+    fig, spec = ax.figure, ax.get_subplotspec()
+    ratios = spec.get_gridspec().get_width_ratios() or [1.0] * spec.get_gridspec().ncols
+    share = sum(ratios[spec.colspan.start:spec.colspan.stop]) / sum(ratios)
+    width, height = fig.get_size_inches()
+    natural = ((box.xmax - box.xmin + 0.6) * inches_per_unit, (box.ymax - box.ymin + 0.6) * inches_per_unit)
+    scale = min(0.9 * share * width / natural[0], 0.8 * height / natural[1], 1.0)
+    if scale >= 0.7:
+        return
+    for text in ax.texts:
+        text.set_fontsize(max(6.0, text.get_fontsize() * scale))
+
+
 def _draw_circuit(ax, motion: Motion):
     """The schematic, each node bar coloured by its voltage over its own peak and each part marked by a
     circle sized by its current over its own peak (red positive, blue negative)."""
@@ -342,6 +357,7 @@ def _draw_circuit(ax, motion: Motion):
     box = s.drawing.get_bbox()
     ax.set_xlim(box.xmin - 0.3, box.xmax + 0.3)
     ax.set_ylim(box.ymin - 0.3, box.ymax + 0.3)
+    _fit_labels(ax, box, s.drawing.dwgparams["inches_per_unit"])
     shades = colormaps["coolwarm"]
     peaks = np.max(np.abs(motion.voltages), axis=0) if motion.voltages.size else np.zeros(0)
     scaled = motion.voltages / np.where(peaks > 0, peaks, 1.0)
