@@ -118,9 +118,10 @@ def test_the_command_line_drives_a_robot_and_flags_a_winding_past_its_current_li
     def cli(*args):
         return subprocess.run([sys.executable, "-m", "analogy", "drive", "--motors", str(motors), *args],
                               capture_output=True, text=True, timeout=300, cwd=tmp_path)
-    ok = cli("--voltage", "step(2)", "--voltage", "step(-1)", "-o", "drive.cir")
+    ok = cli("--voltage", "step(2)", "--voltage", "step(-1)", "-o", "drive.cir", "--csv", str(tmp_path / "d.csv"))
     assert ok.returncode == 0, ok.stderr
     assert "power balance" in ok.stdout and (tmp_path / "drive.cir").read_text().startswith("* analogy drive")
+    assert (tmp_path / "d.csv").read_text().startswith("time")     # the command line's files may be anywhere
     hot = cli("--voltage", "step(12)", "--voltage", "step(-1)")
     assert hot.returncode == 3 and "past its limit of 10 A" in hot.stderr
     few = cli("--voltage", "step(2)")

@@ -123,6 +123,7 @@ def drive_command(args) -> int:
     """
     from ..model.motors import read_motor_file
     from ..scenes.run import run_scene
+    from ..files import write_text
     from ..scenes.validate import validated
     if args.force:
         raise InputError("--force: the motors drive the joints; give each motor its --voltage instead")
@@ -130,16 +131,20 @@ def drive_command(args) -> int:
         check_writable(path)
     if args.plot:
         check_plot_path(args.plot)
-    # compare --motors writes no netlist; analogy drive -o does
     sc = scene_from_args(args).replace(motors=read_motor_file(args.motors), voltages=tuple(args.voltage), forces=(),
-                                       netlist=bool(getattr(args, "output", None)),
-                                       netlist_file=getattr(args, "output", None), csv_file=args.csv,
-                                       plot_file=args.plot, solvers=("spice", "ode", "exact"), description="")
-    result = run_scene(validated(sc))
-    print(result.table())
-    for written in result.written:
-        print(f"wrote {written}")
-    return drive_exit(result.drive, args.preset.name, args.preset.bound)
+                                       solvers=("spice", "ode", "exact"), description="")
+    run = run_scene(validated(sc)).drive
+    # the command line's own files, anywhere (a scene file's stay inside its folder); compare --motors has no -o
+    if getattr(args, "output", None):
+        write_text(args.output, run.netlist)
+        print(f"wrote {args.output}")
+    print(run.table())
+    if args.csv:
+        print(f"wrote {run.to_csv(args.csv)}")
+    if args.plot:
+        run.plot(args.plot)
+        print(f"wrote {args.plot}")
+    return drive_exit(run, args.preset.name, args.preset.bound)
 
 
 def drive_exit(run, preset: str, bound: float) -> int:

@@ -179,7 +179,7 @@ class DriveRun(Tabular):
             for j in which:
                 colour = f"C{j}"
                 for name, trace in self.traces.items():
-                    wide = name == "exact"
+                    wide = name == self.reference        # the yardstick, drawn wide
                     ax.plot(trace.time, getattr(trace, kind)[:, j], lw=4.0 if wide else 1.0, alpha=0.3 if wide else 1.0,
                             color=colour, ls="--" if name == "ode" else "-", label=f"{j + 1}: {name}")
             ax.set_ylabel(label)
