@@ -23,7 +23,7 @@ def options(text):
     return dict(item.partition("=")[::2] for item in line.split()[1:])     # a flag (klu) maps to ""
 
 
-@pytest.mark.parametrize("name", SCENES)
+@pytest.mark.parametrize("name", [n for n in SCENES if SCENES[n].dynamics == "linear"])
 def test_the_velocity_scale_is_each_nodes_peak_within_a_modest_factor(name):
     """The modal estimate is within a factor 2.5 below and 10 above each node's exact peak
     (measured 0.48 to 6.1): damping that couples the modes lets some nodes pass it."""

@@ -77,6 +77,9 @@ def circuit(system, zero_tol: float = ZERO_TOL, realizable: bool = False, descri
     InputError
         If leaving out the capacitors under the tolerance makes the circuit singular.
     """
+    if realizable and system.kind != "linear":
+        raise InputError("a realizable circuit (negative elements behind 1:-1 couplings) is the linear circuit's: "
+                         "the nonlinear circuit's capacitances are expressions of the pose")
     if system.kind != "linear" and system.model is not None and system.model.closed_chain:
         from .constrained_circuit import constrained_circuit  # sympy: only for nonlinear circuits
         return constrained_circuit(system, zero_tol, describe)

@@ -265,7 +265,7 @@ def save_vectors(c: Circuit, save: Iterable[str] | None = None) -> list[str]:
     save : iterable of str, optional
         Names; default every node.
     """
-    nodes = c.node_names + c.state_nodes + c.monitors
+    nodes = c.node_names + c.state_nodes + c.monitors + list(c.outputs)
     wanted = list(c.node_names) if save is None else list(save)
     if not wanted:
         raise InputError("nothing to save: name at least one node")

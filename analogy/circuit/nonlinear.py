@@ -142,7 +142,39 @@ class NonlinearNodeSystem(NodeCoordinates):
         load = self.functions.velocity(q, r)
         if self.functions.gravity is not None:
             load = load + self.functions.gravity(q)
+        if self.functions.contacts is not None:
+            load = load - self.functions.contacts.generalised(q, r)
         return self.current_map @ load
+
+    def node_contact(self, x: np.ndarray, v: np.ndarray) -> np.ndarray | None:
+        """T⁻ᵀ·τ_c: the ground's contact forces as node currents into the nodes; None without contacts.
+
+        Parameters
+        ----------
+        x, v : ndarray
+            Node positions and velocities.
+        """
+        contacts = self.functions.contacts
+        if contacts is None:
+            return None
+        return self.current_map @ contacts.generalised(self.configuration(x), self.joint_rates(v))
+
+    def contact_forces(self, x: np.ndarray, v: np.ndarray) -> dict[str, np.ndarray]:
+        """Each contact's normal force f_c [N] at every row of node positions *x* and velocities *v*
+        (m, n), by the output name ``f_<contact>``; empty without contacts.
+
+        Parameters
+        ----------
+        x, v : ndarray, shape (m, n)
+            Node positions and velocities.
+        """
+        contacts = self.functions.contacts
+        if contacts is None:
+            return {}
+        q = self.q0 + np.atleast_2d(x) @ self.topology.inverse.T
+        r = np.atleast_2d(v) @ self.topology.inverse.T
+        forces = contacts.normal(q.T, r.T)
+        return {f"f_{name}": forces[k] for k, name in enumerate(contacts.names)}
 
     def node_gravity(self, x: np.ndarray) -> np.ndarray:
         """T⁻ᵀ·G(q): gravity as node currents (zero without gravity).
@@ -176,10 +208,15 @@ class NonlinearNodeSystem(NodeCoordinates):
         f = self.functions
         if f.potential is None and f.gravity is not None:
             power = power - v @ self.node_gravity(x)
+        contact = self.node_contact(x, v)
+        if contact is not None:          # the ground's work, and its force where h does not hold it
+            power = power + v @ contact
         if self.stiffness is not None:
             net = net - self.stiffness @ x
         if f.forward is not None:
             t = self.topology.matrix
+            if contact is not None:
+                net = net + contact
             return t @ f.forward(self.configuration(x), self.joint_rates(v), net @ t), power
         return np.linalg.solve(self.node_mass(x), net - self.node_load(x, v, 0.0)), power
 
@@ -229,6 +266,10 @@ class NonlinearNodeSystem(NodeCoordinates):
             else:
                 gravity = np.stack([self.node_gravity(p) for p in x])
             power = np.einsum("ti,ti->t", v, drive - v @ self.damping.T - gravity)
+            if f.contacts is not None:
+                rates = v @ self.topology.inverse.T
+                power = power + np.einsum("ti,ti->t", rates,
+                                          np.stack([f.contacts.generalised(a, b) for a, b in zip(qs, rates)]))
             work = np.concatenate([[0.0], np.cumsum(0.5 * (power[1:] + power[:-1]) * np.diff(t))])
             if lifted is not None:
                 work = work + lifted
@@ -295,13 +336,21 @@ class NonlinearNodeSystem(NodeCoordinates):
         dh_dv = ti.T @ dcr @ ti
         drho_dx = -dh_dx - (self.stiffness if self.stiffness is not None else 0.0)
         drho_dv = -dh_dv - self.damping
-        dfx = np.linalg.solve(mass, drho_dx - np.einsum("ikl,k->il", dm_node, accel))
-        dfv = np.linalg.solve(mass, drho_dv)
         dpv = drive - 2.0 * self.damping @ v
         dpx = np.zeros(n)
+        if self.functions.contacts is not None:    # h holds −T⁻ᵀτ_c; the ground's power is r·τ_c
+            tau = self.functions.contacts.generalised(q, r)
+            dtq, dtr = self.functions.contacts.derivatives(q, r)
+            drho_dx = drho_dx + ti.T @ dtq @ ti
+            drho_dv = drho_dv + ti.T @ dtr @ ti
+            rates = self.joint_rates(v)
+            dpv = dpv + ti.T @ (tau + dtr.T @ rates)
+            dpx = dpx + ti.T @ (dtq.T @ rates)
+        dfx = np.linalg.solve(mass, drho_dx - np.einsum("ikl,k->il", dm_node, accel))
+        dfv = np.linalg.solve(mass, drho_dv)
         if self.functions.potential is None:        # else gravity's work is U(q0) − U(q), not in W's rate
             dpv = dpv - self.node_gravity(x)
-            dpx = -v @ (ti.T @ dg @ ti)
+            dpx = dpx - v @ (ti.T @ dg @ ti)
         jac = np.zeros((2 * n + 1, 2 * n + 1))
         jac[:n, n:2 * n] = np.eye(n)
         jac[n:2 * n, :n], jac[n:2 * n, n:2 * n] = dfx, dfv

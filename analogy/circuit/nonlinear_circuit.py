@@ -94,7 +94,14 @@ def node_lagrangian(system) -> NodeLagrangian:
     load = sp.Matrix([-(vv.T * mass.diff(x[a]) * vv)[0] / 2 for a in range(n)])
     if model.gravity is not None:
         load += tinv.T * model.gravity.xreplace(subs).xreplace(at)
-    return NodeLagrangian(x, v, mass, load)
+    shared = []
+    if model.contacts:      # each normal force a node of its own (an output), drawn out through Jᵀ
+        rates = {rk: sum(tinv[k, j] * v[j] for j in range(n)) for k, rk in enumerate(sp.symbols(f"qd1:{n + 1}"))}
+        for c in model.contacts:
+            force = sp.Symbol(f"f_{c.name}", real=True)
+            shared.append((force, c.force(q, list(rates)).xreplace(subs).xreplace(at).xreplace(rates)))
+            load -= tinv.T * c.normal(q).xreplace(subs).xreplace(at) * force
+    return NodeLagrangian(x, v, mass, load, tuple(shared))
 
 
 class _SpicePrinter(StrPrinter):
@@ -186,7 +193,8 @@ def nonlinear_circuit(system, zero_tol: float = ZERO_TOL, describe: bool = True)
         name = f"{a}" if b == 0 else f"{a}_{b}"
         return ChargeCapacitor(name, a, b, f"({spice_text(c, lag)})*{across}", q0)
 
-    parts = [BehaviouralVoltage(str(symbol), spice_text(e, lag), at_start[symbol])
+    contacts = {f"f_{c.name}" for c in getattr(system.model, "contacts", ())}
+    parts = [BehaviouralVoltage(str(symbol), spice_text(e, lag), at_start[symbol], str(symbol) in contacts)
              for symbol, e in lag.shared]
     for a in range(n):                  # grounded c_a = Σ_j M'_aj, floating c_ab = −M'_ab
         c = sp.expand(sum(lag.mass[a, j] for j in range(n)))

@@ -90,11 +90,13 @@ class ConstraintCurrent(BehaviouralCurrent):
 
 
 class BehaviouralVoltage(NamedTuple):
-    """A node *name* held at the SPICE expression *voltage* (a quantity others share), *initial* at t = 0."""
+    """A node *name* held at the SPICE expression *voltage* (a quantity others share), *initial* at t = 0;
+    *output*: the quantity is one of the run's outputs (a contact's force), saved and reported."""
 
     name: str
     voltage: str
     initial: float = 0.0
+    output: bool = False
 
 
 class Integrator(NamedTuple):
@@ -184,6 +186,11 @@ class Circuit(NamedTuple):
     def monitors(self) -> list[str]:
         """Integrator nodes that are not the system's positions: a closed chain's passive joints."""
         return [p.name for p in self.behavioural if isinstance(p, Integrator) and not p.reported]
+
+    @property
+    def outputs(self) -> dict[str, float]:
+        """Behavioural nodes that are outputs of the run (contact forces ``f_<contact>``), with their values at t = 0."""
+        return {p.name: p.initial for p in self.behavioural if isinstance(p, BehaviouralVoltage) and p.output}
 
     def element(self, name: str) -> Element | None:
         """The element called *name* (any case), or None.

@@ -54,7 +54,7 @@ def _say_pose(system, sc: Scene) -> None:
 
 def _cmd_netlist(args) -> int:
     sc = scene_from_args(args)
-    if args.realizable and args.dynamics != "linear":
+    if args.realizable and sc.dynamics != "linear":
         raise InputError("--realizable applies to the linear circuit, not to --dynamics nonlinear")
     check_writable(args.output)
     if args.format == "ltspice" and args.output:
@@ -124,7 +124,7 @@ def _cmd_compare(args) -> int:
         # one knob: the operation budget scales with the points'
         preset = replace(preset, budget=replace(preset.budget, points=budget, segments=int(min(budget, 2 ** 62)),
                                                 operations=preset.budget.operations * budget / preset.budget.points))
-    if args.realizable and args.dynamics != "linear":
+    if args.realizable and (args.dynamics == "both" or sc.dynamics != "linear"):
         raise InputError("--realizable applies to the linear circuit, not to --dynamics nonlinear or both")
     if args.dynamics == "both":
         if args.estimate or args.refine or args.no_reference:

@@ -35,9 +35,10 @@ def _netlist(sub) -> None:
                         "each capacitor instead of .ic, .print before .tran); ltspice, LTspice's netlist, and with "
                         "-o FILE its schematic FILE.asc beside it; or kicad, a KiCad 9 schematic (.kicad_sch) whose "
                         "parts carry the ngspice lines")
-    p.add_argument("--dynamics", default="linear", choices=["linear", "nonlinear"],
+    p.add_argument("--dynamics", choices=["linear", "nonlinear"],
                    help="the circuit at q (linear), or the robot's full nonlinear circuit: "
-                        "charge-defined capacitors, behavioural forces and integrators")
+                        "charge-defined capacitors, behavioural forces and integrators (default: the scene's own, "
+                        "linear but for the hopper's)")
     p.add_argument("--subckt", nargs="?", const="", metavar="NAME",
                    help="write the robot as a subcircuit '.subckt NAME p1 ... pn' for a netlist of your own: "
                         "one port per joint, the current into it the joint's force and its voltage the joint's "
@@ -51,9 +52,9 @@ def _compare(sub) -> None:
     p.add_argument("--solvers", default="spice,ode,exact",
                    help="comma-separated registered solvers: spice, gnucap (linear circuits, where installed), "
                         "ode, exact, reference")
-    p.add_argument("--dynamics", default="linear", choices=["linear", "nonlinear", "both"],
+    p.add_argument("--dynamics", choices=["linear", "nonlinear", "both"],
                    help="the circuit at q (linear), the full configuration-dependent motion, or both: "
-                        "how long the linear circuit holds")
+                        "how long the linear circuit holds (default: the scene's own, linear but for the hopper's)")
     p.add_argument("--estimate", action="store_true", help="also estimate each solver's error without a "
                    "reference: each runs again with every step halved (SPICE) or a 100 times tighter tolerance "
                    "(ODE), and the difference, times Richardson's factor, is the estimate")
@@ -126,7 +127,7 @@ def _animate(sub) -> None:
     scene_options(p)
     p.add_argument("-o", "--output", required=True, metavar="FILE",
                    help="FILE.gif (pillow), FILE.mp4 (needs ffmpeg) or FILE.html (its own player)")
-    p.add_argument("--dynamics", default="linear", choices=["linear", "nonlinear"],
+    p.add_argument("--dynamics", choices=["linear", "nonlinear"],
                    help="the circuit linearised at q (default) or the full nonlinear one, whose "
                         "capacitances change with the pose")
     p.add_argument("--solver", default="spice", choices=("spice", "ode", "exact", "reference"),
@@ -167,7 +168,7 @@ def _drive(sub) -> None:
                                      "around its subcircuit run in ngspice, against the exact solution")
     scene_options(p)
     _motor_options(p, required=True)
-    p.add_argument("--dynamics", default="linear", choices=["linear", "nonlinear"],
+    p.add_argument("--dynamics", choices=["linear", "nonlinear"],
                    help="the robot's circuit at q (linear, default: ngspice against the exact solution) or its "
                         "full nonlinear circuit (ngspice against scipy's integration of the whole, 100 times tighter)")
     p.add_argument("-o", "--output", metavar="FILE.cir", help="write the netlist that ran (it runs in ngspice -b)")

@@ -126,6 +126,10 @@ FAMILIES: tuple[RobotFamily, ...] = (
     RobotFamily("serial", "analogy.model.robots:planar_serial", "analogy.model.serial_chain:SerialChain",
                 sizes=MAX_SERIAL, symbolic_sizes=MAX_SYMBOLIC_SERIAL,
                 outline=_DRAWN + "planar_chain_outline", units=_SERIAL, description="a planar N-joint arm"),
+    RobotFamily("hopper", "analogy.model.legged:hopper",
+                units=(("mb", "kg"), ("mf", "kg"), ("l0", "m"), ("kl", "N/m"), ("bl", "N*s/m"), ("kc", "N/m"),
+                       ("cc", "N*s/m"), ("delta", "m"), ("g", "m/s^2")),
+                description="a one-legged hopper on a one-sided ground contact"),
     RobotFamily("random", None, "analogy.model.robots:random_spd_model", sizes=MAX_RANDOM, seeded=True,
                 description="a random SPD N-joint system"),
     # Real arms from example-robot-data's URDF files, derived when first asked for (their default

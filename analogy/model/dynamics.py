@@ -14,7 +14,7 @@ from typing import (
 
 import numpy as np
 
-__all__ = ["DynamicsKind", "DYNAMICS", "NodeDynamics", "MechanicalFunctions"]
+__all__ = ["DynamicsKind", "DYNAMICS", "NodeDynamics", "MechanicalFunctions", "ContactFunctions"]
 
 #: The kinds of node dynamics: constant M', B', K' with h = 0, or configuration-dependent.
 DynamicsKind = Literal["linear", "nonlinear"]
@@ -103,6 +103,24 @@ class NodeDynamics(Protocol):
         """Intervals on which every force is one closed form."""
 
 
+class ContactFunctions(NamedTuple):
+    """Compiled contact forces of a model (:mod:`analogy.model.contact`), at fixed parameters.
+
+    *generalised* (q, q̇) gives τ_c = Σ J_cᵀ·f_c (n,); *derivatives* (q, q̇) gives
+    (∂τ_c/∂q, ∂τ_c/∂q̇), each (n, n); *normal* takes q and q̇ of shape (n,) or (n, m) and gives
+    each contact's normal force f_c, shape (k,) or (k, m); *depths* takes q of shape (n, m) and
+    gives each contact's penetration p = −y, (k, m); *names* are the contacts', *smoothing*
+    their switch lengths δ [m].
+    """
+
+    generalised: Callable[[np.ndarray, np.ndarray], np.ndarray]
+    derivatives: Callable[[np.ndarray, np.ndarray], tuple]
+    normal: Callable[[np.ndarray, np.ndarray], np.ndarray]
+    depths: Callable[[np.ndarray], np.ndarray]
+    names: tuple
+    smoothing: tuple
+
+
 class MechanicalFunctions(NamedTuple):
     """Compiled functions of a configuration-dependent model, at fixed parameters.
 
@@ -117,7 +135,8 @@ class MechanicalFunctions(NamedTuple):
     has a forward dynamics cheaper than forming M and solving (an articulated-body algorithm,
     or one kinematics pass shared by M, c and G); B and K are not in it. *potential* takes a
     stack of poses (p, n) and gives gravity's potential energy U with G = ∂U/∂q, so that
-    gravity's work is U(q0) − U(q) rather than an integral of G.
+    gravity's work is U(q0) − U(q) rather than an integral of G. *contacts* are the ground's
+    forces on the model's contact points (None without contacts): not in c, G or *forward*.
     """
 
     mass: Callable[[np.ndarray], np.ndarray]
@@ -130,3 +149,4 @@ class MechanicalFunctions(NamedTuple):
     gravities: Callable[[np.ndarray], np.ndarray] | None = None
     forward: Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray] | None = None
     potential: Callable[[np.ndarray], np.ndarray] | None = None
+    contacts: ContactFunctions | None = None

@@ -12,7 +12,8 @@ import sympy as sp
 from ..units import joint_units
 from ..errors import InputError
 from .base import RobotModel
-from .dynamics import MechanicalFunctions
+from .contact import Contact, generalised_contact_forces
+from .dynamics import ContactFunctions, MechanicalFunctions
 from .joint import (
     JointStack,
     configuration_stack,
@@ -158,6 +159,9 @@ class Model(RobotModel):
     joints : sequence of {"revolute", "prismatic", "modal"}, optional
         What each coordinate is, which sets its unit (rad or m) and whether a joint force
         drives it by default (a modal amplitude is not driven); None: not declared.
+    contacts : sequence of Contact, optional
+        Points that touch the ground plane (:mod:`analogy.model.contact`): their one-sided forces
+        join the nonlinear dynamics, and their linearisation at q0 the linear circuit.
 
     Notes
     -----
@@ -177,6 +181,7 @@ class Model(RobotModel):
     spring_rest: Sequence[float] | None = None
     builder: Callable[..., "Model"] | None = None
     joints: Sequence[str] | None = None
+    contacts: Sequence[Contact] = ()
 
     @property
     def units(self) -> tuple[str, ...] | None:
@@ -217,6 +222,11 @@ class Model(RobotModel):
                 raise InputError(f"{label} matrix must be {n}x{n}, got {mat.shape[0]}x{mat.shape[1]}")
         self.coordinates = tuple(self.coordinates)
         self.parameters = dict(self.parameters)
+        self.contacts = tuple(self.contacts)
+        if self.contacts and len(self.coordinates) != n:
+            raise InputError(f"model {self.name!r}: contacts need one coordinate per joint")
+        if len({c.name for c in self.contacts}) != len(self.contacts):
+            raise InputError(f"model {self.name!r}: two contacts share a name")
         if self.joints is not None:
             self.joints = tuple(self.joints)
             if len(self.joints) != n:
@@ -262,7 +272,16 @@ class Model(RobotModel):
         elastic = self.spring_load()
         if elastic is not None:
             load = elastic if load is None else load + elastic
-        return self.mass_matrix, self.damping, stiffness, load
+        damping = self.damping
+        if self.contacts:        # −τ_c(q, q̇) at rest, and its slopes: the ground's share of G, K and B
+            rates = sp.symbols(f"qd1:{self.dof + 1}", real=True)
+            tau = generalised_contact_forces(self.contacts, q, [c.force(q, rates) for c in self.contacts])
+            at_rest = dict.fromkeys(rates, 0)
+            static = (-tau).xreplace(at_rest)
+            load = static if load is None else load + static
+            stiffness = static.jacobian(q) if stiffness is None else stiffness + static.jacobian(q)
+            damping = damping - tau.jacobian(sp.Matrix(rates)).xreplace(at_rest)
+        return self.mass_matrix, damping, stiffness, load
 
     def spring_load(self) -> "sp.Matrix | None":
         """The springs' static load K·(q − rest), symbolically; None without springs or a rest pose."""
@@ -442,4 +461,46 @@ class Model(RobotModel):
                                    constant["damping"] if constant["damping"] is not None
                                    else np.zeros((n, n)), constant["stiffness"], derivatives_at,
                                    masses=stacked(list(mass), (n, n)),
-                                   gravities=None if g_fn is None else stacked(list(gravity), (n,)))
+                                   gravities=None if g_fn is None else stacked(list(gravity), (n,)),
+                                   contacts=self._contact_functions(subs, q, rates))
+
+    def _contact_functions(self, subs: dict, q: list, rates: list) -> ContactFunctions | None:
+        """The contacts' forces compiled at parameter values *subs*: τ_c, its derivatives, each f_c."""
+        if not self.contacts:
+            return None
+        n = self.dof
+        at = dict(zip(self.coordinates, q))
+        forces = [c.force(self.coordinates, rates).xreplace(subs).xreplace(at) for c in self.contacts]
+        unknown = set().union(*(f.free_symbols for f in forces)) - set(q) - set(rates)
+        if unknown:
+            raise InputError(f"model {self.name!r}: its contacts use symbols with no value: "
+                             f"{', '.join(sorted(map(str, unknown)))}")
+        tau = generalised_contact_forces(self.contacts, self.coordinates, forces).xreplace(subs).xreplace(at)
+        tau_fn = _lambdify([q, rates], list(tau), modules="numpy")
+        d_fn = _lambdify([q, rates], [tau.jacobian(sp.Matrix(q)), tau.jacobian(sp.Matrix(rates))], modules="numpy")
+        f_fn = _lambdify([q, rates], forces, modules="numpy")
+        heights = [sp.sympify(c.height).xreplace(subs).xreplace(at) for c in self.contacts]
+        p_fn = _lambdify([q], [-h for h in heights], modules="numpy")
+        smoothing = tuple(float(sp.sympify(c.smoothing).xreplace(subs)) for c in self.contacts)
+        if not all(d > 0 for d in smoothing):
+            raise InputError(f"model {self.name!r}: a contact's smoothing length must be positive, "
+                             f"got {', '.join(f'{d:g}' for d in smoothing)} m")
+
+        def generalised(x, r):
+            return np.asarray(tau_fn(x, r), dtype=float).reshape(n)
+
+        def derivatives(x, r):
+            dq, dr = d_fn(x, r)
+            return np.array(dq, dtype=float).reshape(n, n), np.array(dr, dtype=float).reshape(n, n)
+
+        def normal(x, r):
+            x, r = np.asarray(x, dtype=float), np.asarray(r, dtype=float)
+            values = f_fn(x, r)
+            return np.stack([np.broadcast_to(np.asarray(v, dtype=float), x.shape[1:]) for v in values])
+
+        def depths(x):
+            x = np.asarray(x, dtype=float)
+            return np.stack([np.broadcast_to(np.asarray(v, dtype=float), x.shape[1:]) for v in p_fn(x)])
+
+        return ContactFunctions(generalised, derivatives, normal, depths, tuple(c.name for c in self.contacts),
+                                smoothing)

@@ -51,6 +51,10 @@ SCENES = {
                     "links AB and BC flexible (2 modes each), the forearm held along motor 2's angle "
                     "by a parallelogram near a right angle (θ3 − θ1 stays 1.6 to 2.0 rad, far from "
                     "the flat singular poses); a step on each motor"),
+    "hopper": Scene.of(
+        "hopper", "hopper", q=(0.4, -0.3), forces=(0.0, 0.0), t_stop=1.0, dynamics="nonlinear",
+        description="a one-legged hopper dropped from rest, its foot 0.1 m above the ground: flight, "
+                    "impact, bounces on the leg's spring, and rest on the ground's contact"),
     "random10": Scene.of(
         "random10", ModelSpec(robot="random10", seed=1), topology="serial", forces=tuple(
             ["sine(0, 1, 0.7)"] + [f"step({1.0 / (k + 1)!r})" for k in range(1, 10)]),

@@ -81,6 +81,33 @@ def _samples(system) -> tuple[np.ndarray, np.ndarray]:
     return np.unique(np.concatenate([uniform, edges, _decay_samples(scales, system.t_stop)])), edges
 
 
+#: A contact's switch is sampled wherever its penetration comes within this many smoothing lengths
+#: of zero (its force is on to 1e-9 of the linear law's past 2·ln(1e9) ≈ 41 of them, off likewise).
+SWITCH_BAND = 45.0
+#: Samples per smoothing length crossed there: the switch lasts δ/|ṗ|, far shorter than the motion's
+#: other time scales, and the third differences must follow it.
+_PER_SMOOTHING = 3.0
+
+
+def _switch_samples(system, t: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Extra sample times that follow each contact's switch (:mod:`analogy.model.contact`): between two
+    samples where the penetration p is within :data:`SWITCH_BAND`·δ of zero or crosses it, spaced
+    δ/(:data:`_PER_SMOOTHING`·|Δp/Δt|). Empty without contacts."""
+    contacts = system.functions.contacts
+    if contacts is None:
+        return np.zeros(0)
+    depth = contacts.depths((system.q0 + x @ system.topology.inverse.T).T)
+    extra = []
+    for p, delta in zip(depth, contacts.smoothing):
+        near = np.abs(p) <= SWITCH_BAND * delta
+        span = (near[:-1] | near[1:]) | (np.sign(p[:-1]) != np.sign(p[1:]))
+        for k in np.flatnonzero(span):
+            count = int(min(np.ceil(abs(p[k + 1] - p[k]) * _PER_SMOOTHING / delta), MOTION_LIMIT))
+            if count > 1:
+                extra.append(np.linspace(t[k], t[k + 1], count + 1)[1:-1])
+    return np.concatenate(extra) if extra else np.zeros(0)
+
+
 def _local_errors(system, x, v, masses, x3, p3) -> np.ndarray:
     """Each sample's local error density in (x, v): the rule's −(x‴, p‴)/12 with δv = M'⁻¹(δp − (∂M'/∂x·δx)·v)."""
     n = system.dof
@@ -156,6 +183,12 @@ def error_coefficients(system, timeout: float | None = None) -> MotionErrors:
     n = system.dof
     t, edges = _samples(system)
     motion = solve_ode(system, t, "DOP853", rtol=MOTION_RTOL, positions=True, timeout=timeout)
+    switching = _switch_samples(system, t, motion.positions)
+    if switching.size:          # again, on samples that follow each contact's switch
+        if t.size + switching.size > 4 * MOTION_LIMIT:
+            raise SimulationError("the contacts switch over more samples than their error coefficients are taken on")
+        t = np.unique(np.concatenate([t, switching]))
+        motion = solve_ode(system, t, "DOP853", rtol=MOTION_RTOL, positions=True, timeout=timeout)
     x, v = motion.positions, motion.voltages
     masses = system.node_masses(x)
     accel, x3, p3 = np.zeros_like(x), np.zeros_like(x), np.zeros_like(v)

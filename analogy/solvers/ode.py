@@ -268,8 +268,9 @@ def solve_ode(system, times=None, method: str = "DOP853", rtol: float = 1e-10,
         work = work + lifted
     elapsed = _time.perf_counter() - start
     stats = SolverStats(elapsed, steps, None, nfev, njev)
-    return Trajectory("ode", t, out, system.joint_rates(out), pos if positions else None, stats=stats, work=work,
-                      message=note)
+    forces = system.contact_forces(pos, out) if not linear and pos is not None else {}
+    return Trajectory("ode", t, out, system.joint_rates(out), pos if positions else None, forces, stats=stats,
+                      work=work, message=note)
 
 
 #: odeint's failure messages, in the words of the solver's other failures.

@@ -148,7 +148,7 @@ class ReferenceSolver(Solver):
         if system.kind != "linear":
             from .ode import solve_ode  # scipy: only for nonlinear systems
             tr = solve_ode(system, t, "DOP853", NONLINEAR_RTOL, positions=True)
-            return Trajectory(self.name, tr.time, tr.voltages, tr.rates, tr.positions, stats=tr.stats,
+            return Trajectory(self.name, tr.time, tr.voltages, tr.rates, tr.positions, tr.currents, stats=tr.stats,
                               work=tr.work)
         if t.size > MAX_POINTS:
             raise SimulationError(f"the 40-digit reference takes at most {MAX_POINTS} time points, "

@@ -100,7 +100,7 @@ def solve_spice(system, times=None, *, preset="accurate", save=None) -> Trajecto
     """
     preset = get_preset(preset)
     circ = circuit(system, realizable=getattr(system, "realizable", False), describe=False)
-    names = [e for e in (save or []) if e not in system.nodes] + circ.state_nodes + circ.monitors
+    names = [e for e in (save or []) if e not in system.nodes] + circ.state_nodes + circ.monitors + list(circ.outputs)
     vectors = save_vectors(circ, list(system.nodes) + names)
     scales = system_scales(system)
     settings = circuit_settings(system, circ, preset)
@@ -130,8 +130,9 @@ def solve_spice(system, times=None, *, preset="accurate", save=None) -> Trajecto
     x = np.column_stack([data[f"v({n})"] for n in circ.state_nodes]) if circ.state_nodes else None
     # node voltages past the system's own (a closed chain's passive positions and multipliers) are kept
     # beside the element currents: a position starts at 0, a multiplier's node is not known at t = 0
-    nodes = {name: 0.0 if name in circ.monitors else math.nan for name in names
-             if name in circ.monitors or name in circ.node_names}
+    outputs = circ.outputs
+    nodes = {name: 0.0 if name in circ.monitors else outputs[name] if name in outputs else math.nan for name in names
+             if name in circ.monitors or name in circ.node_names or name in outputs}
     currents = {name: data[vec] for name, vec in zip(names, vectors[system.dof:])
                 if name not in circ.state_nodes and name not in nodes}
     tr = _trajectory(system, *_from_start(data["time"]), v, currents, stats, elapsed, x)

@@ -16,7 +16,7 @@ from ..results.trajectory_stack import TrajectoryStack
 from ..solvers.registry import run_many
 from .grid import SUBSET_FROM, sufficient_points
 
-__all__ = ["measure", "sufficient", "subset"]
+__all__ = ["measure", "sufficient", "subset", "contact_outputs"]
 
 
 def subset(systems: Sequence, rows: list[int]) -> Sequence:
@@ -44,8 +44,8 @@ def sufficient(tr: Trajectory, system, p: Preset) -> Trajectory:
     p : Preset
         The settings it ran with (their bound sets which decays count).
     """
-    if tr.time.size <= SUBSET_FROM:
-        return tr
+    if tr.time.size <= SUBSET_FROM or contact_outputs(system):
+        return tr           # a contact's switch is faster than any rate of the circuit's scales
     omega = system_scales(system).fastest(p.bound)
     rows = sufficient_points(tr.time, omega, system.breakpoints())
     if rows is None:
@@ -53,6 +53,18 @@ def sufficient(tr: Trajectory, system, p: Preset) -> Trajectory:
     reach = omega * float(np.max(np.diff(tr.time[rows])))
     return tr.at(rows, f"measured on {rows.size:,} of its {tr.time.size:,} points, ω_max·Δt ≤ {reach:.2g}: "
                        f"the largest error within a factor {1 - reach / 2:.3g} of that over all")
+
+
+def contact_outputs(system) -> tuple[str, ...]:
+    """The contact forces ``f_<contact>`` a system's runs carry beside its joint rates (none without contacts).
+
+    Parameters
+    ----------
+    system : NodeDynamics
+        The system.
+    """
+    contacts = getattr(getattr(system, "functions", None), "contacts", None)
+    return () if contacts is None else tuple(f"f_{name}" for name in contacts.names)
 
 
 def _outputs(stack: TrajectoryStack, names: Sequence[str]) -> np.ndarray:
@@ -88,7 +100,9 @@ def measure(systems, runs, native, ref_name, p, save=(), resampled=frozenset()) 
         return out
     ref = runs[ref_name]
     n = systems[0].dof
-    names = tuple(f"r{j + 1}" for j in range(n)) + tuple(f"i_{c}" for c in save)
+    forces = contact_outputs(systems[0])        # measured like element currents, against their own peaks
+    names = tuple(f"r{j + 1}" for j in range(n)) + tuple(f"i_{c}" for c in save) + forces
+    measured = tuple(save) + forces
     for name, trs in runs.items():
         own = native.get(name, trs)
         for idx in own.by_grid():
@@ -115,7 +129,7 @@ def measure(systems, runs, native, ref_name, p, save=(), resampled=frozenset()) 
                     shapes.setdefault(own[k].rates.shape, []).append(j)
             for at in shapes.values():
                 group = [ok[j] for j in at]
-                a, b = _outputs(own.take(group), save), _outputs(refs.take(at), save)
+                a, b = _outputs(own.take(group), measured), _outputs(refs.take(at), measured)
                 err, rel, whole = stack_errors(a, b, p.bound)
                 whole = whole.tolist()
                 worst = np.argmax(np.where(np.isnan(rel), -np.inf, rel), axis=1)

@@ -1,0 +1,125 @@
+"""Compliant unilateral contact with the ground plane: a one-sided spring and damper, smoothed over a stated length.
+
+A contact point at height y(q) above the ground penetrates it by p = −y. The ground pushes
+it up with the Kelvin–Voigt force k·p + c·ṗ while it penetrates, and not at all in flight.
+That switch is smoothed over the length δ so that Newton's iteration in SPICE and the ODE's
+step control see a force with continuous derivatives:
+
+    f(p, ṗ) = (k·p + c·ṗ)·s(p),     s(p) = (1 + tanh(p/(2δ)))/2,
+
+the logistic function of p/δ. For p ≫ δ the force is the linear spring and damper (a
+stance phase is a damped oscillator); for p ≪ −δ it is zero to rounding (tanh saturates to
+−1 past 19 of its argument, 38·δ of height); across the switch it departs from the sharp
+law by at most (k·δ + c·|ṗ|)·O(1) over a height of a few δ, so the motion converges to the
+piecewise linear one at first order in δ. Like any Kelvin–Voigt contact it can pull briefly
+at the end of a stance, while p is still positive and ṗ strongly negative: that is the law's,
+and the closed form of its stance phase has it too.
+
+The force acts along the ground's normal at the contact point: its generalised force is
+τ = (∂y/∂q)ᵀ·f, the same expression in the circuit's behavioural sources and in the ODE.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import sympy as sp
+
+from ..errors import InputError
+
+__all__ = ["Contact", "contact_force", "smoothed_switch", "generalised_contact_forces"]
+
+
+def smoothed_switch(p, smoothing) -> sp.Expr:
+    """s(p) = (1 + tanh(p/(2δ)))/2, the contact's on-switch smoothed over δ, as an expression.
+
+    Parameters
+    ----------
+    p : sympy expression or float
+        Penetration [m].
+    smoothing : sympy expression or float
+        The smoothing length δ [m].
+    """
+    return (1 + sp.tanh(p / (2 * smoothing))) / 2
+
+
+def contact_force(p, rate, stiffness, damping, smoothing) -> sp.Expr:
+    """The normal force f = (k·p + c·ṗ)·s(p) the ground exerts at penetration *p* and its rate.
+
+    Parameters
+    ----------
+    p, rate : sympy expression
+        Penetration [m] and its rate [m/s].
+    stiffness, damping, smoothing : sympy expression or float
+        k [N/m], c [N·s/m] and δ [m].
+    """
+    return (stiffness * p + damping * rate) * smoothed_switch(p, smoothing)
+
+
+@dataclass(frozen=True)
+class Contact:
+    """A point of the robot that touches the ground plane y = 0 from above.
+
+    Attributes
+    ----------
+    name : str
+        The point's name (a link's: ``foot``); the force's output is ``f_<name>``.
+    height : sympy expression
+        Its height y(q) above the ground [m], in the model's coordinates and parameters.
+    stiffness, damping, smoothing : sympy expression
+        k [N/m], c [N·s/m] and δ [m]: numbers or the model's parameters.
+    """
+
+    name: str
+    height: sp.Expr
+    stiffness: sp.Expr
+    damping: sp.Expr
+    smoothing: sp.Expr
+
+    def __post_init__(self):
+        if not self.name.isidentifier():
+            raise InputError(f"a contact's name must be an identifier, got {self.name!r}")
+
+    def force(self, coordinates: Sequence[sp.Symbol], rates: Sequence[sp.Symbol]) -> sp.Expr:
+        """The normal force f(q, q̇) [N], as an expression.
+
+        Parameters
+        ----------
+        coordinates, rates : sequence of sympy Symbol
+            q and q̇.
+        """
+        q = list(coordinates)
+        depth = -sp.sympify(self.height)
+        rate = sum(sp.diff(depth, qk) * rk for qk, rk in zip(q, rates))
+        return contact_force(depth, rate, self.stiffness, self.damping, self.smoothing)
+
+    def normal(self, coordinates: Sequence[sp.Symbol]) -> sp.Matrix:
+        """J = ∂y/∂q, the height's gradient: the force's generalised direction.
+
+        Parameters
+        ----------
+        coordinates : sequence of sympy Symbol
+            q.
+        """
+        return sp.Matrix([sp.diff(sp.sympify(self.height), qk) for qk in coordinates])
+
+
+def generalised_contact_forces(contacts: Sequence[Contact], coordinates: Sequence[sp.Symbol],
+                               forces: Sequence[sp.Expr]) -> sp.Matrix:
+    """τ = Σ_c J_cᵀ·f_c: the contacts' normal forces *forces* as joint forces.
+
+    Parameters
+    ----------
+    contacts : sequence of Contact
+        The contacts.
+    coordinates : sequence of sympy Symbol
+        q.
+    forces : sequence of sympy expression
+        Each contact's normal force (its expression, or a symbol standing for it).
+    """
+    n = len(coordinates)
+    total = sp.zeros(n, 1)
+    for contact, f in zip(contacts, forces):
+        total += contact.normal(coordinates) * f
+    return total
