@@ -22,13 +22,14 @@ The force acts along the ground's normal at the contact point: its generalised f
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Mapping, Sequence
 
+import numpy as np
 import sympy as sp
 
 from ..errors import InputError
 
-__all__ = ["Contact", "contact_force", "smoothed_switch", "generalised_contact_forces"]
+__all__ = ["Contact", "contact_force", "smoothed_switch", "generalised_contact_forces", "check_contact_values"]
 
 
 def smoothed_switch(p, smoothing) -> sp.Expr:
@@ -123,3 +124,31 @@ def generalised_contact_forces(contacts: Sequence[Contact], coordinates: Sequenc
     for contact, f in zip(contacts, forces):
         total += contact.normal(coordinates) * f
     return total
+
+
+def check_contact_values(contacts: Sequence[Contact], values: Mapping[str, object]) -> None:
+    """Refuse, in one sentence, a contact whose stiffness or damping is negative or whose smoothing length is
+    not positive at parameter *values* (a number, or an array of them, per name).
+
+    Parameters
+    ----------
+    contacts : sequence of Contact
+        The contacts.
+    values : mapping of str to float or array
+        Parameter values by name.
+    """
+    rules = (("stiffness", "N/m", lambda x: x >= 0), ("damping", "N*s/m", lambda x: x >= 0),
+             ("smoothing", "m", lambda x: x > 0))
+    for c in contacts:
+        for field, unit, ok in rules:
+            expr = sp.sympify(getattr(c, field))
+            name = str(expr) if isinstance(expr, sp.Symbol) else None
+            value = values.get(name) if name is not None else expr
+            if value is None:
+                continue
+            number = np.asarray(value, dtype=float)
+            if not (np.all(np.isfinite(number)) and np.all(ok(number))):
+                need = "positive" if field == "smoothing" else "zero or positive"
+                label = f"{name} ({c.name}'s {field})" if name else f"{c.name}'s {field}"
+                raise InputError(f"the contact {label} must be finite and {need} [{unit}], got {value}",
+                                 field="parameters")

@@ -12,7 +12,7 @@ import sympy as sp
 from ..units import joint_units
 from ..errors import InputError
 from .base import RobotModel
-from .contact import Contact, generalised_contact_forces
+from .contact import Contact, check_contact_values, generalised_contact_forces
 from .dynamics import ContactFunctions, MechanicalFunctions
 from .joint import (
     JointStack,
@@ -351,6 +351,7 @@ class Model(RobotModel):
             rebuilt = self.with_parameters(parameters)
             if rebuilt is not self:
                 return rebuilt.joint_stack(qs)
+        check_contact_values(self.contacts, {**self.parameters, **(parameters or {})})
         fns, qnames, _ = self._compiled or self._compile()
         q = configuration_stack(self.name, qnames, qs)
         args = list(q.T) + stack_arguments(self.name, self.parameters, parameters, len(q))
@@ -382,6 +383,7 @@ class Model(RobotModel):
                 raise InputError(f"model {self.name!r} has no parameter {key!r} "
                                  f"(it has: {', '.join(values) or 'none'})")
             values[key] = float(value)
+        check_contact_values(self.contacts, values)
         cache = self.__dict__.setdefault("_mechanical", {})
         key = tuple(sorted(values.items()))
         if key not in cache:        # derived and compiled once per parameter set
@@ -482,9 +484,6 @@ class Model(RobotModel):
         heights = [sp.sympify(c.height).xreplace(subs).xreplace(at) for c in self.contacts]
         p_fn = _lambdify([q], [-h for h in heights], modules="numpy")
         smoothing = tuple(float(sp.sympify(c.smoothing).xreplace(subs)) for c in self.contacts)
-        if not all(d > 0 for d in smoothing):
-            raise InputError(f"model {self.name!r}: a contact's smoothing length must be positive, "
-                             f"got {', '.join(f'{d:g}' for d in smoothing)} m")
 
         def generalised(x, r):
             return np.asarray(tau_fn(x, r), dtype=float).reshape(n)

@@ -14,7 +14,7 @@ from ..presets import DEFAULT_SOLVERS, Preset
 from ..presets import preset as get_preset
 from ..solvers.registry import SOLVER_NAMES, solver
 from .estimate import MAX_REFINEMENTS, estimated_errors, refined_run
-from .measure import measure
+from .measure import contact_outputs, measure
 from .solver_record import SolverRecord
 from .stack_runs import StackRuns
 from .work import check_works
@@ -268,11 +268,13 @@ class Comparison(Tabular):
         return self.table().splitlines()[0]
 
     def columns(self) -> dict[str, np.ndarray]:
-        """``time``, then every solver's joint rates ``r1_spice`` …"""
+        """``time``, then every solver's joint rates ``r1_spice`` … and contact forces ``f_foot_spice`` …"""
         n = self.system.dof
         cols = {"time": self.time}
         for s, tr in self.results.items():
             cols.update((f"r{j + 1}_{s}", tr.rates[:, j]) for j in range(n))
+            cols.update((f"{name}_{s}", tr.currents[name]) for name in contact_outputs(self.system)
+                        if name in tr.currents and tr.currents[name].shape == self.time.shape)
         return cols
 
     def plot(self, path=None) -> "Figure":
