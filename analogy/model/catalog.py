@@ -126,7 +126,7 @@ FAMILIES: tuple[RobotFamily, ...] = (
     RobotFamily("serial", "analogy.model.robots:planar_serial", "analogy.model.serial_chain:SerialChain",
                 sizes=MAX_SERIAL, symbolic_sizes=MAX_SYMBOLIC_SERIAL,
                 outline=_DRAWN + "planar_chain_outline", units=_SERIAL, description="a planar N-joint arm"),
-    RobotFamily("hopper", "analogy.model.legged:hopper",
+    RobotFamily("hopper", "analogy.model.legged:hopper", outline=_DRAWN + "hopper_outline",
                 units=(("mb", "kg"), ("mf", "kg"), ("l0", "m"), ("kl", "N/m"), ("bl", "N*s/m"), ("kc", "N/m"),
                        ("cc", "N*s/m"), ("delta", "m"), ("g", "m/s^2")),
                 description="a one-legged hopper on a one-sided ground contact"),

@@ -12,7 +12,7 @@ from .conventions import link_modes_for
 from .catalog import family_builder, robot_family
 
 __all__ = ["Outline", "planar_chain_outline", "five_bar_outline", "flexible_arm_outline",
-           "flexible_parallel_outline", "tree_outline", "mechanism_outline"]
+           "flexible_parallel_outline", "hopper_outline", "tree_outline", "mechanism_outline"]
 
 #: Links at each of F configurations: a list of link polylines per frame, each (k, 2) in metres
 #: (a planar robot) or (k, 3) (a URDF's tree, in its base frame).
@@ -192,6 +192,23 @@ def tree_outline(tree, q: np.ndarray) -> tuple[Outline, np.ndarray]:
     half = 0.05 * reach * axis
     axes = np.stack([origin - half, origin + half], axis=2)
     return [[line[k] for line in lines] for k in range(len(origin))], axes
+
+
+def hopper_outline(q: np.ndarray, parameters: Mapping[str, float]) -> Outline:
+    """The hopper in its vertical plane: the ground line, the leg from the body at height q1 to the foot
+    q2 below it, and the body (last, so that its trail shows the bounces).
+
+    Parameters
+    ----------
+    q : ndarray, shape (F, 2)
+        Body height and the foot's height relative to it [m], one row per frame.
+    parameters : mapping
+        l0 [m], which sets the drawing's width.
+    """
+    q = np.atleast_2d(q)
+    half = 0.4 * parameters["l0"]
+    ground = np.array([[-half, 0.0], [half, 0.0]])
+    return [[ground, np.array([[0.0, z], [0.0, z + d]]), np.array([[0.0, z]])] for z, d in q]
 
 
 def mechanism_outline(robot: str, q: np.ndarray, parameters: Mapping[str, float],

@@ -72,6 +72,9 @@ class Motion:
     branches : ndarray, shape (F, n, n), or None
         A linear circuit too large for a schematic: at each frame, the current from node i to node j
         through the elements between them, and on the diagonal each node's current to ground.
+    contacts : dict of str to ndarray, or None
+        Each contact's normal force on the run's points [N] (``f_foot``): drawn in place of the
+        capacitances, the one-sided current through the ground's contact.
     """
 
     title: str
@@ -88,6 +91,7 @@ class Motion:
     currents: np.ndarray | None = None
     current_peaks: np.ndarray | None = None
     branches: np.ndarray | None = None
+    contacts: dict | None = None
 
     @property
     def spatial(self) -> bool:
@@ -217,7 +221,8 @@ def check_animation_path(path) -> str:
 
 def _figure(motion: Motion):
     """The figure at frame 0 and ``update(k)``, which moves every artist to frame k."""
-    varying, drawn = motion.capacitances is not None, motion.schematic is not None or motion.branches is not None
+    varying = motion.capacitances is not None or motion.contacts is not None
+    drawn = motion.schematic is not None or motion.branches is not None
     fig = Figure(figsize=(15.0 if drawn else 10.0, 4.6 if varying or drawn else 4.0), layout="constrained")
     grid = fig.add_gridspec(2 if varying else 1, 3 if drawn else 2,
                             width_ratios=(1.0, 1.6, 1.1) if drawn else (1.0, 1.25))
@@ -244,7 +249,7 @@ def _figure(motion: Motion):
     if varying:
         caps = fig.add_subplot(grid[1, 1], sharex=volts)
         cursors.append(caps.axvline(0.0, color="0.3", lw=0.8))
-        _draw_capacitances(caps, motion)
+        (_draw_capacitances if motion.contacts is None else _draw_contacts)(caps, motion)
         volts.tick_params(labelbottom=False)
         volts.set_xlabel("")
     heading = fig.suptitle(motion.title, fontsize=10)
@@ -434,6 +439,16 @@ def _draw_capacitances(ax, motion: Motion) -> None:
     ax.set_ylabel("capacitance = mass")
     ax.set_title("MP capacitances c_ij = -M'_ij change with the pose", fontsize=9)
     ax.legend(fontsize=7, loc="upper right", ncol=2)
+
+
+def _draw_contacts(ax, motion: Motion) -> None:
+    for name, force in motion.contacts.items():
+        ax.plot(motion.time, force, lw=1.2, label=name)
+    ax.axhline(0.0, color="0.5", lw=0.6)
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("force [N]")
+    ax.set_title("contact forces: the ground's one-sided current, zero in flight", fontsize=9)
+    ax.legend(fontsize=7, loc="upper right")
 
 
 #: The player's buttons as text: matplotlib's player fetches an icon font from the web for them.

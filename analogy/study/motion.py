@@ -17,6 +17,7 @@ from ..model.base import RobotModel
 from ..model.mechanism import mechanism_outline, tree_outline
 from ..results.animation import VIEW, Motion
 from ..results.trajectory import Trajectory
+from .measure import contact_outputs
 
 __all__ = ["motion", "DEFLECTION_SHOWN"]
 
@@ -100,8 +101,10 @@ def motion(system: NodeDynamics, trajectory: Trajectory, frames: int = 60, *,
     nodes = list(system.nodes)
     if provenance.joints and np.array_equal(system.topology.matrix, np.eye(system.dof)):
         nodes = [f"{node}: {name}" for node, name in zip(nodes, provenance.joints)]     # node k is joint k
+    contacts = {name: trajectory.currents[name] for name in contact_outputs(system)
+                if name in trajectory.currents and trajectory.currents[name].shape == t.shape}
     return Motion(title, t, v, nodes, shown, outline, x_shown, capacitances, note, joint_axes, drawn_circuit,
-                  currents, peaks, branches)
+                  currents, peaks, branches, contacts or None)
 
 
 def _branches_in_motion(system: NodeDynamics, t: np.ndarray, v: np.ndarray, x: np.ndarray,
