@@ -42,6 +42,8 @@ OUTPUTS = {
     "lab_modes.py": ["modes_serial.png", "modes_serial.csv", "modes_modal.png", "modes_modal.csv",
                      "modes_velocities.png", *_diagrams("modes_modal")],
     "lab_motor.py": ["motor_gear.png", "motor_step.png", "motor_pwm.png", "motor_pwm.csv"],
+    "lab_contact.py": ["contact_drop.png", "contact_drop.csv", "contact_closed_form.png", "contact_diode.png",
+                       "contact_settling.png", "contact_motion.gif", "contact_motion_sheet.png"],
     "lab_real_arm.py": ["real_arm_potential.png", "real_arm_panda.png", "real_arm_panda.csv", "real_arm_forces.csv"],
     "lab_your_robot.py": ["ur5_elbow_sweep.png", "ur5_elements.png", "ur5.png", "ur5.csv", "ur5_wrist.png",
                           "ur5_singular.png", "ur5_singular.csv"],
