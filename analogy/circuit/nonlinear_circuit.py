@@ -82,8 +82,9 @@ def node_lagrangian(system) -> NodeLagrangian:
     x = list(sp.symbols(f"x1:{n + 1}", real=True))
     v = list(sp.symbols(f"v1:{n + 1}", real=True))
     if model.rigid_tree:          # its recursions, one shared expression per quantity
-        tree = model.with_parameters(system.parameters).tree        # at the system's g, as its functions are
-        return NodeLagrangian(x, v, *tree_lagrangian(tree, system.q0, system.topology.inverse, x, v))
+        at = model.with_parameters(system.parameters)               # at the system's g, as its functions are
+        return NodeLagrangian(x, v, *tree_lagrangian(at.tree, system.q0, system.topology.inverse, x, v,
+                                                     at.contacts, at.parameters))
     subs = {sym: system.parameters[name] for name, sym in model.symbols.items()}
     tinv = sp.Matrix(np.asarray(system.topology.inverse).tolist())
     q = list(model.coordinates) or list(sp.symbols(f"q1:{n + 1}", real=True))
@@ -193,7 +194,7 @@ def nonlinear_circuit(system, zero_tol: float = ZERO_TOL, describe: bool = True)
         name = f"{a}" if b == 0 else f"{a}_{b}"
         return ChargeCapacitor(name, a, b, f"({spice_text(c, lag)})*{across}", q0)
 
-    contacts = {f"f_{c.name}" for c in getattr(system.model, "contacts", ())}
+    contacts = {f"f_{c.name}" for c in getattr(system.model, "contacts", ()) or ()}
     parts = [BehaviouralVoltage(str(symbol), spice_text(e, lag), at_start[symbol], str(symbol) in contacts)
              for symbol, e in lag.shared]
     for a in range(n):                  # grounded c_a = Σ_j M'_aj, floating c_ab = −M'_ab

@@ -353,6 +353,16 @@ def _scale_arrays(first, m, b, k, v0) -> tuple:
                          "rescale the masses, dampers or springs") from None
 
 
+def _starting_load(system) -> np.ndarray | None:
+    """|h(0, v0)| of a nonlinear system, its gravity, velocity and contact terms at the start as node
+    currents; None for a linear one or where they are zero."""
+    if getattr(system, "kind", "linear") == "linear":
+        return None
+    with np.errstate(all="ignore"):
+        load = np.abs(np.asarray(system.node_load(np.zeros(system.dof), system.initial_voltages, 0.0), dtype=float))
+    return load if np.all(np.isfinite(load)) and np.any(load > 0) else None
+
+
 def _estimated_scales(first, m, b, k, v0) -> tuple:
     count, n = m.shape[0], m.shape[1]
     chol = np.linalg.cholesky(m)
@@ -366,6 +376,9 @@ def _estimated_scales(first, m, b, k, v0) -> tuple:
     omega = np.sqrt(np.abs(mu))
     peaks, sine = _force_peaks(first)
     drive = np.abs(np.swapaxes(phi, 1, 2) @ first.current_map) @ peaks
+    load = _starting_load(first)
+    if load is not None:            # gravity and contacts drive a nonlinear motion as its forces do
+        drive = drive + np.abs(np.swapaxes(phi, 1, 2)) @ load
     start = np.abs(np.einsum("sik,sij,sj->sk", phi, m, v0))
     t_stop = float(first.t_stop)
     with np.errstate(divide="ignore"):
@@ -380,6 +393,8 @@ def _estimated_scales(first, m, b, k, v0) -> tuple:
     with np.errstate(invalid="ignore", over="ignore"):      # (β/2)² past 1e308 only means overdamped
         damped = np.where(mu > 0, np.sqrt(np.maximum(mu - (beta / 2) ** 2, 0.0)), 0.0)
     current = float(np.max(np.abs(first.current_map) @ peaks)) if peaks.size else 0.0
+    if load is not None:
+        current = max(current, float(np.max(load, initial=0.0)))
     top = np.max(velocity, axis=1) if n else np.zeros(count)
     still = ~(np.isfinite(top) & (top > 0))               # nothing moves: any unit scale serves
     velocity[still], position[still] = 1.0, t_stop

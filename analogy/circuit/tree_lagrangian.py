@@ -28,6 +28,7 @@ from __future__ import annotations
 import numpy as np
 import sympy as sp
 
+from ..model.contact import contact_force
 from ..model.rigid_tree import body_inertia, placement_frame
 
 __all__ = ["tree_lagrangian"]
@@ -126,8 +127,12 @@ def _frames(tree, prog: _Program, consts: list, q: list, r: list) -> tuple[list,
     return rot, pos, omega, u, subspace
 
 
-def tree_lagrangian(tree, q0, inverse: np.ndarray, x: list, v: list) -> tuple:
+def tree_lagrangian(tree, q0, inverse: np.ndarray, x: list, v: list, contacts=(), ground=None) -> tuple:
     """(M'(x), h(x, v), shared) of a rigid tree in node coordinates q = q0 + T⁻¹x, r = T⁻¹v.
+
+    A contact point P on body b (:class:`~analogy.model.tree_contact.TreeContact`) meets the ground
+    z = 0: its force f (:func:`~analogy.model.contact.contact_force` of p = −P_z and ṗ = −(u_b + ω_b × P)_z)
+    is the shared node ``f_<name>``, and each joint a that carries b feels S_a·[P × F; F] with F = (0, 0, f).
 
     Parameters
     ----------
@@ -139,6 +144,10 @@ def tree_lagrangian(tree, q0, inverse: np.ndarray, x: list, v: list) -> tuple:
         T⁻¹.
     x, v : list of sympy Symbol
         Node positions and rates.
+    contacts : sequence of TreeContact
+        Points that meet the ground.
+    ground : mapping, optional
+        The ground's ``kc``, ``cc`` and ``delta`` (with *contacts*).
     """
     n = tree.dof
     prog = _Program()
@@ -198,5 +207,16 @@ def tree_lagrangian(tree, q0, inverse: np.ndarray, x: list, v: list) -> tuple:
             moved = (_cross(wp, w), [x + y for x, y in zip(_cross(wp, uu), _cross(up, w))])
             dtdq = _dot(moved[0], total[a][:3]) + _dot(moved[1], total[a][3:])
         load.append(-_dot(g, forces[a][1]) - dtdq)
+    for contact in contacts:
+        b = contact.body
+        point = prog.vector([a + d for a, d in zip(pos[b], _matvec(rot[b].tolist(), _clean(contact.offset, 1.0)))])
+        rise = u[b][2] + _cross(omega[b], point)[2]
+        force = prog.let(contact_force(-point[2], -rise, ground["kc"], ground["cc"], ground["delta"]),
+                         f"f_{contact.name}")
+        a = b
+        while a >= 0:                       # S_a·[P × F; F], F = (0, 0, f)
+            w, uu = subspace[a]
+            load[a] = load[a] - force * (w[0] * point[1] - w[1] * point[0] + uu[2])
+            a = tree.parents[a]
     ti = sp.Matrix(tinv)
     return ti.T * mass * ti, ti.T * sp.Matrix(load), tuple(prog.shared)

@@ -18,6 +18,7 @@ from ..model.expressions import (
     split_entries,
 )
 from ..model.quantities import ANY, COORDINATE, RATE
+from ..model.tree_contact import CONTACT_PARAMETERS
 from ..presets import PRESETS, Preset
 from ..progress import Heartbeat
 from ..presets import preset as get_preset
@@ -85,7 +86,11 @@ def scene_options(p: argparse.ArgumentParser, preset: str = "accurate") -> None:
                    "joints depth first, each link's joints by name (Pinocchio's order)")
     g.add_argument("--base", choices=("fixed", "floating"), help="a URDF robot's root link: held fixed to the "
                    "world (fixed, the default, said in one line when the root is not the world) or free-flying "
-                   "(floating: not modelled yet, refused)")
+                   "(floating: six more coordinates first, base_x, base_y, base_z and the Z-Y-X angles base_yaw, "
+                   "base_pitch, base_roll)")
+    g.add_argument("--contacts", metavar="LINKS", help="a URDF robot's links that meet the ground plane z = 0, "
+                   "comma-separated, or 'feet' (every link named like a foot): a one-sided spring and damper at "
+                   "each link's origin, the ground's kc, cc and delta among the --param (nonlinear dynamics)")
     g.add_argument("--joints", metavar="NAMES", help="with --urdf: the movable joints kept, e.g. "
                    "'shoulder_pan_joint,elbow_joint'; the others are frozen at 0")
     g.add_argument("--mass", metavar="VECTOR|MATRIX", help="mass matrix, e.g. '[[m1, m3], [m3, m2]]', or its "
@@ -166,14 +171,33 @@ def _fitted(sc: Scene, model) -> dict:
     return out
 
 
+def _with_contacts(spec: ModelSpec, args, label: str, params: dict) -> ModelSpec:
+    """*spec* with the --contacts links: their names, or for ``feet`` every link named like a foot."""
+    if not getattr(args, "contacts", None):
+        return spec
+    names = tuple(n.strip() for n in args.contacts.split(",") if n.strip())
+    if names == ("feet",):
+        links = scene_model(Scene.of(label, spec, parameters=params, source=COMMAND_LINE)).link_frames
+        names = tuple(sorted(n for n in links if "foot" in n.lower() or "feet" in n.lower()))
+        if not names:
+            raise InputError(f"--contacts feet: {label} has no link named like a foot; name the links that touch "
+                             f"the ground, e.g. --contacts {','.join(sorted(links)[-2:])}")
+    return replace(spec, contacts=names)
+
+
+def _base(args) -> str | None:
+    """The --base a URDF robot's spec takes: None for the fixed default (the scene's key unchanged)."""
+    return "floating" if getattr(args, "base", None) == "floating" else None
+
+
 def _urdf_defaults(spec: ModelSpec, label: str, params: dict, args) -> dict:
     """A URDF robot's scene changes: its default pose, gravity, forces and horizon where the
     options leave them, said in one line (with the sentence on its base) on stderr."""
     from ..scenes.robot_defaults import base_note, robot_defaults     # scipy's optimizer: URDF robots only
+    ground = {k: params.pop(k) for k in CONTACT_PARAMETERS if k in params}
+    spec = _with_contacts(spec, args, label, params)
+    params.update(ground)
     model = scene_model(Scene.of(label, spec, parameters=params, source=COMMAND_LINE))
-    if getattr(args, "base", None) == "floating":
-        raise InputError(f"--base floating: a free-flying base is not modelled yet; --base fixed holds "
-                         f"{model.name}'s root link {model.root_link} to the world")
     q = None if args.q is None else _option("--q", parse_vector, args.q, numeric=True, dimension=COORDINATE)
     if q is not None and len(q) != model.dof:
         raise InputError(f"--q: expected {model.dof} numbers, got {len(q)}: {label} has {model.dof} joints "
@@ -181,7 +205,7 @@ def _urdf_defaults(spec: ModelSpec, label: str, params: dict, args) -> dict:
     d = robot_defaults(model, params.get("g"), q, label)
     if not (args.force and args.t_stop is not None and q is not None):
         print(f"analogy: note: {d.note}", file=sys.stderr)
-    if getattr(args, "base", None) is None and (base := base_note(model)) is not None:
+    if getattr(args, "base", None) != "fixed" and (base := base_note(model)) is not None:
         print(f"analogy: note: {base}", file=sys.stderr)
     return {"model": spec, "q": d.q, "parameters": {**params, "g": d.g}, "forces": d.forces, "t_stop": d.t_stop,
             "initial_rates": None, "topology": None, "robot_note": d.note}
@@ -190,6 +214,9 @@ def _urdf_defaults(spec: ModelSpec, label: str, params: dict, args) -> dict:
 def _model_changes(args, sc: Scene, params: dict, chosen: dict, changes: dict) -> None:
     """The robot the options describe, into *changes*: a mass matrix, a URDF, a named robot, or the
     scene's own arm with other conventions or parameters; one sentence for options that do not go together."""
+    if getattr(args, "base", None) is not None and args.urdf is None and args.robot not in URDF_NAMES:
+        raise InputError("--base frees or holds a URDF robot's root link (--urdf FILE, or a named robot such as "
+                         "ur5); the built-in robots have no base to free")
     if args.mass is not None:
         mass = _entries(args.mass, "--mass")
         if mass and not any(isinstance(r, list) for r in mass):
@@ -213,11 +240,13 @@ def _model_changes(args, sc: Scene, params: dict, chosen: dict, changes: dict) -
         if args.robot is not None:
             raise InputError("--robot and --urdf both name the robot: give one")
         names = None if args.joints is None else tuple(n.strip() for n in args.joints.split(",") if n.strip())
-        spec = ModelSpec(urdf=_option("--urdf", read_urdf, args.urdf), joints=names or None, **chosen)
+        spec = ModelSpec(urdf=_option("--urdf", read_urdf, args.urdf), joints=names or None, base=_base(args),
+                         **chosen)
         changes.update(_urdf_defaults(spec, spec.label, params, args))
     elif args.robot in URDF_NAMES:      # its joints are the registry's: a --joints is refused by the rules
         joints = None if args.joints is None else tuple(n.strip() for n in args.joints.split(","))
-        changes.update(_urdf_defaults(ModelSpec(robot=args.robot, joints=joints, **chosen), args.robot, params, args))
+        changes.update(_urdf_defaults(ModelSpec(robot=args.robot, joints=joints, base=_base(args), **chosen),
+                                      args.robot, params, args))
     elif args.joints is not None:
         raise InputError("--joints selects the joints of a --urdf robot")
     elif args.damping or args.stiffness or args.gravity:

@@ -12,7 +12,7 @@ import numpy as np
 from .dynamics import MechanicalFunctions
 from .rigid_tree import RigidTree
 
-__all__ = ["pinocchio_functions", "pinocchio_model", "AGREEMENT_GUARD"]
+__all__ = ["pinocchio_functions", "pinocchio_model", "pinocchio_heights", "AGREEMENT_GUARD", "ROOT_JOINT"]
 
 #: Pinocchio and the tree's recursions sum the same products in other orders: each entry of M
 #: and c + G is a sum of about n² products no larger than its peak, so they agree to a few n²·ε
@@ -30,8 +30,22 @@ def _library():
     return pinocchio
 
 
+#: Pinocchio's name for the joint a model is built on: the free base, where there is one.
+ROOT_JOINT = "root_joint"
+
+
+def _free_flyer(pin):
+    """The free base of :data:`~analogy.model.urdf.FREE_FLYER` as one Pinocchio joint: x, y, z slides, then
+    Z-Y-X rotations, in a composite whose coordinates are the six joints' own (q̇ = v)."""
+    base = pin.JointModelComposite(pin.JointModelPX())
+    for joint in (pin.JointModelPY(), pin.JointModelPZ(), pin.JointModelRZ(), pin.JointModelRY(), pin.JointModelRX()):
+        base.addJoint(joint)
+    return base
+
+
 def pinocchio_model(text: str, joint_names: Sequence[str], pose: Mapping[str, float] | None = None,
-                    gravity: Sequence[float] = (0.0, 0.0, -9.80665)) -> tuple[Any, np.ndarray] | None:
+                    gravity: Sequence[float] = (0.0, 0.0, -9.80665),
+                    floating: bool = False) -> tuple[Any, np.ndarray] | None:
     """(Pinocchio model, velocity index per joint) of a URDF, or None where it does not read it alike.
 
     The joints not in *joint_names* are frozen at their *pose* (0 by default), as
@@ -48,17 +62,21 @@ def pinocchio_model(text: str, joint_names: Sequence[str], pose: Mapping[str, fl
         The frozen joints' values.
     gravity : sequence of float
         The acceleration of gravity in the base frame [m/s²].
+    floating : bool
+        The first six of *joint_names* are a free base (:data:`~analogy.model.urdf.FREE_FLYER`),
+        built as Pinocchio's root joint.
     """
     pin = _library()
     if pin is None:
         return None
+    base, joint_names = (list(joint_names[:6]), list(joint_names[6:])) if floating else ([], list(joint_names))
     try:
-        full = pin.buildModelFromXML(text)
+        full = pin.buildModelFromXML(text, _free_flyer(pin)) if floating else pin.buildModelFromXML(text)
     except Exception:           # a file Pinocchio's parser refuses: the tree's own recursions serve
         return None
-    kept = set(joint_names)
+    kept = set(joint_names) | ({ROOT_JOINT} if floating else set())
     names = list(full.names)
-    if not kept <= set(names) or full.nv != full.njoints - 1:
+    if not kept <= set(names) or full.nv != full.njoints - 1 + (5 if floating else 0):
         return None             # a joint it does not have, or one of more than one coordinate
     pose = dict(pose or {})
     held = np.zeros(full.nv)
@@ -70,7 +88,8 @@ def pinocchio_model(text: str, joint_names: Sequence[str], pose: Mapping[str, fl
     # integrate from the neutral pose: exact for a 1-DOF joint, (cos, sin) for a continuous one
     model = pin.buildReducedModel(full, locked, pin.integrate(full, pin.neutral(full), held)) if locked else full
     model.gravity.linear = np.array(gravity, dtype=float)
-    index = np.array([model.joints[model.getJointId(name)].idx_v for name in joint_names])
+    start = [model.joints[model.getJointId(ROOT_JOINT)].idx_v + k for k in range(len(base))]
+    index = np.array(start + [model.joints[model.getJointId(name)].idx_v for name in joint_names])
     return model, index
 
 
@@ -135,6 +154,16 @@ class _Pinocchio:
     def gravities(self, qs) -> np.ndarray:
         return np.stack([self.gravity(q) for q in np.atleast_2d(qs)])
 
+    def heights(self, q, frames: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The origins' heights z (k,) of the frames *frames* and their rows ∂z/∂q (k, n), in analogy's order."""
+        pin, data = self.pin, self._data()
+        state = self._coordinates(q)
+        pin.computeJointJacobians(self.model, data, state)
+        pin.updateFramePlacements(self.model, data)
+        z = np.array([data.oMf[int(f)].translation[2] for f in frames])
+        rows = np.array([pin.getFrameJacobian(self.model, data, int(f), pin.LOCAL_WORLD_ALIGNED)[2] for f in frames])
+        return z, rows if self.identity else rows[:, self.index]
+
     def potential(self, qs) -> np.ndarray:
         data = self._data()
         return np.array([self.pin.computePotentialEnergy(self.model, data, self._coordinates(q))
@@ -156,13 +185,13 @@ def _agrees(p: _Pinocchio, tree: RigidTree) -> bool:
 
 
 @lru_cache(maxsize=16)
-def _cached(text: str, joint_names: tuple, pose: tuple, gravity: tuple) -> _Pinocchio | None:
-    built = pinocchio_model(text, joint_names, dict(pose), gravity)
+def _cached(text: str, joint_names: tuple, pose: tuple, gravity: tuple, floating: bool) -> _Pinocchio | None:
+    built = pinocchio_model(text, joint_names, dict(pose), gravity, floating)
     return None if built is None else _Pinocchio(_library(), *built)
 
 
 def pinocchio_functions(text: str, tree: RigidTree, joint_names: Sequence[str], damping: np.ndarray,
-                        pose: Mapping[str, float] | None = None) -> MechanicalFunctions | None:
+                        pose: Mapping[str, float] | None = None, floating: bool = False) -> MechanicalFunctions | None:
     """The tree's M, c, G, forward dynamics (``pinocchio.aba``) and U by Pinocchio, or None.
 
     None where Pinocchio is not installed, or reads the file otherwise than *tree* was
@@ -181,14 +210,46 @@ def pinocchio_functions(text: str, tree: RigidTree, joint_names: Sequence[str], 
         B.
     pose : mapping, optional
         The frozen joints' values.
+    floating : bool
+        The tree's first six joints are a free base.
     """
-    p = _cached(text, tuple(joint_names), tuple(sorted((pose or {}).items())), tuple(map(float, tree.gravity)))
+    p = _cached(text, tuple(joint_names), tuple(sorted((pose or {}).items())), tuple(map(float, tree.gravity)),
+                floating)
     if p is None or not _agreed(p, tree):
         return None
     gravity: Callable | None = p.gravity if np.any(tree.gravity) else None
     return MechanicalFunctions(p.mass, p.velocity, gravity, damping, None, masses=p.masses,
                                gravities=None if gravity is None else p.gravities, forward=p.forward,
                                potential=None if gravity is None else p.potential)
+
+
+def pinocchio_heights(text: str, tree: RigidTree, joint_names: Sequence[str], links: Sequence[str],
+                      pose: Mapping[str, float] | None = None, floating: bool = False) -> Callable | None:
+    """``heights(q)``: the origins' heights of *links* and their gradients ∂z/∂q by Pinocchio's frame
+    kinematics, as :meth:`~analogy.model.rigid_tree.RigidTree.points` gives them; None where Pinocchio is
+    not installed or does not read the file as *tree*.
+
+    Parameters
+    ----------
+    text : str
+        The URDF's text.
+    tree : RigidTree
+        The same tree as analogy read it.
+    joint_names : sequence of str
+        Its joints, in its order.
+    links : sequence of str
+        The links whose origins are asked for.
+    pose : mapping, optional
+        The frozen joints' values.
+    floating : bool
+        The tree's first six joints are a free base.
+    """
+    p = _cached(text, tuple(joint_names), tuple(sorted((pose or {}).items())), tuple(map(float, tree.gravity)),
+                floating)
+    if p is None or not _agreed(p, tree) or not all(p.model.existFrame(name) for name in links):
+        return None
+    frames = np.array([p.model.getFrameId(name) for name in links])
+    return lambda q: p.heights(q, frames)
 
 
 def _agreed(p: _Pinocchio, tree: RigidTree) -> bool:

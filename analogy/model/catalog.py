@@ -4,12 +4,16 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from importlib import import_module
-from typing import Callable
+from typing import Callable, Literal
 
 from ..errors import InputError
 
-__all__ = ["RobotFamily", "FAMILIES", "ROBOT_NAMES", "URDF_NAMES", "robot_family", "family_builder",
+__all__ = ["Base", "BASES", "RobotFamily", "FAMILIES", "ROBOT_NAMES", "URDF_NAMES", "robot_family", "family_builder",
            "MAX_SERIAL", "MAX_SYMBOLIC_SERIAL", "MAX_RANDOM"]
+
+#: How a URDF robot's root link is held: to the world, or free-flying.
+Base = Literal["fixed", "floating"]
+BASES: tuple[str, ...] = ("fixed", "floating")
 
 MAX_SERIAL = 500
 #: serial<N> beyond this is numeric only (its linear dynamics): sympy's nonlinear derivation grows as

@@ -22,7 +22,7 @@ The force acts along the ground's normal at the contact point: its generalised f
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Mapping, Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 import sympy as sp
@@ -32,30 +32,36 @@ from ..errors import InputError
 __all__ = ["Contact", "contact_force", "smoothed_switch", "generalised_contact_forces", "check_contact_values"]
 
 
-def smoothed_switch(p, smoothing) -> sp.Expr:
-    """s(p) = (1 + tanh(p/(2δ)))/2, the contact's on-switch smoothed over δ, as an expression.
+def smoothed_switch(p, smoothing, tanh=sp.tanh) -> Any:
+    """s(p) = (1 + tanh(p/(2δ)))/2, the contact's on-switch smoothed over δ: an expression, or numbers
+    with ``tanh=numpy.tanh``.
 
     Parameters
     ----------
-    p : sympy expression or float
+    p : sympy expression or array_like
         Penetration [m].
     smoothing : sympy expression or float
         The smoothing length δ [m].
+    tanh : callable
+        The hyperbolic tangent of the arithmetic at hand (sympy's or numpy's).
     """
-    return (1 + sp.tanh(p / (2 * smoothing))) / 2
+    return (1 + tanh(p / (2 * smoothing))) / 2
 
 
-def contact_force(p, rate, stiffness, damping, smoothing) -> sp.Expr:
-    """The normal force f = (k·p + c·ṗ)·s(p) the ground exerts at penetration *p* and its rate.
+def contact_force(p, rate, stiffness, damping, smoothing, tanh=sp.tanh) -> Any:
+    """The normal force f = (k·p + c·ṗ)·s(p) the ground exerts at penetration *p* and its rate: the one law,
+    written once, for the circuit's expressions (sympy) and the ODE's numbers (``tanh=numpy.tanh``).
 
     Parameters
     ----------
-    p, rate : sympy expression
+    p, rate : sympy expression or array_like
         Penetration [m] and its rate [m/s].
     stiffness, damping, smoothing : sympy expression or float
         k [N/m], c [N·s/m] and δ [m].
+    tanh : callable
+        sympy's tanh (expressions) or numpy's (numbers).
     """
-    return (stiffness * p + damping * rate) * smoothed_switch(p, smoothing)
+    return (stiffness * p + damping * rate) * smoothed_switch(p, smoothing, tanh)
 
 
 @dataclass(frozen=True)

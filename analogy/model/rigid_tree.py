@@ -350,6 +350,35 @@ class RigidTree:
         return (origin, np.einsum("pnij,nj->pni", rotation, np.asarray(self.axes, dtype=float)),
                 origin + np.einsum("pnij,nj->pni", rotation, centres))
 
+    def points(self, qs, bodies, offsets) -> tuple[np.ndarray, np.ndarray]:
+        """Points fixed on bodies, in the base frame at every row of *qs*: their positions (poses, k, 3) and
+        Jacobians ∂P/∂q (poses, k, 3, n), whose column a is z_a × (P − o_a) for a revolute ancestor a,
+        z_a for a prismatic one, and zero for a joint that does not carry the point.
+
+        Parameters
+        ----------
+        qs : array_like, shape (poses, n)
+            Joint coordinates [rad or m].
+        bodies : sequence of int
+            The body each point is on.
+        offsets : array_like, shape (k, 3)
+            Each point in its body's frame [m].
+        """
+        qs = np.atleast_2d(np.asarray(qs, dtype=float))
+        world = self._world(qs)
+        rotation = world[..., :3, :3].transpose(0, 1, 3, 2)
+        px = -rotation @ world[..., 3:, :3]
+        origin = np.stack([px[..., 2, 1], px[..., 0, 2], px[..., 1, 0]], axis=-1)
+        axes = np.einsum("pnij,nj->pni", rotation, np.asarray(self.axes, dtype=float))
+        bodies = list(bodies)
+        at = origin[:, bodies] + np.einsum("pkij,kj->pki", rotation[:, bodies], np.asarray(offsets, dtype=float))
+        above = self._shape[4]
+        jac = np.zeros(at.shape + (self.dof,))
+        for c, b in enumerate(bodies):
+            for a in np.flatnonzero(above[:, b]):
+                jac[:, c, :, a] = np.cross(axes[:, a], at[:, c] - origin[:, a]) if self.kinds[a] == "revolute"                     else axes[:, a]
+        return at, jac
+
     def dynamics(self, qs, rates) -> tuple[np.ndarray, np.ndarray]:
         """(M(q), c(q, q̇) + G(q)) at every row from one kinematics pass, shape ((p, n, n), (p, n)).
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import hashlib
 import os
 from functools import cached_property, lru_cache
@@ -14,18 +15,34 @@ from ..errors import InputError
 from . import joint_limits as joint_limits_module
 from . import rigid_tree as rigid_tree_module
 from . import urdf_file as urdf_file_module
-from .articulated_body import pinocchio_functions
+from .articulated_body import pinocchio_functions, pinocchio_heights
+from .contact import Contact, check_contact_values
 from .compiled import cache_dir
 from .dynamics import MechanicalFunctions
 from .base import RobotModel
+from .catalog import BASES
 from .joint import JointStack, configuration_stack
 from .joint_limits import JointLimits, joint_limits
 from .urdf_file import MOVING_JOINTS, parse_urdf, urdf_number
 from .rigid_tree import RigidTree, axis_rotation, body_inertia, placement_frame, plucker, spatial_inertia
+from .tree_contact import TreeContact, tree_contact_functions
 
-__all__ = ["UrdfModel", "urdf_model", "STANDARD_GRAVITY"]
+__all__ = ["UrdfModel", "urdf_model", "STANDARD_GRAVITY", "FREE_FLYER", "GROUND_SINK", "ground_defaults"]
 
 STANDARD_GRAVITY = 9.80665
+#: How far the robot's whole weight sinks one contact into the ground by default [m].
+GROUND_SINK = 1e-3
+#: How far the robot's whole weight at its contacts' reach bends a servo-held joint by default [rad].
+SERVO_SAG = 0.05
+#: A free-flying base as six joints before the root link: its origin's slides along the world's x, y,
+#: z, then Z-Y-X Euler angles (yaw, pitch, roll), each turning about the frame the last one left.
+#: The circuit's node velocities must integrate to coordinates (x = ∫v); a body's twist does not,
+#: so the nodes are these six rates, and the twist is their linear map. The angles are singular
+#: at pitch ±π/2 (gimbal lock), a quarter turn from the URDF's own upright pose.
+FREE_FLYER = (("base_x", "prismatic", (1.0, 0.0, 0.0)), ("base_y", "prismatic", (0.0, 1.0, 0.0)),
+              ("base_z", "prismatic", (0.0, 0.0, 1.0)), ("base_yaw", "revolute", (0.0, 0.0, 1.0)),
+              ("base_pitch", "revolute", (0.0, 1.0, 0.0)), ("base_roll", "revolute", (1.0, 0.0, 0.0)))
+FREE_NAMES = tuple(name for name, _, _ in FREE_FLYER)
 
 
 def _inertia(link, scale: float) -> np.ndarray:
@@ -59,8 +76,22 @@ def _largest_moment(robot) -> float:
     return max(moments, default=0.0)
 
 
-def _tree(robot, gravity: float, joints: Sequence[str] | None = None, pose: Mapping[str, float] | None = None):
-    """(RigidTree, joint names, kinds, damping per joint, JointLimits, root link) of a parsed URDF."""
+def _check_mimics(robot, movable: list, kept: set) -> None:
+    """Refuse a mimic joint that mimics no movable joint, or one kept (mimics are frozen, not modelled)."""
+    for j in robot.joints:
+        if j.mimic is not None and j.mimic.joint not in movable:
+            raise InputError(f"joint {j.name} mimics {j.mimic.joint!r}, which is not a movable joint",
+                             field="robot")
+        if j.mimic is not None and (j.name in kept or j.mimic.joint in kept):
+            raise InputError(f"joint {j.name} mimics {j.mimic.joint}: mimic joints are not modelled; keep "
+                             "both out of the joints selected (they are then frozen)", field="robot")
+
+
+def _tree(robot, gravity: float, joints: Sequence[str] | None = None, pose: Mapping[str, float] | None = None,
+          base: str = "fixed"):
+    """(RigidTree, joint names, kinds, damping per joint, JointLimits, root link, link frames) of a parsed URDF;
+    a *base* ``"floating"`` puts the :data:`FREE_FLYER` joints between the world and the root link. The link
+    frames map each link to its body (−1: welded to the world) and its frame in that body's (4×4)."""
     links = {link.name: link for link in robot.links}
     by_child: dict = {}
     children: dict = {}
@@ -83,21 +114,25 @@ def _tree(robot, gravity: float, joints: Sequence[str] | None = None, pose: Mapp
     kept = set(movable if joints is None else joints)
     if unknown := [name for name in kept if name not in movable]:
         raise InputError(f"no movable joint {unknown[0]!r} (the URDF's are {', '.join(movable)})", field="robot")
-    for j in robot.joints:
-        if j.mimic is not None and j.mimic.joint not in movable:
-            raise InputError(f"joint {j.name} mimics {j.mimic.joint!r}, which is not a movable joint",
-                             field="robot")
-        if j.mimic is not None and (j.name in kept or j.mimic.joint in kept):
-            raise InputError(f"joint {j.name} mimics {j.mimic.joint}: mimic joints are not modelled; keep "
-                             "both out of the joints selected (they are then frozen)", field="robot")
+    _check_mimics(robot, movable, kept)
     pose = dict(pose or {})
     parents, kinds, axes, placements, inertias, names, damping = [], [], [], [], [], [], []
     lower, upper, effort = [], [], []
 
     scale = _largest_moment(robot)
+    if base == "floating":
+        if any(name in movable for name in FREE_NAMES):
+            raise InputError(f"the URDF has a joint named like the free base's ({', '.join(FREE_NAMES)})",
+                             field="robot")
+        for k, (name, kind, axis) in enumerate(FREE_FLYER):      # a chain of massless bodies to the root link
+            for into, value in zip((parents, kinds, axes, placements, inertias, names, damping, lower, upper, effort),
+                                   (k - 1, kind, np.array(axis), np.eye(6), np.zeros((6, 6)), name, 0.0,
+                                    *joint_limits(True, None, None, None))):
+                into.append(value)
     # depth first, each link's joints in name order, numbered when reached: Pinocchio's order
-    stack: list = [("link", roots[0], -1, np.eye(4))]
+    stack: list = [("link", roots[0], len(names) - 1, np.eye(4))]
     seen: set = set()
+    frames: dict = {}
     while stack:
         item = stack.pop()
         if item[0] == "link":
@@ -105,6 +140,7 @@ def _tree(robot, gravity: float, joints: Sequence[str] | None = None, pose: Mapp
             if link_name in seen:
                 raise InputError(f"link {link_name} is reached twice: closed loops are not modelled", field="robot")
             seen.add(link_name)
+            frames[link_name] = (body, frame)
             if body >= 0:       # a link welded to the fixed base never moves: its inertia does not enter
                 x = plucker(frame[:3, :3], frame[:3, 3])    # the link's frame from its body's
                 inertias[body] = inertias[body] + x.T @ _inertia(links[link_name], scale) @ x
@@ -149,7 +185,7 @@ def _tree(robot, gravity: float, joints: Sequence[str] | None = None, pose: Mapp
         raise InputError(f"joint {still[0]} moves no mass or inertia along its motion (every link it carries "
                          "is massless there)", field="robot")
     return tree, tuple(names), tuple(kinds), np.array(damping), \
-        JointLimits(np.array(lower), np.array(upper), np.array(effort)), roots[0]
+        JointLimits(np.array(lower), np.array(upper), np.array(effort)), roots[0], frames
 
 
 def _joint_motion(joint, value: float) -> np.ndarray:
@@ -164,8 +200,9 @@ def _joint_motion(joint, value: float) -> np.ndarray:
     return t
 
 
-def _cached_tree(text: str, g: float, joints, pose) -> tuple:
-    """(name, tree, joint names, kinds, dampers, limits, root link): from the cache when this file was read before.
+def _cached_tree(text: str, g: float, joints, pose, base: str = "fixed") -> tuple:
+    """(name, tree, joint names, kinds, dampers, limits, root link, link frames): from the cache when this file was
+    read before.
 
     Parsing needs yourdfpy, whose import alone takes a second; the tree is a few arrays,
     kept under a key of the file's text, the selection and this code (``ANALOGY_CACHE_DIR=``
@@ -173,7 +210,7 @@ def _cached_tree(text: str, g: float, joints, pose) -> tuple:
     """
     folder = cache_dir()
     key = hashlib.sha256(repr((text, g, None if joints is None else tuple(joints),
-                               None if pose is None else sorted(pose.items()))).encode())
+                               None if pose is None else sorted(pose.items()), base)).encode())
     for source in (__file__, rigid_tree_module.__file__, urdf_file_module.__file__, joint_limits_module.__file__):
         key.update(Path(source).read_bytes())
     path = None if folder is None else folder / f"urdf-{key.hexdigest()[:24]}.npz"
@@ -183,12 +220,13 @@ def _cached_tree(text: str, g: float, joints, pose) -> tuple:
                 tree = RigidTree(tuple(int(p) for p in z["parents"]), tuple(str(k) for k in z["kinds"]), z["axes"],
                                  z["placements"], z["inertias"], z["gravity"])
                 limits = JointLimits(z["lower"], z["upper"], z["effort"])
+                frames = {str(k): (int(b), f) for k, b, f in zip(z["links"], z["link_bodies"], z["link_frames"])}
                 return (str(z["name"]), tree, tuple(str(n) for n in z["names"]), tree.kinds, z["damping"], limits,
-                        str(z["root"]))
+                        str(z["root"]), frames)
         except Exception:           # a damaged entry (not a zip, a missing array …) is rebuilt, never trusted
             pass
     robot = parse_urdf(text)
-    tree, names, kinds, damping, limits, root = _tree(robot, g, joints, pose)
+    tree, names, kinds, damping, limits, root, frames = _tree(robot, g, joints, pose, base)
     name = str(robot.name or "urdf")
     if path is not None:
         try:
@@ -197,11 +235,13 @@ def _cached_tree(text: str, g: float, joints, pose) -> tuple:
             np.savez(tmp, name=name, parents=np.array(tree.parents), kinds=np.array(kinds), axes=tree.axes,
                      placements=tree.placements, inertias=tree.inertias, gravity=tree.gravity,
                      names=np.array(names), damping=damping, lower=limits.lower, upper=limits.upper,
-                     effort=limits.effort, root=root)
+                     effort=limits.effort, root=root, links=np.array(list(frames)),
+                     link_bodies=np.array([b for b, _ in frames.values()]),
+                     link_frames=np.array([f for _, f in frames.values()]).reshape(-1, 4, 4))
             os.replace(tmp, path)               # atomic: readers never see half a file
         except OSError:
             pass
-    return name, tree, names, kinds, damping, limits, root
+    return name, tree, names, kinds, damping, limits, root, frames
 
 
 class UrdfModel(RobotModel):
@@ -223,6 +263,14 @@ class UrdfModel(RobotModel):
         Gravity's magnitude [m/s²].
     name : str, optional
         The robot's name (default: the URDF's ``<robot name>``).
+    base : {"fixed", "floating"}
+        The root link held to the world, or free: six more coordinates before the URDF's
+        joints (:data:`FREE_FLYER`).
+    contacts : sequence of str, optional
+        Links whose origins meet the ground plane z = 0 (:mod:`analogy.model.tree_contact`): the
+        ground's kc, cc and delta join the parameters, by default :func:`ground_defaults`, and so do
+        kp and kd, a servo that holds each joint (not a free base's) about the pose the run starts
+        from: a spring and a damper per joint, an inductor and a resistor in the circuit.
     """
 
     topology = "parallel"
@@ -231,19 +279,38 @@ class UrdfModel(RobotModel):
     rigid_tree = True
 
     def __init__(self, text: str, joints: Sequence[str] | None = None, pose: Mapping[str, float] | None = None,
-                 g: float = STANDARD_GRAVITY, name: str | None = None):
-        self.text = text
+                 g: float = STANDARD_GRAVITY, name: str | None = None, base: str = "fixed",
+                 contacts: Sequence[str] = ()):
+        if base not in BASES:
+            raise InputError(f"base must be one of {', '.join(BASES)}, got {base!r}", field="robot")
+        self.text, self.base = text, base
         self._selection, self._pose, self._label = joints, pose, name
         (self.name, self.tree, self.joint_names, kinds, self.joint_damping, self.limits,
-         self.root_link) = _cached_tree(text, g, joints, pose)
+         self.root_link, self.link_frames) = _cached_tree(text, g, joints, pose, base)
         self.name = name or self.name
         self.joints = kinds
-        self.parameters = {"g": float(g)}
+        self.contacts = self._contact_points(tuple(contacts))
+        self.parameters = {"g": float(g), **(ground_defaults(self.tree, self.contacts,
+                                                              [n in FREE_NAMES for n in self.joint_names])
+                                              if self.contacts else {})}
         self.coordinates = tuple(f"q{i + 1}" for i in range(len(kinds)))
         self.description = f"URDF {self.name}: {len(kinds)} joints ({', '.join(self.joint_names)})"
 
     def __repr__(self) -> str:
         return f"UrdfModel({self.name!r}, {self.dof} joints)"
+
+    def _contact_points(self, names: tuple) -> tuple:
+        """The :class:`TreeContact` of each link named, each on a moving body; one sentence for any other."""
+        points = []
+        for name in names:
+            if name not in self.link_frames:
+                raise InputError(f"{self.name} has no link {name!r} to touch the ground with (its links: "
+                                 f"{', '.join(sorted(self.link_frames))})", field="robot")
+            body, frame = self.link_frames[name]
+            if body < 0:
+                raise InputError(f"link {name} is welded to the world: it cannot touch the ground", field="robot")
+            points.append(TreeContact(name, body, tuple(float(x) for x in frame[:3, 3])))
+        return tuple(points)
 
     @property
     def dof(self) -> int:
@@ -263,16 +330,25 @@ class UrdfModel(RobotModel):
         """
         if not parameters:
             return self
-        if unknown := [k for k in parameters if k != "g"]:
-            raise InputError(f"URDF robot {self.name} has no parameter {unknown[0]!r} (it has: g)",
-                             field="parameters")
-        g = float(parameters["g"])
+        if unknown := [k for k in parameters if k not in self.parameters]:
+            raise InputError(f"URDF robot {self.name} has no parameter {unknown[0]!r} (it has: "
+                             f"{', '.join(self.parameters)})", field="parameters")
+        g = float(parameters.get("g", self.parameters["g"]))
         if not np.isfinite(g):
             raise InputError("g must be finite", field="parameters")
-        if g == self.parameters["g"]:
+        values = {**self.parameters, **{k: float(v) for k, v in parameters.items()}}
+        if values == self.parameters:
             return self
-        return urdf_model(self.text, None if self._selection is None else tuple(self._selection),
-                          None if not self._pose else tuple(sorted(self._pose.items())), g, self._label)
+        model = self if g == self.parameters["g"] else urdf_model(
+            self.text, None if self._selection is None else tuple(self._selection),
+            None if not self._pose else tuple(sorted(self._pose.items())), g, self._label, self.base,
+            tuple(c.name for c in self.contacts))
+        if values != model.parameters:      # the ground's: the tree stays, the parameters change
+            check_contact_values([Contact(c.name, 0, "kc", "cc", "delta") for c in model.contacts]
+                                 + [Contact("servo", 0, "kp", "kd", "delta")], values)
+            model = copy.copy(model)
+            model.parameters = values
+        return model
 
     def _parts(self, qs: np.ndarray, parameters) -> tuple:
         """M, B, ∂G/∂q and G at every row of *qs* (the last two None without gravity)."""
@@ -307,10 +383,23 @@ class UrdfModel(RobotModel):
         parameters : mapping, optional
             ``g``.
         """
-        tree = self.with_parameters(parameters).tree
+        model = self.with_parameters(parameters)
+        tree = model.tree
         damping = np.diag(self.joint_damping)
         # Pinocchio's where it is installed and reads the file as this tree, else the tree's own
-        return pinocchio_functions(self.text, tree, self.joint_names, damping, self._pose) or tree.functions(damping)
+        functions = pinocchio_functions(self.text, tree, self.joint_names, damping, self._pose,
+                                        self.base == "floating") or tree.functions(damping)
+        if not model.contacts:
+            return functions
+        ground = model.parameters
+        servo = np.diag([0.0 if name in FREE_NAMES else 1.0 for name in self.joint_names])
+        return functions._replace(damping=damping + ground["kd"] * servo,
+                                  stiffness=ground["kp"] * servo if ground["kp"] > 0 else None,
+                                  contacts=tree_contact_functions(
+                                      tree, model.contacts, ground["kc"], ground["cc"], ground["delta"],
+                                      pinocchio_heights(self.text, tree, self.joint_names,
+                                                        [c.name for c in model.contacts], self._pose,
+                                                        self.base == "floating")))
 
     def joint_stack(self, qs, parameters: Mapping[str, float] | None = None) -> JointStack:
         """:meth:`joint_space` at every row of *qs*.
@@ -329,7 +418,8 @@ class UrdfModel(RobotModel):
 
 @lru_cache(maxsize=16)
 def urdf_model(text: str, joints: tuple | None = None, pose: tuple | None = None,
-               g: float = STANDARD_GRAVITY, name: str | None = None) -> UrdfModel:
+               g: float = STANDARD_GRAVITY, name: str | None = None, base: str = "fixed",
+               contacts: tuple = ()) -> UrdfModel:
     """The :class:`UrdfModel` of a URDF's text, parsed once per process.
 
     Parameters
@@ -344,5 +434,36 @@ def urdf_model(text: str, joints: tuple | None = None, pose: tuple | None = None
         Gravity's magnitude.
     name : str, optional
         The robot's name (default: the URDF's ``<robot name>``).
+    base : {"fixed", "floating"}
+        The root link held to the world, or free-flying.
+    contacts : tuple of str
+        Links that meet the ground.
     """
-    return UrdfModel(text, joints, dict(pose) if pose is not None else None, g, name)
+    return UrdfModel(text, joints, dict(pose) if pose is not None else None, g, name, base, contacts)
+
+
+def ground_defaults(tree: RigidTree, contacts: Sequence[TreeContact], free: Sequence[bool]) -> dict[str, float]:
+    """The ground's default kc, cc and delta for a robot of *tree*'s mass, and its joints' servo kp, kd: under
+    standard gravity its whole weight sinks one contact by :data:`GROUND_SINK`, cc damps that mass on kc
+    critically, and δ is a tenth of the sink (the stance is then the linear law's to 1e-4,
+    :mod:`analogy.model.contact`); the whole weight at the contacts' reach from the root (at q = 0) bends
+    a joint by :data:`SERVO_SAG`, and kd damps the median joint's own inertia on kp critically.
+
+    Parameters
+    ----------
+    tree : RigidTree
+        The robot's tree.
+    contacts : sequence of TreeContact
+        Its contact points.
+    free : sequence of bool
+        Per joint, whether it is a free base's (no servo).
+    """
+    mass = sum(body_inertia(i)[0] for i in tree.inertias)
+    stiffness = mass * STANDARD_GRAVITY / GROUND_SINK
+    at = tree.points(np.zeros((1, tree.dof)), [c.body for c in contacts], [c.offset for c in contacts])[0][0]
+    servo = mass * STANDARD_GRAVITY * float(np.max(np.linalg.norm(at, axis=1))) / SERVO_SAG
+    held = ~np.asarray(free, dtype=bool)
+    inertia = float(np.median(np.diag(tree.mass_matrix(np.zeros(tree.dof)))[held])) if held.any() else 0.0
+    return {"kc": float(f"{stiffness:.3g}"), "cc": float(f"{2 * np.sqrt(stiffness * mass):.3g}"),
+            "delta": GROUND_SINK / 10, "kp": float(f"{servo:.3g}"),
+            "kd": float(f"{2 * np.sqrt(servo * inertia):.3g}")}

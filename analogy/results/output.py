@@ -131,7 +131,9 @@ def column_unit(name: str, joint_units=None) -> str:
     if (m := _RATE.match(name)) is not None:
         j = int(m.group(1)) - 1
         return rate_unit(joint_units[j] if joint_units and j < len(joint_units) else None)
-    return {"v_": "V", "i_": "A", "f_": "N"}.get(name[:2], "")
+    if name.startswith("f_") and not name.startswith("f_hz"):      # a contact's force (f_hz: a frequency)
+        return "N"
+    return {"v_": "V", "i_": "A"}.get(name[:2], "")
 
 
 def _with_unit(name: str, joint_units, plain: str | None = None) -> str:

@@ -17,6 +17,7 @@ from ..model.catalog import family_builder, robot_family
 from ..model.compiled import compile_model, load_compiled
 from ..model.equilibrium import static_equilibrium
 from ..model.urdf import STANDARD_GRAVITY, urdf_model
+from ..model.tree_contact import CONTACT_PARAMETERS
 from ..model.urdf_robots import urdf_robot
 from ..model.expressions import parse_expression, parse_number, reserved_name
 from ..model.joint import JointSpace
@@ -222,7 +223,8 @@ def scene_model(scene: SceneData) -> object:
             if family.urdf is not None:         # read from its file: the registry entry says which
                 with located(keys["robot"]):
                     text, joints = urdf_robot(spec.robot)
-                return _urdf(ModelSpec(urdf=text, joints=joints), params, keys, spec.robot)
+                return _urdf(ModelSpec(urdf=text, joints=joints, base=spec.base, contacts=spec.contacts), params, keys,
+                             spec.robot)
             try:
                 check_parameter_units(params, family.parameter_units(params))
             except InputError as exc:
@@ -270,14 +272,20 @@ def _urdf(spec: ModelSpec, params: Mapping[str, float], keys: dict, name: str | 
     for label in ("mass", "damping", "stiffness", "gravity"):
         if getattr(spec, label) is not None:
             raise InputError(f"{keys[label]}: a URDF robot has its own")
-    if unknown := [k for k in params if k != "g"]:
-        raise InputError(f"{keys['parameters']} {unknown[0]}: a URDF robot has no such parameter (it has: g)")
+    units = {"g": "m/s^2", **(CONTACT_PARAMETERS if spec.contacts else {})}
+    if unknown := [k for k in params if k not in units]:
+        raise InputError(f"{keys['parameters']} {unknown[0]}: a URDF robot has no such parameter (it has: "
+                         f"{', '.join(units)}{'' if spec.contacts else '; kc, cc, delta, kp and kd come with contacts'})")
     try:
-        check_parameter_units(params, {"g": "m/s^2"})
+        check_parameter_units(params, units)
     except InputError as exc:
         raise InputError(f"{keys['parameters']} {exc}") from None
     with located(keys.get("urdf", keys["robot"])):
-        return urdf_model(spec.urdf, spec.joints, None, float(params.get("g", STANDARD_GRAVITY)), name)
+        model = urdf_model(spec.urdf, spec.joints, None, float(params.get("g", STANDARD_GRAVITY)), name,
+                           spec.base or "fixed", tuple(spec.contacts or ()))
+    ground = {k: v for k, v in params.items() if k in CONTACT_PARAMETERS}
+    with located(keys["parameters"]):
+        return model.with_parameters(ground) if ground else model
 
 
 def symbolic_model(scene: SceneData) -> object:
@@ -395,6 +403,10 @@ def scene_system(scene: SceneData, model=None) -> object:
         if scene.equilibrium and q is not None:
             q = [float(x) for x in static_equilibrium(m, q, params)]
         try:
+            if getattr(m, "rigid_tree", False) and m.contacts and scene.dynamics != "nonlinear":
+                raise InputError(f"{m.name}'s contacts with the ground are one-sided: they act in its nonlinear "
+                                 "dynamics (--dynamics nonlinear), not in a circuit linearised at one pose",
+                                 field="dynamics")
             if scene.dynamics == "nonlinear":
                 return nonlinear_system(m, q or [0.0] * n, parameters=params, topology=top,
                                         t_stop=scene.t_stop, info=info, **inputs)

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize
 
-from ..model.urdf import UrdfModel
+from ..model.urdf import FREE_FLYER, UrdfModel
 from ..results.modes import system_poles
 from .scene import Scene
 
@@ -21,6 +21,8 @@ MOTION = {"revolute": 0.1, "prismatic": 0.01}
 HORIZON_RANGE = (0.5, 10.0)
 #: The horizon when no mode has a time scale (no springs, no dampers): free masses under steps [s].
 FREE_HORIZON = 2.0
+#: The horizon of a free robot standing on its contacts: it lands and settles [s].
+STANDING_HORIZON = 0.5
 
 
 @dataclass(frozen=True)
@@ -184,8 +186,17 @@ def robot_defaults(model: UrdfModel, g: float | None = None, q=None, label: str 
     chosen_g = g is not None
     g = model.parameters["g"] if g is None else float(g)
     limits = model.limits
+    free = getattr(model, "base", "fixed") == "floating"
+    contacts = getattr(model, "contacts", ())
+    if free and contacts:
+        return _standing(model, g, q, label)
+    if free and not chosen_g:       # nothing to stand on: it would fall for ever
+        g = 0.0
     if q is not None:
         pose, why = np.asarray(q, dtype=float), "the pose given"
+    elif free:
+        pose, why = limits.middle(), (f"a free-flying base at the origin, g = {g:g}" + (" (nothing holds it up)"
+                                      if not chosen_g else "") + ", the joints at the middle of their ranges")
     elif g == 0.0:
         pose, why = limits.middle(), "g = 0, the joints at the middle of their ranges"
     else:
@@ -210,7 +221,9 @@ def robot_defaults(model: UrdfModel, g: float | None = None, q=None, label: str 
     motion = np.array([MOTION[kind] for kind in model.joints])
     force = motion * impedance
     force = np.where(np.isfinite(limits.effort), np.minimum(force, limits.effort), force)
-    forces = tuple(f"step({_rounded(f)!r})" for f in force)
+    if free:
+        force[:len(FREE_FLYER)] = 0.0       # nothing drives a free base: the joints move it by reaction
+    forces = tuple(f"step({_rounded(f)!r})" if f else "0" for f in force)
     if slowest is None:
         horizon = "no mode has a time scale"
     else:
@@ -220,9 +233,27 @@ def robot_defaults(model: UrdfModel, g: float | None = None, q=None, label: str 
     unit = "rad" if all(kind == "revolute" for kind in model.joints) else "rad or 10 mm"
     moved = [f"{n}={x:.4g}" for n, x in zip(names, pose) if abs(x) > 5e-13]
     shown = (", ".join(moved) + (", the others 0" if len(moved) < len(names) else "")) if moved else "every joint 0"
-    note = (f"{label or model.name}: {why}: {shown}; steps moving each joint alone about 0.1 {unit} over "
+    driven = "each joint but the free base's" if free else "each joint"
+    note = (f"{label or model.name}: {why}: {shown}; steps moving {driven} alone about 0.1 {unit} over "
             f"t_stop = {t_stop:g} s ({horizon})")
     return RobotDefaults(tuple(float(x) for x in pose), g, forces, float(t_stop), note)
+
+
+def _standing(model: UrdfModel, g: float, q, label: str | None) -> RobotDefaults:
+    """A free robot on its contacts: the joints at the middle of their ranges, the base lowered until the
+    lowest contact just touches the ground, no force, and STANDING_HORIZON to settle under gravity."""
+    if q is not None:
+        pose, why = np.asarray(q, dtype=float), "the pose given"
+    else:
+        pose = model.limits.middle()
+        bodies = [c.body for c in model.contacts]
+        heights = model.tree.points(pose[None], bodies, [c.offset for c in model.contacts])[0][0, :, 2]
+        pose[2] = -float(np.min(heights))
+        why = (f"standing: the base at {pose[2]:.4g} m, so that its lowest contact just touches the ground, "
+               f"g = {g:g}, the joints at the middle of their ranges held by their servos")
+    names = ", ".join(c.name for c in model.contacts)
+    note = (f"{label or model.name}: {why}; no force: it settles on {names} over t_stop = {STANDING_HORIZON:g} s")
+    return RobotDefaults(tuple(float(x) for x in pose), g, ("0",) * model.dof, STANDING_HORIZON, note)
 
 
 def base_note(model: UrdfModel) -> str | None:
@@ -235,6 +266,9 @@ def base_note(model: UrdfModel) -> str | None:
     """
     if model.root_link == "world":
         return None
+    if getattr(model, "base", "fixed") == "floating":
+        return (f"{model.name}'s root link {model.root_link} flies free (--base floating): six more coordinates "
+                "first, its origin's x, y, z and its Z-Y-X angles (singular at pitch ±π/2)")
     return (f"{model.name}'s root link {model.root_link} is held fixed to the world (--base fixed, the default; "
             "a free-flying base is not modelled)")
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 
 from ..errors import InputError, concerning
-from ..model.catalog import robot_family
+from ..model.catalog import BASES, robot_family
 from ..model.conventions import CONVENTIONS
 from ..model.dynamics import DYNAMICS
 from ..presets import preset
@@ -46,6 +46,14 @@ def check_model_spec(spec) -> None:
         raise InputError(f"applies to the flexible arms (flex1, flex2, flexpar), {what}", field=chosen[0])
     if spec.joints is not None and spec.urdf is None:
         raise InputError("selects the joints of a URDF given by its file (a named robot keeps its own)", field="joints")
+    if spec.base is not None:
+        if spec.base not in BASES:
+            raise InputError(f"base must be {' or '.join(BASES)}, got {spec.base!r}", field="robot")
+        if not spec.from_urdf:
+            raise InputError(f"base {spec.base!r} applies to a URDF robot, whose root link may be held or free",
+                             field="robot")
+    if spec.contacts is not None and not spec.from_urdf:
+        raise InputError("contacts name a URDF robot's links (the hopper has its own foot)", field="robot")
 
 
 def check_scene(scene) -> str:

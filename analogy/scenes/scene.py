@@ -32,7 +32,7 @@ SCENE_SCHEMA = "analogy-scene-2"
 # Fields that name, describe or locate a scene but do not change its result.
 # Where results are written changes no result: a renamed output file or folder re-solves nothing.
 _NOT_CONTENT = ("name", "description", "source", "netlist_file", "csv_file", "plot_file")
-_WHEN_SET = ("urdf", "joints", "joint_frame", "geometric_stiffness")
+_WHEN_SET = ("urdf", "joints", "joint_frame", "geometric_stiffness", "base", "contacts")
 #: Scene fields added after SCENE_SCHEMA, in its key only when not at these defaults: earlier keys stand.
 _SCENE_WHEN_SET = {"estimate": False, "refine": False, "motors": (), "voltages": ()}
 

@@ -58,6 +58,12 @@ class ModelSpec:
         (None, the paper's) or its deformed ``"tip"``.
     geometric_stiffness : bool or None
         Flexible arms only: gravity's axial-load stiffness (None: on in the tip frame).
+    base : str or None
+        URDF robots only: ``"floating"`` frees the root link (six more coordinates, the
+        base's slides and Z-Y-X angles first); None or ``"fixed"`` holds it to the world.
+    contacts : tuple of str or None
+        URDF robots only: the links whose origins meet the ground (feet), with the ground's
+        kc, cc and delta among the parameters.
     """
 
     robot: str | None = None
@@ -71,6 +77,8 @@ class ModelSpec:
     joints: tuple | None = None
     joint_frame: str | None = None
     geometric_stiffness: bool | None = None
+    base: str | None = None
+    contacts: tuple | None = None
 
     def __post_init__(self):
         check_model_spec(self)

@@ -104,7 +104,8 @@ def _modes(systems, n: int, springs: bool):
         raise SimulationError("the system has infinite or undefined modal rates")
     cond = np.linalg.cond(vec)
     kappa = np.abs(np.linalg.eigvalsh(symmetric_part(k)))
-    free = np.any(kappa <= 1e-12 * np.max(kappa, axis=1, keepdims=True), axis=1)
+    # a free direction: a stiffness at K's rounding (16·n·ε of its largest), not a soft spring beside a stiff one
+    free = np.any(kappa <= 16 * n * np.finfo(float).eps * np.max(kappa, axis=1, keepdims=True), axis=1)
     if (np.any(cond > 1e10) or np.any(free)) and len(systems) == 1:
         # Free (rigid) directions of K' make x and v a Jordan chain at λ = 0: keep only
         # w = U_rᵀ·x, the extensions the springs feel, so each λ = 0 mode is a plain rate.
