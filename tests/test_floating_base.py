@@ -2,6 +2,7 @@
 the conservation of momentum."""
 
 import subprocess
+import tempfile
 import sys
 
 import numpy as np
@@ -98,10 +99,19 @@ def free_swing(t_stop=0.4):
     return sc.system()
 
 
-def momenta(system, tr):
+def free_arm():
+    """The UR5 floating in zero gravity, in its default scene: a step sized to each joint's inertia with the base
+    free (the Schur complement of M over the base)."""
+    from analogy.scenes.robot_defaults import robot_defaults
+    probe = Scene.of("ur5", ModelSpec(robot="ur5", base="floating"), dynamics="nonlinear")
+    d = robot_defaults(probe.numeric_model())
+    return probe.replace(q=d.q, forces=d.forces, t_stop=d.t_stop, parameters={"g": d.g}).system()
+
+
+def momenta(system, tr, text=None):
     """The centroidal momentum (linear, then angular about the centre of mass, world axes) at every point,
     by Pinocchio's free-flyer model, and the scale of the joints' own generalised momenta M·q̇."""
-    model = pin.buildModelFromXML(solo_text(), pin.JointModelFreeFlyer())
+    model = pin.buildModelFromXML(text or solo_text(), pin.JointModelFreeFlyer())
     data = model.createData()
     qs = system.q0 + tr.positions @ system.topology.inverse.T
     h = np.array([np.array(pin.computeCentroidalMomentum(model, data, *pinocchio_state(q, r)))
@@ -121,6 +131,17 @@ def test_a_free_robot_keeps_its_momentum_and_turns_its_base_by_moving_its_legs(s
     assert np.ptp(qs[:, 3:6], axis=0).max() > 0.1          # the base's angles moved by a tenth of a radian
     residual, energy = system.energy_residual(tr)
     assert np.max(np.abs(residual)) <= analogy.PRESETS[preset].bound * energy
+
+
+@pytest.mark.parametrize("solver, preset", [("ode", "accurate"), pytest.param("spice", "fast", marks=pytest.mark.ngspice)])
+def test_a_free_floating_arm_turns_its_base_as_momentum_demands(solver, preset):
+    """The UR5 in space: its joints driven from rest, its base turns the other way, and the momentum stays zero
+    to the run's bound of the joints' momenta."""
+    system = free_arm()
+    tr = analogy.solve(system, solver, None, preset, positions=True)
+    h, scale, qs = momenta(system, tr, urdf_robot("ur5")[0])
+    assert np.max(np.abs(h)) <= analogy.PRESETS[preset].bound * scale
+    assert np.ptp(qs[:, 3:6], axis=0).max() > 0.05
 
 
 @pytest.mark.ngspice
@@ -144,3 +165,158 @@ def test_a_base_applies_to_urdf_robots_only():
         ModelSpec(robot="serial2", base="floating")
     with pytest.raises(InputError, match="base must be fixed or floating"):
         ModelSpec(urdf=urdf_robot("ur5")[0], base="loose")
+
+
+def standing(**parameters):
+    """Solo12 free on its four feet, in its default standing scene (the base lowered until the feet touch)."""
+    from analogy.scenes.robot_defaults import robot_defaults
+    spec = ModelSpec(urdf=solo_text(), base="floating", contacts=("FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT"))
+    probe = Scene.of("solo", spec, dynamics="nonlinear", parameters=parameters)
+    d = robot_defaults(probe.numeric_model())
+    return probe.replace(q=d.q, forces=d.forces, t_stop=d.t_stop, parameters={**parameters, "g": d.g}).system()
+
+
+def weight() -> float:
+    return sum(i.mass for i in pin.buildModelFromXML(solo_text()).inertias) * 9.80665
+
+
+@pytest.mark.parametrize("solver, preset", [("ode", "fast"), pytest.param("ode", "accurate", marks=pytest.mark.deep),
+                                            pytest.param("spice", "fast", marks=[pytest.mark.ngspice, pytest.mark.deep])])
+def test_a_quadruped_settles_on_its_feet_with_their_forces_summing_to_its_weight(solver, preset):
+    """Dropped onto its feet at rest, Solo12 settles: at the end the four contact forces sum to its weight
+    to the run's bound (measured 1.8e-12 of it by the ODE at 0.5 s), each foot carries a share, and the base
+    stays level (its roll and pitch under the bound, as the robot is near symmetric)."""
+    system = standing()
+    tr = analogy.solve(system, solver, None, preset, positions=True)
+    forces = np.array([tr.currents[f"f_{foot}"] for foot in ("FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT")])
+    total = forces.sum(axis=0)
+    bound = analogy.PRESETS[preset].bound
+    assert abs(total[-1] - weight()) <= bound * weight()
+    assert np.all(forces[:, -1] > 0.1 * weight() / 4)
+    q = system.q0 + tr.positions @ system.topology.inverse.T
+    assert np.max(np.abs(q[-1, 4:6])) <= bound
+
+
+def test_contacts_are_named_links_and_act_in_the_nonlinear_dynamics_only(tmp_path):
+    path = tmp_path / "solo12.urdf"
+    path.write_text(solo_text())
+    out = subprocess.run([sys.executable, "-m", "analogy", "netlist", "--robot", "ur5", "--contacts", "feet"],
+                         capture_output=True, text=True)
+    assert out.returncode == 2 and "ur5 has no link named like a foot" in out.stderr
+    out = subprocess.run([sys.executable, "-m", "analogy", "netlist", "--urdf", str(path), "--base", "floating",
+                          "--contacts", "FL_FOOT,nose"], capture_output=True, text=True)
+    assert out.returncode == 2 and "has no link 'nose'" in out.stderr
+    out = subprocess.run([sys.executable, "-m", "analogy", "netlist", "--urdf", str(path), "--base", "floating",
+                          "--contacts", "feet", "--dynamics", "linear"], capture_output=True, text=True)
+    assert out.returncode == 2 and "one-sided" in out.stderr and "Traceback" not in out.stderr
+    out = subprocess.run([sys.executable, "-m", "analogy", "netlist", "--urdf", str(path), "--base", "floating",
+                          "--contacts", "feet", "--dynamics", "nonlinear", "--param", "kc=3 kg"],
+                         capture_output=True, text=True)
+    assert out.returncode == 2 and "kc is measured in N/m, got a mass" in out.stderr
+
+
+@pytest.mark.deep
+def test_each_foot_is_a_behavioural_node_of_the_netlist(tmp_path):
+    """The netlist of the standing quadruped (its step sized from the ODE's motion: seconds) holds each foot's force."""
+    path = tmp_path / "solo12.urdf"
+    path.write_text(solo_text())
+    out = subprocess.run([sys.executable, "-m", "analogy", "netlist", "--urdf", str(path), "--base", "floating",
+                          "--contacts", "feet", "--dynamics", "nonlinear"], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    for foot in ("FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT"):
+        assert f"Bf_{foot} f_{foot} 0 V=" in out.stdout
+
+
+def mujoco_standing(kp: float, kd: float, t_stop: float, base_height: float):
+    """The same Solo12 in MuJoCo: its URDF's links without meshes, a free joint, a 1 mm sphere at each foot's
+    origin on a plane, and a position servo kp, kv = kd on every joint. Returns the times, the base's height
+    and the normal contact forces' sum, every millisecond."""
+    import xml.etree.ElementTree as ET
+    mujoco = pytest.importorskip("mujoco")
+    urdf = ET.fromstring(solo_text())
+    for link in urdf.findall("link"):
+        for tag in ("visual", "collision"):
+            for e in link.findall(tag):
+                link.remove(e)
+    ET.SubElement(ET.SubElement(urdf, "mujoco"), "compiler", {"discardvisual": "true", "fusestatic": "false"})
+    model = mujoco.MjModel.from_xml_string(ET.tostring(urdf, encoding="unicode"))
+    with tempfile.TemporaryDirectory() as folder:
+        path = f"{folder}/solo.xml"
+        mujoco.mj_saveLastXML(path, model)
+        mjcf = ET.parse(path).getroot()
+    world = mjcf.find("worldbody")
+    base = world.find("body")
+    base.set("pos", f"0 0 {base_height + 1e-3}")
+    base.insert(0, ET.Element("freejoint", {"name": "root"}))
+    ET.SubElement(world, "geom", {"type": "plane", "size": "2 2 0.1"})
+    for body in mjcf.iter("body"):
+        if body.get("name", "").endswith("_FOOT"):
+            ET.SubElement(body, "geom", {"type": "sphere", "size": "0.001", "mass": "0"})
+    servos = ET.SubElement(mjcf, "actuator")
+    for joint in mjcf.iter("joint"):
+        ET.SubElement(servos, "position", {"joint": joint.get("name"), "kp": repr(kp), "kv": repr(kd)})
+    ET.SubElement(mjcf, "option", {"timestep": "1e-4", "integrator": "implicitfast", "gravity": "0 0 -9.80665"})
+    model = mujoco.MjModel.from_xml_string(ET.tostring(mjcf, encoding="unicode"))
+    data = mujoco.MjData(model)
+    rows = []
+    for k in range(int(round(t_stop / 1e-4))):
+        mujoco.mj_step(model, data)
+        if k % 10 == 9:
+            force = np.zeros(6)
+            total = 0.0
+            for i in range(data.ncon):
+                mujoco.mj_contactForce(model, data, i, force)
+                total += force[0]
+            rows.append((data.time, data.qpos[2] - 1e-3, total))
+    return np.array(rows).T
+
+
+def settled(time, total, w, share=0.01):
+    """The time after which the contact forces' sum stays within *share* of the weight."""
+    off = np.flatnonzero(np.abs(total - w) > share * w)
+    return float(time[off[-1] + 1]) if off.size else 0.0
+
+
+@pytest.mark.deep
+def test_mujoco_anchors_the_quadrupeds_settling_and_its_contact_model_explains_the_rest():
+    """MuJoCo, given the same robot, servos and start, lands it on the same weight. Both grounds are critically
+    damped, so each settles in a few of its contact's time constants: ours 1/√(4·kc/m) = 5 ms (the whole
+    mass on four feet), MuJoCo's solref default 20 ms. The settling times' ratio is that of the time
+    constants within a factor 2, and MuJoCo's softer contact rests the base lower."""
+    system = standing()
+    tr = analogy.solve(system, "ode", np.linspace(0, system.t_stop, 501), "accurate", positions=True)
+    ours = sum(tr.currents[f"f_{foot}"] for foot in ("FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT"))
+    height = system.q0[2] + tr.positions[:, 2]
+    p = system.parameters
+    time, theirs_height, theirs = mujoco_standing(p["kp"], p["kd"], system.t_stop, system.q0[2])
+    w = weight()
+    assert abs(ours[-1] - w) <= 1e-6 * w and abs(theirs[-1] - w) <= 1e-3 * w
+    ours_settle, theirs_settle = settled(tr.time, ours, w), settled(time, theirs, w)
+    assert 0 < ours_settle < system.t_stop and 0 < theirs_settle < system.t_stop
+    mass = w / 9.80665
+    expected = np.sqrt(mass / (4 * p["kc"])) / 0.02           # our contact's time constant over MuJoCo's
+    assert 0.5 <= (ours_settle / theirs_settle) / expected <= 2
+    sink_ours, sink_theirs = system.q0[2] - height[-1], system.q0[2] - theirs_height[-1]
+    assert 0 < sink_ours < sink_theirs          # MuJoCo's default contact is the softer
+
+
+@pytest.mark.parametrize("mu", [0.8, 0.0])
+def test_friction_holds_a_push_under_mu_times_the_weight_and_nothing_holds_it_without(mu):
+    """A push of a tenth of the weight on the standing base from t = 0.1 s: without friction the robot slides
+    off as a free mass, x = F·(t − 0.1)²/(2m); with μ = 0.8 (the push under μ·weight) the feet stick. The base
+    then moves by the legs' give, F over four hips' kp/L² (L the base's height), and a creep at the
+    regularisation's speed, SLIP_SPEED·F/(μ·weight): within twice their sum (the push's step rings)."""
+    from analogy.model.contact import SLIP_SPEED
+    w = weight()
+    system = standing(mu=mu)
+    push = 0.1 * w
+    system = system.driven([f"step({push!r}, 0.1, 0.001)"] + [0.0] * 17)
+    tr = analogy.solve(system, "ode", None, "fast", positions=True)
+    x = tr.positions[:, 0]
+    slide = push * (system.t_stop - 0.1005) ** 2 / (2 * w / 9.80665)
+    if mu == 0.0:
+        assert x[-1] == pytest.approx(slide, rel=0.05)        # the feet's drag-free slide: a free mass
+    else:
+        creep = SLIP_SPEED * push / (mu * w) * (system.t_stop - 0.1)
+        give = push / (4 * system.parameters["kp"] / system.q0[2] ** 2)
+        assert 0 < x[-1] < 2 * (give + creep) and x[-1] < slide / 100

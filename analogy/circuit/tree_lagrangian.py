@@ -28,7 +28,7 @@ from __future__ import annotations
 import numpy as np
 import sympy as sp
 
-from ..model.contact import contact_force
+from ..model.contact import contact_force, friction_force
 from ..model.rigid_tree import body_inertia, placement_frame
 
 __all__ = ["tree_lagrangian"]
@@ -131,8 +131,10 @@ def tree_lagrangian(tree, q0, inverse: np.ndarray, x: list, v: list, contacts=()
     """(M'(x), h(x, v), shared) of a rigid tree in node coordinates q = q0 + T⁻¹x, r = T⁻¹v.
 
     A contact point P on body b (:class:`~analogy.model.tree_contact.TreeContact`) meets the ground
-    z = 0: its force f (:func:`~analogy.model.contact.contact_force` of p = −P_z and ṗ = −(u_b + ω_b × P)_z)
-    is the shared node ``f_<name>``, and each joint a that carries b feels S_a·[P × F; F] with F = (0, 0, f).
+    z = 0: its normal force f (:func:`~analogy.model.contact.contact_force` of p = −P_z and ṗ = −Ṗ_z,
+    Ṗ = u_b + ω_b × P) is the shared node ``f_<name>``, friction along the ground
+    (:func:`~analogy.model.contact.friction_force`) opposes Ṗ_x, Ṗ_y, and each joint a that carries b
+    feels S_a·[P × F; F] with F = (fx, fy, f).
 
     Parameters
     ----------
@@ -147,7 +149,7 @@ def tree_lagrangian(tree, q0, inverse: np.ndarray, x: list, v: list, contacts=()
     contacts : sequence of TreeContact
         Points that meet the ground.
     ground : mapping, optional
-        The ground's ``kc``, ``cc`` and ``delta`` (with *contacts*).
+        The ground's ``kc``, ``cc``, ``delta`` and ``mu`` (with *contacts*).
     """
     n = tree.dof
     prog = _Program()
@@ -210,13 +212,16 @@ def tree_lagrangian(tree, q0, inverse: np.ndarray, x: list, v: list, contacts=()
     for contact in contacts:
         b = contact.body
         point = prog.vector([a + d for a, d in zip(pos[b], _matvec(rot[b].tolist(), _clean(contact.offset, 1.0)))])
-        rise = u[b][2] + _cross(omega[b], point)[2]
-        force = prog.let(contact_force(-point[2], -rise, ground["kc"], ground["cc"], ground["delta"]),
-                         f"f_{contact.name}")
+        velocity = prog.vector([a + c for a, c in zip(u[b], _cross(omega[b], point))])
+        normal = prog.let(contact_force(-point[2], -velocity[2], ground["kc"], ground["cc"], ground["delta"]),
+                          f"f_{contact.name}")
+        force = [*prog.vector(friction_force(normal, velocity[0], velocity[1], ground["mu"])), normal] \
+            if ground["mu"] else [sp.S.Zero, sp.S.Zero, normal]
+        moment = _cross(point, force)
         a = b
-        while a >= 0:                       # S_a·[P × F; F], F = (0, 0, f)
+        while a >= 0:                       # S_a·[P × F; F]
             w, uu = subspace[a]
-            load[a] = load[a] - force * (w[0] * point[1] - w[1] * point[0] + uu[2])
+            load[a] = load[a] - _dot(w, moment) - _dot(uu, force)
             a = tree.parents[a]
     ti = sp.Matrix(tinv)
     return ti.T * mass * ti, ti.T * sp.Matrix(load), tuple(prog.shared)

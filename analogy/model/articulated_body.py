@@ -12,7 +12,7 @@ import numpy as np
 from .dynamics import MechanicalFunctions
 from .rigid_tree import RigidTree
 
-__all__ = ["pinocchio_functions", "pinocchio_model", "pinocchio_heights", "AGREEMENT_GUARD", "ROOT_JOINT"]
+__all__ = ["pinocchio_functions", "pinocchio_model", "pinocchio_places", "AGREEMENT_GUARD", "ROOT_JOINT"]
 
 #: Pinocchio and the tree's recursions sum the same products in other orders: each entry of M
 #: and c + G is a sum of about n² products no larger than its peak, so they agree to a few n²·ε
@@ -154,15 +154,16 @@ class _Pinocchio:
     def gravities(self, qs) -> np.ndarray:
         return np.stack([self.gravity(q) for q in np.atleast_2d(qs)])
 
-    def heights(self, q, frames: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The origins' heights z (k,) of the frames *frames* and their rows ∂z/∂q (k, n), in analogy's order."""
+    def places(self, q, frames: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The origins (k, 3) of the frames *frames* in the world and their Jacobians ∂P/∂q (k, 3, n), in
+        analogy's order."""
         pin, data = self.pin, self._data()
         state = self._coordinates(q)
         pin.computeJointJacobians(self.model, data, state)
         pin.updateFramePlacements(self.model, data)
-        z = np.array([data.oMf[int(f)].translation[2] for f in frames])
-        rows = np.array([pin.getFrameJacobian(self.model, data, int(f), pin.LOCAL_WORLD_ALIGNED)[2] for f in frames])
-        return z, rows if self.identity else rows[:, self.index]
+        at = np.array([data.oMf[int(f)].translation for f in frames])
+        jac = np.array([pin.getFrameJacobian(self.model, data, int(f), pin.LOCAL_WORLD_ALIGNED)[:3] for f in frames])
+        return at, jac if self.identity else jac[:, :, self.index]
 
     def potential(self, qs) -> np.ndarray:
         data = self._data()
@@ -223,11 +224,11 @@ def pinocchio_functions(text: str, tree: RigidTree, joint_names: Sequence[str], 
                                potential=None if gravity is None else p.potential)
 
 
-def pinocchio_heights(text: str, tree: RigidTree, joint_names: Sequence[str], links: Sequence[str],
+def pinocchio_places(text: str, tree: RigidTree, joint_names: Sequence[str], links: Sequence[str],
                       pose: Mapping[str, float] | None = None, floating: bool = False) -> Callable | None:
-    """``heights(q)``: the origins' heights of *links* and their gradients ∂z/∂q by Pinocchio's frame
-    kinematics, as :meth:`~analogy.model.rigid_tree.RigidTree.points` gives them; None where Pinocchio is
-    not installed or does not read the file as *tree*.
+    """``places(q)``: the origins of *links* and their Jacobians ∂P/∂q by Pinocchio's frame kinematics, as
+    :meth:`~analogy.model.rigid_tree.RigidTree.points` gives them at one pose; None where Pinocchio is not
+    installed or does not read the file as *tree*.
 
     Parameters
     ----------
@@ -249,7 +250,7 @@ def pinocchio_heights(text: str, tree: RigidTree, joint_names: Sequence[str], li
     if p is None or not _agreed(p, tree) or not all(p.model.existFrame(name) for name in links):
         return None
     frames = np.array([p.model.getFrameId(name) for name in links])
-    return lambda q: p.heights(q, frames)
+    return lambda q: p.places(q, frames)
 
 
 def _agreed(p: _Pinocchio, tree: RigidTree) -> bool:

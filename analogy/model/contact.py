@@ -24,15 +24,30 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Mapping, Sequence
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-import sympy as sp
 
 from ..errors import InputError
 
-__all__ = ["Contact", "contact_force", "smoothed_switch", "generalised_contact_forces", "check_contact_values"]
+if TYPE_CHECKING:
+    import sympy as sp
+
+__all__ = ["Contact", "contact_force", "friction_force", "smoothed_switch", "generalised_contact_forces",
+           "check_contact_values", "SLIP_SPEED"]
+
+#: The sliding speed over which Coulomb friction's direction is smoothed [m/s]: below it friction
+#: grows as a steep damper (μ·f/SLIP_SPEED), so a foot that sticks creeps at about SLIP_SPEED times
+#: the share of μ·f its tangential load takes.
+SLIP_SPEED = 1e-3
 
 
-def smoothed_switch(p, smoothing, tanh=sp.tanh) -> Any:
+def _sympy():
+    import sympy        # the expressions' algebra: only where a model is derived, not where a tree is run
+    return sympy
+
+
+def smoothed_switch(p, smoothing, tanh=None) -> Any:
     """s(p) = (1 + tanh(p/(2δ)))/2, the contact's on-switch smoothed over δ: an expression, or numbers
     with ``tanh=numpy.tanh``.
 
@@ -42,13 +57,14 @@ def smoothed_switch(p, smoothing, tanh=sp.tanh) -> Any:
         Penetration [m].
     smoothing : sympy expression or float
         The smoothing length δ [m].
-    tanh : callable
-        The hyperbolic tangent of the arithmetic at hand (sympy's or numpy's).
+    tanh : callable, optional
+        The hyperbolic tangent of the arithmetic at hand (default sympy's; numpy's for numbers).
     """
+    tanh = tanh or _sympy().tanh
     return (1 + tanh(p / (2 * smoothing))) / 2
 
 
-def contact_force(p, rate, stiffness, damping, smoothing, tanh=sp.tanh) -> Any:
+def contact_force(p, rate, stiffness, damping, smoothing, tanh=None) -> Any:
     """The normal force f = (k·p + c·ṗ)·s(p) the ground exerts at penetration *p* and its rate: the one law,
     written once, for the circuit's expressions (sympy) and the ODE's numbers (``tanh=numpy.tanh``).
 
@@ -58,10 +74,30 @@ def contact_force(p, rate, stiffness, damping, smoothing, tanh=sp.tanh) -> Any:
         Penetration [m] and its rate [m/s].
     stiffness, damping, smoothing : sympy expression or float
         k [N/m], c [N·s/m] and δ [m].
-    tanh : callable
-        sympy's tanh (expressions) or numpy's (numbers).
+    tanh : callable, optional
+        sympy's tanh (expressions, the default) or numpy's (numbers).
     """
     return (stiffness * p + damping * rate) * smoothed_switch(p, smoothing, tanh)
+
+
+def friction_force(normal, vx, vy, mu, sqrt=None) -> tuple:
+    """Regularised Coulomb friction (fx, fy) = −μ·f·(vx, vy)/√(vx² + vy² + :data:`SLIP_SPEED`²) against the
+    contact's sliding velocity, under its normal force *normal*: the one law for expressions and numbers.
+
+    Parameters
+    ----------
+    normal : sympy expression or array_like
+        The normal force f [N].
+    vx, vy : sympy expression or array_like
+        The sliding velocity's components along the ground [m/s].
+    mu : float
+        The friction coefficient.
+    sqrt : callable, optional
+        sympy's square root (expressions, the default) or numpy's (numbers).
+    """
+    sqrt = sqrt or _sympy().sqrt
+    scale = -mu * normal / sqrt(vx * vx + vy * vy + SLIP_SPEED ** 2)
+    return scale * vx, scale * vy
 
 
 @dataclass(frozen=True)
@@ -96,6 +132,7 @@ class Contact:
         coordinates, rates : sequence of sympy Symbol
             q and q̇.
         """
+        sp = _sympy()
         q = list(coordinates)
         depth = -sp.sympify(self.height)
         rate = sum(sp.diff(depth, qk) * rk for qk, rk in zip(q, rates))
@@ -109,6 +146,7 @@ class Contact:
         coordinates : sequence of sympy Symbol
             q.
         """
+        sp = _sympy()
         return sp.Matrix([sp.diff(sp.sympify(self.height), qk) for qk in coordinates])
 
 
@@ -126,7 +164,7 @@ def generalised_contact_forces(contacts: Sequence[Contact], coordinates: Sequenc
         Each contact's normal force (its expression, or a symbol standing for it).
     """
     n = len(coordinates)
-    total = sp.zeros(n, 1)
+    total = _sympy().zeros(n, 1)
     for contact, f in zip(contacts, forces):
         total += contact.normal(coordinates) * f
     return total
@@ -147,9 +185,9 @@ def check_contact_values(contacts: Sequence[Contact], values: Mapping[str, objec
              ("smoothing", "m", lambda x: x > 0))
     for c in contacts:
         for field, unit, ok in rules:
-            expr = sp.sympify(getattr(c, field))
-            name = str(expr) if isinstance(expr, sp.Symbol) else None
-            value = values.get(name) if name is not None else expr
+            given = getattr(c, field)
+            name = given if isinstance(given, str) else str(given) if type(given).__name__ == "Symbol" else None
+            value = values.get(name) if name is not None else given
             if value is None:
                 continue
             number = np.asarray(value, dtype=float)

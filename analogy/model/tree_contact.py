@@ -1,4 +1,4 @@
-"""Contacts on a rigid tree's links: each point's height, its rate and the ground's generalised force, numerically."""
+"""Contacts on a rigid tree's links: each point's place and velocity, and the ground's generalised force, numerically."""
 
 from __future__ import annotations
 
@@ -6,14 +6,14 @@ from typing import Callable, NamedTuple, Sequence
 
 import numpy as np
 
-from .contact import contact_force
+from .contact import contact_force, friction_force
 from .dynamics import ContactFunctions
 from .rigid_tree import RigidTree
 
 __all__ = ["TreeContact", "tree_contact_functions", "CONTACT_PARAMETERS"]
 
 #: The ground's parameters a URDF robot with contacts takes, and their units.
-CONTACT_PARAMETERS = {"kc": "N/m", "cc": "N*s/m", "delta": "m", "kp": "N*m", "kd": "N*m*s"}
+CONTACT_PARAMETERS = {"kc": "N/m", "cc": "N*s/m", "delta": "m", "mu": "1", "kp": "N*m", "kd": "N*m*s"}
 
 
 class TreeContact(NamedTuple):
@@ -35,9 +35,11 @@ class TreeContact(NamedTuple):
 
 
 def tree_contact_functions(tree: RigidTree, contacts: Sequence[TreeContact], stiffness: float, damping: float,
-                           smoothing: float, kinematics: Callable | None = None) -> ContactFunctions:
-    """The contacts' forces on *tree*: p = −P_z, ṗ = −(J·q̇)_z, f by :func:`~analogy.model.contact.contact_force`
-    and τ = Σ J_zᵀ·f, with the ground's *stiffness*, *damping* and *smoothing* at every contact.
+                           smoothing: float, friction: float = 0.0, kinematics: Callable | None = None
+                           ) -> ContactFunctions:
+    """The contacts' forces on *tree*: the normal force f of p = −P_z and ṗ = −(J·q̇)_z by
+    :func:`~analogy.model.contact.contact_force`, friction along the ground by
+    :func:`~analogy.model.contact.friction_force`, and τ = Σ Jᵀ·(fx, fy, f).
 
     Parameters
     ----------
@@ -47,8 +49,10 @@ def tree_contact_functions(tree: RigidTree, contacts: Sequence[TreeContact], sti
         The contact points.
     stiffness, damping, smoothing : float
         kc [N/m], cc [N·s/m] and δ [m].
+    friction : float
+        μ (0: the feet slide freely).
     kinematics : callable, optional
-        ``kinematics(q)`` → the points' heights (k,) and their gradients (k, n) at one pose, where a
+        ``kinematics(q)`` → the points (k, 3) and their Jacobians ∂P/∂q (k, 3, n) at one pose, where a
         faster implementation of the tree's kinematics has them (Pinocchio's frames); by default
         :meth:`~analogy.model.rigid_tree.RigidTree.points`.
     """
@@ -56,47 +60,48 @@ def tree_contact_functions(tree: RigidTree, contacts: Sequence[TreeContact], sti
     offsets = np.array([c.offset for c in contacts], dtype=float)
     n = tree.dof
 
-    def heights(q):
-        at, jac = tree.points(np.atleast_2d(q), bodies, offsets)
-        return at[..., 2], jac[..., 2, :]               # (poses, k), (poses, k, n)
-
-    def one(q):
+    def place(q):
         if kinematics is not None:
             return kinematics(q)
-        z, jz = heights(q)
-        return z[0], jz[0]
+        at, jac = tree.points(np.atleast_2d(q), bodies, offsets)
+        return at[0], jac[0]
 
-    def forces(q, r):
-        z, jz = one(q)
-        return contact_force(-z, -(jz @ r), stiffness, damping, smoothing, np.tanh), jz
+    def wrench(q, r):
+        at, jac = place(q)
+        velocity = jac @ r                                           # (k, 3)
+        f = contact_force(-at[:, 2], -velocity[:, 2], stiffness, damping, smoothing, np.tanh)
+        fx, fy = friction_force(f, velocity[:, 0], velocity[:, 1], friction, np.sqrt)
+        return np.stack([fx, fy, f], axis=1), jac, f
 
     def generalised(q, r):
-        f, jz = forces(np.asarray(q, float), np.asarray(r, float))
-        return jz.T @ f
+        force, jac, _ = wrench(np.asarray(q, float), np.asarray(r, float))
+        return np.einsum("kin,ki->n", jac, force)
 
     def derivatives(q, r):
         q, r = np.asarray(q, float), np.asarray(r, float)
-        z, jz = one(q)
-        switch = (1 + np.tanh(-z / (2 * smoothing))) / 2
-        d_rate = -damping * (jz.T * switch) @ jz                # ∂τ/∂q̇ = −Σ cc·s·J_zᵀJ_z
-        d_q = np.zeros((n, n))                                   # ∂τ/∂q by central differences: an
-        for k in range(n):                                       # implicit method's Newton matrix
-            h = 1e-7 * max(1.0, abs(q[k]))
-            up, down = q.copy(), q.copy()
-            up[k] += h
-            down[k] -= h
-            d_q[:, k] = (generalised(up, r) - generalised(down, r)) / (2 * h)
-        return d_q, d_rate
+        out = []
+        for y, other, first in ((q, r, True), (r, q, False)):       # central differences: an implicit
+            d = np.zeros((n, n))                                      # method's Newton matrix
+            for k in range(n):
+                h = 1e-7 * max(1.0, abs(y[k]))
+                up, down = y.copy(), y.copy()
+                up[k] += h
+                down[k] -= h
+                pair = ((up, other), (down, other)) if first else ((other, up), (other, down))
+                d[:, k] = (generalised(*pair[0]) - generalised(*pair[1])) / (2 * h)
+            out.append(d)
+        return tuple(out)
 
     def normal(q, r):
         q, r = np.asarray(q, float), np.asarray(r, float)
         if q.ndim == 1:
-            return forces(q, r)[0]
-        z, jz = heights(q.T)
-        return contact_force(-z, -np.einsum("pkn,pn->pk", jz, r.T), stiffness, damping, smoothing, np.tanh).T
+            return wrench(q, r)[2]
+        at, jac = tree.points(q.T, bodies, offsets)
+        rise = np.einsum("pkn,pn->pk", jac[..., 2, :], r.T)
+        return contact_force(-at[..., 2], -rise, stiffness, damping, smoothing, np.tanh).T
 
     def depths(q):
-        return -heights(np.asarray(q, float).T)[0].T
+        return -tree.points(np.asarray(q, float).T, bodies, offsets)[0][..., 2].T
 
     return ContactFunctions(generalised, derivatives, normal, depths, tuple(c.name for c in contacts),
                             tuple(smoothing for _ in contacts))

@@ -15,7 +15,7 @@ from ..errors import InputError
 from . import joint_limits as joint_limits_module
 from . import rigid_tree as rigid_tree_module
 from . import urdf_file as urdf_file_module
-from .articulated_body import pinocchio_functions, pinocchio_heights
+from .articulated_body import pinocchio_functions, pinocchio_places
 from .contact import Contact, check_contact_values
 from .compiled import cache_dir
 from .dynamics import MechanicalFunctions
@@ -32,6 +32,8 @@ __all__ = ["UrdfModel", "urdf_model", "STANDARD_GRAVITY", "FREE_FLYER", "GROUND_
 STANDARD_GRAVITY = 9.80665
 #: How far the robot's whole weight sinks one contact into the ground by default [m].
 GROUND_SINK = 1e-3
+#: The ground's friction coefficient by default (rubber on a floor).
+GROUND_FRICTION = 0.8
 #: How far the robot's whole weight at its contacts' reach bends a servo-held joint by default [rad].
 SERVO_SAG = 0.05
 #: A free-flying base as six joints before the root link: its origin's slides along the world's x, y,
@@ -74,6 +76,22 @@ def _largest_moment(robot) -> float:
     moments = [np.abs(np.linalg.eigvalsh(0.5 * (i + i.T))).max() for link in robot.links
                if link.inertial is not None and (i := np.asarray(link.inertial.inertia, dtype=float)).shape == (3, 3)]
     return max(moments, default=0.0)
+
+
+def _check_moving(tree: RigidTree, names: list, free_root: str | None) -> None:
+    """Refuse a joint that moves no mass (M singular), naming it; and, for a free base at *free_root*, a joint
+    that moves what the base moves."""
+    mass = tree.mass_matrix(np.zeros(tree.dof))
+    resisted = np.diag(mass)
+    if still := [names[k] for k in range(tree.dof) if not resisted[k] > 1e-12 * resisted.max(initial=0.0)]:
+        raise InputError(f"joint {still[0]} moves no mass or inertia along its motion (every link it carries "
+                         "is massless there)", field="robot")
+    eig = np.linalg.eigvalsh(mass) if free_root is not None else None
+    if eig is not None and not eig[0] > 1e-12 * eig[-1]:
+        raise InputError(f"with its root link {free_root} free, the robot's mass matrix is singular: a joint "
+                         "moves the same bodies as the free base does (a massless root link, or a slide or "
+                         "turn of the whole robot); free a robot whose root link carries its body, or keep "
+                         "--base fixed", field="robot")
 
 
 def _check_mimics(robot, movable: list, kept: set) -> None:
@@ -179,11 +197,7 @@ def _tree(robot, gravity: float, joints: Sequence[str] | None = None, pose: Mapp
 
     tree = RigidTree(tuple(parents), tuple(kinds), np.array(axes), np.array(placements), np.array(inertias),
                      np.array([0.0, 0.0, -gravity]))
-    # a joint that moves nothing with mass or inertia along its motion makes M singular: name it
-    resisted = np.diag(tree.mass_matrix(np.zeros(tree.dof)))
-    if still := [names[k] for k in range(tree.dof) if not resisted[k] > 1e-12 * resisted.max(initial=0.0)]:
-        raise InputError(f"joint {still[0]} moves no mass or inertia along its motion (every link it carries "
-                         "is massless there)", field="robot")
+    _check_moving(tree, names, roots[0] if base == "floating" else None)
     return tree, tuple(names), tuple(kinds), np.array(damping), \
         JointLimits(np.array(lower), np.array(upper), np.array(effort)), roots[0], frames
 
@@ -346,6 +360,9 @@ class UrdfModel(RobotModel):
         if values != model.parameters:      # the ground's: the tree stays, the parameters change
             check_contact_values([Contact(c.name, 0, "kc", "cc", "delta") for c in model.contacts]
                                  + [Contact("servo", 0, "kp", "kd", "delta")], values)
+            if not (np.isfinite(values["mu"]) and values["mu"] >= 0):
+                raise InputError(f"the friction coefficient mu must be finite and zero or positive, got {values['mu']:g}",
+                                 field="parameters")
             model = copy.copy(model)
             model.parameters = values
         return model
@@ -396,10 +413,10 @@ class UrdfModel(RobotModel):
         return functions._replace(damping=damping + ground["kd"] * servo,
                                   stiffness=ground["kp"] * servo if ground["kp"] > 0 else None,
                                   contacts=tree_contact_functions(
-                                      tree, model.contacts, ground["kc"], ground["cc"], ground["delta"],
-                                      pinocchio_heights(self.text, tree, self.joint_names,
-                                                        [c.name for c in model.contacts], self._pose,
-                                                        self.base == "floating")))
+                                      tree, model.contacts, ground["kc"], ground["cc"], ground["delta"], ground["mu"],
+                                      pinocchio_places(self.text, tree, self.joint_names,
+                                                       [c.name for c in model.contacts], self._pose,
+                                                       self.base == "floating")))
 
     def joint_stack(self, qs, parameters: Mapping[str, float] | None = None) -> JointStack:
         """:meth:`joint_space` at every row of *qs*.
@@ -465,5 +482,5 @@ def ground_defaults(tree: RigidTree, contacts: Sequence[TreeContact], free: Sequ
     held = ~np.asarray(free, dtype=bool)
     inertia = float(np.median(np.diag(tree.mass_matrix(np.zeros(tree.dof)))[held])) if held.any() else 0.0
     return {"kc": float(f"{stiffness:.3g}"), "cc": float(f"{2 * np.sqrt(stiffness * mass):.3g}"),
-            "delta": GROUND_SINK / 10, "kp": float(f"{servo:.3g}"),
+            "delta": GROUND_SINK / 10, "mu": GROUND_FRICTION, "kp": float(f"{servo:.3g}"),
             "kd": float(f"{2 * np.sqrt(servo * inertia):.3g}")}

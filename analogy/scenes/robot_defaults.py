@@ -217,7 +217,11 @@ def robot_defaults(model: UrdfModel, g: float | None = None, q=None, label: str 
     t_stop = FREE_HORIZON if slowest is None else min(max(_rounded(3 * slowest, 1), HORIZON_RANGE[0]),
                                                           HORIZON_RANGE[1])
     stiff = np.zeros(model.dof) if k is None else np.clip(np.diag(k), 0.0, None)
-    impedance = stiff + np.diag(b) / t_stop + 2 * np.diag(m) / t_stop ** 2
+    inertia = np.diag(m).copy()
+    if free:            # a joint of a free robot moves the base too: the inertia it meets is M's Schur complement
+        base = len(FREE_FLYER)
+        inertia[base:] = np.diag(m[base:, base:] - m[base:, :base] @ np.linalg.solve(m[:base, :base], m[:base, base:]))
+    impedance = stiff + np.diag(b) / t_stop + 2 * inertia / t_stop ** 2
     motion = np.array([MOTION[kind] for kind in model.joints])
     force = motion * impedance
     force = np.where(np.isfinite(limits.effort), np.minimum(force, limits.effort), force)
