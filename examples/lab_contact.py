@@ -153,8 +153,7 @@ ax.set_xlabel("t [s]")
 ax.set_ylabel("height [m]")
 ax.set_title("the first impact: each phase in closed form")
 _lab.legend_outside(ax)
-fig.savefig(out / "contact_closed_form.png", dpi=110)
-_lab.show(out / "contact_closed_form.png")
+_lab.save(fig, out / "contact_closed_form.png")
 
 # %% [markdown]
 # ## 4. The diode's characteristic
@@ -178,8 +177,7 @@ ax.set_xlabel("penetration p [mm]")
 ax.set_ylabel("contact force [N]")
 ax.set_title("contact as a diode: one-sided, with the damper's loop")
 _lab.legend_outside(ax)
-fig.savefig(out / "contact_diode.png", dpi=110)
-_lab.show(out / "contact_diode.png")
+_lab.save(fig, out / "contact_diode.png")
 # in flight the switch is off to rounding: ngspice's tanh stops short of −1 by an ε, so what is left is
 # about ε·|kc·p + cc·ṗ|
 away = depth < -40 * p["delta"]
@@ -248,7 +246,6 @@ a2.set_xlabel("t [s]")
 a2.set_ylabel("contact force [N]")
 a2.set_title("the contact force settles on the weight")
 _lab.legend_outside(a2)
-fig.savefig(out / "contact_settling.png", dpi=110)
-_lab.show(out / "contact_settling.png")
+_lab.save(fig, out / "contact_settling.png")
 motion = analogy.motion(system, spice, frames=60)
 _lab.animate(motion, out / "contact_motion.gif")

@@ -214,9 +214,8 @@ def pinocchio_functions(text: str, tree: RigidTree, joint_names: Sequence[str], 
     floating : bool
         The tree's first six joints are a free base.
     """
-    p = _cached(text, tuple(joint_names), tuple(sorted((pose or {}).items())), tuple(map(float, tree.gravity)),
-                floating)
-    if p is None or not _agreed(p, tree):
+    p = _agreeing(text, tree, joint_names, pose, floating)
+    if p is None:
         return None
     gravity: Callable | None = p.gravity if np.any(tree.gravity) else None
     return MechanicalFunctions(p.mass, p.velocity, gravity, damping, None, masses=p.masses,
@@ -245,12 +244,19 @@ def pinocchio_places(text: str, tree: RigidTree, joint_names: Sequence[str], lin
     floating : bool
         The tree's first six joints are a free base.
     """
-    p = _cached(text, tuple(joint_names), tuple(sorted((pose or {}).items())), tuple(map(float, tree.gravity)),
-                floating)
-    if p is None or not _agreed(p, tree) or not all(p.model.existFrame(name) for name in links):
+    p = _agreeing(text, tree, joint_names, pose, floating)
+    if p is None or not all(p.model.existFrame(name) for name in links):
         return None
     frames = np.array([p.model.getFrameId(name) for name in links])
     return lambda q: p.places(q, frames)
+
+
+def _agreeing(text: str, tree: RigidTree, joint_names: Sequence[str], pose: Mapping[str, float] | None,
+              floating: bool) -> _Pinocchio | None:
+    """The URDF's Pinocchio model where it is installed and reads the file as *tree*, else None."""
+    p = _cached(text, tuple(joint_names), tuple(sorted((pose or {}).items())), tuple(map(float, tree.gravity)),
+                floating)
+    return p if p is not None and _agreed(p, tree) else None
 
 
 def _agreed(p: _Pinocchio, tree: RigidTree) -> bool:
