@@ -146,3 +146,11 @@ def test_contact_parameters_of_the_wrong_dimension_or_sign_are_refused():
                          capture_output=True, text=True)
     assert out.returncode == 2 and "kc is measured in N/m, got a mass" in out.stderr
     assert "Traceback" not in out.stderr
+
+
+def test_the_hoppers_schematic_draws_its_masses_and_its_loads():
+    """A nonlinear circuit's charge-defined capacitors are drawn at their start, c(0) = M'(0)'s split (the body's
+    1 kg and the foot's 0.1 kg as C1 and C2), and each node's load h_k(x, v) as a source."""
+    from analogy.circuit.diagram import schematic
+    drawn = schematic(drop())
+    assert {"C1", "C2", "R1_2", "Bh1", "Bh2"} <= set(drawn.parts)

@@ -35,7 +35,7 @@ from ..files import write_figure
 from ..errors import InputError
 from ..units import mechanical_units
 from .description import circuit
-from .elements import ZERO_TOL
+from .elements import ZERO_TOL, element_table, spice_value
 from .mechanical_symbols import Dashpot, Force, LinkGround, MassBlock, MPModel, Spring
 
 if TYPE_CHECKING:
@@ -105,10 +105,18 @@ class _Layout:
 
 
 def _parts(system: NodeSystem, zero_tol: float) -> list[_Part]:
-    """Elements then force sources, read from the circuit description."""
+    """Elements then force sources, read from the circuit description. A nonlinear circuit's charge-defined
+    capacitors are drawn at their start, c(0), and each node's behavioural load h_k(x, v) as a source."""
     c = circuit(system, zero_tol)
     units = mechanical_units(system.provenance.units)
     parts = [_Part(e.name, e.kind, e.a, e.b, e.value, e.coefficient, unit=units[e.kind]) for e in c.elements]
+    if system.kind != "linear":
+        table = element_table(np.asarray(system.node_mass(np.zeros(system.dof)))[None], np.zeros((1, system.dof,
+                              system.dof)), None, zero_tol)
+        parts = [_Part(f"C{a}" if b == 0 else f"C{a}_{b}", kind, a, b, float(spice_value(kind, v[0])), float(v[0]),
+                       unit=units[kind]) for kind, a, b, v in table if kind == "C" and v[0] != 0.0] + parts
+        parts += [_Part(f"B{p.name}", "I", p.b, 0, 1.0, 1.0, 0, into_a=True, waveform=f"\u2212{p.name}(x, v)",
+                        unit=units["I"]) for p in c.behavioural if type(p).__name__ == "BehaviouralCurrent"]
     for src in c.sources:
         if src.b == 0 or src.scale != 1.0:
             a, b, into_a = src.a, src.b, True
@@ -213,6 +221,8 @@ def _wave(p: _Part) -> str:
 
 def _source_label(name: str, p: _Part, unit: str) -> str:
     """A force source: f_k itself, or (with gravity, a sum) its own term of f_k; two lines either way."""
+    if p.joint == 0:                        # a nonlinear node's load: gravity, velocity terms, contacts
+        return f"{name}\n= {p.waveform}"
     scaled = _wave(p) if p.value == 1.0 else f"{_number(p.value)}\u00b7{_wave(p)}"
     if p.terms > 1:
         return f"{name}\n= {scaled} {unit}, a term of f{p.joint}"
@@ -285,7 +295,8 @@ def _render(layout: _Layout, symbol: Callable[[_Part], elm.Element2Term],
 
 
 def _title(system: NodeSystem, what: str) -> str:
-    return f"{system.provenance.robot} ({system.topology.name} topology): {what}"
+    start = "" if system.kind == "linear" else ", nonlinear: capacitances c(x) at the start, loads h(x, v) as sources"
+    return f"{system.provenance.robot} ({system.topology.name} topology): {what}{start}"
 
 
 @dataclass(frozen=True)
