@@ -154,3 +154,24 @@ def test_the_hoppers_schematic_draws_its_masses_and_its_loads():
     from analogy.circuit.diagram import schematic
     drawn = schematic(drop())
     assert {"C1", "C2", "R1_2", "Bh1", "Bh2"} <= set(drawn.parts)
+
+
+@pytest.mark.ngspice
+def test_the_written_netlist_runs_in_plain_ngspice_and_prints_the_contact_force(tmp_path):
+    """`analogy netlist --robot hopper` saves and prints f_foot beside the nodes; plain `ngspice -b` runs it to
+    the in-process run's values, printed with 15 digits and interpolated alike (1e-12 of the peak)."""
+    import shutil
+
+    from analogy.cli import main
+    from analogy.solvers.rawfile import read_printed
+    path = tmp_path / "hopper.cir"
+    assert main(["netlist", "--robot", "hopper", "--preset", "fast", "-o", str(path)]) == 0
+    text = path.read_text()
+    assert ".save v(n1) v(n2) v(f_foot)" in text
+    res = subprocess.run([shutil.which("ngspice") or "ngspice", "-b", str(path)], capture_output=True, text=True,
+                         timeout=600)
+    assert res.returncode == 0, res.stderr[-2000:]
+    printed = read_printed(res.stdout)
+    run = analogy.solve(drop(), "spice", None, "fast")
+    force = np.interp(printed["time"], run.time, run.currents["f_foot"])
+    assert np.max(np.abs(printed["f_foot"] - force)) <= 1e-12 * np.max(np.abs(force))

@@ -263,10 +263,10 @@ def save_vectors(c: Circuit, save: Iterable[str] | None = None) -> list[str]:
     c : Circuit
         The circuit whose nodes and elements may be named.
     save : iterable of str, optional
-        Names; default every node.
+        Names; default every node and every output node (a contact's force).
     """
     nodes = c.node_names + c.state_nodes + c.monitors + list(c.outputs)
-    wanted = list(c.node_names) if save is None else list(save)
+    wanted = list(c.node_names) + list(c.outputs) if save is None else list(save)
     if not wanted:
         raise InputError("nothing to save: name at least one node")
     coupled = {cp.name.lower() for cp in c.couplings}
@@ -378,7 +378,7 @@ def gnucap_lines(c: Circuit, settings, save: Iterable[str] | None = None) -> lis
     if c.behavioural:
         raise InputError("gnucap has no charge-defined capacitors (Q={...}) or behavioural sources (B): "
                          "a nonlinear circuit runs in ngspice only")
-    wanted = list(c.node_names) if save is None else list(save)
+    wanted = list(c.node_names) + list(c.outputs) if save is None else list(save)
     if bad := [n for n in wanted if n not in c.node_names]:
         raise InputError(f"gnucap prints node voltages here: {bad[0]!r} is not one of {', '.join(c.node_names)}")
     start = {"0": 0.0, **{name: value for name, value in c.initial}}
