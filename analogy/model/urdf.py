@@ -116,7 +116,7 @@ def _tree(robot, gravity: float, joints: Sequence[str] | None = None, pose: Mapp
     for j in robot.joints:
         if j.type not in (*MOVING_JOINTS, "fixed"):
             raise InputError(f"joint {j.name} is {j.type}: only revolute, continuous, prismatic and fixed "
-                             "joints are modelled (a floating base can come later)", field="robot")
+                             "joints are modelled (a free root link is --base floating)", field="robot")
         if j.child in by_child:
             raise InputError(f"link {j.child} has two parent joints ({by_child[j.child].name}, {j.name}): "
                              "closed loops are not modelled", field="robot")

@@ -274,7 +274,7 @@ def base_note(model: UrdfModel) -> str | None:
         return (f"{model.name}'s root link {model.root_link} flies free (--base floating): six more coordinates "
                 "first, its origin's x, y, z and its Z-Y-X angles (singular at pitch ±π/2)")
     return (f"{model.name}'s root link {model.root_link} is held fixed to the world (--base fixed, the default; "
-            "a free-flying base is not modelled)")
+            "--base floating frees it)")
 
 
 def robot_scene(name: str) -> Scene:
