@@ -320,3 +320,16 @@ def test_friction_holds_a_push_under_mu_times_the_weight_and_nothing_holds_it_wi
         creep = SLIP_SPEED * push / (mu * w) * (system.t_stop - 0.1)
         give = push / (4 * system.parameters["kp"] / system.q0[2] ** 2)
         assert 0 < x[-1] < 2 * (give + creep) and x[-1] < slide / 100
+
+
+def test_a_scene_file_frees_the_base_and_names_the_feet(tmp_path):
+    from analogy.scenes.toml import load_scene
+    (tmp_path / "solo12.urdf").write_text(solo_text())
+    (tmp_path / "stand.toml").write_text('dynamics = "nonlinear"\n[model]\nurdf = "solo12.urdf"\nbase = "floating"\n'
+                                         'contacts = ["FL_FOOT", "HR_FOOT"]\n[parameters]\nmu = 0.5\n'
+                                         '[configuration]\nq = [' + ', '.join(['0'] * 18) + ']\n'
+                                         '[inputs]\nforces = [' + ', '.join(['0'] * 18) + ']\n')
+    sc = load_scene(tmp_path / "stand.toml")
+    assert sc.model.base == "floating" and sc.model.contacts == ("FL_FOOT", "HR_FOOT")
+    model = sc.numeric_model()
+    assert model.dof == 18 and model.parameters["mu"] == 0.5 and [c.name for c in model.contacts] == ["FL_FOOT", "HR_FOOT"]

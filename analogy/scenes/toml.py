@@ -56,7 +56,7 @@ from .validate import validated
 __all__ = ["load_scene", "parse_scene", "parse_toml", "read_text", "scene_from_table", "toml_table", "validated"]
 
 _TABLES = {
-    "model": ("robot", "mass", "damping", "stiffness", "gravity", *CONVENTIONS, "urdf", "joints"),
+    "model": ("robot", "mass", "damping", "stiffness", "gravity", *CONVENTIONS, "urdf", "joints", "base", "contacts"),
     "parameters": None,         # free names
     "configuration": ("q", "topology", "equilibrium"),
     "inputs": ("forces", "voltages", "initial_rates", "t_stop"),
@@ -299,9 +299,8 @@ def scene_from_table(data: dict, source="scene.toml") -> Scene:
 
 
 def _urdf_parts(ctx: _Context, model: dict) -> dict:
-    """A URDF robot's text, the file relative to the scene file's folder or anywhere (read, never
-    written), and its joints kept."""
-    name, joints = model["urdf"], model.get("joints")
+    """A URDF robot's text: the file relative to the scene file's folder, or anywhere (read, never written)."""
+    name = model["urdf"]
     if not isinstance(name, str):
         raise ctx.error("[model] urdf", f"expected a file name, got {_kind(name)}")
     with ctx.key("[model] urdf"):
@@ -312,8 +311,7 @@ def _model_spec(ctx: _Context, model: dict) -> ModelSpec:
     """The [model] table's spec: each value checked for its type here, and how they go together by
     the scene's rules (:func:`~analogy.scenes.rules.check_model_spec`)."""
     if not any(k in model for k in ("robot", "urdf", "mass")):
-        raise ctx.error("[model]", "give robot = \"serial2\" (a built-in robot), urdf = \"arm.urdf\" or "
-                                   "mass = [[...]]")
+        raise ctx.error("[model]", "give robot = \"serial2\" (a built-in robot), urdf = \"arm.urdf\" or mass = [[...]]")
     if "robot" in model and not isinstance(model["robot"], str):
         raise ctx.error("[model] robot", f"expected a robot name, got {_kind(model['robot'])}")
     chosen = {k: model[k] for k in CONVENTIONS if k in model}
@@ -322,16 +320,18 @@ def _model_spec(ctx: _Context, model: dict) -> ModelSpec:
             shown = json.dumps(value) if isinstance(value, (str, bool)) else _kind(value)
             raise ctx.error(f"[model] {key}", f"expected {' or '.join(map(json.dumps, CONVENTIONS[key]))}, "
                                               f"got {shown}")
-    joints = model.get("joints")
-    if joints is not None and not (isinstance(joints, list) and joints and all(isinstance(j, str) for j in joints)):
-        raise ctx.error("[model] joints", "expected a list of joint names")
+    for key in ("joints", "contacts"):      # lists of a URDF's joint or link names
+        names = model.get(key)
+        if names is not None and not (isinstance(names, list) and names and all(isinstance(j, str) for j in names)):
+            raise ctx.error(f"[model] {key}", f"expected a list of {key[:-1] if key == 'joints' else 'link'} names")
     parts = _urdf_parts(ctx, model) if "urdf" in model else {}
     for key in MATRICES:
         if key in model:
             with ctx.key(f"[model] {key}"):
                 parts[key] = _entries(model[key], key)
     with ctx.fields():
-        return ModelSpec.of(model.get("robot"), joints=None if joints is None else tuple(joints), **chosen, **parts)
+        return ModelSpec.of(model.get("robot"), base=model.get("base"), **chosen, **parts,
+                            **{k: tuple(model[k]) for k in ("joints", "contacts") if k in model})
 
 
 def _model_fields(ctx: _Context, data: dict) -> dict:
