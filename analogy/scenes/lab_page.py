@@ -63,7 +63,8 @@ def _function(name: str, args: list[sp.Symbol], parts: dict) -> str:
 def _lab_data(scene: Scene) -> tuple[dict, str]:
     """The page's data (sliders, node map, sources, the analysis lines) and its model function's source."""
     if scene.dynamics != "linear":
-        raise InputError("the browser lab runs the linear circuit: leave out --dynamics nonlinear", field="dynamics")
+        raise InputError(f"the browser lab runs the linear circuit, and scene {scene.name!r} is nonlinear (leave out "
+                         "--dynamics nonlinear, or take a scene of a linear circuit)", field="dynamics")
     system = scene.system()
     if system.topology.name not in ("serial", "parallel"):
         raise InputError("the browser lab keeps the node map fixed as the sliders move: take --topology serial "
