@@ -269,7 +269,7 @@ class NonlinearNodeSystem(NodeCoordinates):
             if f.contacts is not None:
                 rates = v @ self.topology.inverse.T
                 power = power + np.einsum("ti,ti->t", rates,
-                                          np.stack([f.contacts.generalised(a, b) for a, b in zip(qs, rates)]))
+                                          f.contacts.generalised(qs.T, rates.T).T)
             work = np.concatenate([[0.0], np.cumsum(0.5 * (power[1:] + power[:-1]) * np.diff(t))])
             if lifted is not None:
                 work = work + lifted

@@ -336,11 +336,7 @@ def _cmd_check(args) -> int:
     check_writable(args.csv)
     result = netlist_estimate(text)
     print(result.table())
-    if args.csv:
-        print(f"wrote {result.to_csv(args.csv)}")
-    if args.plot:
-        result.plot(args.plot)
-        print(f"wrote {args.plot}")
+    write_outputs([(args.csv, lambda: result.to_csv(args.csv)), (args.plot, lambda: result.plot(args.plot))])
     bound = args.preset.bound
     name, worst = result.worst
     return accuracy_exit({f"the netlist's {name}": worst} if worst > bound else {}, args.preset.name, bound)

@@ -135,15 +135,9 @@ def drive_command(args) -> int:
                                        solvers=("spice", "ode", "exact"), description="")
     run = run_scene(validated(sc)).drive
     # the command line's own files, anywhere (a scene file's stay inside its folder); compare --motors has no -o
-    if getattr(args, "output", None):
-        write_text(args.output, run.netlist)
-        print(f"wrote {args.output}")
     print(run.table())
-    if args.csv:
-        print(f"wrote {run.to_csv(args.csv)}")
-    if args.plot:
-        run.plot(args.plot)
-        print(f"wrote {args.plot}")
+    write_outputs([(getattr(args, "output", None), lambda: write_text(args.output, run.netlist)),
+                   (args.csv, lambda: run.to_csv(args.csv)), (args.plot, lambda: run.plot(args.plot))])
     return drive_exit(run, args.preset.name, args.preset.bound)
 
 

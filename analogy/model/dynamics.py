@@ -106,7 +106,8 @@ class NodeDynamics(Protocol):
 class ContactFunctions(NamedTuple):
     """Compiled contact forces of a model (:mod:`analogy.model.contact`), at fixed parameters.
 
-    *generalised* (q, q̇) gives τ_c = Σ J_cᵀ·f_c (n,); *derivatives* (q, q̇) gives
+    *generalised* (q, q̇) gives τ_c = Σ J_cᵀ·f_c, shape (n,), or (n, m) for states stacked as columns
+    (n, m); *derivatives* (q, q̇) gives
     (∂τ_c/∂q, ∂τ_c/∂q̇), each (n, n); *normal* takes q and q̇ of shape (n,) or (n, m) and gives
     each contact's normal force f_c, shape (k,) or (k, m); *depths* takes q of shape (n, m) and
     gives each contact's penetration p = −y, (k, m); *names* are the contacts', *smoothing*

@@ -486,7 +486,8 @@ class Model(RobotModel):
         smoothing = tuple(float(sp.sympify(c.smoothing).xreplace(subs)) for c in self.contacts)
 
         def generalised(x, r):
-            return np.asarray(tau_fn(x, r), dtype=float).reshape(n)
+            x, r = np.asarray(x, dtype=float), np.asarray(r, dtype=float)
+            return np.stack([np.broadcast_to(np.asarray(v, dtype=float), x.shape[1:]) for v in tau_fn(x, r)])
 
         def derivatives(x, r):
             dq, dr = d_fn(x, r)

@@ -74,7 +74,10 @@ def tree_contact_functions(tree: RigidTree, contacts: Sequence[TreeContact], sti
         return np.stack([fx, fy, f], axis=1), jac, f
 
     def generalised(q, r):
-        force, jac, _ = wrench(np.asarray(q, float), np.asarray(r, float))
+        q, r = np.asarray(q, float), np.asarray(r, float)
+        if q.ndim == 2:                                 # a stack of states, one per column
+            return np.stack([generalised(a, b) for a, b in zip(q.T, r.T)], axis=1)
+        force, jac, _ = wrench(q, r)
         return np.einsum("kin,ki->n", jac, force)
 
     def derivatives(q, r):
