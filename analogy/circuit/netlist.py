@@ -227,8 +227,9 @@ def analysis_lines(settings, ic: Iterable[tuple[str, float]] = (), save: Iterabl
 
 def first_step_lines(settings, node: str) -> list[str]:
     """A zero current source with corners at ``settings.breakpoint``, which makes ngspice's first
-    (unchecked, backward Euler) step a hundredth of it, and at ``settings.horizons``, where
-    shorter systems of a batch end; nothing when neither is needed.
+    (unchecked, backward Euler) step a hundredth of it, at ``settings.horizons``, where shorter
+    systems of a batch end, and at ``settings.clock``, where the motion asks short steps; nothing
+    when none is needed.
 
     Parameters
     ----------
@@ -237,15 +238,19 @@ def first_step_lines(settings, node: str) -> list[str]:
     node : str
         A node of the circuit to hang the source on (it carries no current).
     """
-    horizons = tuple(getattr(settings, "horizons", ()))
-    if settings.breakpoint is None and not horizons:
+    horizons, clock = tuple(getattr(settings, "horizons", ())), tuple(getattr(settings, "clock", ()))
+    if settings.breakpoint is None and not horizons and not clock:
         return []
-    corners = ([settings.breakpoint] if settings.breakpoint is not None else []) + list(horizons)
-    first = settings.breakpoint is not None
-    why = "; ".join(([f"its {'first ' if horizons else ''}corner sets ngspice's first step to a hundredth of its time"]
-                     if first else []) + (["ngspice steps onto the ends of the shorter systems"] if horizons else []))
-    return [f"* zero current; {why}",
-            f"Ifirst_step 0 {node} PWL(0 0 " + " ".join(f"{_num(t)} 0" for t in corners) + ")"]
+    first = [settings.breakpoint] if settings.breakpoint is not None else []
+    why = "; ".join([f"its {'first ' if horizons or clock else ''}corner sets ngspice's first step to a hundredth "
+                     "of its time"] * bool(first) + ["ngspice steps onto the ends of the shorter systems"] * bool(horizons)
+                    + [f"{len(clock)} corners from t = {_num(clock[0])} to {_num(clock[-1])} s keep ngspice's steps "
+                       "short where the motion is fast"] * bool(clock))
+    values = [f"{_num(t)} 0" for t in sorted({*first, *horizons, *clock})]
+    rows = [" ".join(values[k:k + 8]) for k in range(0, len(values), 8)]
+    if len(rows) == 1:
+        return [f"* zero current; {why}", f"Ifirst_step 0 {node} PWL(0 0 {rows[0]})"]
+    return [f"* zero current; {why}", f"Ifirst_step 0 {node} PWL(0 0 {rows[0]}"] + [f"+ {r}" for r in rows[1:]] + ["+ )"]
 
 
 def save_vectors(c: Circuit, save: Iterable[str] | None = None) -> list[str]:

@@ -30,7 +30,8 @@ import numpy as np
 from ..circuit.scales import system_scales
 from ..errors import SimulationError
 
-__all__ = ["MOTION_LIMIT", "MOTION_POINTS", "MOTION_RTOL", "MotionErrors", "error_coefficients", "motion_step"]
+__all__ = ["MOTION_LIMIT", "MOTION_POINTS", "MOTION_RTOL", "CORNER_GAP", "CORNER_STEPS", "CORNER_LIMIT", "MotionErrors",
+           "MotionSchedule", "error_coefficients", "motion_step", "motion_schedule"]
 
 #: Points the motion is sampled at, at least; more where its fastest rate asks.
 MOTION_POINTS = 1000
@@ -46,15 +47,6 @@ MOTION_LIMIT = 6000
 _PER_RADIAN = 3.0
 
 _cache: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
-
-
-def _third(t: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """d³y/dt³ on samples *t* of one smooth segment (zero where it has too few)."""
-    if t.size < 5:
-        return np.zeros_like(y)
-    for _ in range(3):
-        y = np.gradient(y, t, axis=0, edge_order=2)
-    return y
 
 
 def _decay_samples(scales, t_stop: float) -> np.ndarray:
@@ -108,12 +100,13 @@ def _switch_samples(system, t: np.ndarray, x: np.ndarray) -> np.ndarray:
     return np.concatenate(extra) if extra else np.zeros(0)
 
 
-def _local_errors(system, x, v, masses, x3, p3) -> np.ndarray:
-    """Each sample's local error density in (x, v): the rule's −(x‴, p‴)/12 with δv = M'⁻¹(δp − (∂M'/∂x·δx)·v)."""
+def _local_errors(system, x, v, masses, x3, p3, factor: float = -1.0 / 12.0) -> np.ndarray:
+    """Each sample's local error density in (x, v): the rule's −(x‴, p‴)/12 (or *factor* times other
+    derivatives) with δv = M'⁻¹(δp − (∂M'/∂x·δx)·v)."""
     n = system.dof
     source = np.zeros((len(x), 2 * n))
     for k in range(len(x)):
-        dx, dp = -x3[k] / 12.0, -p3[k] / 12.0
+        dx, dp = factor * x3[k], factor * p3[k]
         size = np.max(np.abs(dx))
         if size > 0:
             s = 1e-6 * max(1.0, np.max(np.abs(x[k]))) / size
@@ -123,18 +116,28 @@ def _local_errors(system, x, v, masses, x3, p3) -> np.ndarray:
     return source
 
 
-def _carried(system, t, x, v, source) -> np.ndarray:
-    """E' = J·E + source from E(0) = 0, by the trapezoidal rule on the samples (J is smooth on them)."""
+def _propagators(system, t, x, v) -> tuple[np.ndarray, np.ndarray]:
+    """The trapezoidal rule's propagators of E' = J·E + s between samples: E_k = A_k·E_(k−1) + B_k·(s_(k−1) + s_k)."""
     drive = system.node_currents(t)
-    error = np.zeros_like(source)
-    eye = np.eye(source.shape[1])
+    size = 2 * system.dof
+    eye = np.eye(size)
+    step, carry = np.zeros((t.size, size, size)), np.zeros((t.size, size, size))
     jac = _jacobian(system, x[0], v[0], drive[0])
     for k in range(1, t.size):
         h = t[k] - t[k - 1]
         nxt = _jacobian(system, x[k], v[k], drive[k])
-        rhs = (eye + 0.5 * h * jac) @ error[k - 1] + 0.5 * h * (source[k - 1] + source[k])
-        error[k] = np.linalg.solve(eye - 0.5 * h * nxt, rhs)
+        inverse = np.linalg.inv(eye - 0.5 * h * nxt)
+        step[k], carry[k] = inverse @ (eye + 0.5 * h * jac), 0.5 * h * inverse
         jac = nxt
+    return step, carry
+
+
+def _carried(propagators, source) -> np.ndarray:
+    """E' = J·E + source from E(0) = 0 on the samples (J is smooth on them)."""
+    step, carry = propagators
+    error = np.zeros_like(source)
+    for k in range(1, source.shape[0]):
+        error[k] = step[k] @ error[k - 1] + carry[k] @ (source[k - 1] + source[k])
     return error
 
 
@@ -160,8 +163,98 @@ class MotionErrors(NamedTuple):
     """The trapezoidal rule's global error over h² along a motion, per joint rate and over its own peak."""
 
     time: np.ndarray          # (m,) the samples [s]
-    relative: np.ndarray      # (m, n) |E_r(t)|/max|r|
+    relative: np.ndarray      # (m, n + k) |E_r(t)|/max|r|, then each of k contact forces' error over its peak
     curvature: np.ndarray     # (n,) max|r''|/max|r| [1/s²]: linear interpolation between steps errs h²/8 of it
+
+
+class _Motion(NamedTuple):
+    """A motion's samples and what its error coefficients are made of."""
+
+    time: np.ndarray          # (m,) the samples [s]
+    peak: np.ndarray          # (n,) each joint rate's peak
+    trapezoidal: np.ndarray   # (m, 2n) the rule's local error density over h²: −(x‴, p‴)/12 in (x, v)
+    euler: np.ndarray         # (m, 2n) backward Euler's local error over h²: −(x″, p″)/2 in (x, v)
+    propagators: tuple        # the linearised dynamics between samples (:func:`_propagators`)
+    curvature: np.ndarray     # (n,) max|r''|/max|r|
+    outputs: np.ndarray       # (m, k, 2n) each contact force's derivative in (x, v) over its peak (k = 0 without)
+
+
+def _derivatives(t: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """dy/dt, d²y/dt² and d³y/dt³ on samples *t* of one smooth segment (zero where it has too few)."""
+    if t.size < 5:
+        return np.zeros_like(y), np.zeros_like(y), np.zeros_like(y)
+    first = np.gradient(y, t, axis=0, edge_order=2)
+    second = np.gradient(first, t, axis=0, edge_order=2)
+    return first, second, np.gradient(second, t, axis=0, edge_order=2)
+
+
+def _motion(system, timeout: float | None) -> _Motion:
+    """*system*'s motion from the ODE at :data:`MOTION_RTOL` on its samples, and its local error densities."""
+    from .ode import solve_ode      # scipy: only where a nonlinear circuit is written
+
+    cached = _cache.get(system)
+    if cached is not None:
+        return cached
+    t, edges = _samples(system)
+    motion = solve_ode(system, t, "DOP853", rtol=MOTION_RTOL, positions=True, timeout=timeout)
+    switching = _switch_samples(system, t, motion.positions)
+    if switching.size:          # again, on samples that follow each contact's switch
+        if t.size + switching.size > 4 * MOTION_LIMIT:
+            raise SimulationError("the contacts switch over more samples than their error coefficients are taken on")
+        t = np.unique(np.concatenate([t, switching]))
+        motion = solve_ode(system, t, "DOP853", rtol=MOTION_RTOL, positions=True, timeout=timeout)
+    x, v = motion.positions, motion.voltages
+    masses = system.node_masses(x)
+    p = np.einsum("kab,kb->ka", masses, v)
+    accel, x2, x3, p2, p3 = (np.zeros_like(x) for _ in range(5))
+    bounds = np.concatenate([[0.0], edges, [system.t_stop]])
+    for t0, t1 in zip(bounds[:-1], bounds[1:]):
+        i = np.flatnonzero((t >= t0) & (t <= t1))
+        _, x2[i], x3[i] = _derivatives(t[i], x[i])
+        _, p2[i], p3[i] = _derivatives(t[i], p[i])
+        if i.size >= 3:
+            accel[i] = np.gradient(v[i], t[i], axis=0, edge_order=2)
+    peak = np.max(np.abs(motion.rates), axis=0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        curvature = np.max(np.abs(system.joint_rates(accel)), axis=0) / peak
+    result = _Motion(t, peak, _local_errors(system, x, v, masses, x3, p3),
+                     _local_errors(system, x, v, masses, x2, p2, factor=-0.5),
+                     _propagators(system, t, x, v), curvature, _output_derivatives(system, x, v))
+    _cache[system] = result
+    return result
+
+
+def _output_derivatives(system, x: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Each contact force's derivative in (x, v) at every sample over the force's peak, by central
+    differences (steps 1e-6 of each coordinate's size, a hundredth of a contact's smoothing length and
+    less): the outputs a circuit judges beside its rates; (m, 0, 2n) without contacts."""
+    n = system.dof
+    y = np.hstack([x, v])
+    forces = system.contact_forces(x, v)
+    if not forces:
+        return np.zeros((len(y), 0, 2 * n))
+    with np.errstate(divide="ignore"):
+        scale = 1.0 / np.max(np.abs(np.column_stack(list(forces.values()))), axis=0)
+    scale = np.where(np.isfinite(scale), scale, 0.0)
+    out = np.zeros((len(y), len(forces), 2 * n))
+    for j in range(2 * n):
+        d = 1e-6 * max(1.0, float(np.max(np.abs(y[:, j]))))
+        up, down = y.copy(), y.copy()
+        up[:, j] += d
+        down[:, j] -= d
+        high = np.column_stack(list(system.contact_forces(up[:, :n], up[:, n:]).values()))
+        low = np.column_stack(list(system.contact_forces(down[:, :n], down[:, n:]).values()))
+        out[:, :, j] = (high - low) / (2 * d) * scale
+    return out
+
+
+def _relative(system, motion: _Motion, error: np.ndarray) -> np.ndarray:
+    """|E_r|/max|r| per sample and joint rate of a carried error *error* in (x, v), and each contact
+    force's error over its peak beside them."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        relative = np.abs(system.joint_rates(error[:, system.dof:])) / motion.peak
+        relative = np.hstack([relative, np.abs(np.einsum("mkj,mj->mk", motion.outputs, error))])
+    return np.where(np.isfinite(relative), relative, 0.0)
 
 
 def error_coefficients(system, timeout: float | None = None) -> MotionErrors:
@@ -175,36 +268,15 @@ def error_coefficients(system, timeout: float | None = None) -> MotionErrors:
     timeout : float, optional
         Wall-time limit of that integration [s].
     """
-    from .ode import solve_ode      # scipy: only where a nonlinear circuit is written
+    motion = _motion(system, timeout)
+    return MotionErrors(motion.time, _relative(system, motion, _carried(motion.propagators, motion.trapezoidal)),
+                        motion.curvature)
 
-    cached = _cache.get(system)
-    if cached is not None:
-        return cached
-    n = system.dof
-    t, edges = _samples(system)
-    motion = solve_ode(system, t, "DOP853", rtol=MOTION_RTOL, positions=True, timeout=timeout)
-    switching = _switch_samples(system, t, motion.positions)
-    if switching.size:          # again, on samples that follow each contact's switch
-        if t.size + switching.size > 4 * MOTION_LIMIT:
-            raise SimulationError("the contacts switch over more samples than their error coefficients are taken on")
-        t = np.unique(np.concatenate([t, switching]))
-        motion = solve_ode(system, t, "DOP853", rtol=MOTION_RTOL, positions=True, timeout=timeout)
-    x, v = motion.positions, motion.voltages
-    masses = system.node_masses(x)
-    accel, x3, p3 = np.zeros_like(x), np.zeros_like(x), np.zeros_like(v)
-    bounds = np.concatenate([[0.0], edges, [system.t_stop]])
-    for t0, t1 in zip(bounds[:-1], bounds[1:]):
-        i = np.flatnonzero((t >= t0) & (t <= t1))
-        x3[i], p3[i] = _third(t[i], x[i]), _third(t[i], np.einsum("kab,kb->ka", masses[i], v[i]))
-        if i.size >= 3:
-            accel[i] = np.gradient(v[i], t[i], axis=0, edge_order=2)
-    error = _carried(system, t, x, v, _local_errors(system, x, v, masses, x3, p3))
-    peak = np.max(np.abs(motion.rates), axis=0)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        result = MotionErrors(t, np.abs(system.joint_rates(error[:, n:])) / peak,
-                              np.max(np.abs(system.joint_rates(accel)), axis=0) / peak)
-    _cache[system] = result
-    return result
+
+def _interpolation_step(motion: _Motion, allowed: float) -> float:
+    """The step whose linear interpolation onto the print points, h²/8·max|r''|, is within *allowed*."""
+    curvature = float(np.max(np.where(np.isfinite(motion.curvature), motion.curvature, 0.0), initial=0.0))
+    return math.sqrt(8.0 * allowed / curvature) if curvature > 0 else math.inf
 
 
 def motion_step(system, bound: float, safety: float, timeout: float | None = None) -> float:
@@ -228,10 +300,138 @@ def motion_step(system, bound: float, safety: float, timeout: float | None = Non
         errors = error_coefficients(system, timeout)
     except SimulationError:
         return math.nan          # no motion to size the step from: the caller keeps its cap
-    relative = np.where(np.isfinite(errors.relative), errors.relative, 0.0)
-    worst = float(np.max(relative)) if relative.size else 0.0
-    curvature = float(np.max(np.where(np.isfinite(errors.curvature), errors.curvature, 0.0), initial=0.0))
+    worst = float(np.max(errors.relative)) if errors.relative.size else 0.0
     with np.errstate(divide="ignore"):
         step = min(math.sqrt(bound / safety / worst) if worst > 0 else math.inf,
-                   math.sqrt(8.0 * bound / safety / curvature) if curvature > 0 else math.inf)
+                   _interpolation_step(_motion(system, timeout), bound / safety))
     return step
+
+
+#: A clock's corners stand this many times the step they allow apart. After a corner ngspice steps a
+#: tenth of its last step or of the gap, whichever is shorter, and doubles each step after (its
+#: truncation check off), so its longest step between two corners is about half the gap (0.46 to
+#: 0.52 of it, measured on the xArm7's decay).
+CORNER_GAP = 1.9
+#: Each corner comes with a second one this share of the gap before it. The first step after a
+#: corner is backward Euler's, whose local error h²/2·y″ is not the rule's h³/12·y‴; after the near
+#: corner it is a tenth of that short gap, and its error a ten-thousandth of what it would be.
+CORNER_PAIR = 0.1
+#: The Euler steps' h² after the corners a gap g holds, over g²: a tenth of a last step of at most half
+#: the gap after a lone corner, (0.05·g)²; after a pair a tenth of the near gap and a tenth of a last
+#: step of at most half of it, (0.1² + 0.05²)·(CORNER_PAIR·g)².
+_EULER = 0.0125 * CORNER_PAIR ** 2 if CORNER_PAIR else 0.0025
+#: The steps ngspice takes from one pair of corners to the next (measured: 10.9 on the hopper, 11.0 on the
+#: double pendulum).
+CORNER_STEPS = 11
+#: The pairs of corners a schedule may place: past them the step does not follow the motion.
+CORNER_LIMIT = 10000
+#: The levels of the rule's local error density, under its largest, past which the step follows it.
+_LEVELS = tuple(10.0 ** (-k / 2) for k in range(1, 17))
+#: The shares under which a step is clocked: a pair of corners costs CORNER_STEPS steps for a gap of
+#: CORNER_GAP free ones, so a share above about CORNER_GAP/CORNER_STEPS is cheaper left free.
+_WORTH = (0.06, 0.13, 0.3, 1.0)
+
+
+class MotionSchedule(NamedTuple):
+    """The steps a nonlinear circuit's motion asks: a cap, and shorter steps where the motion is fast.
+
+    Where the motion's local error density σ(t) passes a level σ*, the step is the cap times
+    ρ(t) = (σ*/σ(t))^(1/3), the share that spreads the rule's error evenly over time (h³·σ constant
+    per unit of t/h); there a clock's corners stand :data:`CORNER_GAP`·ρ·cap apart, since ngspice's
+    own truncation check does not follow these circuits (a fast decay, a contact's switch)."""
+
+    step: float               # the step cap [s]
+    corners: np.ndarray       # the clock's corners [s]: ngspice steps at most about ρ·step between them
+    points: float             # the time points foretold
+    time: np.ndarray          # the motion's samples [s]
+    share: np.ndarray         # ρ at each sample
+
+    def finer(self, factor: float) -> "MotionSchedule":
+        """This schedule with every step *factor* times shorter (an error estimate's second run).
+
+        Parameters
+        ----------
+        factor : float
+            The divisor of the cap and of every clocked step.
+        """
+        if factor == 1.0 or not self.corners.size:
+            return self._replace(step=self.step / factor, points=self.points * factor)
+        corners = _clock(self.time, self.share, self.step / factor)
+        return self._replace(step=self.step / factor, points=self.points * factor,
+                             corners=self.corners if corners is None else corners)
+
+
+def _shares(system, motion: _Motion, level: float, worth: float) -> np.ndarray:
+    """ρ ≤ 1 at each sample: the step's share of the cap where the local error density passes *level* of its
+    largest and the share is under *worth* (a clocked step costs more than a free one)."""
+    density = np.max(_relative(system, motion, motion.trapezoidal), axis=1)
+    ref = level * float(np.max(density, initial=0.0))
+    if not ref > 0:
+        return np.ones_like(density)
+    with np.errstate(divide="ignore"):
+        share = np.cbrt(ref / density)
+    return np.where(share < worth, share, 1.0)
+
+
+def _clock(t: np.ndarray, share: np.ndarray, step: float) -> np.ndarray | None:
+    """Corners :data:`CORNER_GAP`·ρ·*step* apart over the intervals where ρ < 1 (the shorter of an
+    interval's two ends); None past :data:`CORNER_LIMIT`."""
+    inner = np.minimum(share[:-1], share[1:])
+    rate = np.where(inner < 1.0, 1.0 / (CORNER_GAP * step * inner), 0.0)
+    count = np.concatenate([[0.0], np.cumsum(rate * np.diff(t))])
+    if not count[-1] <= CORNER_LIMIT:
+        return None
+    far = np.interp(np.arange(1.0, math.floor(count[-1]) + 1.0), count, t)
+    near = far - CORNER_PAIR * CORNER_GAP * step * np.interp(far, t, share) if CORNER_PAIR else far[:0]
+    corners = np.unique(np.concatenate([near, far]))
+    return corners[(corners > 0) & (corners < t[-1])]
+
+
+def _schedule(system, motion: _Motion, share: np.ndarray, allowed: float) -> MotionSchedule | None:
+    """The cap under which every joint rate's error h²·|E_ρ| + h·|E_Euler| stays within *allowed* of its
+    peak, E_ρ carried from ρ²·σ and E_Euler from the Euler steps after the corners; None past the corners' limit."""
+    clocked = share < 1.0
+    trapezoidal = _relative(system, motion, _carried(motion.propagators, share[:, None] ** 2 * motion.trapezoidal))
+    weight = np.where(clocked, _EULER * CORNER_GAP * share, 0.0)
+    euler = _relative(system, motion, _carried(motion.propagators, weight[:, None] * motion.euler))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        steps = 2.0 * allowed / (euler + np.sqrt(euler ** 2 + 4.0 * trapezoidal * allowed))
+    step = min(float(np.min(steps, initial=math.inf)), _interpolation_step(motion, allowed))
+    if not math.isfinite(step):
+        return MotionSchedule(step, np.zeros(0), 1.0, motion.time, share)
+    if not clocked.any():
+        return MotionSchedule(step, np.zeros(0), motion.time[-1] / step, motion.time, share)
+    corners = _clock(motion.time, share, step)
+    if corners is None:
+        return None
+    inner = np.minimum(share[:-1], share[1:]) < 1.0
+    free = float(np.sum(np.diff(motion.time)[~inner]))
+    pairs = corners.size / (2 if CORNER_PAIR else 1)
+    return MotionSchedule(step, corners, free / step + CORNER_STEPS * pairs, motion.time, share)
+
+
+def motion_schedule(system, bound: float, safety: float, timeout: float | None = None) -> MotionSchedule | None:
+    """The schedule of fewest foretold points that holds every joint rate's error within bound/*safety*
+    of its own peak: the uniform step (:func:`motion_step`), or a cap with a clock where the motion's
+    local error density passes one of a few of its quantiles; None where the motion could not be
+    integrated (the caller keeps its cap then, and the run is judged).
+
+    Parameters
+    ----------
+    system : NonlinearNodeSystem
+        The system.
+    bound : float
+        The preset's bound on each output's error over its own peak.
+    safety : float
+        The factor held in hand.
+    timeout : float, optional
+        Wall-time limit of the motion's integration [s].
+    """
+    try:
+        motion = _motion(system, timeout)
+    except SimulationError:
+        return None
+    candidates = [_schedule(system, motion, np.ones(motion.time.size), bound / safety)]
+    candidates += [_schedule(system, motion, _shares(system, motion, level, worth), bound / safety)
+                   for level in _LEVELS for worth in _WORTH]
+    return min((c for c in candidates if c is not None), key=lambda c: c.points)

@@ -78,6 +78,12 @@ class TransientSettings:
     horizons : tuple of float
         Ends of shorter systems in the same run, before :attr:`stop`: each is a breakpoint,
         so that ngspice steps onto it and each system's output ends at its own horizon.
+    clock : tuple of float
+        Corners where ngspice must step short (:class:`~analogy.solvers.motion_step.MotionSchedule`):
+        a nonlinear circuit's fast decays and contact switches, which its truncation check does not follow.
+    unclocked : float or None
+        The step cap a clocked run falls back to when its step collapses under every retry: some
+        circuits cannot step as short as their clock asks (the xArm7's, past about 200 steps of 1e-7 s).
     impedance : float or None
         The circuit's impedance scale [Ω]: its velocity scale over its current scale
         (gnucap's dialect sizes the resistance of its voltage sources from it).
@@ -95,6 +101,8 @@ class TransientSettings:
     first_step: float
     loosen: float = 1.0
     horizons: tuple = ()
+    clock: tuple = ()
+    unclocked: float | None = None
     impedance: float | None = None
     interpolate: bool = True
 
@@ -119,7 +127,8 @@ class TransientSettings:
 
         First these, then abstol and vntol ``RETRY_LOOSEN`` times larger (rounding read as
         truncation error), when the options have them; last, for a trapezoidal run, gear at
-        the first tolerances. flex2's nonlinear circuit under its motor steps at ``fast``
+        the first tolerances. A clocked run then tries all of that again without its clock, at
+        its :attr:`unclocked` cap. flex2's nonlinear circuit under its motor steps at ``fast``
         collapses at t = 3.91 s and runs to its end at abstol and vntol 1000 times larger.
         Options without absolute tolerances (a bench's) run last at reltol
         :data:`RETRY_TIGHTEN` times tighter.
@@ -130,6 +139,8 @@ class TransientSettings:
             ladder.append(self.loosened(1.0).with_method("gear"))
         if not absolute:
             ladder.append(self.loosened(1.0).tightened(RETRY_TIGHTEN))
+        if self.clock and self.unclocked is not None:
+            ladder += replace(self.loosened(1.0), clock=(), max_step=self.unclocked, unclocked=None).retries()
         return ladder
 
     @property

@@ -122,7 +122,9 @@ def solve_spice(system, times=None, *, preset="accurate", save=None) -> Trajecto
             if not collapsed(exc) or k == len(ladder) - 1:
                 raise
             after = ladder[k + 1]
-            note = (f"retried with reltol {after.reltol:g} ({exc})" if after.reltol != settings.reltol else
+            note = (f"retried without the clock's short steps, at the cap {after.max_step:.3g} s ({exc})"
+                    if after.clock != settings.clock else
+                    f"retried with reltol {after.reltol:g} ({exc})" if after.reltol != settings.reltol else
                     f"retried with gear integration ({exc})" if after.method != settings.method else
                     f"retried with abstol and vntol × {after.loosen:g} ({exc})")
     elapsed = _time.perf_counter() - start - waited - stats.get("waited", 0.0)

@@ -18,7 +18,7 @@ from ..circuit.subcircuit import joint_ports, subcircuit_name, write_subcircuit
 from ..errors import InputError, SimulationError
 from .error_constants import (CALIBRATED_MAX_STEPS, CALIBRATED_TOPOLOGIES, FLOOR_LIMIT, SAFETY, SERIAL_NODE_LIMIT,
                               calibrated_options, calibrated_reltol)
-from .motion_step import motion_step
+from .motion_step import MotionSchedule, motion_schedule
 from .run_settings import (NGSPICE_FIRST_STEP, NGSPICE_RELTOL, RETRY_LOOSEN, RETRY_TIGHTEN, TransientSettings,
                            checked_options)
 from ..presets import Preset
@@ -115,7 +115,7 @@ def transient_settings(preset: Preset, t_stop: float, scales: Scales | None, *,
                        behavioural: bool = False, coupled: bool = False, constrained: bool = False,
                        breakpoints: np.ndarray | None = None, loosen: float = 1.0,
                        custom: bool = False, operations: float | None = None,
-                       motion: float | None = None) -> TransientSettings:
+                       motion: MotionSchedule | None = None) -> TransientSettings:
     """The transient settings of a circuit with *scales* over *t_stop* at *preset*.
 
     The absolute tolerances are the preset's relative ones times the circuit's current,
@@ -156,8 +156,9 @@ def transient_settings(preset: Preset, t_stop: float, scales: Scales | None, *,
     operations : float, optional
         The circuit's operations a time point (:func:`analogy.circuit.elements.point_operations`; default n³):
         the phase cap is not taken past the preset's operation budget.
-    motion : float, optional
-        The step a behavioural circuit's motion asks (:func:`~analogy.solvers.motion_step.motion_step`).
+    motion : MotionSchedule, optional
+        The steps a behavioural circuit's motion asks (:func:`~analogy.solvers.motion_step.motion_schedule`):
+        its cap, and the clock's corners where it must step shorter.
     """
     opts = dict(preset.spice.behavioural_options if behavioural else preset.spice.options)
     reltol = spice_run_reltol(preset, scales, behavioural=behavioural or coupled or constrained or custom)
@@ -175,16 +176,24 @@ def transient_settings(preset: Preset, t_stop: float, scales: Scales | None, *,
         opts["reltol"] = f"{min(float(opts.get('reltol', NGSPICE_RELTOL)), 10 * preset.bound):.3g}"
     tmax = t_stop / (preset.spice.behavioural_max_steps if behavioural else
                      CALIBRATED_MAX_STEPS if calibrated else preset.spice.max_steps)
-    if behavioural and motion is not None and math.isfinite(_bought(preset, t_stop, motion, scales, operations)):
+    clock: tuple = ()
+    unclocked = tmax
+    if behavioural and motion is not None and math.isfinite(_bought(preset, t_stop, t_stop / motion.points, scales,
+                                                                    operations)):
         # at most half the print step: where a step spans about one, ngspice's interpolated printing
         # is not the run (the UR5 at fast: 8.0e-3 printed against 1.1e-4 at its points; equal at half)
-        tmax = min(motion, 0.5 * t_stop / preset.steps)
+        tmax = min(motion.step, 0.5 * t_stop / preset.steps)
+        clock = tuple(float(c) for c in motion.finer(REFINE ** preset.spice.refine).corners)
     tstep = t_stop / preset.steps
     first = NGSPICE_FIRST_STEP * tstep
     if scales is not None:
         first, tmax = _step_limits(preset, t_stop, scales, first, tmax, calibrated, not (behavioural or coupled),
                                    operations)
+        unclocked = _step_limits(preset, t_stop, scales, first, unclocked, calibrated, not (behavioural or coupled),
+                                 operations)[1]
         shortest = min(first, 0.1 * _shortest_gap(np.zeros(0) if breakpoints is None else breakpoints, t_stop))
+        if clock:       # after a near corner ngspice steps a tenth of a last step about a quarter of its gap
+            shortest = min(shortest, 0.025 * float(np.min(np.diff(np.concatenate([[0.0], clock])))))
         rounding = ROUNDING_STEPS * scales.rounding_current(shortest)
         if calibrated and rounding > FLOOR_LIMIT * scales.current:
             # a rounding floor past the calibration's may judge each step, not reltol: the Panda's (3.2e-7)
@@ -194,11 +203,12 @@ def transient_settings(preset: Preset, t_stop: float, scales: Scales | None, *,
                                       operations=operations, motion=motion)
         _scale_tolerances(opts, scales, rounding, loosen)
     tmax /= REFINE ** preset.spice.refine            # an estimate's second run: every step REFINE^refine times shorter
+    unclocked /= REFINE ** preset.spice.refine
     impedance = None
     if scales is not None and scales.current > 0 and math.isfinite(scales.peak_velocity / scales.current):
         impedance = scales.peak_velocity / scales.current
     return TransientSettings(tuple((k, str(v)) for k, v in checked_options(opts).items()), tstep, t_stop, tmax,
-                             first, loosen,
+                             first, loosen, clock=clock, unclocked=unclocked if clock else None,
                              impedance=impedance, interpolate=not calibrated)
 
 
@@ -291,7 +301,7 @@ def circuit_settings(system, c: Circuit, preset: Preset, loosen: float = 1.0) ->
     """
     motion = None
     if c.behavioural and not c.constraints and getattr(system, "kind", None) == "nonlinear":
-        motion = motion_step(system, preset.bound, SAFETY, timeout=preset.budget.timeout)
+        motion = motion_schedule(system, preset.bound, SAFETY, timeout=preset.budget.timeout)
     return transient_settings(preset, system.t_stop, system_scales(system), behavioural=bool(c.behavioural),
                               coupled=bool(c.couplings), constrained=bool(c.constraints),
                               breakpoints=system.breakpoints(), loosen=loosen, custom=beyond_calibration(system),
