@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 
 HERE = str(Path(__file__).resolve().parent.parent)
-ROBOTS = ("ur3", "ur5", "ur10", "panda", "kinova", "xarm7", "z1", "double_pendulum")
+ROBOTS = ("ur3", "ur5", "ur10", "panda", "kinova", "xarm7", "z1", "double_pendulum", "hopper")
 _ROW = re.compile(r"^(spice|ode|reference|exact)\s+([0-9.]+)\s+\S+\s+(\S+)\s+([0-9.e+-]+)\s+\S+\s+(\d*)")
 
 
@@ -65,8 +65,7 @@ def main() -> None:
             f"{s:>26}" for s in ("spice err/peak steps ms", "ode err/peak steps ms")))
         for dynamics in ("linear", "nonlinear"):
             for label, tree in trees:
-                words = ["compare", "--robot", robot, "--no-plot"] + \
-                    (["--dynamics", "nonlinear"] if dynamics == "nonlinear" else [])
+                words = ["compare", "--robot", robot, "--no-plot", "--dynamics", dynamics]
                 r = _run(tree, words, args.timeout)
                 cells = []
                 for solver in ("spice", "ode"):

@@ -242,15 +242,15 @@ def first_step_lines(settings, node: str) -> list[str]:
     if settings.breakpoint is None and not horizons and not clock:
         return []
     first = [settings.breakpoint] if settings.breakpoint is not None else []
-    why = "; ".join([f"its {'first ' if horizons or clock else ''}corner sets ngspice's first step to a hundredth "
-                     "of its time"] * bool(first) + ["ngspice steps onto the ends of the shorter systems"] * bool(horizons)
-                    + [f"{len(clock)} corners from t = {_num(clock[0])} to {_num(clock[-1])} s keep ngspice's steps "
-                       "short where the motion is fast"] * bool(clock))
+    why = [f"its {'first ' if horizons or clock else ''}corner sets ngspice's first step to a hundredth of its time"]
+    why = (why if first else []) + (["ngspice steps onto the ends of the shorter systems"] if horizons else []) + (
+        [f"{len(clock)} corners from t = {_num(clock[0])} to {_num(clock[-1])} s keep its steps short"] if clock else [])
     values = [f"{_num(t)} 0" for t in sorted({*first, *horizons, *clock})]
     rows = [" ".join(values[k:k + 8]) for k in range(0, len(values), 8)]
     if len(rows) == 1:
-        return [f"* zero current; {why}", f"Ifirst_step 0 {node} PWL(0 0 {rows[0]})"]
-    return [f"* zero current; {why}", f"Ifirst_step 0 {node} PWL(0 0 {rows[0]}"] + [f"+ {r}" for r in rows[1:]] + ["+ )"]
+        return [f"* zero current; {'; '.join(why)}", f"Ifirst_step 0 {node} PWL(0 0 {rows[0]})"]
+    return ([f"* zero current; {'; '.join(why)}", f"Ifirst_step 0 {node} PWL(0 0 {rows[0]}"]
+            + [f"+ {r}" for r in rows[1:]] + ["+ )"])
 
 
 def save_vectors(c: Circuit, save: Iterable[str] | None = None) -> list[str]:
