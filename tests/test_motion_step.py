@@ -98,6 +98,8 @@ def test_the_clock_spreads_the_rule_s_error_evenly_where_the_motion_is_fast():
     worst = np.max(schedule.step ** 2 * trapezoidal + schedule.step * euler)
     assert worst == pytest.approx(allowed, rel=1e-9) or schedule.step == pytest.approx(
         ms._interpolation_step(motion, allowed), rel=1e-12)
+    finer = schedule.finer(2.0)             # an estimate's second run: every step, clocked or not, halved
+    assert finer.step == schedule.step / 2 and abs(finer.corners.size - 2 * schedule.corners.size) <= 4
 
 
 def test_a_clocked_run_falls_back_to_the_cap_without_its_clock_after_every_retry():

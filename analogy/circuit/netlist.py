@@ -24,9 +24,11 @@ from .description import circuit as describe
 from .elements import ZERO_TOL
 from .ltspice import ltspice_netlist
 from .node_stack import NodeStack
+from .spice_numbers import spice_text as _num
+from .step_sources import first_step_lines
 
 __all__ = ["Dialect", "DIALECTS", "NETLIST_FORMATS", "write_netlist", "write_batch", "write_stack", "ac_netlist", "circuit_lines",
-           "analysis_lines", "first_step_lines", "save_vectors", "comment_text", "spice_expression", "gnucap_lines",
+           "analysis_lines", "save_vectors", "comment_text", "spice_expression", "gnucap_lines",
            "gnucap_size_note", "GNUCAP_NODES"]
 
 #: The SPICE engines a netlist is written for: ngspice's language, and gnucap's (linear circuits).
@@ -86,14 +88,6 @@ def _prefixed(expression: str, prefix: str) -> str:
 
 #: Stands for a row's number in :func:`write_stack`'s templates: no netlist text holds it.
 _ROW = "\x00"
-
-
-def _num(x: float) -> str:
-    x = float(x)
-    if not math.isfinite(x):            # inf or nan in a netlist would be read as a name or zero
-        raise InputError(f"a netlist value ({float(x)!r}) leaves the floating-point range: rescale the "
-                         "masses, dampers, springs or forces")
-    return repr(float(x))
 
 
 def _node(k: int, prefix: str = "") -> str:
@@ -223,34 +217,6 @@ def analysis_lines(settings, ic: Iterable[tuple[str, float]] = (), save: Iterabl
         interp = ["option interp"] if getattr(settings, "interpolate", True) else []
         lines += [".print tran " + save_text, ".control", "set numdgt=15", *interp, ".endc"]
     return lines
-
-
-def first_step_lines(settings, node: str) -> list[str]:
-    """A zero current source with corners at ``settings.breakpoint``, which makes ngspice's first
-    (unchecked, backward Euler) step a hundredth of it, at ``settings.horizons``, where shorter
-    systems of a batch end, and at ``settings.clock``, where the motion asks short steps; nothing
-    when none is needed.
-
-    Parameters
-    ----------
-    settings : TransientSettings
-        The spice solver's settings.
-    node : str
-        A node of the circuit to hang the source on (it carries no current).
-    """
-    horizons, clock = tuple(getattr(settings, "horizons", ())), tuple(getattr(settings, "clock", ()))
-    if settings.breakpoint is None and not horizons and not clock:
-        return []
-    first = [settings.breakpoint] if settings.breakpoint is not None else []
-    why = [f"its {'first ' if horizons or clock else ''}corner sets ngspice's first step to a hundredth of its time"]
-    why = (why if first else []) + (["ngspice steps onto the ends of the shorter systems"] if horizons else []) + (
-        [f"{len(clock)} corners from t = {_num(clock[0])} to {_num(clock[-1])} s keep its steps short"] if clock else [])
-    values = [f"{_num(t)} 0" for t in sorted({*first, *horizons, *clock})]
-    rows = [" ".join(values[k:k + 8]) for k in range(0, len(values), 8)]
-    if len(rows) == 1:
-        return [f"* zero current; {'; '.join(why)}", f"Ifirst_step 0 {node} PWL(0 0 {rows[0]})"]
-    return ([f"* zero current; {'; '.join(why)}", f"Ifirst_step 0 {node} PWL(0 0 {rows[0]}"]
-            + [f"+ {r}" for r in rows[1:]] + ["+ )"])
 
 
 def save_vectors(c: Circuit, save: Iterable[str] | None = None) -> list[str]:

@@ -10,7 +10,8 @@ import numpy as np
 from ..errors import InputError
 from ..waveforms import PWL
 from .elements import ZERO_TOL
-from .netlist import analysis_lines, circuit_lines, comment_text, first_step_lines
+from .netlist import analysis_lines, circuit_lines, comment_text
+from .step_sources import first_step_lines
 from .parts import Circuit
 
 __all__ = ["JointPort", "joint_ports", "write_subcircuit", "subcircuit_name"]

@@ -12,7 +12,8 @@ from scipy.linalg import expm
 
 from ..circuit.description import circuit as describe
 from ..circuit.elements import ZERO_TOL
-from ..circuit.netlist import comment_text, first_step_lines
+from ..circuit.netlist import comment_text
+from ..circuit.step_sources import first_step_lines
 from ..errors import InputError
 from ..model.motors import Motor, reflected
 from ..presets import Preset
