@@ -280,10 +280,10 @@ def _interpolation_step(motion: _Motion, allowed: float) -> float:
 
 
 def motion_step(system, bound: float, safety: float, timeout: float | None = None) -> float:
-    """The step h with every joint rate's global error h²·|E_r(t)| within bound/*safety* of its own peak,
-    and the linear interpolation onto the print points (h²/8·max|r''|) too; inf where nothing
-    errs (a motion the rule follows exactly); NaN where the motion could not be integrated (the
-    caller keeps its cap then, and the run is judged).
+    """The uniform step h with every joint rate's (and contact force's) global error h²·|E_r(t)| within
+    bound/*safety* of its own peak, and the linear interpolation onto the print points
+    (h²/8·max|r''|) too; inf where nothing errs (a motion the rule follows exactly); NaN where the
+    motion could not be integrated (the caller keeps its cap then, and the run is judged).
 
     Parameters
     ----------
@@ -297,14 +297,10 @@ def motion_step(system, bound: float, safety: float, timeout: float | None = Non
         Wall-time limit of the motion's integration [s].
     """
     try:
-        errors = error_coefficients(system, timeout)
+        motion = _motion(system, timeout)
     except SimulationError:
         return math.nan          # no motion to size the step from: the caller keeps its cap
-    worst = float(np.max(errors.relative)) if errors.relative.size else 0.0
-    with np.errstate(divide="ignore"):
-        step = min(math.sqrt(bound / safety / worst) if worst > 0 else math.inf,
-                   _interpolation_step(_motion(system, timeout), bound / safety))
-    return step
+    return _schedule(system, motion, np.ones(motion.time.size), bound / safety).step
 
 
 #: A clock's corners stand this many times the step they allow apart. After a corner ngspice steps a
@@ -411,10 +407,10 @@ def _schedule(system, motion: _Motion, share: np.ndarray, allowed: float) -> Mot
 
 
 def motion_schedule(system, bound: float, safety: float, timeout: float | None = None) -> MotionSchedule | None:
-    """The schedule of fewest foretold points that holds every joint rate's error within bound/*safety*
-    of its own peak: the uniform step (:func:`motion_step`), or a cap with a clock where the motion's
-    local error density passes one of a few of its quantiles; None where the motion could not be
-    integrated (the caller keeps its cap then, and the run is judged).
+    """The schedule of fewest foretold points that holds every joint rate's and contact force's error
+    within bound/*safety* of its own peak: the uniform step (:func:`motion_step`), or a cap with a
+    clock where the motion's local error density passes one of :data:`_LEVELS` of its largest; None
+    where the motion could not be integrated (the caller keeps its cap then, and the run is judged).
 
     Parameters
     ----------
