@@ -30,7 +30,7 @@ import numpy as np
 from ..circuit.scales import system_scales
 from ..errors import SimulationError
 
-__all__ = ["MOTION_LIMIT", "MOTION_POINTS", "MOTION_RTOL", "CORNER_GAP", "CORNER_STEPS", "CORNER_LIMIT", "MotionErrors",
+__all__ = ["MOTION_LIMIT", "MOTION_POINTS", "MOTION_RTOL", "CORNER_GAP", "CORNER_STEPS", "CORNER_LIMIT", "PAIR_COST", "MotionErrors",
            "MotionSchedule", "error_coefficients", "motion_step", "motion_schedule"]
 
 #: Points the motion is sampled at, at least; more where its fastest rate asks.
@@ -47,6 +47,9 @@ MOTION_LIMIT = 6000
 _PER_RADIAN = 3.0
 
 _cache: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+_schedules: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+#: Candidate schedules carried together.
+_BATCH = 16
 
 
 def _decay_samples(scales, t_stop: float) -> np.ndarray:
@@ -300,7 +303,9 @@ def motion_step(system, bound: float, safety: float, timeout: float | None = Non
         motion = _motion(system, timeout)
     except SimulationError:
         return math.nan          # no motion to size the step from: the caller keeps its cap
-    return _schedule(system, motion, np.ones(motion.time.size), bound / safety).step
+    uniform = np.ones((motion.time.size, 1))
+    trapezoidal, euler = _carried_shares(motion, uniform)
+    return _schedule(system, motion, uniform[:, 0], (trapezoidal[:, :, 0], euler[:, :, 0]), bound / safety).step
 
 
 #: A clock's corners stand this many times the step they allow apart. After a corner ngspice steps a
@@ -319,6 +324,10 @@ _EULER = 0.0125 * CORNER_PAIR ** 2 if CORNER_PAIR else 0.0025
 #: The steps ngspice takes from one pair of corners to the next (measured: 10.9 on the hopper, 11.0 on the
 #: double pendulum).
 CORNER_STEPS = 11
+#: What a pair of corners costs beside its steps, in steps of the same run: ngspice's evaluations grow
+#: dearer after a corner (measured 47 steps a pair on the double pendulum, 70 to 100 on the hopper,
+#: whose steps are cheap), so a clock is taken where it saves more than that.
+PAIR_COST = 60.0
 #: The pairs of corners a schedule may place: past them the step does not follow the motion.
 CORNER_LIMIT = 10000
 #: The levels of the rule's local error density, under its largest, past which the step follows it.
@@ -339,6 +348,7 @@ class MotionSchedule(NamedTuple):
     step: float               # the step cap [s]
     corners: np.ndarray       # the clock's corners [s]: ngspice steps at most about ρ·step between them
     points: float             # the time points foretold
+    cost: float               # the points and the corners' cost (:data:`PAIR_COST`), in points
     time: np.ndarray          # the motion's samples [s]
     share: np.ndarray         # ρ at each sample
 
@@ -351,16 +361,15 @@ class MotionSchedule(NamedTuple):
             The divisor of the cap and of every clocked step.
         """
         if factor == 1.0 or not self.corners.size:
-            return self._replace(step=self.step / factor, points=self.points * factor)
+            return self._replace(step=self.step / factor, points=self.points * factor, cost=self.cost * factor)
         corners = _clock(self.time, self.share, self.step / factor)
-        return self._replace(step=self.step / factor, points=self.points * factor,
+        return self._replace(step=self.step / factor, points=self.points * factor, cost=self.cost * factor,
                              corners=self.corners if corners is None else corners)
 
 
-def _shares(system, motion: _Motion, level: float, worth: float) -> np.ndarray:
-    """ρ ≤ 1 at each sample: the step's share of the cap where the local error density passes *level* of its
-    largest and the share is under *worth* (a clocked step costs more than a free one)."""
-    density = np.max(_relative(system, motion, motion.trapezoidal), axis=1)
+def _shares(density: np.ndarray, level: float, worth: float) -> np.ndarray:
+    """ρ ≤ 1 at each sample: the step's share of the cap where the local error *density* passes *level* of
+    its largest and the share is under *worth* (a clocked step costs more than a free one)."""
     ref = level * float(np.max(density, initial=0.0))
     if not ref > 0:
         return np.ones_like(density)
@@ -383,31 +392,39 @@ def _clock(t: np.ndarray, share: np.ndarray, step: float) -> np.ndarray | None:
     return corners[(corners > 0) & (corners < t[-1])]
 
 
-def _schedule(system, motion: _Motion, share: np.ndarray, allowed: float) -> MotionSchedule | None:
+def _carried_shares(motion: _Motion, shares: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """E_ρ and E_Euler in (x, v), (m, 2n, K), for K columns of shares ρ (m, K): ρ²·σ and the Euler
+    steps after the corners, carried at once."""
+    clocked = shares < 1.0
+    trapezoidal = _carried(motion.propagators, shares[:, None, :] ** 2 * motion.trapezoidal[:, :, None])
+    weight = np.where(clocked, _EULER * CORNER_GAP * shares, 0.0)
+    return trapezoidal, _carried(motion.propagators, weight[:, None, :] * motion.euler[:, :, None])
+
+
+def _schedule(system, motion: _Motion, share: np.ndarray, carried: tuple, allowed: float) -> MotionSchedule | None:
     """The cap under which every joint rate's error h²·|E_ρ| + h·|E_Euler| stays within *allowed* of its
-    peak, E_ρ carried from ρ²·σ and E_Euler from the Euler steps after the corners; None past the corners' limit."""
+    peak (*carried*: E_ρ and E_Euler for this *share*); None past the corners' limit."""
     clocked = share < 1.0
-    trapezoidal = _relative(system, motion, _carried(motion.propagators, share[:, None] ** 2 * motion.trapezoidal))
-    weight = np.where(clocked, _EULER * CORNER_GAP * share, 0.0)
-    euler = _relative(system, motion, _carried(motion.propagators, weight[:, None] * motion.euler))
+    trapezoidal, euler = (_relative(system, motion, error) for error in carried)
     with np.errstate(divide="ignore", invalid="ignore"):
         steps = 2.0 * allowed / (euler + np.sqrt(euler ** 2 + 4.0 * trapezoidal * allowed))
     step = min(float(np.min(steps, initial=math.inf)), _interpolation_step(motion, allowed))
     if not math.isfinite(step):
-        return MotionSchedule(step, np.zeros(0), 1.0, motion.time, share)
+        return MotionSchedule(step, np.zeros(0), 1.0, 1.0, motion.time, share)
     if not clocked.any():
-        return MotionSchedule(step, np.zeros(0), motion.time[-1] / step, motion.time, share)
+        return MotionSchedule(step, np.zeros(0), motion.time[-1] / step, motion.time[-1] / step, motion.time, share)
     corners = _clock(motion.time, share, step)
     if corners is None:
         return None
     inner = np.minimum(share[:-1], share[1:]) < 1.0
     free = float(np.sum(np.diff(motion.time)[~inner]))
     pairs = corners.size / (2 if CORNER_PAIR else 1)
-    return MotionSchedule(step, corners, free / step + CORNER_STEPS * pairs, motion.time, share)
+    points = free / step + CORNER_STEPS * pairs
+    return MotionSchedule(step, corners, points, points + PAIR_COST * pairs, motion.time, share)
 
 
 def motion_schedule(system, bound: float, safety: float, timeout: float | None = None) -> MotionSchedule | None:
-    """The schedule of fewest foretold points that holds every joint rate's and contact force's error
+    """The schedule of least foretold cost that holds every joint rate's and contact force's error
     within bound/*safety* of its own peak: the uniform step (:func:`motion_step`), or a cap with a
     clock where the motion's local error density passes one of :data:`_LEVELS` of its largest; None
     where the motion could not be integrated (the caller keeps its cap then, and the run is judged).
@@ -427,7 +444,16 @@ def motion_schedule(system, bound: float, safety: float, timeout: float | None =
         motion = _motion(system, timeout)
     except SimulationError:
         return None
-    candidates = [_schedule(system, motion, np.ones(motion.time.size), bound / safety)]
-    candidates += [_schedule(system, motion, _shares(system, motion, level, worth), bound / safety)
-                   for level in _LEVELS for worth in _WORTH]
-    return min((c for c in candidates if c is not None), key=lambda c: c.points)
+    known = _schedules.setdefault(system, {})
+    if (bound, safety) not in known:
+        density = np.max(_relative(system, motion, motion.trapezoidal), axis=1)
+        shares = np.unique(np.column_stack([np.ones(motion.time.size)] + [
+            _shares(density, level, worth) for level in _LEVELS for worth in _WORTH]), axis=1)
+        candidates = []
+        for k in range(0, shares.shape[1], _BATCH):        # a few at a time: each holds (m, 2n) errors
+            part = shares[:, k:k + _BATCH]
+            trapezoidal, euler = _carried_shares(motion, part)
+            candidates += [_schedule(system, motion, part[:, j], (trapezoidal[:, :, j], euler[:, :, j]),
+                                     bound / safety) for j in range(part.shape[1])]
+        known[(bound, safety)] = min((c for c in candidates if c is not None), key=lambda c: c.cost)
+    return known[(bound, safety)]
