@@ -33,5 +33,7 @@ def first_step_lines(settings, node: str) -> list[str]:
         rows = [" ".join(f"{_num(t)} 0" for t in clock[j:j + 8]) for j in range(0, len(clock), 8)]
         lines += [f"* zero current; {len(clock)} corners from t = {_num(clock[0])} to {_num(clock[-1])} s keep "
                   "ngspice's steps short where the motion is fast",
+                  "* where ngspice stops at 'timestep too small' in them, analogy's own run raises abstol and vntol "
+                  "1e3, then 1e6 times, then drops this source",
                   f"Iclock 0 {node} PWL(0 0 {rows[0]}"] + [f"+ {r}" for r in rows[1:]] + ["+ )"]
     return lines
