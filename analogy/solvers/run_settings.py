@@ -82,8 +82,8 @@ class TransientSettings:
         Corners where ngspice must step short (:class:`~analogy.solvers.motion_step.MotionSchedule`):
         a nonlinear circuit's fast decays and contact switches, which its truncation check does not follow.
     unclocked : float or None
-        The step cap a clocked run falls back to when its step collapses under every retry: some
-        circuits cannot step as short as their clock asks (the xArm7's, past about 200 steps of 1e-7 s).
+        The step cap a clocked run falls back to when its step collapses under every retry: a clock
+        may ask steps shorter than a circuit takes (the xArm7's under a clock of 2,601 pairs).
     impedance : float or None
         The circuit's impedance scale [Ω]: its velocity scale over its current scale
         (gnucap's dialect sizes the resistance of its voltage sources from it).
