@@ -19,6 +19,7 @@ from ..errors import InputError, SimulationError
 from .error_constants import (CALIBRATED_MAX_STEPS, CALIBRATED_TOPOLOGIES, FLOOR_LIMIT, SAFETY, SERIAL_NODE_LIMIT,
                               calibrated_options, calibrated_reltol)
 from .motion_step import MotionSchedule, motion_schedule
+from .truncation import MODEL_SHARE, TruncationModel, truncation_model
 from .run_settings import (NGSPICE_FIRST_STEP, NGSPICE_RELTOL, RETRY_LOOSEN, RETRY_TIGHTEN, TransientSettings,
                            checked_options)
 from ..presets import Preset
@@ -115,7 +116,8 @@ def transient_settings(preset: Preset, t_stop: float, scales: Scales | None, *,
                        behavioural: bool = False, coupled: bool = False, constrained: bool = False,
                        breakpoints: np.ndarray | None = None, loosen: float = 1.0,
                        custom: bool = False, operations: float | None = None,
-                       motion: MotionSchedule | None = None) -> TransientSettings:
+                       motion: MotionSchedule | None = None,
+                       truncation: TruncationModel | None = None) -> TransientSettings:
     """The transient settings of a circuit with *scales* over *t_stop* at *preset*.
 
     The absolute tolerances are the preset's relative ones times the circuit's current,
@@ -136,38 +138,37 @@ def transient_settings(preset: Preset, t_stop: float, scales: Scales | None, *,
     behavioural : bool
         The circuit has behavioural parts: the preset's behavioural options and step cap.
     coupled : bool
-        The circuit has 1:−1 couplings (ideal sources across capacitors): gear integration,
-        since the trapezoidal rule rings from step to step there.
+        The circuit has 1:−1 couplings (ideal sources across capacitors): gear, as the trapezoidal rule rings there.
     constrained : bool
-        The circuit has loop-closure nodes (a closed chain): reltol at most 10× the
-        preset's bound. Newton stops once each node moves less than reltol of its value,
-        and a multiplier's node has no capacitor to smooth what is left: at ngspice's
-        1e-3 the 3-RRR's constraint forces missed 1e-6 by 16 times, at 1e-5 the run
-        converges as h² (``tests/test_closed_chains.py``).
+        The circuit has loop-closure nodes (a closed chain): reltol at most 10× the preset's bound. Newton
+        stops once each node moves less than reltol of its value, and a multiplier's node has no capacitor
+        to smooth what is left: at ngspice's 1e-3 the 3-RRR's constraint forces missed 1e-6 by 16 times, at
+        1e-5 the run converges as h² (``tests/test_closed_chains.py``).
     breakpoints : ndarray, optional
         The forces' breakpoints.
     loosen : float
-        Factor on abstol and vntol: the retry of a run whose step collapsed.
+        Factor on abstol and vntol (a retry).
     custom : bool
-        The circuit is beyond the calibration (:func:`beyond_calibration`): the preset's own settings,
-        as for every circuit the error constants do not speak for (see
-        :data:`~analogy.presets.SpiceSettings.calibrated`; also one whose abstol's rounding floor passes
-        :data:`~analogy.solvers.error_constants.FLOOR_LIMIT` times its current scale).
+        The circuit is beyond the calibration (:func:`beyond_calibration`): the preset's own settings, as for
+        every circuit the error constants do not speak for (:data:`~analogy.presets.SpiceSettings.calibrated`;
+        also one whose abstol's rounding floor passes :data:`~analogy.solvers.error_constants.FLOOR_LIMIT`
+        times its current scale, or whose model's steps pass the budget).
     operations : float, optional
         The circuit's operations a time point (:func:`analogy.circuit.elements.point_operations`; default n³):
         the phase cap is not taken past the preset's operation budget.
     motion : MotionSchedule, optional
         The steps a behavioural circuit's motion asks (:func:`~analogy.solvers.motion_step.motion_schedule`):
         its cap, and the clock's corners where it must step shorter.
+    truncation : TruncationModel, optional
+        A linear circuit's truncation model: at a calibrated preset, its reltol and charge floor (:func:`_modelled`).
     """
     opts = dict(preset.spice.behavioural_options if behavioural else preset.spice.options)
     reltol = spice_run_reltol(preset, scales, behavioural=behavioural or coupled or constrained or custom)
-    calibrated = reltol is not None
-    if calibrated:
+    modelled = (truncation is not None and preset.spice.calibrated and scales is not None
+                and not (behavioural or coupled or constrained or custom))
+    calibrated = reltol is not None or modelled
+    if reltol is not None:
         opts.update(calibrated_options(reltol))
-    if preset.spice.refine and preset.spice.refine_tolerances:  # abstol too: the rounding floor below keeps it where it binds
-        opts.update({k: f"{float(opts[k]) / REFINE ** (3 * preset.spice.refine):.3g}" for k in (*STEP_TOLERANCES, "abstol")
-                     if k in opts})
     if not behavioural:     # a flag: KLU where ngspice has it (46; 39 ignores it). ngspice 46 aborts a
         opts["klu"] = ""    # behavioural circuit under KLU ("out of memory": an .ic on a node with no diagonal entry)
     if coupled:
@@ -195,21 +196,66 @@ def transient_settings(preset: Preset, t_stop: float, scales: Scales | None, *,
         if clock:       # after a near corner ngspice steps a tenth of a last step about a quarter of its gap
             shortest = min(shortest, 0.025 * float(np.min(np.diff(np.concatenate([[0.0], clock])))))
         rounding = ROUNDING_STEPS * scales.rounding_current(shortest)
-        if calibrated and rounding > FLOOR_LIMIT * scales.current:
+        chosen = _modelled(truncation, preset, scales, rounding, tmax, operations) if modelled else None
+        if calibrated and rounding > FLOOR_LIMIT * scales.current or modelled and chosen is None:
             # a rounding floor past the calibration's may judge each step, not reltol: the Panda's (3.2e-7)
-            # left its small r3 at 1.7e-6 at the accurate reltol, in 731 steps whatever the reltol
+            # left its small r3 at 1.7e-6 at the accurate reltol, in 731 steps whatever the reltol; and a
+            # model's steps past the budget are not bought (the preset's own settings run, judged)
             return transient_settings(preset, t_stop, scales, behavioural=behavioural, coupled=coupled,
                                       constrained=constrained, breakpoints=breakpoints, loosen=loosen, custom=True,
                                       operations=operations, motion=motion)
-        _scale_tolerances(opts, scales, rounding, loosen)
-    tmax /= REFINE ** preset.spice.refine            # an estimate's second run: every step REFINE^refine times shorter
-    unclocked /= REFINE ** preset.spice.refine
-    impedance = None
-    if scales is not None and scales.current > 0 and math.isfinite(scales.peak_velocity / scales.current):
-        impedance = scales.peak_velocity / scales.current
+        _written_tolerances(opts, preset, scales, rounding, loosen, chosen)
+    else:
+        _refine_tolerances(opts, preset)
+    tmax, unclocked = (step / REFINE ** preset.spice.refine for step in (tmax, unclocked))   # an estimate's second run
+    impedance = None if scales is None else _impedance(scales)
     return TransientSettings(tuple((k, str(v)) for k, v in checked_options(opts).items()), tstep, t_stop, tmax,
                              first, loosen, clock=clock, unclocked=unclocked if clock else None,
                              impedance=impedance, interpolate=not calibrated)
+
+
+def _impedance(scales: Scales) -> float | None:
+    """The circuit's velocity over current scale [Ω], or None where it has none."""
+    ratio = scales.peak_velocity / scales.current if scales.current > 0 else math.inf
+    return ratio if math.isfinite(ratio) else None
+
+
+def _written_tolerances(opts: dict, preset: Preset, scales: Scales, rounding: float, loosen: float,
+                        chosen: tuple[float, float] | None) -> None:
+    """*opts*' tolerances as written: a truncation model's reltol and charge floor where *chosen*, refined
+    (:func:`_refine_tolerances`), times the circuit's scales (:func:`_scale_tolerances`)."""
+    if chosen:
+        opts.update(calibrated_options(chosen[0]))
+    _refine_tolerances(opts, preset)
+    if chosen:          # a charge floor, not a tolerance: a refinement's steps halve with reltol alone
+        opts["chgtol"] = f"{chosen[1] / scales.charge:.6g}"
+    _scale_tolerances(opts, scales, rounding, loosen)
+
+
+def _refine_tolerances(opts: dict, preset: Preset) -> None:
+    """The step tolerances in *opts* REFINE³ times tighter per refinement of *preset* (abstol too: the
+    rounding floor keeps it where it binds)."""
+    if preset.spice.refine and preset.spice.refine_tolerances:
+        opts.update({k: f"{float(opts[k]) / REFINE ** (3 * preset.spice.refine):.3g}"
+                     for k in (*STEP_TOLERANCES, "abstol") if k in opts})
+
+
+def _modelled(truncation: TruncationModel, preset: Preset, scales: Scales, rounding: float, tmax: float,
+              operations: float | None) -> tuple[float, float] | None:
+    """reltol and chgtol [C] whose foretold error is :data:`~analogy.solvers.truncation.MODEL_SHARE` of the
+    bound (:meth:`~analogy.solvers.truncation.TruncationModel.tolerances`); None where the points foretold
+    pass the preset's step or operation budget."""
+    reltol, chgtol, points = truncation.tolerances(MODEL_SHARE * preset.bound,
+                                                   lambda r: _modelled_abstol(r, scales, rounding), scales.charge, tmax)
+    t_stop = truncation.time[-1]
+    return (reltol, chgtol) if math.isfinite(_bought(preset, t_stop, t_stop / points, scales, operations)) else None
+
+
+def _modelled_abstol(reltol: float, scales: Scales, rounding: float) -> float:
+    """abstol as a run at *reltol* writes it (:func:`calibrated_options` on *scales*, the rounding floor)."""
+    opts = {"abstol": calibrated_options(reltol)["abstol"]}
+    _scale_tolerances(opts, scales, rounding, 1.0)
+    return float(opts["abstol"])
 
 
 def _scale_tolerances(opts: dict, scales: Scales, rounding: float, loosen: float) -> None:
@@ -299,13 +345,16 @@ def circuit_settings(system, c: Circuit, preset: Preset, loosen: float = 1.0) ->
     loosen : float
         Factor on abstol and vntol (the retries after a collapsed step).
     """
-    motion = None
+    motion = truncation = None
+    custom = beyond_calibration(system)
     if c.behavioural and not c.constraints and getattr(system, "kind", None) == "nonlinear":
         motion = motion_schedule(system, preset.bound, SAFETY, timeout=preset.budget.timeout)
+    elif preset.spice.calibrated and not (c.behavioural or c.couplings or c.constraints or custom):
+        truncation = truncation_model(system)
     return transient_settings(preset, system.t_stop, system_scales(system), behavioural=bool(c.behavioural),
                               coupled=bool(c.couplings), constrained=bool(c.constraints),
-                              breakpoints=system.breakpoints(), loosen=loosen, custom=beyond_calibration(system),
-                              operations=point_operations(system), motion=motion)
+                              breakpoints=system.breakpoints(), loosen=loosen, custom=custom,
+                              operations=point_operations(system), motion=motion, truncation=truncation)
 
 
 def netlist(system, preset: str | Preset = "accurate", save: Iterable[str] | None = None,
