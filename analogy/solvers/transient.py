@@ -19,7 +19,7 @@ from ..errors import InputError, SimulationError
 from .error_constants import (CALIBRATED_MAX_STEPS, CALIBRATED_TOPOLOGIES, FLOOR_LIMIT, SAFETY, SERIAL_NODE_LIMIT,
                               calibrated_options, calibrated_reltol)
 from .motion_step import MotionSchedule, motion_schedule
-from .truncation import MODEL_SHARE, TruncationModel, truncation_model
+from .truncation import MODEL_SHARE, Tolerances, TruncationModel, truncation_model
 from .run_settings import (NGSPICE_FIRST_STEP, NGSPICE_RELTOL, RETRY_LOOSEN, RETRY_TIGHTEN, TransientSettings,
                            checked_options)
 from ..presets import Preset
@@ -160,7 +160,7 @@ def transient_settings(preset: Preset, t_stop: float, scales: Scales | None, *,
         The steps a behavioural circuit's motion asks (:func:`~analogy.solvers.motion_step.motion_schedule`):
         its cap, and the clock's corners where it must step shorter.
     truncation : TruncationModel, optional
-        A linear circuit's truncation model: at a calibrated preset, its reltol and charge floor (:func:`_modelled`).
+        A linear circuit's truncation model: at a calibrated preset, its reltol, charge floor and cap (:func:`_modelled`).
     """
     opts = dict(preset.spice.behavioural_options if behavioural else preset.spice.options)
     reltol = spice_run_reltol(preset, scales, behavioural=behavioural or coupled or constrained or custom)
@@ -204,7 +204,7 @@ def transient_settings(preset: Preset, t_stop: float, scales: Scales | None, *,
             return transient_settings(preset, t_stop, scales, behavioural=behavioural, coupled=coupled,
                                       constrained=constrained, breakpoints=breakpoints, loosen=loosen, custom=True,
                                       operations=operations, motion=motion)
-        _written_tolerances(opts, preset, scales, rounding, loosen, chosen)
+        tmax = _written_tolerances(opts, preset, scales, rounding, loosen, chosen) or tmax
     else:
         _refine_tolerances(opts, preset)
     tmax, unclocked = (step / REFINE ** preset.spice.refine for step in (tmax, unclocked))   # an estimate's second run
@@ -221,15 +221,16 @@ def _impedance(scales: Scales) -> float | None:
 
 
 def _written_tolerances(opts: dict, preset: Preset, scales: Scales, rounding: float, loosen: float,
-                        chosen: tuple[float, float] | None) -> None:
+                        chosen: Tolerances | None) -> float | None:
     """*opts*' tolerances as written: a truncation model's reltol and charge floor where *chosen*, refined
-    (:func:`_refine_tolerances`), times the circuit's scales (:func:`_scale_tolerances`)."""
+    (:func:`_refine_tolerances`), times the circuit's scales (:func:`_scale_tolerances`); the model's cap."""
     if chosen:
-        opts.update(calibrated_options(chosen[0]))
+        opts.update(calibrated_options(chosen.reltol))
     _refine_tolerances(opts, preset)
     if chosen:          # a charge floor, not a tolerance: a refinement's steps halve with reltol alone
-        opts["chgtol"] = f"{chosen[1] / scales.charge:.6g}"
+        opts["chgtol"] = f"{chosen.chgtol / scales.charge:.6g}"
     _scale_tolerances(opts, scales, rounding, loosen)
+    return chosen.max_step if chosen else None
 
 
 def _refine_tolerances(opts: dict, preset: Preset) -> None:
@@ -241,14 +242,14 @@ def _refine_tolerances(opts: dict, preset: Preset) -> None:
 
 
 def _modelled(truncation: TruncationModel, preset: Preset, scales: Scales, rounding: float, tmax: float,
-              operations: float | None) -> tuple[float, float] | None:
-    """reltol and chgtol [C] whose foretold error is :data:`~analogy.solvers.truncation.MODEL_SHARE` of the
-    bound (:meth:`~analogy.solvers.truncation.TruncationModel.tolerances`); None where the points foretold
-    pass the preset's step or operation budget."""
-    reltol, chgtol, points = truncation.tolerances(MODEL_SHARE * preset.bound,
-                                                   lambda r: _modelled_abstol(r, scales, rounding), scales.charge, tmax)
+              operations: float | None) -> Tolerances | None:
+    """The settings whose foretold error is :data:`~analogy.solvers.truncation.MODEL_SHARE` of the bound
+    (:meth:`~analogy.solvers.truncation.TruncationModel.tolerances`); None where the points foretold pass
+    the preset's step or operation budget."""
+    chosen = truncation.tolerances(MODEL_SHARE * preset.bound, lambda r: _modelled_abstol(r, scales, rounding),
+                                   scales.charge, tmax)
     t_stop = truncation.time[-1]
-    return (reltol, chgtol) if math.isfinite(_bought(preset, t_stop, t_stop / points, scales, operations)) else None
+    return chosen if math.isfinite(_bought(preset, t_stop, t_stop / chosen.points, scales, operations)) else None
 
 
 def _modelled_abstol(reltol: float, scales: Scales, rounding: float) -> float:

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 import weakref
-from typing import Callable
+from typing import Callable, NamedTuple
 
 import numpy as np
 
@@ -28,7 +28,7 @@ from ..circuit.scales import system_scales
 from ..errors import SimulationError
 from .error_constants import RELTOL_LIMITS
 
-__all__ = ["MODEL_POINTS", "MODEL_LIMIT", "MODEL_SHARE", "CHARGE_FLOORS", "TruncationModel", "truncation_model"]
+__all__ = ["MODEL_POINTS", "MODEL_LIMIT", "MODEL_SHARE", "CHARGE_FLOORS", "Tolerances", "TruncationModel", "truncation_model"]
 
 #: Samples the motion is taken at, at least; more where the fastest rate asks six a radian.
 MODEL_POINTS = 2000
@@ -52,6 +52,8 @@ _SEGMENT_POINTS = 9
 _DIVIDED = 72.0
 #: Eigenvector conditioning past which the modal propagation is not trusted.
 _CONDITION = 1e8
+#: The most states (2n with springs) carried by dense exponentials where the modes are not.
+_DENSE_LIMIT = 48
 
 _models: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
 
@@ -108,6 +110,15 @@ def _incidence(matrix: np.ndarray | None, n: int) -> tuple[np.ndarray, np.ndarra
     return np.array(rows).reshape(-1, n), np.array(values)
 
 
+class Tolerances(NamedTuple):
+    """ngspice's settings a truncation model chose, and the time points it foretells for them."""
+
+    reltol: float
+    chgtol: float           # [C]
+    max_step: float         # [s]
+    points: float
+
+
 class TruncationModel:
     """A linear circuit's reactive elements and local errors along its exact motion.
 
@@ -147,15 +158,20 @@ class TruncationModel:
         if springs:
             flow = np.block([[np.zeros((n, n)), np.eye(n)], [-inverse_mass @ system.stiffness, flow]])
         lam, vectors = np.linalg.eig(flow)
-        if not np.linalg.cond(vectors) < _CONDITION:
+        h = np.diff(t)
+        if np.linalg.cond(vectors) < _CONDITION:
+            self._vectors = vectors[-n:]                       # the modes' node velocities
+            self._density = density @ np.linalg.inv(vectors).T  # in modal coordinates
+            z = lam[None, :] * h[:, None]
+            self._decay = np.exp(z)
+            self._before = h[:, None] * (phi1(z) - phi2(z))   # exact for a source linear between samples
+            self._after = h[:, None] * phi2(z)
+            self._dense = None
+        elif flow.shape[0] <= _DENSE_LIMIT:     # a double root (a free mode beside springs): the flow itself
+            self._vectors, self._density = np.eye(flow.shape[0])[-n:], density
+            self._dense = _dense_propagators(flow, h)
+        else:
             raise SimulationError("the circuit's modes are too near a double root for the truncation model")
-        self._vectors = vectors[-n:]                       # the modes' node velocities
-        self._density = density @ np.linalg.inv(vectors).T  # in modal coordinates
-        z = lam[None, :] * np.diff(t)[:, None]
-        h = np.diff(t)[:, None]
-        self._decay = np.exp(z)
-        self._before = h * (phi1(z) - phi2(z))              # exact for a source linear between samples
-        self._after = h * phi2(z)
 
     def steps(self, reltol: float, abstol: float, chgtol: float, max_step: float, trtol: float = 1.0) -> np.ndarray:
         """The step ngspice's truncation check takes at each sample (see the module's note).
@@ -197,7 +213,10 @@ class TruncationModel:
             The step at each sample [s].
         """
         source = self._density * (steps ** 2)[:, None]
-        carried = _carried(self._decay, self._before * source[:-1] + self._after * source[1:])
+        if self._dense is None:
+            carried = _carried(self._decay, self._before * source[:-1] + self._after * source[1:])
+        else:
+            carried = _carried_dense(self._dense, source)
         system = self.system()
         error = np.abs(system.joint_rates((carried @ self._vectors.T).real))
         worst = np.max(error, axis=0)
@@ -206,9 +225,12 @@ class TruncationModel:
         return np.where(np.isfinite(share), share, 0.0)
 
     def tolerances(self, target: float, abstol: Callable[[float], float], charge: float,
-                   max_step: float) -> tuple[float, float, float]:
-        """reltol and chgtol of the fewest foretold points whose worst error is at most *target*:
-        chgtol under every charge (1e-10·reltol of the scale) or one of :data:`CHARGE_FLOORS` of it.
+                   max_step: float) -> "Tolerances":
+        """The settings of the fewest foretold points whose worst error is at most *target*: at the cap
+        *max_step*, the reltol for chgtol under every charge (1e-10·reltol of the scale) or for each of
+        :data:`CHARGE_FLOORS` of it; or, ngspice's check loose (reltol 1e-3), the cap that holds the
+        error alone (an undamped oscillation's error grows with every step, so its best steps are
+        about uniform: the UR5 hanging, 277,373 points by the check, 254,000 by the cap).
 
         Parameters
         ----------
@@ -220,23 +242,37 @@ class TruncationModel:
             The circuit's charge scale [C].
         max_step : float
             The step cap [s].
-
-        Returns
-        -------
-        reltol, chgtol, points : float
         """
         key = (target, charge, max_step, abstol(1e-12), abstol(1e-6))
         if key in self._chosen:
             return self._chosen[key]
-        best = (math.inf, 0.0, 0.0)
+        candidates = []
         for floor in (None, *CHARGE_FLOORS):
             def options(r: float, floor=floor) -> tuple[float, float]:
                 return abstol(r), float(f"{(1e-10 * r if floor is None else floor) * charge:.3g}")
             r = self.reltol(target, options, max_step)
-            points = self.points(self.steps(r, *options(r), max_step))
-            best = min(best, (points, r, options(r)[1]))
-        self._chosen[key] = best[1], best[2], best[0]
+            candidates.append(Tolerances(r, options(r)[1], max_step,
+                                         self.points(self.steps(r, *options(r), max_step))))
+        loose = RELTOL_LIMITS[1]
+        cap = self._cap(target, (loose, abstol(loose), charge), max_step)
+        candidates.append(Tolerances(loose, charge, cap, self.points(self.steps(loose, abstol(loose), charge, cap))))
+        self._chosen[key] = min(candidates, key=lambda c: c.points)
         return self._chosen[key]
+
+    def _cap(self, target: float, options: tuple[float, float, float], max_step: float) -> float:
+        """The longest cap within *max_step* whose foretold worst error, at *options*, is at most *target*."""
+        def error(cap: float) -> float:
+            return float(np.max(self.errors(self.steps(*options, cap)), initial=0.0))
+
+        cap, best = max_step, 0.0
+        for _ in range(8):              # the error goes as cap² where the cap sets the steps
+            e = error(cap)
+            if e <= target:
+                best = max(best, cap)
+                if e > target / 1.03 or cap >= max_step:
+                    break
+            cap = min(max_step, cap * math.sqrt(target / 1.015 / e)) if e > 0 else max_step
+        return best if best > 0 else cap
 
     def reltol(self, target: float, tolerances: Callable[[float], tuple[float, float]], max_step: float) -> float:
         """The loosest reltol whose foretold worst error is at most *target*: a secant in log-log, bracketed
@@ -273,6 +309,33 @@ class TruncationModel:
             if e > 0 and last[1] > 0 and r != last[0]:      # the secant's slope, within reason
                 slope = min(2.0, max(0.2, math.log(e / last[1]) / math.log(r / last[0])))
         return r if e <= target else below[0]
+
+
+def _dense_propagators(flow: np.ndarray, steps: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """e^(A·h), h·(φ₁ − φ₂)(A·h) and h·φ₂(A·h) for each step *h* (one exponential per distinct step): the
+    exact propagation of y′ = A·y + s with s linear between samples."""
+    from scipy.linalg import expm
+
+    d = flow.shape[0]
+    distinct, which = np.unique(steps, return_inverse=True)
+    parts = np.zeros((3, distinct.size, d, d))
+    augmented = np.zeros((3 * d, 3 * d))
+    augmented[d:2 * d, 2 * d:] = np.eye(d)
+    for k, h in enumerate(distinct):
+        augmented[:d, :d], augmented[:d, d:2 * d] = flow * h, np.eye(d) * h
+        block = expm(augmented)[:d]
+        parts[0, k], parts[1, k], parts[2, k] = block[:, :d], block[:, d:2 * d] - block[:, 2 * d:], block[:, 2 * d:]
+    return parts[0][which], parts[1][which], parts[2][which]
+
+
+def _carried_dense(propagators: tuple, source: np.ndarray) -> np.ndarray:
+    """y_k = E_k·y_(k−1) + B_k·s_(k−1) + C_k·s_k from y_0 = 0 (:func:`_dense_propagators`)."""
+    decay, before, after = propagators
+    out = np.zeros_like(source)
+    pushed = np.einsum("kij,kj->ki", before, source[:-1]) + np.einsum("kij,kj->ki", after, source[1:])
+    for k in range(1, source.shape[0]):
+        out[k] = decay[k - 1] @ out[k - 1] + pushed[k - 1]
+    return out
 
 
 #: Nepers a block of :func:`_carried` spans at most: its products stay within e^±200 of one.
