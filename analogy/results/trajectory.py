@@ -129,8 +129,12 @@ class Trajectory(Tabular):
         return (f"Trajectory({self.solver}: {self.time.size} points to t = {self.time[-1]:g} s, "
                 f"{self.rates.shape[1]} joints, {self.run_time * 1e3:.3g} ms{guess})")
 
-    def resampled(self, times: np.ndarray, joint_rates) -> "Trajectory":
-        """This trajectory linearly interpolated onto *times* (an output grid, not a new solution).
+    def resampled(self, times: np.ndarray, joint_rates, breakpoints=None) -> "Trajectory":
+        """This trajectory interpolated onto *times* (an output grid, not a new solution): by a cubic
+        spline through its points inside each interval between *breakpoints*, where the motion is smooth,
+        linearly without them or where an interval holds fewer than four points. A cubic errs h⁴·|y⁗|/384
+        between points h apart, under the trapezoidal rule's own h²·E; a straight line h²/8·|y″|, which
+        at the steps a truncation model allows passes the bound (the default arm: 1.1e-6 at accurate).
 
         Parameters
         ----------
@@ -138,14 +142,19 @@ class Trajectory(Tabular):
             New output times within the trajectory's span.
         joint_rates : callable
             R = T⁻¹·v of the system, for the new voltages.
+        breakpoints : array_like, optional
+            Times where the forces' derivatives jump (:meth:`NodeSystem.breakpoints`).
         """
         t = np.asarray(times, dtype=float)
+        edges = np.unique(np.concatenate([[self.time[0]], np.asarray(breakpoints if breakpoints is not None else [],
+                                                                      float), [self.time[-1]]]))
+        smooth = breakpoints is not None
 
         def interp(a):
-            return None if a is None else np.column_stack([np.interp(t, self.time, a[:, j])
-                                                           for j in range(a.shape[1])])
+            return None if a is None else _piecewise(self.time, np.asarray(a, float).reshape(len(self.time), -1), t,
+                                                     edges, smooth).reshape((t.size,) + np.shape(a)[1:])
         volts = interp(self.voltages)
-        currents = {k: np.interp(t, self.time, x) for k, x in self.currents.items()}
+        currents = {k: interp(x) for k, x in self.currents.items()}
         return Trajectory(self.solver, t, volts, joint_rates(volts), interp(self.positions), currents,
                           self.success, "; ".join(m for m in (self.message, f"interpolated from its {self.time.size} "
                                                                                "own time points") if m),
@@ -186,3 +195,21 @@ class Trajectory(Tabular):
         """
         from .plots import plot_trajectory
         return plot_trajectory(self, path)
+
+
+def _piecewise(time: np.ndarray, values: np.ndarray, t: np.ndarray, edges: np.ndarray, smooth: bool) -> np.ndarray:
+    """*values* (m, k) on *time* at *t*: a not-a-knot cubic spline inside each interval of *edges* (*smooth*),
+    else linear."""
+    out = np.column_stack([np.interp(t, time, values[:, j]) for j in range(values.shape[1])]) if values.size \
+        else np.zeros((t.size, values.shape[1]))
+    if not smooth:
+        return out
+    from scipy.interpolate import CubicSpline     # only where a grid is resampled
+
+    for a, b in zip(edges[:-1], edges[1:]):
+        inside = (time >= a) & (time <= b)
+        x, keep = np.unique(time[inside], return_index=True)
+        wanted = (t >= a) & (t <= b)
+        if x.size >= 4 and wanted.any():
+            out[wanted] = CubicSpline(x, values[inside][keep], axis=0)(t[wanted])
+    return out

@@ -143,7 +143,7 @@ def solve_spice(system, times=None, *, preset="accurate", save=None) -> Trajecto
         tr = replace(tr, currents={**tr.currents, **{name: np.concatenate([np.full(start, nodes[name]), data[vec]])
                                                      for name, vec in zip(names, vectors[system.dof:]) if name in nodes}})
     tr = replace(tr, message=note, settings=settings) if note else replace(tr, settings=settings)
-    return tr if times is None else tr.resampled(system.time_points(times), system.joint_rates)
+    return tr if times is None else tr.resampled(system.time_points(times), system.joint_rates, system.breakpoints())
 
 
 class SpiceSolver(Solver):

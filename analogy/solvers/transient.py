@@ -332,7 +332,7 @@ def beyond_calibration(system) -> bool:
     return name not in CALIBRATED_TOPOLOGIES or (name == "serial" and system.dof > SERIAL_NODE_LIMIT)
 
 
-def circuit_settings(system, c: Circuit, preset: Preset, loosen: float = 1.0) -> TransientSettings:
+def circuit_settings(system, c: Circuit, preset: Preset, loosen: float = 1.0, engine: Dialect = "ngspice") -> TransientSettings:
     """The transient settings of *system*'s circuit *c* at *preset*: what a run and its netlist share.
 
     Parameters
@@ -345,12 +345,15 @@ def circuit_settings(system, c: Circuit, preset: Preset, loosen: float = 1.0) ->
         The accuracy preset.
     loosen : float
         Factor on abstol and vntol (the retries after a collapsed step).
+    engine : {"ngspice", "gnucap", "ltspice"}
+        The engine that runs it: the truncation model follows ngspice's check, not the others'.
     """
     motion = truncation = None
     custom = beyond_calibration(system)
     if c.behavioural and not c.constraints and getattr(system, "kind", None) == "nonlinear":
         motion = motion_schedule(system, preset.bound, SAFETY, timeout=preset.budget.timeout)
-    elif preset.spice.calibrated and not (c.behavioural or c.couplings or c.constraints or custom):
+    elif engine == "ngspice" and preset.spice.calibrated and not (c.behavioural or c.couplings or c.constraints
+                                                                   or custom):
         truncation = truncation_model(system)
     return transient_settings(preset, system.t_stop, system_scales(system), behavioural=bool(c.behavioural),
                               coupled=bool(c.couplings), constrained=bool(c.constraints),
@@ -400,7 +403,7 @@ def netlist(system, preset: str | Preset = "accurate", save: Iterable[str] | Non
         return write_netlist(system, settings, save, title, printing, dialect)
     c = describe(system, zero_tol, getattr(system, "realizable", False) if realizable is None else realizable)
     try:
-        settings = settings or circuit_settings(system, c, preset, loosen)
+        settings = settings or circuit_settings(system, c, preset, loosen, dialect)
     except SimulationError as exc:      # no netlist can be written for it: the input's scale
         raise InputError(str(exc)) from None
     return write_netlist(c, settings, save, title, printing, dialect)

@@ -115,7 +115,7 @@ class StackRuns:
             self.own[name] = trs
             if any(g is not None and tr.success for g, tr in zip(self.grids, trs)):
                 self.resampled.add(name)
-                trs = TrajectoryStack([tr.resampled(self.grids[k], s.joint_rates)
+                trs = TrajectoryStack([tr.resampled(self.grids[k], s.joint_rates, s.breakpoints())
                                        if tr.success and self.grids[k] is not None else tr
                                        for k, (tr, s) in enumerate(zip(trs, systems))])
             self.grids = [tr.time if tr.success and g is None else g for g, tr in zip(self.grids, trs)]
@@ -158,7 +158,8 @@ class StackRuns:
         self.own[name] = TrajectoryStack([sufficient(better[k], self.systems[k], self.preset)
                                           if k in better and not self.given else better.get(k, tr)
                                           for k, tr in enumerate(self.own[name])])
-        self.shown[name] = TrajectoryStack([replace(better[k].resampled(self.grids[k], self.systems[k].joint_rates),
+        self.shown[name] = TrajectoryStack([replace(better[k].resampled(self.grids[k], self.systems[k].joint_rates,
+                                                                   self.systems[k].breakpoints()),
                                                     message=self.own[name][k].message) if k in better else tr
                                             for k, tr in enumerate(self.shown[name])])
         self.resampled.add(name)
