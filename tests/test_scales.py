@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from analogy.solvers.transient import netlist
+from analogy.solvers.transient import netlist, transient_settings
 from analogy.circuit.node_system import node_system
 from analogy.circuit.scales import combined_scales, system_scales
 from analogy.model.joint import JointSpace
@@ -47,14 +47,15 @@ def test_the_fastest_oscillation_is_the_largest_damped_natural_frequency():
 
 
 def test_a_fast_mode_caps_the_step_and_shortens_the_first_step_not_the_print_step():
-    """ω = 2000 rad/s over 1 s: tmax = 0.016/ω at accurate (not t_stop/20000); the print step
-    stays t_stop/1000, and a zero source's corner at t_b makes ngspice's first step
-    t_b/100 = 3e-4/ω, which its own (a hundredth of the print step) is not."""
+    """ω = 2000 rad/s over 1 s: under the preset's own settings (no truncation model) tmax = 0.016/ω at
+    accurate, not t_stop/20000; the print step stays t_stop/1000, and a zero source's corner at t_b
+    makes ngspice's first step t_b/100 = 3e-4/ω, which its own (a hundredth of the print step) is not."""
     s = node_system(JointSpace([[1.0, 0], [0, 1.0]], stiffness=[[4e6, 0], [0, 1.0]]), forces=[1, 0],
                     t_stop=1.0)
+    own = transient_settings(PRESETS["accurate"], s.t_stop, system_scales(s), breakpoints=s.breakpoints())
+    assert own.max_step == pytest.approx(0.016 / 2e3, rel=1e-12)
     text = netlist(s, "accurate")
     tstep, t_stop, tmax = tran_line(text)
-    assert tmax == pytest.approx(0.016 / 2e3, rel=1e-12)
     assert tstep == pytest.approx(t_stop / 1000, rel=1e-12) and tstep / 100 > 3e-4 / 2e3
     corner = next(ln for ln in text.splitlines() if ln.startswith("Ifirst_step"))
     assert corner.startswith("Ifirst_step 0 n1 PWL(0 0 ") and corner.endswith(" 0)")

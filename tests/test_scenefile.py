@@ -185,8 +185,9 @@ def test_netlist_only_scene_imports_no_solver(tmp_path):
         from analogy.scenes.run import run_scene
         r = run_scene(load_scene({str(SCENES_DIR / 'serial2_netlist.toml')!r}), {str(tmp_path)!r})
         assert r.netlist and r.netlist.rstrip().endswith(".end")
-        mods = ["PySpice", "scipy.integrate", "matplotlib", "analogy.solvers.spice",
-                "analogy.solvers.ode", "analogy.solvers.exact"]
+        # the exact solution is read (a linear netlist's settings come from its truncation model, which
+        # follows the exact motion); no simulator is
+        mods = ["PySpice", "scipy.integrate", "matplotlib", "analogy.solvers.spice", "analogy.solvers.ode"]
         print(json.dumps({{m: m in sys.modules for m in mods}}))
     """)
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
@@ -310,7 +311,10 @@ def _system(name):
 @pytest.mark.parametrize("name", ["currents.toml", "default.toml", "springs3 from rest", "serial2",
                                   "parallel3"])
 def test_spice_element_currents_match_exact(name):
-    """Per element kind, SPICE's device currents within 1e-6 of the peak of the exact ones."""
+    """Per element kind, SPICE's device currents within 1e-6 of the peak of the exact ones. The currents
+    are not outputs a preset's bound promises: a capacitor's is the rule's chord slope, off by about
+    h²·|i‴|/12 on the steps taken, and at accurate the truncation model's steps (chosen for the joint
+    rates) leave 1.4e-6 of the peak on the default arm. At a tolerance of 1e-8 they hold 1e-6 with room."""
     from analogy.circuit.elements import elements
     from analogy.solvers.transient import netlist
     from analogy.solvers.exact import solve_exact
@@ -319,7 +323,7 @@ def test_spice_element_currents_match_exact(name):
     els = elements(s)
     names = [e.name for e in els]
     # Upper-case device names and v(...) both reach their vectors.
-    data = run_netlist(netlist(s, "accurate", save=s.nodes + names),
+    data = run_netlist(netlist(s, "1e-8", save=s.nodes + names),
                        [f"@{n}[i]" for n in names] + [f"v({n})" for n in s.nodes])
     ex = solve_exact(s, data["time"], positions=True)
     exact = element_currents(s, ex)

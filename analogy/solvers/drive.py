@@ -313,7 +313,7 @@ def drive_settings(d: Drive, preset: Preset) -> TransientSettings:
         The accuracy preset.
     """
     s = d.system
-    settings = circuit_settings(s, describe(s, ZERO_TOL, False), preset)
+    settings = circuit_settings(s, describe(s, ZERO_TOL, False), preset, whole=False)
     rates = np.linalg.eigvals(drive_state(d, at_rest=True)[0])     # friction's steepest slope seen too
     # a mode that decays under the bound before t_stop (a winding's L/R) sets the first step, not the cap
     lasting = rates[rates.real * s.t_stop > math.log(preset.bound)]

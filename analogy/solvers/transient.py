@@ -332,7 +332,8 @@ def beyond_calibration(system) -> bool:
     return name not in CALIBRATED_TOPOLOGIES or (name == "serial" and system.dof > SERIAL_NODE_LIMIT)
 
 
-def circuit_settings(system, c: Circuit, preset: Preset, loosen: float = 1.0, engine: Dialect = "ngspice") -> TransientSettings:
+def circuit_settings(system, c: Circuit, preset: Preset, loosen: float = 1.0, engine: Dialect = "ngspice",
+                     whole: bool = True) -> TransientSettings:
     """The transient settings of *system*'s circuit *c* at *preset*: what a run and its netlist share.
 
     Parameters
@@ -347,13 +348,16 @@ def circuit_settings(system, c: Circuit, preset: Preset, loosen: float = 1.0, en
         Factor on abstol and vntol (the retries after a collapsed step).
     engine : {"ngspice", "gnucap", "ltspice"}
         The engine that runs it: the truncation model follows ngspice's check, not the others'.
+    whole : bool
+        *c* is the whole circuit that runs (False: a part of one, as a drive's robot beside its windings,
+        which its truncation model does not see).
     """
     motion = truncation = None
     custom = beyond_calibration(system)
     if c.behavioural and not c.constraints and getattr(system, "kind", None) == "nonlinear":
         motion = motion_schedule(system, preset.bound, SAFETY, timeout=preset.budget.timeout)
-    elif engine == "ngspice" and preset.spice.calibrated and not (c.behavioural or c.couplings or c.constraints
-                                                                   or custom):
+    elif whole and engine == "ngspice" and preset.spice.calibrated and not (c.behavioural or c.couplings
+                                                                             or c.constraints or custom):
         truncation = truncation_model(system)
     return transient_settings(preset, system.t_stop, system_scales(system), behavioural=bool(c.behavioural),
                               coupled=bool(c.couplings), constrained=bool(c.constraints),

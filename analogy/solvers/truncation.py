@@ -63,12 +63,14 @@ def _samples(system) -> np.ndarray | None:
     scales = system_scales(system)
     spacing = min(system.t_stop / MODEL_POINTS, 1.0 / (_PER_RADIAN * scales.omega_max)
                   if scales.omega_max > 0 else math.inf)
-    if not system.t_stop / spacing <= MODEL_LIMIT:
+    if not (spacing > 0 and system.t_stop / spacing <= MODEL_LIMIT):
         return None
     parts = [np.linspace(t0, t1, max(_SEGMENT_POINTS, int(math.ceil((t1 - t0) / spacing)) + 1))
              for t0, t1 in system.segments()]
     rate = float(np.max(scales.decays, initial=0.0))
     first = 1.0 / (_PER_RADIAN * rate) if rate > 0 else math.inf
+    if not first > 0:           # a rate past the float range: no samples follow it
+        return None
     if first < spacing:         # a decay faster than the samples: 2 % of t apart from a sixth of its time constant
         parts.append(np.geomspace(first, system.t_stop, int(math.ceil(math.log(system.t_stop / first) / 0.02)) + 1))
     t = np.unique(np.concatenate(parts))
