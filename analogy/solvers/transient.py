@@ -196,8 +196,9 @@ def transient_settings(preset: Preset, t_stop: float, scales: Scales | None, *,
         if clock:       # after a near corner ngspice steps a tenth of a last step about a quarter of its gap
             shortest = min(shortest, 0.025 * float(np.min(np.diff(np.concatenate([[0.0], clock])))))
         rounding = ROUNDING_STEPS * scales.rounding_current(shortest)
-        chosen = _modelled(truncation, preset, scales, rounding, tmax, operations) if modelled else None
-        if calibrated and rounding > FLOOR_LIMIT * scales.current or modelled and chosen is None:
+        floored = calibrated and rounding > FLOOR_LIMIT * scales.current
+        chosen = _modelled(truncation, preset, scales, rounding, tmax, operations) if modelled and not floored else None
+        if floored or modelled and chosen is None:
             # a rounding floor past the calibration's may judge each step, not reltol: the Panda's (3.2e-7)
             # left its small r3 at 1.7e-6 at the accurate reltol, in 731 steps whatever the reltol; and a
             # model's steps past the budget are not bought (the preset's own settings run, judged)

@@ -26,12 +26,12 @@ import numpy as np
 from ..circuit.elements import laplacian_split
 from ..circuit.scales import system_scales
 from ..errors import SimulationError
-from .error_constants import RELTOL_LIMITS
+from .error_constants import RELTOL_LIMITS, spice_reltol
 
-__all__ = ["MODEL_POINTS", "MODEL_LIMIT", "MODEL_SHARE", "CHARGE_FLOORS", "Tolerances", "TruncationModel", "truncation_model"]
+__all__ = ["MODEL_POINTS", "MODEL_LIMIT", "MODEL_SHARE", "CHARGE_FLOORS", "SEARCH_POINTS", "Tolerances", "TruncationModel", "truncation_model"]
 
 #: Samples the motion is taken at, at least; more where the fastest rate asks six a radian.
-MODEL_POINTS = 2000
+MODEL_POINTS = 500
 #: Samples past which no model is made (the preset's own settings run, judged as ever).
 MODEL_LIMIT = 20000
 #: The share of the bound the chosen reltol's foretold error is held to: the foretold errors were
@@ -44,6 +44,9 @@ MODEL_SHARE = 0.8
 #: charge's zero crossing. Foretold at 8e-7: the default 2-DOF in 1,389 points relative, 694 at
 #: 1; parallel3 in 17,865, 15,441 at 1e-3 and 18,505 at 1; the xArm7 21,531, 23,818 at 1.
 CHARGE_FLOORS = (1e-3, 1.0)
+#: Foretold points under which the first settings tried (the charge scale's floor, the most often the
+#: fewest) are kept: another search, about a millisecond, costs more than such a run could save.
+SEARCH_POINTS = 2000
 #: Samples per radian of the fastest rate (three differences of the motion give q‴ within about 1 %).
 _PER_RADIAN = 6.0
 #: Samples in a force segment, at least: a pulse's 10 ms edge needs its own q‴.
@@ -167,7 +170,7 @@ class TruncationModel:
         self.level = np.maximum(self.level, np.vstack([self.level[:1], self.level[:-1]]))  # max(|q_now|, |q_prev|)
         self.slope = np.abs(np.hstack([v1 @ caps.T, v @ coils.T]))
         self.third = np.abs(np.hstack([v3 @ caps.T, v2 @ coils.T]))
-        self.time, self.dof, self.system = t, n, weakref.ref(system)
+        self.time, self.dof = t, n
         self._chosen: dict = {}
         self.peak = np.max(np.abs(exact.rates), axis=0)
         # the rule's local error density over h²: −(x‴, v‴)/12, x‴ = v″ (x only where springs feed it back)
@@ -179,7 +182,7 @@ class TruncationModel:
         lam, vectors = np.linalg.eig(flow)
         h = np.diff(t)
         if np.linalg.cond(vectors) < _CONDITION:
-            self._vectors = vectors[-n:]                       # the modes' node velocities
+            velocities = vectors[-n:]                          # the modes' node velocities
             self._density = density @ np.linalg.inv(vectors).T  # in modal coordinates
             z = lam[None, :] * h[:, None]
             self._decay = np.exp(z)
@@ -187,10 +190,13 @@ class TruncationModel:
             self._after = h[:, None] * phi2(z)
             self._dense = None
         elif flow.shape[0] <= _DENSE_LIMIT:     # a double root (a free mode beside springs): the flow itself
-            self._vectors, self._density = np.eye(flow.shape[0])[-n:], density
+            velocities, self._density = np.eye(flow.shape[0])[-n:], density
             self._dense = _dense_propagators(flow, h)
         else:
             raise SimulationError("the circuit's modes are too near a double root for the truncation model")
+        # each mode's (or state's) joint rates, R = T⁻¹·v, once: the errors are read through it at every sample
+        self._rates = system.joint_rates(velocities.T.real) + 1j * system.joint_rates(velocities.T.imag) \
+            if np.iscomplexobj(velocities) else system.joint_rates(velocities.T)
 
     def steps(self, reltol: float, abstol: float, chgtol: float, max_step: float, trtol: float = 1.0) -> np.ndarray:
         """The step ngspice's truncation check takes at each sample (see the module's note).
@@ -236,20 +242,40 @@ class TruncationModel:
             carried = _carried(self._decay, self._before * source[:-1] + self._after * source[1:])
         else:
             carried = _carried_dense(self._dense, source)
-        system = self.system()
-        error = np.abs(system.joint_rates((carried @ self._vectors.T).real))
-        worst = np.max(error, axis=0)
+        worst = np.max(np.abs((carried @ self._rates).real), axis=0)
         with np.errstate(divide="ignore", invalid="ignore"):
             share = worst / self.peak
         return np.where(np.isfinite(share), share, 0.0)
 
+    def ideal_points(self, target: float) -> float:
+        """The time points of the equidistributed schedule h = c·σ^(−1/3) whose worst error is *target*: σ(t)
+        the rule's local error density at the worst-placed output (each joint rate's over its own peak),
+        the step a free trapezoidal rule would take with nothing but this circuit's error to hold.
+
+        Parameters
+        ----------
+        target : float
+            The error allowed each output, over its own peak.
+        """
+        local = np.abs((self._density @ self._rates).real) / self.peak
+        sigma = np.max(np.where(np.isfinite(local), local, 0.0), axis=1)
+        shape = np.cbrt(np.max(sigma) / np.maximum(sigma, 1e-300 * np.max(sigma)))    # 1 where σ is largest
+        scale = 1.0
+        for _ in range(6):          # the error goes as c²
+            e = float(np.max(self.errors(scale * shape), initial=0.0))
+            if not e > 0:
+                return 1.0
+            scale *= math.sqrt(target / e)
+        return self.points(scale * shape)
+
     def tolerances(self, target: float, abstol: Callable[[float], float], charge: float,
                    max_step: float) -> "Tolerances":
         """The settings of the fewest foretold points whose worst error is at most *target*: at the cap
-        *max_step*, the reltol for chgtol under every charge (1e-10·reltol of the scale) or for each of
-        :data:`CHARGE_FLOORS` of it; or, ngspice's check loose (reltol 1e-3), the cap that holds the
-        error alone (an undamped oscillation's error grows with every step, so its best steps are
-        about uniform: the UR5 hanging, 277,373 points by the check, 254,000 by the cap).
+        *max_step*, the reltol for chgtol at each of :data:`CHARGE_FLOORS` of the charge scale or under
+        every charge (1e-10·reltol of the scale); or, ngspice's check loose (reltol 1e-3), the cap that
+        holds the error alone (an undamped oscillation's error grows with every step, so its best steps
+        are about uniform: the UR5 hanging, 277,373 points by the check, 254,000 by the cap). The search
+        stops at the first that foretells fewer than :data:`SEARCH_POINTS`.
 
         Parameters
         ----------
@@ -265,16 +291,22 @@ class TruncationModel:
         key = (target, charge, max_step, abstol(1e-12), abstol(1e-6))
         if key in self._chosen:
             return self._chosen[key]
-        candidates = []
-        for floor in (None, *CHARGE_FLOORS):
+        candidates: list = []
+        for floor in (*CHARGE_FLOORS[::-1], None, "cap"):
+            if candidates and candidates[0].points < SEARCH_POINTS:
+                break
+            if floor == "cap":
+                loose = RELTOL_LIMITS[1]
+                cap = self._cap(target, (loose, abstol(loose), charge), max_step)
+                candidates.append(Tolerances(loose, charge, cap,
+                                             self.points(self.steps(loose, abstol(loose), charge, cap))))
+                continue
+
             def options(r: float, floor=floor) -> tuple[float, float]:
                 return abstol(r), float(f"{(1e-10 * r if floor is None else floor) * charge:.3g}")
-            r = self.reltol(target, options, max_step)
+            r = self.reltol(target, options, max_step, start=spice_reltol(target / MODEL_SHARE))
             candidates.append(Tolerances(r, options(r)[1], max_step,
                                          self.points(self.steps(r, *options(r), max_step))))
-        loose = RELTOL_LIMITS[1]
-        cap = self._cap(target, (loose, abstol(loose), charge), max_step)
-        candidates.append(Tolerances(loose, charge, cap, self.points(self.steps(loose, abstol(loose), charge, cap))))
         self._chosen[key] = min(candidates, key=lambda c: c.points)
         return self._chosen[key]
 
@@ -293,7 +325,8 @@ class TruncationModel:
             cap = min(max_step, cap * math.sqrt(target / 1.015 / e)) if e > 0 else max_step
         return best if best > 0 else cap
 
-    def reltol(self, target: float, tolerances: Callable[[float], tuple[float, float]], max_step: float) -> float:
+    def reltol(self, target: float, tolerances: Callable[[float], tuple[float, float]], max_step: float,
+               start: float = 3e-9) -> float:
         """The loosest reltol whose foretold worst error is at most *target*: a secant in log-log, bracketed
         (the error grows as reltol^(2/3) where the charge term sets the steps).
 
@@ -305,13 +338,15 @@ class TruncationModel:
             reltol → (abstol, chgtol) as the netlist writes them.
         max_step : float
             The step cap [s].
+        start : float
+            The first reltol tried.
         """
         def error(r: float) -> float:
             return float(np.max(self.errors(self.steps(r, *tolerances(r), max_step)), initial=0.0))
 
         low, high = RELTOL_LIMITS
         aim, slope = target / 1.015, 2.0 / 3.0
-        r = math.sqrt(low * high)
+        r = min(max(start, low), high)
         e = error(r)
         below, above = (low, 0.0), (high, math.inf)
         for _ in range(30):
@@ -326,7 +361,7 @@ class TruncationModel:
                 guess = math.sqrt(below[0] * above[0])
             last, r, e = (r, e), guess, error(guess)
             if e > 0 and last[1] > 0 and r != last[0]:      # the secant's slope, within reason
-                slope = min(2.0, max(0.2, math.log(e / last[1]) / math.log(r / last[0])))
+                slope = min(2.0, max(0.05, math.log(e / last[1]) / math.log(r / last[0])))
         return r if e <= target else below[0]
 
 
