@@ -91,10 +91,10 @@ class BenchResult:
 
     def table(self) -> str:
         lines = [f"{'scene':<18}{'dof':>4}  {'solver':<10}{'setting':<40}{'median [ms]':>12}{'runs':>5}"
-                 f"{'error/peak':>11}  status"]
+                 f"{'error/peak':>11}{'points':>9}  status"]
         for r in self.rows:
             lines.append(f"{r.scene:<18}{r.dof:>4}  {r.solver:<10}{r.setting:<40}{r.median_s * 1e3:>12.3f}"
-                         f"{r.runs:>5}{r.error:>11.2e}  {r.status}")
+                         f"{r.runs:>5}{r.error:>11.2e}{r.points:>9}  {r.status}")
         lines += self.cost_lines()
         lines.append(f"{len(self.rows)} rows, {sum(r.status != 'ok' for r in self.rows)} failed; median of "
                      f"up to {self.repeats} warm runs (fewer for settings slower than "
@@ -141,8 +141,10 @@ class BenchResult:
                 and r.error <= tol and r.setting.startswith("modal ") == bool(circuit)]
         cheapest = min(same, key=lambda r: r.median_s, default=None)
         kept = "kept" if chosen.error <= tol else f"missed, {chosen.error:.2e}"
+        ideal = next((r for r in self.rows if r.scene == sc and r.solver == "ideal" and r.tolerance == tol), None)
         return (f"{name}: {chosen.median_s * 1e3:.2f} ms ({kept})" +
-                (f", {chosen.median_s / cheapest.median_s:.2f}x the cheapest on it" if cheapest else ""))
+                (f", {chosen.median_s / cheapest.median_s:.2f}x the cheapest on it" if cheapest else "") +
+                (f", {chosen.points:,} points beside the ideal {ideal.points:,}" if ideal else ""))
 
     def plot(self, path=None) -> "Figure":
         """Work-precision diagram: median run time against max error / peak, log-log, per scene.
@@ -159,14 +161,14 @@ class BenchResult:
         markers = {"spice": "o", "ode": "s", "exact": "*", "reference": "P"}
         # One colour per solver setting family in every panel, so a family reads across scenes; the
         # modal circuit's settings are dashed, in the colour of the same settings on the scene's own.
-        families = list(dict.fromkeys((r.solver, _family(r.setting)) for r in self.rows))
+        families = list(dict.fromkeys((r.solver, _family(r.setting)) for r in self.rows if r.solver != "ideal"))
         bases = list(dict.fromkeys((sv, f.removeprefix("modal ")) for sv, f in families if sv != "reference"))
         colour = {f: f"C{bases.index((f[0], f[1].removeprefix('modal '))) % 10}" for f in families
                   if f[0] != "reference"}
         colour.update({f: "k" for f in families if f[0] == "reference"})
         handles: dict = {}
         for ax, sc in zip(axes, scenes):
-            rows = [r for r in self.rows if r.scene == sc]
+            rows = [r for r in self.rows if r.scene == sc and r.solver != "ideal"]     # counts, not runs
             for solver, family in families:
                 sel = [r for r in rows if r.solver == solver and _family(r.setting) == family
                        and r.status == "ok" and np.isfinite(r.error)]
@@ -312,6 +314,8 @@ def _jobs(scenes, full: bool, quick: bool) -> list[tuple]:
         if linear:      # the same physics with one node per mode: n grounded capacitors for n(n-1)/2 floating ones
             modal = sc.replace(topology="modal").system()
             jobs += [("spice", sc, modal, (f"modal {g[0]}",) + tuple(g[1:])) for g in spice_grid(full, quick)]
+            # the ideal count: the same on every node map (its error is the joint rates', the physics')
+            jobs += [("ideal", sc, system, ("", t)) for t in BENCH_TOLERANCES if not (quick and t < 1e-6)]
         jobs += [("ode", sc, system, g) for g in ode_grid(quick)]
         jobs.append(("exact" if linear else "reference", sc, system, None))
     return jobs
@@ -379,6 +383,18 @@ def _error(kind: str, system, t: np.ndarray, rates: np.ndarray) -> float:
     return float(np.max(output_errors(rates, ref)[1]))
 
 
+def _ideal_row(sc: Scene, system, circuit: str, tol: float) -> BenchRow:
+    """The ideal trapezoidal count at :data:`~analogy.solvers.truncation.MODEL_SHARE` of *tol* on *system*'s
+    circuit: the equidistributed schedule of its truncation model (no run, no time)."""
+    from ..solvers.truncation import MODEL_SHARE, truncation_model
+
+    model = truncation_model(system)
+    share = MODEL_SHARE * tol
+    points = round(model.ideal_points(share)) if model is not None else 0
+    return BenchRow(sc.name, system.dof, "ideal", f"{circuit}trapezoidal h~sigma^(-1/3)", tol, float("nan"), share,
+                    points, "ok" if model is not None else "no model")
+
+
 def bench(repeats: int = 5, full: bool = False, scenes=None, progress: bool = True,
           quick: bool = False) -> BenchResult:
     """Time every solver setting on every scene and measure its error against the exact solution.
@@ -405,6 +421,10 @@ def bench(repeats: int = 5, full: bool = False, scenes=None, progress: bool = Tr
     jobs = _jobs(bench_scenes(quick) if scenes is None else scenes, full, quick)
     bar = Progress(len(jobs), unit="setting", enabled=progress)
     for kind, sc, system, g in jobs:
+        if kind == "ideal":
+            result.rows.append(_ideal_row(sc, system, *g))
+            bar.update(1)
+            continue
         try:
             label, tol, med, t, rates, runs = _timed(kind, system, g, repeats)
             result.rows.append(BenchRow(sc.name, system.dof, kind, label, tol, med, _error(kind, system, t, rates),
