@@ -398,19 +398,26 @@ _BLOCK_NEPERS = 200.0
 
 def _carried(decay: np.ndarray, increments: np.ndarray) -> np.ndarray:
     """z_k = a_k·z_(k−1) + u_k from z_0 = 0 for each mode, (m, d) from (m − 1, d) factors and increments: in
-    blocks over which every mode's product Π a stays within e^±200, z = P·Σ u/P inside each."""
+    blocks over which every mode's product Π a stays within e^±200, z = P·Σ u/P inside each; a step that
+    alone decays (or grows) past e^200 is a block of its own, taken as it stands."""
     m, d = decay.shape[0] + 1, decay.shape[1]
     out = np.zeros((m, d), complex)
-    reach = np.concatenate([[0.0], np.cumsum(np.max(np.abs(np.log(np.abs(decay) + 1e-300)), axis=1))])
+    with np.errstate(divide="ignore"):
+        nepers = np.max(np.abs(np.log(np.abs(decay))), axis=1)
+    steep = ~(nepers <= _BLOCK_NEPERS)           # NaN and inf too
+    reach = np.concatenate([[0.0], np.cumsum(np.where(steep, 0.0, nepers))])
     marks = np.searchsorted(reach, np.arange(_BLOCK_NEPERS, reach[-1], _BLOCK_NEPERS), side="right") - 1
-    starts = np.unique(np.concatenate([[0], marks]))
+    alone = np.flatnonzero(steep)
+    starts = np.unique(np.concatenate([[0], marks, alone, alone + 1]))
+    starts = starts[starts < m - 1]
     ends = np.append(starts[1:], m - 1)
     z = np.zeros(d, complex)
     for s, e in zip(starts, ends):
-        if e <= s:
-            continue
-        product = np.cumprod(decay[s:e], axis=0)
-        out[s + 1:e + 1] = product * (z + np.cumsum(increments[s:e] / product, axis=0))
+        if e - s == 1:
+            out[e] = decay[s] * z + increments[s]
+        else:
+            product = np.cumprod(decay[s:e], axis=0)
+            out[s + 1:e + 1] = product * (z + np.cumsum(increments[s:e] / product, axis=0))
         z = out[e]
     return out
 
