@@ -24,6 +24,7 @@ from ..scenes.spec import ModelSpec
 from ..solvers.exact import solve_exact
 from ..solvers.reference import NONLINEAR_RTOL, solve_reference
 from ..solvers.spice import session
+from ..solvers.truncation import MODEL_SHARE, truncation_model
 from ..study.work import check_work
 
 if TYPE_CHECKING:
@@ -386,8 +387,6 @@ def _error(kind: str, system, t: np.ndarray, rates: np.ndarray) -> float:
 def _ideal_row(sc: Scene, system, circuit: str, tol: float) -> BenchRow:
     """The ideal trapezoidal count at :data:`~analogy.solvers.truncation.MODEL_SHARE` of *tol* on *system*'s
     circuit: the equidistributed schedule of its truncation model (no run, no time)."""
-    from ..solvers.truncation import MODEL_SHARE, truncation_model
-
     model = truncation_model(system)
     share = MODEL_SHARE * tol
     points = round(model.ideal_points(share)) if model is not None else 0

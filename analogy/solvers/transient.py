@@ -197,15 +197,14 @@ def transient_settings(preset: Preset, t_stop: float, scales: Scales | None, *,
             shortest = min(shortest, 0.025 * float(np.min(np.diff(np.concatenate([[0.0], clock])))))
         rounding = ROUNDING_STEPS * scales.rounding_current(shortest)
         floored = calibrated and rounding > FLOOR_LIMIT * scales.current
-        chosen = _modelled(truncation, preset, scales, rounding, tmax, operations) if modelled and not floored else None
-        if floored or modelled and chosen is None:
+        if floored or modelled and (chosen := _modelled(truncation, preset, scales, rounding, tmax, operations)) is None:
             # a rounding floor past the calibration's may judge each step, not reltol: the Panda's (3.2e-7)
             # left its small r3 at 1.7e-6 at the accurate reltol, in 731 steps whatever the reltol; and a
             # model's steps past the budget are not bought (the preset's own settings run, judged)
             return transient_settings(preset, t_stop, scales, behavioural=behavioural, coupled=coupled,
                                       constrained=constrained, breakpoints=breakpoints, loosen=loosen, custom=True,
                                       operations=operations, motion=motion)
-        tmax = _written_tolerances(opts, preset, scales, rounding, loosen, chosen) or tmax
+        tmax = _written_tolerances(opts, preset, scales, rounding, loosen, chosen if modelled else None) or tmax
     else:
         _refine_tolerances(opts, preset)
     tmax, unclocked = (step / REFINE ** preset.spice.refine for step in (tmax, unclocked))   # an estimate's second run
@@ -246,11 +245,13 @@ def _modelled(truncation: TruncationModel, preset: Preset, scales: Scales, round
               operations: float | None) -> Tolerances | None:
     """The settings whose foretold error is :data:`~analogy.solvers.truncation.MODEL_SHARE` of the bound
     (:meth:`~analogy.solvers.truncation.TruncationModel.tolerances`); None where the points foretold pass
-    the preset's step or operation budget."""
+    the preset's step or operation budget, or where no settings hold it."""
     chosen = truncation.tolerances(MODEL_SHARE * preset.bound, lambda r: _modelled_abstol(r, scales, rounding),
                                    scales.charge, tmax)
     t_stop = truncation.time[-1]
-    return chosen if math.isfinite(_bought(preset, t_stop, t_stop / chosen.points, scales, operations)) else None
+    if chosen is None or not math.isfinite(_bought(preset, t_stop, t_stop / chosen.points, scales, operations)):
+        return None
+    return chosen
 
 
 def _modelled_abstol(reltol: float, scales: Scales, rounding: float) -> float:

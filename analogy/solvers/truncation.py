@@ -139,6 +139,7 @@ class Tolerances(NamedTuple):
     chgtol: float           # [C]
     max_step: float         # [s]
     points: float
+    error: float            # the worst output's, over its own peak
 
 
 class TruncationModel:
@@ -160,7 +161,10 @@ class TruncationModel:
         exact = solve_exact(system, t)
         v = exact.voltages
         x = np.concatenate([np.zeros((1, n)), np.cumsum(0.5 * np.diff(t)[:, None] * (v[1:] + v[:-1]), axis=0)])
-        v1, v2, v3 = _motion_derivatives(system, t, v, x)
+        with np.errstate(all="ignore"):
+            v1, v2, v3 = _motion_derivatives(system, t, v, x)
+        if not all(np.all(np.isfinite(a)) for a in (x, v1, v2, v3)):
+            raise SimulationError("the motion's derivatives leave the floating-point range")
         springs = system.stiffness is not None
         caps, c_values = _incidence(system.mass, n)
         coils, _ = _incidence(system.stiffness, n)
@@ -269,13 +273,14 @@ class TruncationModel:
         return self.points(scale * shape)
 
     def tolerances(self, target: float, abstol: Callable[[float], float], charge: float,
-                   max_step: float) -> "Tolerances":
+                   max_step: float) -> "Tolerances | None":
         """The settings of the fewest foretold points whose worst error is at most *target*: at the cap
         *max_step*, the reltol for chgtol at each of :data:`CHARGE_FLOORS` of the charge scale or under
         every charge (1e-10·reltol of the scale); or, ngspice's check loose (reltol 1e-3), the cap that
         holds the error alone (an undamped oscillation's error grows with every step, so its best steps
         are about uniform: the UR5 hanging, 277,373 points by the check, 254,000 by the cap). The search
-        stops at the first that foretells fewer than :data:`SEARCH_POINTS`.
+        stops at the first that foretells fewer than :data:`SEARCH_POINTS`; None where none holds *target*
+        (reltol at its floor, the steps held by abstol).
 
         Parameters
         ----------
@@ -297,18 +302,22 @@ class TruncationModel:
                 break
             if floor == "cap":
                 loose = RELTOL_LIMITS[1]
-                cap = self._cap(target, (loose, abstol(loose), charge), max_step)
-                candidates.append(Tolerances(loose, charge, cap,
-                                             self.points(self.steps(loose, abstol(loose), charge, cap))))
+                candidates.append(self._settled(loose, abstol(loose), charge,
+                                                self._cap(target, (loose, abstol(loose), charge), max_step)))
                 continue
 
             def options(r: float, floor=floor) -> tuple[float, float]:
                 return abstol(r), float(f"{(1e-10 * r if floor is None else floor) * charge:.3g}")
             r = self.reltol(target, options, max_step, start=spice_reltol(target / MODEL_SHARE))
-            candidates.append(Tolerances(r, options(r)[1], max_step,
-                                         self.points(self.steps(r, *options(r), max_step))))
-        self._chosen[key] = min(candidates, key=lambda c: c.points)
+            candidates.append(self._settled(r, *options(r), max_step))
+        kept = [c for c in candidates if c.error <= target]
+        self._chosen[key] = min(kept, key=lambda c: c.points) if kept else None
         return self._chosen[key]
+
+    def _settled(self, reltol: float, abstol: float, chgtol: float, max_step: float) -> "Tolerances":
+        """The settings and what they foretell: points and the worst output's error."""
+        steps = self.steps(reltol, abstol, chgtol, max_step)
+        return Tolerances(reltol, chgtol, max_step, self.points(steps), float(np.max(self.errors(steps), initial=0.0)))
 
     def _cap(self, target: float, options: tuple[float, float, float], max_step: float) -> float:
         """The longest cap within *max_step* whose foretold worst error, at *options*, is at most *target*."""
@@ -356,7 +365,7 @@ class TruncationModel:
                 above = min(above, (r, e))
             if target / 1.03 < e <= target or above[0] / below[0] < 1.001:
                 break
-            guess = r * (aim / e) ** (1.0 / slope) if e > 0 else high
+            guess = r * math.exp(max(-50.0, min(50.0, math.log(aim / e) / slope))) if e > 0 else high
             if not below[0] < guess < above[0]:
                 guess = math.sqrt(below[0] * above[0])
             last, r, e = (r, e), guess, error(guess)
