@@ -1,4 +1,4 @@
-"""SPICE's steps and time against its error on issue-46's scenes, a baseline tree beside this one, per ngspice.
+"""SPICE's steps and time against its error on a few defaults: a baseline tree beside this one, per ngspice.
 
     git worktree add /tmp/analogy-before <commit>
     .venv/bin/python benchmarks/work_precision.py /tmp/analogy-before [--repeats 3] [--engines 39,46]
