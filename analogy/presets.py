@@ -55,11 +55,13 @@ class SpiceSettings:
         and the pair ω ratio 1e6, ζ = 1e3 erred 6.1e-4 at fast with 1.0 and 3.7e-4 with 0.5 (its
         error goes as the cap: at accurate it misses at any cap, 7.7e-6 at 0.016, and is flagged).
     calibrated : bool
-        A linear trapezoidal circuit takes its reltol from the shipped error constants, for this
-        bound and the circuit's ringing Φ (:func:`~analogy.solvers.error_constants.spice_reltol`),
-        its absolute tolerances in proportion, the cap t_stop/50 the constants were measured at,
-        and no phase cap on its oscillations (the reltol already pays for their phase error).
-        False (the bench's fixed settings): the options and caps as given.
+        A linear trapezoidal circuit takes its reltol (and chgtol and cap) from its own truncation
+        model where ngspice runs it alone (:mod:`analogy.solvers.truncation`), else from the shipped
+        error constants, for this bound and the circuit's ringing Φ
+        (:func:`~analogy.solvers.error_constants.spice_reltol`), its absolute tolerances in proportion,
+        the cap t_stop/50 the constants were measured at, and no phase cap on its oscillations (the
+        reltol already pays for their phase error). False (the bench's fixed settings): the options
+        and caps as given.
     behavioural_options, behavioural_max_steps :
         ``.options`` for circuits with behavioural parts (the nonlinear circuits), and their step cap
         t_stop/behavioural_max_steps where the motion gives no step (closed chains, a motion the ODE
