@@ -33,6 +33,17 @@ def test_a_uniform_step_on_a_decay_errs_the_trapezoidal_rule_s_h2_mu2_over_12e()
     assert model.errors(np.full(model.time.size, h))[0] == pytest.approx(h ** 2 * mu / (12 * math.e) / peak, rel=1e-3)
 
 
+def test_the_equidistributed_ideal_takes_fewer_points_than_the_uniform_step_on_a_decay():
+    """On a decay the rule's local error falls as e^(−μt): h ∝ σ^(−1/3) spends its points at the start,
+    and at the same worst error needs fewer than the uniform step h = √(12e·target·peak/μ)."""
+    mu, target = 2.0, 8e-7
+    system = _decay(mu)
+    model = truncation_model(system)
+    peak = (1 - math.exp(-10 * mu)) / mu
+    uniform = system.t_stop / math.sqrt(12 * math.e * target * peak / mu)
+    assert model.ideal_points(target) < 0.5 * uniform
+
+
 def test_the_step_meets_ngspice_s_truncation_test_with_equality_at_the_element_that_sets_it():
     """h²·max(abstol, |q‴|/72) = trtol·max(abstol + reltol·|q′|, reltol·max(|q|, chgtol)/h) at the element
     whose step is the shortest (cktterr.c), wherever the cap does not bind."""

@@ -139,7 +139,9 @@ class Solver:
         except _BROKEN as exc:
             raise self._broke(exc) from None
         tr = self._checked(tr, system, _time.perf_counter() - start)
-        return tr if grid is None or not self.own_grid or not tr.success else tr.resampled(grid, system.joint_rates, system.breakpoints())
+        if grid is None or not self.own_grid or not tr.success:
+            return tr
+        return tr.resampled(grid, system.joint_rates, system.breakpoints())
 
     def _broke(self, exc: Exception) -> SimulationError:
         # the numbers left the floating-point range (g = 1e308, say): a failed run, said once

@@ -160,12 +160,12 @@ def transient_settings(preset: Preset, t_stop: float, scales: Scales | None, *,
         The steps a behavioural circuit's motion asks (:func:`~analogy.solvers.motion_step.motion_schedule`):
         its cap, and the clock's corners where it must step shorter.
     truncation : TruncationModel, optional
-        A linear circuit's truncation model: at a calibrated preset, its reltol, charge floor and cap (:func:`_modelled`).
+        A linear trapezoidal circuit's truncation model at a calibrated preset (:func:`circuit_settings` makes one
+        where it runs): its reltol, charge floor and cap (:func:`_modelled`).
     """
     opts = dict(preset.spice.behavioural_options if behavioural else preset.spice.options)
     reltol = spice_run_reltol(preset, scales, behavioural=behavioural or coupled or constrained or custom)
-    modelled = (truncation is not None and preset.spice.calibrated and scales is not None
-                and not (behavioural or coupled or constrained or custom))
+    modelled = truncation is not None and scales is not None     # circuit_settings gives one only where it runs
     calibrated = reltol is not None or modelled
     if reltol is not None:
         opts.update(calibrated_options(reltol))

@@ -34,9 +34,9 @@ __all__ = ["MODEL_POINTS", "MODEL_LIMIT", "MODEL_SHARE", "CHARGE_FLOORS", "SEARC
 MODEL_POINTS = 500
 #: Samples past which no model is made (the preset's own settings run, judged as ever).
 MODEL_LIMIT = 20000
-#: The share of the bound the chosen reltol's foretold error is held to: the foretold errors were
-#: within 0.5 % of the measured ones; the rest is room for what the model leaves out (the
-#: backward-Euler first steps after each breakpoint, Newton's residue, a sample's rounding of q‴).
+#: The share of the bound the chosen settings' foretold error is held to: the foretold errors were
+#: within 3 % of the measured ones (README); the rest is room for what the model leaves out (the
+#: backward-Euler first steps after each breakpoint, Newton's residue).
 MODEL_SHARE = 0.8
 #: chgtol over the circuit's charge scale, tried beside a chgtol under every charge (the check then
 #: relative to each charge at hand): a floor holds each step's error to reltol of the scale, as the
@@ -47,7 +47,7 @@ CHARGE_FLOORS = (1e-3, 1.0)
 #: Foretold points under which the first settings tried (the charge scale's floor, the most often the
 #: fewest) are kept: another search, about a millisecond, costs more than such a run could save.
 SEARCH_POINTS = 2000
-#: Samples per radian of the fastest rate (three differences of the motion give q‴ within about 1 %).
+#: Samples per radian of the fastest rate: the steps' ∫dt/h and the errors' carriage between samples.
 _PER_RADIAN = 6.0
 #: Samples in a force segment, at least: a pulse's 10 ms edge needs its own q‴.
 _SEGMENT_POINTS = 9
@@ -117,19 +117,13 @@ def _incidence(matrix: np.ndarray | None, n: int) -> tuple[np.ndarray, np.ndarra
     if matrix is None:
         return np.zeros((0, n)), np.zeros(0)
     grounded, floating = laplacian_split(matrix)
-    rows, values = [], []
-    for i in range(n):
-        if grounded[i]:
-            rows.append(np.eye(n)[i])
-            values.append(abs(grounded[i]))
-    for i in range(n):
-        for j in range(i + 1, n):
-            if floating[i, j]:
-                row = np.zeros(n)
-                row[i], row[j] = 1.0, -1.0
-                rows.append(row)
-                values.append(abs(floating[i, j]))
-    return np.array(rows).reshape(-1, n), np.array(values)
+    ground = np.flatnonzero(grounded)
+    i, j = np.nonzero(np.triu(floating, 1))
+    rows = np.zeros((ground.size + i.size, n))
+    rows[np.arange(ground.size), ground] = 1.0
+    rows[ground.size + np.arange(i.size), i] = 1.0
+    rows[ground.size + np.arange(i.size), j] = -1.0
+    return rows, np.abs(np.concatenate([grounded[ground], floating[i, j]]))
 
 
 class Tolerances(NamedTuple):
@@ -335,7 +329,7 @@ class TruncationModel:
         return best if best > 0 else cap
 
     def reltol(self, target: float, tolerances: Callable[[float], tuple[float, float]], max_step: float,
-               start: float = 3e-9) -> float:
+               start: float) -> float:
         """The loosest reltol whose foretold worst error is at most *target*: a secant in log-log, bracketed
         (the error grows as reltol^(2/3) where the charge term sets the steps).
 
