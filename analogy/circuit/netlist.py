@@ -58,8 +58,11 @@ def comment_text(text) -> str:
     text : object
         Anything; its ``str`` is cleaned.
     """
-    text = unicodedata.normalize("NFKD", str(text).translate(_ASCII_NAMES))
-    return _SAFE_COMMENT.sub("?", "".join(c for c in text if not unicodedata.combining(c)))
+    text = str(text)
+    if not text.isascii():      # Greek letters and operators spelled out, accents dropped
+        text = unicodedata.normalize("NFKD", text.translate(_ASCII_NAMES))
+        text = "".join(c for c in text if not unicodedata.combining(c))
+    return _SAFE_COMMENT.sub("?", text)
 
 
 def spice_expression(text: str) -> str:
@@ -140,8 +143,8 @@ def circuit_lines(c: Circuit, prefix: str = "", memo: dict | None = None) -> lis
     # 'I n+ n- value' drives current out of n+ and into n-: into a, out of b.
     joint_of = {s.name: s.joint for s in c.sources}
     for name, a, b, v, terms in _source_values(c.sources, c.t_stop, memo):
-        if terms:       # the description's sources it stands for, by their names
-            lines.append(f"* I{prefix}{name[1:]} " + comment_text(f"sums the forces into n{a}: " + " + ".join(terms)))
+        if terms:       # the description's sources it stands for
+            lines.append(_summed_comment(f"I{prefix}{name[1:]}", a, terms))
         elif c.joints and name in joint_of:       # beside its source, the joint it drives
             joint = joint_of[name]
             lines.append("* " + comment_text(f"I{prefix}{name[1:]}: the force on joint {joint}, {c.joints[joint - 1]}"))
@@ -149,17 +152,31 @@ def circuit_lines(c: Circuit, prefix: str = "", memo: dict | None = None) -> lis
     return lines
 
 
+#: A summed source's comment names its terms up to this many; past it, how many (a modal map's n per node).
+_LISTED_TERMS = 8
+
+
+def _summed_comment(device: str, node: int, terms: Sequence) -> str:
+    """The comment line above a summed source: its terms by waveform and joint, or, past
+    :data:`_LISTED_TERMS` of them, their number."""
+    if len(terms) > _LISTED_TERMS:
+        return f"* {device} sums {len(terms)} joint forces into n{node}, each times its entry of T^-T"
+    named = (f"{'' if g.scale == 1.0 else f'{g.scale:g}*'}{g.waveform.label()} (joint {g.joint})" for g in terms)
+    return f"* {device} " + comment_text(f"sums the forces into n{node}: " + " + ".join(named))
+
+
 def _source_values(sources, t_stop: float, memo: dict | None) -> list[tuple[str, int, int, str, tuple]]:
     """(name, a, b, value, terms) of each source device: the grounded piecewise-linear sources into one
     node are one device ``In<k>`` whose PWL is their sum (under a custom map T⁻ᵀ every joint
-    drives every node, and ngspice evaluates n² sources at every step otherwise), with the names of
-    what it sums as *terms* (each force's waveform and joint); the rest as given."""
+    drives every node, and ngspice evaluates n² sources at every step otherwise), with the sources
+    it sums as *terms*; the rest as given."""
     merged: dict[int, list] = {}
     for s in sources:
         if s.b == 0 and isinstance(s.waveform, PWL):
             merged.setdefault(s.a, []).append(s)
     merged = {k: group for k, group in merged.items() if len(group) > 1}
     summed = {id(s) for group in merged.values() for s in group}
+    corners: dict = {}
     out, written = [], set()
     for s in sources:
         if id(s) not in summed:
@@ -173,10 +190,25 @@ def _source_values(sources, t_stop: float, memo: dict | None) -> list[tuple[str,
         elif s.a not in written:
             written.add(s.a)
             group = merged[s.a]
-            out.append((f"In{s.a}", s.a, 0, pwl_sum([(g.waveform, g.scale) for g in group]).spice(1.0, t_stop),
-                        tuple(f"{'' if g.scale == 1.0 else f'{g.scale:g}*'}{g.waveform.label()} (joint {g.joint})"
-                              for g in group)))
+            times, columns = _shared_corners([g.waveform for g in group], corners)
+            scales = np.array([float(g.scale) for g in group])[:, None]
+            # a running sum adds row after row (a reduction may pair them): pwl_sum's order, the same digits
+            summed_values = np.cumsum(scales * np.array([columns[id(g.waveform)] for g in group]), axis=0)[-1]
+            out.append((f"In{s.a}", s.a, 0, PWL(np.column_stack([times, summed_values])).spice(1.0, t_stop),
+                        tuple(group)))
     return out
+
+
+def _shared_corners(waveforms: list, corners: dict) -> tuple[np.ndarray, dict]:
+    """The corners of *waveforms* summed (:func:`~analogy.waveforms.pwl_sum`'s union of times) and each
+    one's values there, by id, kept in *corners* for the next group of the same waveforms: a modal
+    map's n sources each sum the same n forces, interpolated once instead of n times."""
+    key = frozenset(id(w) for w in waveforms)
+    if key not in corners:
+        distinct = list({id(w): w for w in waveforms}.values())
+        times = pwl_sum([(w, 0.0) for w in distinct]).times
+        corners[key] = times, {id(w): np.interp(times, w.times, w.values) for w in distinct}
+    return corners[key]
 
 
 def analysis_lines(settings, ic: Iterable[tuple[str, float]] = (), save: Iterable[str] = (),
@@ -419,7 +451,7 @@ def write_stack(stack: NodeStack, settings, zero_tol: float = ZERO_TOL) -> str:
     sources = []
     for name, a, b, v, terms in _source_values(current_sources(first, zero_tol), first.t_stop, None):
         if terms:
-            sources.append(f"* I{x}{name[1:]} " + comment_text(f"sums the forces into n{a}: " + " + ".join(terms)))
+            sources.append(_summed_comment(f"I{x}{name[1:]}", a, terms))
         sources.append(f"I{x}{name[1:]} {_node(b, x)} {_node(a, x)} {v}")
     sources = [line.replace("%", "%%") for line in sources]         # text of a template: no % of its own
     kept = (np.array([column[4] for column in columns]) != 0.0).reshape(len(columns), count)

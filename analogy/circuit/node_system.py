@@ -24,7 +24,7 @@ from ..waveforms import Step
 from .joint_forces import waveforms
 from .node_coordinates import NodeCoordinates, check_t_stop, output_times
 from .node_stack import NodeStack
-from .topology import Topology, symmetric_part
+from .topology import Topology, default_topology, symmetric_part
 from .topology import topology as make_topology
 
 
@@ -229,7 +229,7 @@ def _evaluated(model, q, parameters, topology):
     """The joint space of *model* at *q*, the topology to use and the report fields."""
     if isinstance(model, RobotModel):
         joint = model.joint_space(q, parameters)
-        top_spec = topology if topology is not None else model.topology
+        own = model.topology
         values = dict(model.parameters, **(parameters or {}))
         base_info = {"robot": model.name, "parameters": values,
                      "configuration": dict(zip((str(c) for c in model.coordinates), q or [])),
@@ -237,11 +237,11 @@ def _evaluated(model, q, parameters, topology):
         if q is not None and (note := model.pose_note(q, parameters)) is not None:
             base_info["notes"] = (note,)
     elif isinstance(model, JointSpace):
-        joint = model
-        top_spec = topology if topology is not None else "parallel"
-        base_info = {}
+        joint, own, base_info = model, "parallel", {}
     else:
         raise InputError("model must be an analogy Model or JointSpace")
+    top_spec = topology if topology is not None else default_topology(own, joint.mass_matrix, joint.damping,
+                                                                       joint.stiffness)
     return joint, top_spec, base_info
 
 

@@ -263,24 +263,22 @@ def current_sources(system, zero_tol: float = ZERO_TOL) -> tuple[CurrentSource, 
     zero_tol : float
         Relative tolerance under which a column entry counts as zero.
     """
-    c = system.current_map
+    c = np.asarray(system.current_map, dtype=float)
+    c = np.where(np.abs(c) <= zero_tol * np.max(np.abs(c), axis=0), 0.0, c)     # each column's own floor
+    plus, minus, nonzero = np.abs(c - 1.0) <= zero_tol, np.abs(c + 1.0) <= zero_tol, c != 0.0
     out = []
     for j, waves in enumerate(system.forces):
         if not waves:
             continue
-        col = c[:, j].tolist()
-        floor = zero_tol * max(abs(x) for x in col)
-        col = [0.0 if abs(x) <= floor else x for x in col]
-        plus = [k for k, x in enumerate(col) if abs(x - 1.0) <= zero_tol]
-        minus = [k for k, x in enumerate(col) if abs(x + 1.0) <= zero_tol]
-        nz = [k for k, x in enumerate(col) if x != 0.0]
-        two_terminal = len(plus) == 1 and len(minus) <= 1 and len(nz) == len(plus) + len(minus)
+        ups, downs, nz = (np.flatnonzero(x[:, j]).tolist() for x in (plus, minus, nonzero))
+        two_terminal = len(ups) == 1 and len(downs) <= 1 and len(nz) == len(ups) + len(downs)
+        entries = c[nz, j].tolist()
         for w_index, wave in enumerate(waves):
             suffix = "" if len(waves) == 1 else f"_{w_index + 1}"
             if two_terminal:
-                b = minus[0] + 1 if minus else 0
-                out.append(CurrentSource(f"I{j + 1}{suffix}", plus[0] + 1, b, wave, 1.0, j + 1))
+                b = downs[0] + 1 if downs else 0
+                out.append(CurrentSource(f"I{j + 1}{suffix}", ups[0] + 1, b, wave, 1.0, j + 1))
             else:
-                out += [CurrentSource(f"I{j + 1}{suffix}_n{k + 1}", k + 1, 0, wave, float(col[k]), j + 1)
-                        for k in nz]
+                out += [CurrentSource(f"I{j + 1}{suffix}_n{k + 1}", k + 1, 0, wave, x, j + 1)
+                        for k, x in zip(nz, entries)]
     return tuple(out)

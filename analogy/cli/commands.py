@@ -15,6 +15,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from ..circuit.netlist import gnucap_size_note
+from ..circuit.topology import DENSE_NODE_LIMIT
 from ..files import write_text
 from ..solvers.transient import netlist, subcircuit_netlist
 from ..heap import retain_freed_memory
@@ -45,6 +46,9 @@ def _say_pose(system, sc: Scene) -> None:
     """One line before a linear run at an unstable pose (:func:`unstable_note`), and the pose's own notes."""
     for note in system.provenance.notes:
         print(f"analogy: warning: {note}", file=sys.stderr)
+    if sc.topology is None and system.topology.name == "modal":
+        print(f"analogy: note: written on the modal map, one node per mode: past {DENSE_NODE_LIMIT} joints a "
+              "dense circuit costs SPICE more than its modes (--topology names another)", file=sys.stderr)
     if not getattr(getattr(system, "joint", None), "unstable", False):
         return                  # the usual case, without importing scipy for the note
     from ..scenes.robot_defaults import unstable_note

@@ -21,9 +21,10 @@ PEAK_FLOOR = 1e-10
 REFERENCE_ROUNDING = 1e-12
 
 
-def judged_peaks(own: np.ndarray, top: np.ndarray, bound: float | None = None) -> np.ndarray:
+def judged_peaks(own: np.ndarray, top: np.ndarray, bound: float | None = None, rounding=0.0) -> np.ndarray:
     """The peak each output's error is divided by: its own, floored at :data:`PEAK_FLOOR` of the
-    largest output's peak *top* and, under a *bound*, at :data:`REFERENCE_ROUNDING` / *bound* of it.
+    largest output's peak *top* and, under a *bound*, at max(:data:`REFERENCE_ROUNDING`, *rounding*) /
+    *bound* of it: no bound asks for an output closer than the circuit's own rounding allows.
 
     Parameters
     ----------
@@ -33,9 +34,13 @@ def judged_peaks(own: np.ndarray, top: np.ndarray, bound: float | None = None) -
         The largest output's peak, broadcast against *own*.
     bound : float, optional
         The error bound the outputs are judged against (a preset's).
+    rounding : float or ndarray
+        How far the circuit's node map can move the outputs, as a fraction of the largest
+        (:attr:`~analogy.circuit.topology.Topology.rounding`), broadcast against *top*.
     """
-    floor = PEAK_FLOOR if bound is None or not bound > 0 else max(PEAK_FLOOR, REFERENCE_ROUNDING / bound)
-    return np.maximum(own, floor * top)
+    if bound is None or not bound > 0:
+        return np.maximum(own, PEAK_FLOOR * top)
+    return np.maximum(own, np.maximum(PEAK_FLOOR, np.maximum(REFERENCE_ROUNDING, rounding) / bound) * top)
 
 
 def peak(reference: np.ndarray, axis=None) -> np.ndarray | float:
@@ -115,7 +120,8 @@ def relative_error(values: np.ndarray, reference: np.ndarray, axis=None) -> np.n
     return errors(values, reference, axis)[1]
 
 
-def output_errors(values: np.ndarray, reference: np.ndarray, bound: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+def output_errors(values: np.ndarray, reference: np.ndarray, bound: float | None = None,
+                  rounding: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """Per output (the last axis): max over time |x − x_ref| and that over the output's own peak.
 
     The peak of an output is max |x_ref| over time, floored as :func:`judged_peaks` says;
@@ -130,6 +136,8 @@ def output_errors(values: np.ndarray, reference: np.ndarray, bound: float | None
         Reference values, of the same shape.
     bound : float, optional
         The bound the errors are judged against (see :data:`REFERENCE_ROUNDING`).
+    rounding : float
+        The node map's rounding (see :func:`judged_peaks`).
     """
     x, ref = np.asarray(values, dtype=float), np.asarray(reference, dtype=float)
     if x.shape != ref.shape:
@@ -140,11 +148,11 @@ def output_errors(values: np.ndarray, reference: np.ndarray, bound: float | None
     err = _time_max(np.abs(x - ref))
     own = _time_max(np.abs(ref))
     top = np.max(own, axis=-1, keepdims=True) if own.shape[-1] else own
-    return err, _over(err, judged_peaks(own, top, bound))
+    return err, _over(err, judged_peaks(own, top, bound, rounding))
 
 
-def stack_errors(values: np.ndarray, reference: np.ndarray,
-                 bound: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def stack_errors(values: np.ndarray, reference: np.ndarray, bound: float | None = None,
+                 rounding=0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`output_errors` of a stack (count, N, m) and, per row, the largest error over the largest
     output's peak (:func:`relative_error` over each row's times and outputs), from one pass.
 
@@ -156,6 +164,8 @@ def stack_errors(values: np.ndarray, reference: np.ndarray,
         Reference values, of the same shape.
     bound : float, optional
         The bound the errors are judged against (see :data:`REFERENCE_ROUNDING`).
+    rounding : float or ndarray, shape (count,)
+        Each row's node-map rounding (see :func:`judged_peaks`).
     """
     x, ref = np.asarray(values, dtype=float), np.asarray(reference, dtype=float)
     if x.shape != ref.shape:
@@ -166,7 +176,8 @@ def stack_errors(values: np.ndarray, reference: np.ndarray,
     err, own = _time_max(np.abs(x - ref)), _time_max(np.abs(ref))
     top = np.max(own, axis=-1)
     # the maxima over times, then over outputs, are the maxima over both
-    return err, _over(err, judged_peaks(own, top[:, None], bound)), _over(np.max(err, axis=-1), top)
+    rows = np.reshape(np.asarray(rounding, dtype=float), (-1, 1))
+    return err, _over(err, judged_peaks(own, top[:, None], bound, rows)), _over(np.max(err, axis=-1), top)
 
 
 def _time_max(a: np.ndarray) -> np.ndarray:

@@ -104,7 +104,7 @@ def unresolved_outputs(system, time: np.ndarray, rates: np.ndarray, bound: float
     out: dict[str, str] = {}
     for beta, share in zip(scales.decays, scales.shares):
         for j, peak in enumerate(own / top):
-            allowed = bound * float(judged_peaks(peak, 1.0, bound))
+            allowed = bound * float(judged_peaks(peak, 1.0, bound, system.topology.rounding))
             if not (beta > 0 and share > allowed) or f"r{j + 1}" in out:
                 continue
             lasts = math.log(share / allowed) / beta         # until the decay is under the allowance

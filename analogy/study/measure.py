@@ -130,7 +130,7 @@ def measure(systems, runs, native, ref_name, p, save=(), resampled=frozenset()) 
             for at in shapes.values():
                 group = [ok[j] for j in at]
                 a, b = _outputs(own.take(group), measured), _outputs(refs.take(at), measured)
-                err, rel, whole = stack_errors(a, b, p.bound)
+                err, rel, whole = stack_errors(a, b, p.bound, [systems[k].topology.rounding for k in group])
                 whole = whole.tolist()
                 worst = np.argmax(np.where(np.isnan(rel), -np.inf, rel), axis=1)
                 top, peaks, rows = np.max(err, axis=1).tolist(), rel[np.arange(len(group)), worst].tolist(), rel.tolist()
