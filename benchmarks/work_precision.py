@@ -7,8 +7,8 @@ Each scene is `analogy compare …` as a user types it, run as a process in each
 selects it; same interpreter and packages) with each engine: "39" is the one on the machine,
 "46" the one `bash setup.sh engine` fetches into `.engines/` (KLU). Printed per scene, tree and
 engine: the exit code, SPICE's worst error over its own peak, its steps and the median of its run
-time [ms] over the repeats, and the ODE's; beside them the ideal trapezoidal count at 0.8 of the
-bound (the equidistributed schedule of this tree's truncation model, a linear circuit's only).
+time [ms] over the repeats, the ODE's, and the ratio of the two medians; beside them the ideal
+trapezoidal count at 0.8 of the bound (the equidistributed schedule of this tree's truncation model, a linear circuit's only).
 """
 import argparse
 import glob
@@ -27,6 +27,8 @@ SCENES = (
     ("parallel3 (springs)", ["compare", "--robot", "parallel3"], 1e-6),
     ("ur5 hanging", ["compare", "--robot", "ur5"], 1e-6),
     ("serial100 modal, fast", ["compare", "--robot", "serial100", "--topology", "modal", "--preset", "fast"], 1e-3),
+    ("serial100, fast", ["compare", "--robot", "serial100", "--preset", "fast"], 1e-3),
+    ("serial200, fast", ["compare", "--robot", "serial200", "--preset", "fast"], 1e-3),
     ("nonlinear 2-DOF", ["compare", "--dynamics", "nonlinear"], 1e-6),
 )
 
@@ -62,11 +64,14 @@ def main() -> None:
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--engines", default="39,46")
     p.add_argument("--timeout", type=float, default=600.0)
+    p.add_argument("--only", default="", help="the scenes whose name contains this text")
     args = p.parse_args()
     trees = (("before", str(Path(args.before).resolve())), ("this", HERE))
     print(f"{'scene':<24}{'ideal':>8}{'tree':>8}{'ngspice':>8}{'exit':>6}"
-          f"{'spice err':>11}{'steps':>9}{'ms':>9}{'ode err':>11}{'ode ms':>8}")
+          f"{'spice err':>11}{'steps':>9}{'ms':>9}{'ode err':>11}{'ode ms':>8}{'spice/ode':>10}")
     for name, words, bound in SCENES:
+        if args.only not in name:
+            continue
         ideal = _ideal(words, bound)
         for engine in args.engines.split(","):
             extra = _engine(engine)
@@ -86,6 +91,8 @@ def main() -> None:
                 ode_ms = [r["rows"]["ode"][0] for r in runs if "ode" in r["rows"]]
                 cells = (f"{spice[2]:>11.2e}{spice[3]:>9}{statistics.median(ms):>9.0f}" if spice else f"{'-':>29}")
                 cells += (f"{ode[2]:>11.2e}{statistics.median(ode_ms):>8.1f}" if ode else f"{'-':>19}")
+                # the ratio of the medians: SPICE's time over the ODE's in the same runs
+                cells += f"{statistics.median(ms) / statistics.median(ode_ms):>10.1f}" if ms and ode_ms else f"{'-':>10}"
                 print(f"{name:<24}{ideal:>8}{label:>8}{engine:>8}{last['exit']!s:>6}{cells}")
                 sys.stdout.flush()
 

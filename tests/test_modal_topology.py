@@ -167,3 +167,59 @@ def test_the_modal_circuit_in_ngspice_keeps_the_preset_s_bound(name, preset):
     ref = solve_exact(system, tr.time).rates
     _, rel = output_errors(tr.rates, ref)
     assert np.max(rel) <= p.bound
+
+
+def _serial100(*extra):
+    from analogy.cli.parser import build_parser
+    from analogy.cli.scene_options import built_system, scene_from_args
+    return built_system(scene_from_args(build_parser().parse_args(
+        ["compare", "--robot", "serial100", "--preset", "fast", *extra])))
+
+
+def test_a_large_dense_robot_is_written_on_its_modes_and_a_small_or_sparse_one_on_its_own_map():
+    """Past DENSE_NODE_LIMIT joints a circuit with more floating elements than 2n takes the modal map
+    (serial100's serial circuit: n(n−1)/2 = 4,950 floating capacitors and 99 resistors); 12 joints, or
+    a chain whose M, B and K couple only neighbours (n − 1 floating elements each), keep their own."""
+    from analogy.circuit.topology import DENSE_NODE_LIMIT, default_topology
+    assert _serial100().topology.name == "modal"
+    assert _serial100("--topology", "serial").topology.name == "serial"
+    for n in (DENSE_NODE_LIMIT, DENSE_NODE_LIMIT + 1):
+        assert default_topology("serial", _spd(n), np.eye(n)) == ("modal" if n > DENSE_NODE_LIMIT else "serial")
+    n = 3 * DENSE_NODE_LIMIT
+    chain = 2 * np.eye(n) - np.eye(n, k=1) - np.eye(n, k=-1) + 0.1 * np.eye(n)
+    assert default_topology("parallel", chain, np.eye(n), chain) == "parallel"      # 2(n − 1) ≤ 2n floating
+    assert default_topology("parallel", _spd(n), np.eye(n)) == "modal"
+
+
+def test_the_node_map_s_rounding_bounds_how_far_two_maps_of_one_robot_part():
+    """Topology.rounding is 0 where T⁻¹ is exact (serial, parallel) and 4·n·ε·cond(T) otherwise: the
+    exact solutions of serial100 on its serial and its modal circuit part by no more than that of the
+    largest rate (measured 1.4e-11 of it, against 1.3e-9)."""
+    from analogy.circuit.topology import parallel, serial
+    assert serial(7).rounding == 0.0 and parallel(7).rounding == 0.0
+    on_modes, on_chain = _serial100(), _serial100("--topology", "serial")
+    top = on_modes.topology
+    assert top.rounding == pytest.approx(4 * top.dof * EPS * np.linalg.cond(top.matrix))
+    t = np.linspace(0.0, on_modes.t_stop, 201)
+    a, b = solve_exact(on_modes, t).rates, solve_exact(on_chain, t).rates
+    assert np.max(np.abs(a - b)) <= top.rounding * np.max(np.abs(b))
+
+
+def test_no_output_is_judged_closer_than_the_node_map_s_rounding_allows():
+    """An output under rounding/bound of the largest is judged against that share of it, not its own peak."""
+    from analogy.results.metrics import judged_peaks
+    own, top, bound = np.array([1.0, 1e-10, 1e-3]), np.array([1.0]), 1e-3
+    np.testing.assert_allclose(judged_peaks(own, top, bound), [1.0, 1e-9, 1e-3], rtol=EPS)     # 1e-12 / 1e-3
+    np.testing.assert_allclose(judged_peaks(own, top, bound, 1e-9), [1.0, 1e-6, 1e-3], rtol=EPS)
+    err = np.zeros((2, 3))
+    err[1] = [0.0, 5e-10, 0.0]
+    ref = np.vstack([np.zeros(3), own])
+    assert output_errors(err + ref, ref, bound, 1e-9)[1][1] == pytest.approx(5e-4)
+
+
+@pytest.mark.ngspice
+def test_serial100_at_fast_keeps_the_bound_on_its_modes():
+    """`compare --robot serial100 --preset fast` exits 0: on its modes, SPICE and the ODE within 1e-3 of
+    each output's own peak (floored at the map's rounding over the bound)."""
+    from analogy.cli.commands import main
+    assert main(["compare", "--robot", "serial100", "--preset", "fast", "--no-plot"]) == 0

@@ -120,7 +120,7 @@ def test_a_circuit_too_large_for_spice_is_refused_and_runs_without_it():
     still take it."""
     n = 400
     mass = np.full((n, n), 0.5) + np.eye(n)
-    system = analogy.node_system(JointSpace(mass, np.eye(n)), t_stop=0.01)
+    system = analogy.node_system(JointSpace(mass, np.eye(n)), topology="parallel", t_stop=0.01)     # dense
     p = PRESETS["accurate"]
     with pytest.raises(InputError, match=r"400 nodes\) would need about 1.28e\+11 operations") as caught:
         check_work(system, p)
@@ -138,7 +138,7 @@ def test_every_built_in_scene_is_far_inside_the_operation_budget():
 @pytest.mark.ngspice
 @pytest.mark.slow
 def test_sigterm_stops_a_long_spice_run_at_once():
-    """serial200 over ngspice's 20,000 points is 200³·2e4 = 1.6e11 operations (a quarter of an
+    """serial200's serial circuit over ngspice's 20,000 points is 200³·2e4 = 1.6e11 operations (a quarter of an
     hour at the 1.7e8 a second measured here, minutes on any machine): SIGTERM in the middle ends
     the command with exit 130. The only bound on time is the hang guard of communicate, which
     only a run that went on to its end could reach."""
@@ -147,8 +147,8 @@ def test_sigterm_stops_a_long_spice_run_at_once():
     import sys
     import time
     from pathlib import Path
-    proc = subprocess.Popen([sys.executable, "-m", "analogy", "compare", "--robot", "serial200", "--solvers",
-                             "spice", "--no-plot", "--budget", "1e9"],
+    proc = subprocess.Popen([sys.executable, "-m", "analogy", "compare", "--robot", "serial200", "--topology",
+                             "serial", "--solvers", "spice", "--no-plot", "--budget", "1e9"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         ticks = os.sysconf("SC_CLK_TCK")
