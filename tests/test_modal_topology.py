@@ -223,3 +223,25 @@ def test_serial100_at_fast_keeps_the_bound_on_its_modes():
     each output's own peak (floored at the map's rounding over the bound)."""
     from analogy.cli.commands import main
     assert main(["compare", "--robot", "serial100", "--preset", "fast", "--no-plot"]) == 0
+
+
+def test_a_node_s_current_rounds_over_the_capacitors_that_meet_there():
+    """The rounding floor of abstol, c·ε·charge/h, counts the capacitors at a node: one on a modal
+    circuit, n on a dense one. Counted as n, serial500's modal floor passed 1e-8 of its current scale, and
+    its run fell back to the preset's own settings, which missed `fast` (2.8e-3)."""
+    from analogy.circuit.scales import system_scales
+    modes, chain = system_scales(_serial100()), system_scales(_serial100("--topology", "serial"))
+    assert modes.row_capacitors == 1 and chain.row_capacitors == 100
+    h = 1e-3
+    assert modes.rounding_current(h) == pytest.approx(EPS * modes.charge / h, rel=1e-15)
+    assert chain.rounding_current(h) == pytest.approx(100 * EPS * chain.charge / h, rel=1e-15)
+
+
+@pytest.mark.deep
+@pytest.mark.ngspice
+@pytest.mark.parametrize("robot", ["serial200", "serial500"])
+def test_hundreds_of_joints_keep_fast_on_their_modes(robot):
+    """serial200 and serial500 at `fast`, as typed: on their modes, every output within 1e-3 of its own
+    peak (their serial circuits missed it: 6.6e-3 for serial200, in 41 s under ngspice 39)."""
+    from analogy.cli.commands import main
+    assert main(["compare", "--robot", robot, "--preset", "fast", "--no-plot"]) == 0

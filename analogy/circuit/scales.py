@@ -65,6 +65,9 @@ class Scales:
     frequencies : ndarray
         Per mode, aligned with *phases*: the rate its phase turns at, ω_dk for an underdamped mode and
         σ_k for one that grows, zero otherwise [rad/s] (see :meth:`phase_error`).
+    row_capacitors : int or None
+        The most capacitors meeting at one node, the nonzero entries of a row of M' (None: every
+        node's, n): a linear modal circuit's is 1 (see :meth:`rounding_current`).
     """
 
     omega_max: float
@@ -79,6 +82,7 @@ class Scales:
     top_velocity: float = math.nan
     top_position: float = math.nan
     frequencies: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    row_capacitors: int | None = None
 
     def __repr__(self) -> str:
         return (f"Scales(omega_max={self.omega_max:.4g} rad/s, velocity={float(np.max(self.velocity)):.3g}, "
@@ -100,8 +104,9 @@ class Scales:
         return float(np.max(self.position)) if math.isnan(self.top_position) else self.top_position
 
     def rounding_current(self, step: float) -> float:
-        """n·ε·charge/h [A]: the rounding in a capacitor current Δq/h at steps *step*, summed
-        over the n nodes of a row. An abstol under a few of these lets rounding read as
+        """c·ε·charge/h [A]: the rounding in a capacitor current Δq/h at steps *step*, summed
+        over the c capacitors of a row (:attr:`row_capacitors`, n where not known). An abstol under a few
+        of these lets rounding read as
         truncation error, and ngspice then cuts the step until it stops with "timestep too
         small" (see :data:`analogy.solvers.transient.ROUNDING_STEPS`).
 
@@ -110,7 +115,8 @@ class Scales:
         step : float
             The shortest step the run takes [s].
         """
-        return self.size * float(np.finfo(float).eps) * self.charge / step
+        count = self.size if self.row_capacitors is None else self.row_capacitors
+        return count * float(np.finfo(float).eps) * self.charge / step
 
     def fastest(self, bound: float) -> float:
         """ω_max, or the fastest decay of a mode larger than 10·*bound* of the peak if that is faster.
@@ -338,8 +344,17 @@ def _stack_scales(first, m, b, k, v0) -> list[Scales]:
     """Scales of a stack sharing *first*'s forces, topology and t_stop (arrays with a leading axis)."""
     fastest, velocity, position, current, charge, decays, share, phases, tops, reaches, turns = \
         _scale_arrays(first, m, b, k, v0)
+    row = _row_capacitors(first, m)
     return [Scales(float(fastest[j]), velocity[j], position[j], current, float(charge[j]), decays[j], share[j],
-                   phases[j], None, tops[j], reaches[j], turns[j]) for j in range(m.shape[0])]
+                   phases[j], None, tops[j], reaches[j], turns[j], row) for j in range(m.shape[0])]
+
+
+def _row_capacitors(first, m: np.ndarray) -> int | None:
+    """The most nonzero entries in a row of a linear stack's M' (None for a nonlinear system: M'(x) at
+    x = 0 may have zeros that other poses fill)."""
+    if first.kind != "linear" or not m.size:
+        return None
+    return int(np.max(np.count_nonzero(m, axis=-1)))
 
 
 def _scale_arrays(first, m, b, k, v0) -> tuple:
@@ -432,7 +447,8 @@ def combined_scales(scales: Sequence[Scales]) -> Scales:
                   max(s.current for s in scales), max(s.charge for s in scales),
                   np.concatenate([s.decays for s in scales]), np.concatenate([s.shares for s in scales]),
                   np.concatenate([s.phases for s in scales]), max(s.size for s in scales), top, reach,
-                  np.concatenate([s.frequencies for s in scales]))
+                  np.concatenate([s.frequencies for s in scales]),
+                  None if any(s.row_capacitors is None for s in scales) else max(s.row_capacitors for s in scales))
 
 
 def run_scales(systems: Sequence) -> Scales:
@@ -450,7 +466,7 @@ def run_scales(systems: Sequence) -> Scales:
         parts = None if stack is None or _kept(stack[0]) is not None else stack.partition()
         if parts is not None and len(parts) == 1:       # straight from the stack's arrays: no Scales per row
             kept = _combined_rows(*_scale_arrays(stack[0], stack.mass, stack.damping, stack.stiffness,
-                                                 stack.initial_voltages))
+                                                 stack.initial_voltages), _row_capacitors(stack[0], stack.mass))
         else:
             kept = combined_scales(stack_scales(systems))
         if stack is not None:
@@ -459,9 +475,9 @@ def run_scales(systems: Sequence) -> Scales:
 
 
 def _combined_rows(fastest, velocity, position, current, charge, decays, share, phases, tops, reaches,
-                   turns) -> Scales:
+                   turns, row_capacitors: int | None = None) -> Scales:
     """:func:`combined_scales` of the rows of :func:`_scale_arrays`, taken in the same order."""
     top, reach = max(tops), max(reaches)
     return Scales(max(fastest.tolist()), np.array([top]), np.array([reach]), current, max(charge.tolist()),
                   decays.reshape(-1), share.reshape(-1), phases.reshape(-1), velocity.shape[1], top, reach,
-                  turns.reshape(-1))
+                  turns.reshape(-1), row_capacitors)
