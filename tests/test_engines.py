@@ -167,6 +167,10 @@ def test_a_gnucap_netlist_past_five_nodes_warns_that_gnucap_may_not_finish_it(ca
     out, err = capsys.readouterr()
     assert "gnucap may not finish this 6-node netlist" in err
     assert "* warning: gnucap may not finish this 6-node netlist" in out      # the file says it too
+    # serial20's modal circuit couples no node to another: gnucap ran it in 0.3 s, and nothing is said
+    assert main(["netlist", "--format", "gnucap", "--robot", "serial20"]) == 0
+    out, err = capsys.readouterr()
+    assert "gnucap may not finish" not in err + out and "modal map" in err
 
 
 def test_realizable_is_refused_for_the_nonlinear_circuit(capsys):

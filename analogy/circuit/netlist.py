@@ -29,7 +29,7 @@ from .step_sources import first_step_lines
 
 __all__ = ["Dialect", "DIALECTS", "NETLIST_FORMATS", "write_netlist", "write_batch", "write_stack", "ac_netlist", "circuit_lines",
            "analysis_lines", "save_vectors", "comment_text", "spice_expression", "gnucap_lines",
-           "gnucap_size_note", "GNUCAP_NODES"]
+           "gnucap_size_note", "coupled_nodes", "GNUCAP_NODES"]
 
 #: The SPICE engines a netlist is written for: ngspice's language, and gnucap's (linear circuits).
 Dialect = Literal["ngspice", "gnucap", "ltspice"]
@@ -320,7 +320,7 @@ def write_netlist(c: Circuit, settings, save: Iterable[str] | None = None, title
         :func:`~analogy.circuit.ltspice.ltspice_netlist` for LTspice).
     """
     if dialect == "gnucap":
-        note = gnucap_size_note(len(c.node_names))
+        note = gnucap_size_note(coupled_nodes(c))
         warning = [f"* warning: {note}"] if note else []
         return "\n".join(_header(c, title, bool(c.couplings)) + warning + gnucap_lines(c, settings, save)) + "\n"
     if dialect not in DIALECTS:
@@ -334,17 +334,37 @@ def write_netlist(c: Circuit, settings, save: Iterable[str] | None = None, title
     return text
 
 
-#: Above this many nodes gnucap 0.36 was seen to run past minutes on our netlists, with no error.
+#: Above this many nodes coupled to one another gnucap 0.36 was seen to run past minutes on our netlists,
+#: with no error (dense serial circuits; serial20's modal circuit, no node coupled to another, took 0.3 s).
 GNUCAP_NODES = 5
 
 
+def coupled_nodes(c: Circuit) -> int:
+    """The most nodes one node's floating elements and couplings join, itself included: n for a dense
+    circuit, 1 for a modal one.
+
+    Parameters
+    ----------
+    c : Circuit
+        A circuit description.
+    """
+    joined: dict[int, set] = {}
+    pairs = [(a, b) for _, a, b, _, _ in c.elements] + [(cp.element.a, cp.element.b) for cp in c.couplings]
+    for a, b in pairs:
+        if a and b:
+            joined.setdefault(a, set()).add(b)
+            joined.setdefault(b, set()).add(a)
+    return 1 + max((len(v) for v in joined.values()), default=0)
+
+
 def gnucap_size_note(nodes: int) -> str | None:
-    """A sentence for a gnucap netlist of *nodes* nodes, past :data:`GNUCAP_NODES`, or None.
+    """A sentence for a gnucap netlist whose most coupled node joins *nodes* nodes (:func:`coupled_nodes`),
+    past :data:`GNUCAP_NODES`, or None.
 
     Parameters
     ----------
     nodes : int
-        The circuit's node count.
+        The most nodes coupled to one another.
     """
     if nodes <= GNUCAP_NODES:
         return None

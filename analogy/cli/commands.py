@@ -14,7 +14,8 @@ from concurrent.futures import BrokenExecutor
 from dataclasses import replace
 from pathlib import Path
 
-from ..circuit.netlist import gnucap_size_note
+from ..circuit.description import circuit
+from ..circuit.netlist import coupled_nodes, gnucap_size_note
 from ..circuit.topology import DENSE_NODE_LIMIT
 from ..files import write_text
 from ..solvers.transient import netlist, subcircuit_netlist
@@ -76,7 +77,7 @@ def _cmd_netlist(args) -> int:
     else:
         dialect = "ngspice" if args.format == "kicad" else args.format
         text = netlist(system, args.preset, save=save, title=_title(sc), dialect=dialect)
-        if dialect == "gnucap" and (note := gnucap_size_note(system.dof)):
+        if dialect == "gnucap" and (note := gnucap_size_note(coupled_nodes(circuit(system)))):
             print(f"analogy: warning: {note}", file=sys.stderr)
     files = {args.output: text} if args.output else {}
     if args.format == "kicad":
