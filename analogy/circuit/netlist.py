@@ -10,7 +10,6 @@ from typing import Iterable, Literal, Sequence
 import numpy as np
 
 from ..errors import InputError
-from ..waveforms import PWL, pwl_sum
 from .description import (
     BehaviouralCurrent,
     BehaviouralVoltage,
@@ -24,6 +23,7 @@ from .description import circuit as describe
 from .elements import ZERO_TOL
 from .ltspice import ltspice_netlist
 from .node_stack import NodeStack
+from .source_values import source_values
 from .spice_numbers import spice_text as _num
 from .step_sources import first_step_lines
 
@@ -142,7 +142,7 @@ def circuit_lines(c: Circuit, prefix: str = "", memo: dict | None = None) -> lis
             lines.append(f"B{prefix}{p.name} {b} {a} I={{{_prefixed(spice_expression(p.current), prefix)}}}")
     # 'I n+ n- value' drives current out of n+ and into n-: into a, out of b.
     joint_of = {s.name: s.joint for s in c.sources}
-    for name, a, b, v, terms in _source_values(c.sources, c.t_stop, memo):
+    for name, a, b, v, terms in source_values(c.sources, c.t_stop, memo):
         if terms:       # the description's sources it stands for
             lines.append(_summed_comment(f"I{prefix}{name[1:]}", a, terms))
         elif c.joints and name in joint_of:       # beside its source, the joint it drives
@@ -163,52 +163,6 @@ def _summed_comment(device: str, node: int, terms: Sequence) -> str:
         return f"* {device} sums {len(terms)} joint forces into n{node}, each times its entry of T^-T"
     named = (f"{'' if g.scale == 1.0 else f'{g.scale:g}*'}{g.waveform.label()} (joint {g.joint})" for g in terms)
     return f"* {device} " + comment_text(f"sums the forces into n{node}: " + " + ".join(named))
-
-
-def _source_values(sources, t_stop: float, memo: dict | None) -> list[tuple[str, int, int, str, tuple]]:
-    """(name, a, b, value, terms) of each source device: the grounded piecewise-linear sources into one
-    node are one device ``In<k>`` whose PWL is their sum (under a custom map T⁻ᵀ every joint
-    drives every node, and ngspice evaluates n² sources at every step otherwise), with the sources
-    it sums as *terms*; the rest as given."""
-    merged: dict[int, list] = {}
-    for s in sources:
-        if s.b == 0 and isinstance(s.waveform, PWL):
-            merged.setdefault(s.a, []).append(s)
-    merged = {k: group for k, group in merged.items() if len(group) > 1}
-    summed = {id(s) for group in merged.values() for s in group}
-    corners: dict = {}
-    out, written = [], set()
-    for s in sources:
-        if id(s) not in summed:
-            key = (s.scale, t_stop)
-            value = None if memo is None else memo.setdefault(s.waveform, {}).get(key)
-            if value is None:
-                value = s.waveform.spice(s.scale, t_stop)
-                if memo is not None:        # one waveform drives many circuits of a batch: its text is made once
-                    memo[s.waveform][key] = value
-            out.append((s.name, s.a, s.b, value, ()))
-        elif s.a not in written:
-            written.add(s.a)
-            group = merged[s.a]
-            times, columns = _shared_corners([g.waveform for g in group], corners)
-            scales = np.array([float(g.scale) for g in group])[:, None]
-            # a running sum adds row after row (a reduction may pair them): pwl_sum's order, the same digits
-            summed_values = np.cumsum(scales * np.array([columns[id(g.waveform)] for g in group]), axis=0)[-1]
-            out.append((f"In{s.a}", s.a, 0, PWL(np.column_stack([times, summed_values])).spice(1.0, t_stop),
-                        tuple(group)))
-    return out
-
-
-def _shared_corners(waveforms: list, corners: dict) -> tuple[np.ndarray, dict]:
-    """The corners of *waveforms* summed (:func:`~analogy.waveforms.pwl_sum`'s union of times) and each
-    one's values there, by id, kept in *corners* for the next group of the same waveforms: a modal
-    map's n sources each sum the same n forces, interpolated once instead of n times."""
-    key = frozenset(id(w) for w in waveforms)
-    if key not in corners:
-        distinct = list({id(w): w for w in waveforms}.values())
-        times = pwl_sum([(w, 0.0) for w in distinct]).times
-        corners[key] = times, {id(w): np.interp(times, w.times, w.values) for w in distinct}
-    return corners[key]
 
 
 def analysis_lines(settings, ic: Iterable[tuple[str, float]] = (), save: Iterable[str] = (),
@@ -469,7 +423,7 @@ def write_stack(stack: NodeStack, settings, zero_tol: float = ZERO_TOL) -> str:
     first = stack[0]
     count, dof, x = len(stack), stack.dof, f"x{_ROW}_"
     sources = []
-    for name, a, b, v, terms in _source_values(current_sources(first, zero_tol), first.t_stop, None):
+    for name, a, b, v, terms in source_values(current_sources(first, zero_tol), first.t_stop, None):
         if terms:
             sources.append(_summed_comment(f"I{x}{name[1:]}", a, terms))
         sources.append(f"I{x}{name[1:]} {_node(b, x)} {_node(a, x)} {v}")

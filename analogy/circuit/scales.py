@@ -105,10 +105,10 @@ class Scales:
 
     def rounding_current(self, step: float) -> float:
         """c·ε·charge/h [A]: the rounding in a capacitor current Δq/h at steps *step*, summed
-        over the c capacitors of a row (:attr:`row_capacitors`, n where not known). An abstol under a few
-        of these lets rounding read as
-        truncation error, and ngspice then cuts the step until it stops with "timestep too
-        small" (see :data:`analogy.solvers.transient.ROUNDING_STEPS`).
+        over the c capacitors of a row (:attr:`row_capacitors`, n where not known). An abstol
+        under a few of these lets rounding read as truncation error, and ngspice then cuts the
+        step until it stops with "timestep too small" (see
+        :data:`analogy.solvers.transient.ROUNDING_STEPS`).
 
         Parameters
         ----------

@@ -141,8 +141,8 @@ def congruence(x, t) -> np.ndarray:
 
 def _without_rounding(z: np.ndarray, rounding: float) -> np.ndarray:
     """*z* (or a stack) with each off-diagonal entry under *rounding*·max|z| (4·n·ε·cond(T),
-    :attr:`Topology.rounding`) set to zero: the rounding of
-    a congruence by the modal map, which diagonalises M and B (or K) exactly. Kept, it wrote serial100's
+    :attr:`Topology.rounding`) set to zero: the rounding of a congruence by the modal map, which
+    diagonalises M and B (or K) exactly. Kept, it wrote serial100's
     modal circuit (cond(T) = 1.4e4) with floating capacitors and resistors of 2.6e-10 of the largest, whose
     charges crossing zero cut ngspice's steps; the genuine off-diagonal B' of a modal circuit with springs
     stands far above it."""
