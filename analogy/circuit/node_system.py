@@ -211,7 +211,8 @@ def node_system(model: Evaluable | JointSpace, q: Sequence[float] | None = None,
     parameters : mapping, optional
         Parameter overrides.
     topology : {"serial", "parallel", "modal"}, Topology or array_like, optional
-        Joint-to-node map T; defaults to the model's own.
+        Joint-to-node map T; defaults to the model's own, or the modal one past 12 dense joints
+        (:func:`~analogy.circuit.topology.default_topology`).
     forces : sequence, optional
         One entry per joint: a number (step at t = 0), a waveform, a waveform
         string such as ``"sine(0, 1, 2)"`` or a list of these to be summed.

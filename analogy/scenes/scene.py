@@ -57,7 +57,9 @@ class Scene:
     parameters : tuple of (str, float)
         Parameter values, sorted by name.
     topology : str, tuple of tuple of float, or None
-        ``"serial"``, ``"parallel"``, ``"modal"`` (one node per mode), a matrix T, or None for the model's own.
+        ``"serial"``, ``"parallel"``, ``"modal"`` (one node per mode), a matrix T, or None for the model's own
+        (the modal map for a linear system past 12 joints whose own circuit is dense:
+        :func:`~analogy.circuit.topology.default_topology`).
     forces : tuple
         One entry per joint: a number (a step at t = 0), a waveform string, or a tuple of these.
     initial_rates : tuple of float or None
