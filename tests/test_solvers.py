@@ -234,6 +234,28 @@ def test_one_solve_shaped_like_solve_ivp_times_resamples_and_checks_every_solver
         analogy.solve(s, "exact", [2.0, 1.0])
 
 
+def test_what_a_solver_loads_once_is_ready_before_its_run_is_timed():
+    """Solver.ready (a library's load) runs before the timer starts, once per solve, and the run's own
+    hook after it: the time a solve reports is its own work (SPICE's ngspice load, about 50 ms, is not)."""
+    import analogy
+    from analogy.solvers.exact import SOLVER as exact
+
+    calls = []
+
+    class Traced(type(exact)):
+        def ready(self):
+            calls.append("ready")
+
+        def _solve(self, *args, **kwargs):
+            calls.append("run")
+            return super()._solve(*args, **kwargs)
+
+    s = analogy.scene("default").system()
+    traced = Traced()
+    tr = traced.solve(s, np.linspace(0.0, s.t_stop, 11), analogy.PRESETS["fast"])
+    assert calls == ["ready", "run"] and tr.success
+
+
 def test_every_keyword_the_force_help_shows_is_one_the_parser_takes():
     """The --force help and the waveform parser name the same arguments (sine's frequency and phase)."""
     import re as _re

@@ -28,6 +28,11 @@ def library_path() -> str:
     return path
 
 
+#: The C types a run names in cffi calls (the netlist's lines, the vectors read back): cffi parses each
+#: on first use, 15 ms in all here.
+_RUN_TYPES = ("char[]", "char *", "char **", "uintptr_t")
+
+
 def declared_ffi() -> "cffi.FFI":
     """PySpice's cffi object with its declarations of ngspice's C API (taken once), the C locale set for ngspice."""
     locale.setlocale(locale.LC_NUMERIC, "C")   # ngspice parses numbers with the C locale
@@ -35,6 +40,8 @@ def declared_ffi() -> "cffi.FFI":
     global _CDEF_DONE
     if not _CDEF_DONE:
         Shared.ffi.cdef(Path(Shared.__file__).with_name("api.h").read_text())
+        for name in _RUN_TYPES:     # parsed once with the declarations, not inside the first run
+            Shared.ffi.typeof(name)
         _CDEF_DONE = True
     return Shared.ffi
 

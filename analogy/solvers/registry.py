@@ -12,7 +12,8 @@ A solver is an instance of :class:`Solver` registered in :data:`REGISTRY` by nam
   its own time points, such as SPICE, choose them) and a preset, and returns a
   :class:`~analogy.results.trajectory.Trajectory` that starts at t = 0 and carries its
   :class:`~analogy.results.trajectory.SolverStats`. The base class keeps this once:
-  it checks the times, times the solver's own hook :meth:`Solver._solve`, interpolates a
+  it checks the times, lets the solver load what it needs once (:meth:`Solver.ready`, untimed),
+  times the solver's own hook :meth:`Solver._solve`, interpolates a
   solver with its own points onto given times and checks the result's shape; a
   subclass implements ``_solve`` and may not override ``solve``.
 * :func:`solve` is the public entry, shaped like ``scipy.integrate.solve_ivp``:
@@ -98,6 +99,10 @@ class Solver:
             if name in vars(cls):
                 raise TypeError(f"{cls.__name__} overrides Solver.{name}: implement _{name} instead")
 
+    def ready(self) -> None:
+        """Load what every run needs once per process (a shared library), before a run is timed: a
+        run's time is its own work, as the ODE's excludes importing scipy. By default nothing."""
+
     def supports(self, system) -> str | None:
         """None if the solver applies to *system*, else one sentence why not.
 
@@ -133,6 +138,7 @@ class Solver:
             Also return node positions x = ∫v where the system has springs.
         """
         grid = None if times is None and self.own_grid else self.grid(system, times, preset)
+        self.ready()
         start = _time.perf_counter()
         try:
             tr = self._solve(system, None if self.own_grid else grid, preset, save=save, positions=positions)

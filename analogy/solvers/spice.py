@@ -153,6 +153,10 @@ class SpiceSolver(Solver):
     own_grid = True
     label = "ngspice (shared library)"
 
+    def ready(self) -> None:
+        """Load ngspice's library into the process (about 50 ms, once)."""
+        session()
+
     def supports(self, system) -> str | None:
         """Linear systems, and nonlinear ones with a symbolic model to write as a circuit.
 
