@@ -230,9 +230,10 @@ TOPOLOGIES = {"serial": serial, "parallel": parallel}
 #: The topologies a scene names: ``modal`` is built from the system's own M, B and K.
 TOPOLOGY_NAMES = (*TOPOLOGIES, "modal")
 #: Past this many joints a linear system whose own circuit is dense is written on the modal map
-#: (:func:`default_topology`). SPICE at ``accurate``, serial then modal: serial10 105 and 113 ms,
-#: serial16 455 and 203 ms, serial50 7.4 s and 0.41 s; at ``fast`` the serial circuit of serial32
-#: and serial50 missed the bound (3.3e-3), the modal one kept it (4.2e-4, 4.4e-5).
+#: (:func:`default_topology`). SPICE at ``accurate``, serial then modal (a fresh process each, loading
+#: the library counted in both): serial10 105 and 113 ms, serial16 455 and 203 ms, serial50 7.4 s and
+#: 0.41 s; at ``fast`` the serial circuits of serial32 and serial50 missed the bound (3.3e-3), the
+#: modal ones kept it (4.2e-4, 4.4e-5).
 DENSE_NODE_LIMIT = 12
 
 
