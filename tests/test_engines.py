@@ -167,10 +167,15 @@ def test_a_gnucap_netlist_past_five_nodes_warns_that_gnucap_may_not_finish_it(ca
     out, err = capsys.readouterr()
     assert "gnucap may not finish this 6-node netlist" in err
     assert "* warning: gnucap may not finish this 6-node netlist" in out      # the file says it too
-    # serial20's modal circuit couples no node to another: gnucap ran it in 0.3 s, and nothing is said
+    # serial20's modal circuit joins no node to another: gnucap ran it in 0.3 s, and nothing is said
     assert main(["netlist", "--format", "gnucap", "--robot", "serial20"]) == 0
     out, err = capsys.readouterr()
     assert "gnucap may not finish" not in err + out and "modal map" in err
+    # a tridiagonal chain of 8 nodes (each joined to two) ran past 100 s: it is warned about
+    chain = "[" + ", ".join("[" + ", ".join("2" if i == j else "-0.5" if abs(i - j) == 1 else "0"
+                                            for j in range(8)) + "]" for i in range(8)) + "]"
+    assert main(["netlist", "--format", "gnucap", "--mass", chain]) == 0
+    assert "gnucap may not finish this 8-node netlist" in capsys.readouterr().err
 
 
 def test_realizable_is_refused_for_the_nonlinear_circuit(capsys):

@@ -181,14 +181,20 @@ def test_a_large_dense_robot_is_written_on_its_modes_and_a_small_or_sparse_one_o
     (serial100's serial circuit: n(n−1)/2 = 4,950 floating capacitors and 99 resistors); 12 joints, or
     a chain whose M, B and K couple only neighbours (n − 1 floating elements each), keep their own."""
     from analogy.circuit.topology import DENSE_NODE_LIMIT, default_topology
+
+    def name(top):
+        return getattr(top, "name", top)
     assert _serial100().topology.name == "modal"
     assert _serial100("--topology", "serial").topology.name == "serial"
     for n in (DENSE_NODE_LIMIT, DENSE_NODE_LIMIT + 1):
-        assert default_topology("serial", _spd(n), np.eye(n)) == ("modal" if n > DENSE_NODE_LIMIT else "serial")
+        assert name(default_topology("serial", _spd(n), np.eye(n))) == ("modal" if n > DENSE_NODE_LIMIT else "serial")
     n = 3 * DENSE_NODE_LIMIT
     chain = 2 * np.eye(n) - np.eye(n, k=1) - np.eye(n, k=-1) + 0.1 * np.eye(n)
     assert default_topology("parallel", chain, np.eye(n), chain) == "parallel"      # 2(n − 1) ≤ 2n floating
-    assert default_topology("parallel", _spd(n), np.eye(n)) == "modal"
+    assert name(default_topology("parallel", _spd(n), np.eye(n))) == "modal"
+    # springs beside damping that is not proportional: B' on the modes is as dense as M on the joints
+    uneven = np.diag(np.linspace(0.5, 3.0, n))
+    assert default_topology("parallel", _spd(n), uneven, 4 * np.eye(n)) == "parallel"
 
 
 def test_the_node_map_s_rounding_bounds_how_far_two_maps_of_one_robot_part():
@@ -211,6 +217,8 @@ def test_no_output_is_judged_closer_than_the_node_map_s_rounding_allows():
     own, top, bound = np.array([1.0, 1e-10, 1e-3]), np.array([1.0]), 1e-3
     np.testing.assert_allclose(judged_peaks(own, top, bound), [1.0, 1e-9, 1e-3], rtol=EPS)     # 1e-12 / 1e-3
     np.testing.assert_allclose(judged_peaks(own, top, bound, 1e-9), [1.0, 1e-6, 1e-3], rtol=EPS)
+    # never above the largest peak: a rounding past the bound judges every output against it
+    np.testing.assert_allclose(judged_peaks(own, top, bound, 5e-3), [1.0, 1.0, 1.0], rtol=EPS)
     err = np.zeros((2, 3))
     err[1] = [0.0, 5e-10, 0.0]
     ref = np.vstack([np.zeros(3), own])

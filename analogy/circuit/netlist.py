@@ -160,7 +160,7 @@ def _summed_comment(device: str, node: int, terms: Sequence) -> str:
     """The comment line above a summed source: its terms by waveform and joint, or, past
     :data:`_LISTED_TERMS` of them, their number."""
     if len(terms) > _LISTED_TERMS:
-        return f"* {device} sums {len(terms)} joint forces into n{node}, each times its entry of T^-T"
+        return f"* {device} sums {len(terms)} force terms into n{node}, each times its joint's entry of T^-T"
     named = (f"{'' if g.scale == 1.0 else f'{g.scale:g}*'}{g.waveform.label()} (joint {g.joint})" for g in terms)
     return f"* {device} " + comment_text(f"sums the forces into n{node}: " + " + ".join(named))
 
@@ -274,7 +274,7 @@ def write_netlist(c: Circuit, settings, save: Iterable[str] | None = None, title
         :func:`~analogy.circuit.ltspice.ltspice_netlist` for LTspice).
     """
     if dialect == "gnucap":
-        note = gnucap_size_note(coupled_nodes(c))
+        note = gnucap_size_note(len(c.node_names), coupled_nodes(c))
         warning = [f"* warning: {note}"] if note else []
         return "\n".join(_header(c, title, bool(c.couplings)) + warning + gnucap_lines(c, settings, save)) + "\n"
     if dialect not in DIALECTS:
@@ -288,8 +288,9 @@ def write_netlist(c: Circuit, settings, save: Iterable[str] | None = None, title
     return text
 
 
-#: Above this many nodes coupled to one another gnucap 0.36 was seen to run past minutes on our netlists,
-#: with no error (dense serial circuits; serial20's modal circuit, no node coupled to another, took 0.3 s).
+#: Above this many nodes joined by floating elements gnucap 0.36 was seen to run past minutes on our
+#: netlists, with no error: dense serial circuits, and tridiagonal chains of 6 to 20 nodes alike;
+#: serial20's modal circuit, no node joined to another, took 0.3 s.
 GNUCAP_NODES = 5
 
 
@@ -311,16 +312,18 @@ def coupled_nodes(c: Circuit) -> int:
     return 1 + max((len(v) for v in joined.values()), default=0)
 
 
-def gnucap_size_note(nodes: int) -> str | None:
-    """A sentence for a gnucap netlist whose most coupled node joins *nodes* nodes (:func:`coupled_nodes`),
-    past :data:`GNUCAP_NODES`, or None.
+def gnucap_size_note(nodes: int, coupled: int) -> str | None:
+    """A sentence for a gnucap netlist of *nodes* nodes past :data:`GNUCAP_NODES` where a floating element
+    joins two of them (*coupled* > 1, :func:`coupled_nodes`), or None.
 
     Parameters
     ----------
     nodes : int
-        The most nodes coupled to one another.
+        The circuit's node count.
+    coupled : int
+        The most nodes one node's floating elements join, itself included.
     """
-    if nodes <= GNUCAP_NODES:
+    if nodes <= GNUCAP_NODES or coupled <= 1:
         return None
     return (f"gnucap may not finish this {nodes}-node netlist: at the accurate preset it ran the 5-node serial5 "
             "in 0.4 s, serial6 in 14 s, and neither serial7 nor serial8 within 15 s nor flex1 within 300 s, with no "

@@ -47,7 +47,8 @@ def source_values(sources, t_stop: float, memo: dict | None) -> list[tuple[str, 
             times, columns = _shared_corners([g.waveform for g in group], corners)
             scales = np.array([float(g.scale) for g in group])[:, None]
             # a running sum adds row after row (a reduction may pair them): pwl_sum's order, the same digits
-            summed_values = np.cumsum(scales * np.array([columns[id(g.waveform)] for g in group]), axis=0)[-1]
+            # (+ 0.0: pwl_sum starts from +0.0, so a sum of −0.0 terms is written 0.0, as there)
+            summed_values = np.cumsum(scales * np.array([columns[id(g.waveform)] for g in group]), axis=0)[-1] + 0.0
             out.append((f"In{s.a}", s.a, 0, PWL(np.column_stack([times, summed_values])).spice(1.0, t_stop),
                         tuple(group)))
     return out

@@ -237,13 +237,13 @@ TOPOLOGY_NAMES = (*TOPOLOGIES, "modal")
 DENSE_NODE_LIMIT = 12
 
 
-def default_topology(own: str, mass, damping, stiffness=None) -> str:
-    """The map a linear system is written on when none is named.
+def default_topology(own: str, mass, damping, stiffness=None) -> "str | Topology":
+    """The map a linear system is written on when none is named: a name, or the modal map built.
 
     A system of more than :data:`DENSE_NODE_LIMIT` joints whose circuit on its own map would have
     more floating elements than twice its nodes (n(n−1)/2 capacitors for a dense mass matrix) takes the
-    modal map: n grounded capacitors, each node's step no longer set by its n − 1 neighbours. A sparse
-    chain keeps its own map.
+    modal map where that has fewer: n grounded capacitors, and floating resistors only where springs
+    meet damping that is not proportional. A sparse chain keeps its own map.
 
     Parameters
     ----------
@@ -257,11 +257,16 @@ def default_topology(own: str, mass, damping, stiffness=None) -> str:
     n = len(mass)
     if n <= DENSE_NODE_LIMIT or own not in TOPOLOGIES:
         return own
-    top = TOPOLOGIES[own](n)
+    matrices = [np.asarray(x, dtype=float) for x in (mass, damping, stiffness) if x is not None]
     upper = np.triu(np.ones((n, n), dtype=bool), 1)
-    floating = sum(int(np.count_nonzero(top.node_matrix(np.asarray(x, dtype=float))[upper]))
-                   for x in (mass, damping, stiffness) if x is not None)
-    return "modal" if floating > 2 * n else own
+
+    def floating(top: Topology) -> int:
+        return sum(int(np.count_nonzero(top.node_matrix(x)[upper])) for x in matrices)
+    mine = floating(TOPOLOGIES[own](n))
+    if mine <= 2 * n:
+        return own
+    modes = modal(mass, damping, stiffness)
+    return modes if floating(modes) < mine else own
 
 
 def topology(spec, n: int, matrices: tuple | None = None) -> Topology:

@@ -77,7 +77,7 @@ def _cmd_netlist(args) -> int:
     else:
         dialect = "ngspice" if args.format == "kicad" else args.format
         text = netlist(system, args.preset, save=save, title=_title(sc), dialect=dialect)
-        if dialect == "gnucap" and (note := gnucap_size_note(coupled_nodes(circuit(system)))):
+        if dialect == "gnucap" and (note := gnucap_size_note(system.dof, coupled_nodes(circuit(system)))):
             print(f"analogy: warning: {note}", file=sys.stderr)
     files = {args.output: text} if args.output else {}
     if args.format == "kicad":

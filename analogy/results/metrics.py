@@ -24,7 +24,8 @@ REFERENCE_ROUNDING = 1e-12
 def judged_peaks(own: np.ndarray, top: np.ndarray, bound: float | None = None, rounding=0.0) -> np.ndarray:
     """The peak each output's error is divided by: its own, floored at :data:`PEAK_FLOOR` of the
     largest output's peak *top* and, under a *bound*, at max(:data:`REFERENCE_ROUNDING`, *rounding*) /
-    *bound* of it: no bound asks for an output closer than the circuit's own rounding allows.
+    *bound* of it (at most all of it): no bound asks for an output closer than the circuit's own
+    rounding allows.
 
     Parameters
     ----------
@@ -40,7 +41,9 @@ def judged_peaks(own: np.ndarray, top: np.ndarray, bound: float | None = None, r
     """
     if bound is None or not bound > 0:
         return np.maximum(own, PEAK_FLOOR * top)
-    return np.maximum(own, np.maximum(PEAK_FLOOR, np.maximum(REFERENCE_ROUNDING, rounding) / bound) * top)
+    # at most the largest peak: a map rounding past the bound judges every output against the largest
+    floor = np.minimum(np.maximum(PEAK_FLOOR, np.maximum(REFERENCE_ROUNDING, rounding) / bound), 1.0)
+    return np.maximum(own, floor * top)
 
 
 def peak(reference: np.ndarray, axis=None) -> np.ndarray | float:

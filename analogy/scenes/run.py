@@ -263,8 +263,7 @@ class SceneResult(Tabular):
             y = np.column_stack([ref[k] for k in names])
             out[quantity] = {}
             for s, vals in by_solver.items():       # each output against its own peak, as the joint rates
-                err, rel = output_errors(np.column_stack([vals[k] for k in names]), y, self.scene.settings.bound,
-                                         self.system.topology.rounding)
+                err, rel = output_errors(np.column_stack([vals[k] for k in names]), y, self.scene.settings.bound)
                 out[quantity][s] = (float(np.max(err)), float(np.max(rel)))
         return out
 

@@ -55,8 +55,8 @@ def on_points(tr: Trajectory, times: np.ndarray, breakpoints: np.ndarray) -> np.
 
 
 def _estimate(coarse: np.ndarray, fine: np.ndarray, factor: float, names: Sequence[str],
-              bound: float | None = None) -> OutputErrors:
-    err, rel = output_errors(coarse, fine, bound)
+              bound: float | None = None, rounding: float = 0.0) -> OutputErrors:
+    err, rel = output_errors(coarse, fine, bound, rounding)
     err, rel = err * factor, rel * factor
     worst = int(np.argmax(np.where(np.isnan(rel), -np.inf, rel)))
     top = float(np.max(np.abs(fine))) if fine.size else np.nan
@@ -145,7 +145,7 @@ def _judged(system, coarse: Trajectory, fine: Trajectory, factor: float, names, 
             missing: dict, name: str) -> OutputErrors:
     """The estimate of *coarse* from *fine*; no claim where an output is one its steps cannot see."""
     values = on_points(fine, coarse.time, system.breakpoints()) if own_grid else fine.rates
-    est = _estimate(coarse.rates, values, factor, names, preset.bound)
+    est = _estimate(coarse.rates, values, factor, names, preset.bound, system.topology.rounding)
     if not own_grid:
         return est
     whole = coarse.stats.steps is None or coarse.time.size > coarse.stats.steps   # not a subset of its points
