@@ -118,7 +118,8 @@ def scene_options(p: argparse.ArgumentParser, preset: str = "accurate") -> None:
     g.add_argument("--q", metavar="VALUES", help="configuration [rad or m], e.g. '0, 0.3' or '0, 30 deg'")
     g.add_argument("--topology", metavar="serial|parallel|modal|MATRIX",
                    help="joint-to-node map: serial, parallel, modal (one node per mode) or a matrix T with v = T r "
-                        "(default: the robot's own; modal for a linear robot of more than 12 joints)")
+                        "(default: the robot's own; modal for a linear robot of more than 12 joints whose own "
+                        "circuit is dense, where the modes' is not)")
     g.add_argument("--force", action="append", metavar="SPEC",
                    help="force on the next joint [N·m or N] (repeat once per joint): a number, step(a), "
                         "step(a, delay, rise), pulse(v1, v2, delay=0, rise=1e-6, fall=1e-6, width=1, "
