@@ -12,7 +12,8 @@ from .errors import InputError
 from .model.expressions import parse_call, parse_number
 from .model.quantities import FORCE
 
-__all__ = ["Waveform", "Step", "PWL", "Pulse", "PWM", "HBridge", "Sine", "Piece", "parse_waveform", "pwl_sum"]
+__all__ = ["Waveform", "Step", "PWL", "Pulse", "PWM", "HBridge", "Sine", "Piece", "parse_waveform", "pwl_sum",
+           "pwl_corners"]
 
 
 def _num(x: float) -> str:
@@ -171,6 +172,20 @@ class Step(PWL):
         return _call("step", (self.amplitude, self.delay, self.rise), 1)
 
 
+def pwl_corners(waveforms: Sequence["PWL"]) -> np.ndarray:
+    """The union of piecewise-linear waveforms' times, where their sum has its corners.
+
+    Parameters
+    ----------
+    waveforms : sequence of PWL
+        The waveforms.
+    """
+    times = np.unique(np.concatenate([w.times for w in waveforms]))
+    # one corner written by two waveforms a few ulps apart (0.2 + 0.1 against 0.3) is one time:
+    # ngspice reads such a pair as a time that does not increase
+    return times[np.append(True, np.diff(times) > 1e-14 * times[-1])]
+
+
 def pwl_sum(terms: Sequence[tuple["PWL", float]]) -> PWL:
     """Σ scale·f of piecewise-linear waveforms, itself piecewise linear through the union of their times.
 
@@ -179,10 +194,7 @@ def pwl_sum(terms: Sequence[tuple["PWL", float]]) -> PWL:
     terms : sequence of (PWL, float)
         Each waveform with its factor.
     """
-    times = np.unique(np.concatenate([w.times for w, _ in terms]))
-    # one corner written by two waveforms a few ulps apart (0.2 + 0.1 against 0.3) is one time:
-    # ngspice reads such a pair as a time that does not increase
-    times = times[np.append(True, np.diff(times) > 1e-14 * times[-1])]
+    times = pwl_corners([w for w, _ in terms])
     values = np.zeros_like(times)
     for w, scale in terms:
         values += float(scale) * np.interp(times, w.times, w.values)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..waveforms import PWL, pwl_sum
+from ..waveforms import PWL, pwl_corners
 
 __all__ = ["source_values"]
 
@@ -55,12 +55,12 @@ def source_values(sources, t_stop: float, memo: dict | None) -> list[tuple[str, 
 
 
 def _shared_corners(waveforms: list, corners: dict) -> tuple[np.ndarray, dict]:
-    """The corners of *waveforms* summed (:func:`~analogy.waveforms.pwl_sum`'s union of times) and each
+    """The corners of *waveforms* summed (:func:`~analogy.waveforms.pwl_corners`) and each
     one's values there, by id, kept in *corners* for the next group of the same waveforms: a modal
     map's n sources each sum the same n forces, interpolated once instead of n times."""
     key = frozenset(id(w) for w in waveforms)
     if key not in corners:
         distinct = list({id(w): w for w in waveforms}.values())
-        times = pwl_sum([(w, 0.0) for w in distinct]).times
+        times = pwl_corners(distinct)
         corners[key] = times, {id(w): np.interp(times, w.times, w.values) for w in distinct}
     return corners[key]
