@@ -201,36 +201,35 @@ def solve_group(group: Group, preset: Preset, solvers: Sequence[str], reference:
         Keep every member's time points and joint rates.
     """
     built, failures = group.build()
-    members = list(built)
+    count = len(built)
     invalid, refused = set(failures), set()
     spice = "spice" in solvers
+    ok = [k for k in range(count) if k not in failures]     # a stack's rows are not made to be counted
     try:
-        check_works(built if isinstance(built, NodeStack) else [s for s in members if s is not None], preset,
-                    spice=spice)
+        check_works(built if isinstance(built, NodeStack) else [built[k] for k in ok], preset, spice=spice)
     except InputError:                  # some member is past the work budget: find which, and refuse it alone
-        for k, s in enumerate(members):
-            if s is not None:
-                try:
-                    check_work(s, preset, spice=spice)
-                except InputError as exc:
-                    members[k], failures[k] = None, str(exc)
-                    refused.add(k)
-    ok = [k for k, s in enumerate(members) if s is not None]
-    systems = built if len(ok) == len(members) else \
-        built.take(ok) if isinstance(built, NodeStack) else [members[k] for k in ok]
-    built = members
-    errors = {name: np.full(len(built), np.nan) for name in solvers}
-    seconds = {name: np.zeros(len(built)) for name in solvers}
-    rates: list = [None] * len(built)
-    for k, c in zip(ok, compare_many(systems, preset, solvers, reference=reference) if ok else []):
-        for name, r in c.records.items():
-            if r.status == "failed":
-                failures[k] = f"{name}: {r.reason}" if name != "spice" else r.reason
-            elif r.ran and name in seconds:
-                seconds[name][k] = r.trajectory.run_time
-                if r.errors is not None and name != c.reference:     # the yardstick has no error
-                    errors[name][k] = r.errors.relative
-        if keep:
+        for k in ok:
+            try:
+                check_work(built[k], preset, spice=spice)
+            except InputError as exc:
+                failures[k] = str(exc)
+                refused.add(k)
+        ok = [k for k in ok if k not in refused]
+    systems = built if len(ok) == count else \
+        built.take(ok) if isinstance(built, NodeStack) else [built[k] for k in ok]
+    errors = {name: np.full(count, np.nan) for name in solvers}
+    seconds = {name: np.zeros(count) for name in solvers}
+    rates: list = [None] * count
+    if not ok:
+        return GroupResult(errors, seconds, failures, invalid, refused, rates if keep else None)
+    found = compare_many(systems, preset, solvers, reference=reference)      # read as columns: no row is made
+    for name in found.solvers:          # a later solver's failure is the one said, as records come in run order
+        for j, why in found.failures(name).items():
+            failures[ok[j]] = f"{name}: {why}" if name != "spice" else why
+        if name in seconds:
+            seconds[name][ok], errors[name][ok] = found.seconds(name), found.errors(name)   # the yardstick's is NaN
+    if keep:
+        for k, c in zip(ok, found):
             ran = {s: r.trajectory for s, r in c.records.items() if r.ran}
             rates[k] = {s: (ran[s].time, ran[s].rates) for s in solvers if s in ran}
     return GroupResult(errors, seconds, failures, invalid, refused, rates if keep else None)

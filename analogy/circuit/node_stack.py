@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Iterator, Sequence, overload
+from typing import TYPE_CHECKING, Callable, Iterator, Sequence, overload
 
 import numpy as np
 
@@ -18,7 +18,8 @@ class NodeStack(Sequence):
     A stack is a sequence of its systems; :attr:`mass`, :attr:`damping`,
     :attr:`stiffness` and :attr:`initial_voltages` are the (count, n, n) and (count, n)
     arrays, given when the stack was built as one (``analogy.node_systems``)
-    and stacked on first use otherwise.
+    and stacked on first use otherwise. A stack built as one makes each row's system
+    only when it is asked for (:meth:`lazy`): a batch that reads the arrays makes none.
 
     Parameters
     ----------
@@ -30,17 +31,49 @@ class NodeStack(Sequence):
         The caller knows that every row has the same topology, forces and t_stop.
     """
 
-    __slots__ = ("systems", "_arrays", "_shared", "_scales")
+    __slots__ = ("_rows", "_row", "_arrays", "_shared", "_scales", "_springs")
 
     def __init__(self, systems: Sequence["NodeDynamics"], arrays: dict | None = None, shared_inputs: bool = False):
-        self.systems = tuple(systems)
-        if not self.systems:
+        rows = list(systems)
+        if not rows:
             raise ValueError("a node stack needs at least one system")
-        if any(s.dof != self.systems[0].dof for s in self.systems):
+        if any(s.dof != rows[0].dof for s in rows):
             raise ValueError("the systems of a node stack must have one size")
+        self._rows: list = rows
+        self._row: Callable[[int], "NodeDynamics"] | None = None
         self._arrays = dict(arrays or {})
-        self._shared = shared_inputs or len(self.systems) == 1
+        self._shared = shared_inputs or len(rows) == 1
         self._scales = None         # the combined scales of one circuit running them all (analogy.circuit.scales)
+        self._springs: np.ndarray | None = None
+
+    @classmethod
+    def lazy(cls, row: Callable[[int], "NodeDynamics"], arrays: dict, springs: np.ndarray,
+             shared_inputs: bool) -> "NodeStack":
+        """A stack whose row *k* is ``row(k)``, made when first asked for and kept.
+
+        Parameters
+        ----------
+        row : callable
+            The system of a row, from its index.
+        arrays : mapping of str to ndarray
+            Stacked ``mass``, ``damping`` and ``initial_voltages`` (and ``stiffness`` where every row has
+            springs), of which the rows' matrices are views.
+        springs : ndarray of bool
+            Per row, whether it has springs.
+        shared_inputs : bool
+            Every row has the same topology, forces and t_stop.
+        """
+        obj = cls.__new__(cls)
+        obj._rows = [None] * len(springs)
+        obj._row, obj._arrays, obj._scales = row, dict(arrays), None
+        obj._springs = np.asarray(springs, dtype=bool)
+        obj._shared = shared_inputs or len(springs) == 1
+        return obj
+
+    @property
+    def systems(self) -> tuple:
+        """Every row's system (each made now if not yet)."""
+        return tuple(self[k] for k in range(len(self)))
 
     @classmethod
     def of(cls, systems: Sequence["NodeDynamics"]) -> "NodeStack":
@@ -54,7 +87,7 @@ class NodeStack(Sequence):
         return systems if isinstance(systems, NodeStack) else cls(systems)
 
     def __len__(self) -> int:
-        return len(self.systems)
+        return len(self._rows)
 
     @overload
     def __getitem__(self, index: int) -> "NodeDynamics": ...
@@ -65,10 +98,13 @@ class NodeStack(Sequence):
     def __getitem__(self, index):
         if isinstance(index, slice):
             return self.take(range(len(self))[index])
-        return self.systems[index]
+        system = self._rows[index]
+        if system is None:
+            system = self._rows[index] = self._row(range(len(self._rows))[index])
+        return system
 
     def __iter__(self) -> Iterator["NodeDynamics"]:
-        return iter(self.systems)
+        return (self[k] for k in range(len(self)))
 
     def __repr__(self) -> str:
         return f"NodeStack({len(self)} systems, {self.dof} nodes)"
@@ -76,25 +112,45 @@ class NodeStack(Sequence):
     @property
     def dof(self) -> int:
         """Nodes per system."""
-        return self.systems[0].dof
+        mass = self._arrays.get("mass")
+        return mass.shape[1] if mass is not None else self[0].dof
+
+    @property
+    def springs(self) -> np.ndarray:
+        """Per row, whether it has springs."""
+        if self._springs is None:
+            self._springs = np.array([s.stiffness is not None for s in self])
+        return self._springs
 
     @property
     def springless(self) -> bool:
         """True when some row has no springs (then :attr:`stiffness` is None)."""
-        return any(s.stiffness is None for s in self.systems)
+        return not self.springs.all()
+
+    @property
+    def realizable(self) -> bool:
+        """True when some row is to be simulated as its realizable circuit (rows made by one
+        function are alike: the first answers for all)."""
+        return bool(getattr(self[0], "realizable", False)) if self._row is not None else \
+            any(getattr(s, "realizable", False) for s in self)
+
+    @property
+    def t_stops(self) -> np.ndarray:
+        """Per row, its t_stop."""
+        return np.full(len(self), self[0].t_stop) if self._shared else np.array([s.t_stop for s in self])
 
     @property
     def shares_inputs(self) -> bool:
         """True when every row has the same topology, forces and t_stop."""
         if not self._shared:
-            first = self.systems[0].inputs_key
+            first = self[0].inputs_key
             self._shared = all(s.inputs_key == first for s in self.systems[1:])
         return self._shared
 
     def _stacked(self, attr: str) -> np.ndarray:
         value = self._arrays.get(attr)
         if value is None:
-            value = self._arrays[attr] = np.stack([getattr(s, attr) for s in self.systems])
+            value = self._arrays[attr] = np.stack([getattr(s, attr) for s in self])
         return value
 
     @property
@@ -120,8 +176,8 @@ class NodeStack(Sequence):
     @property
     def current_map(self) -> np.ndarray:
         """T⁻ᵀ of every row, shape (count, n, n) (a broadcast view when the rows share T)."""
-        first = self.systems[0].topology
-        if all(s.topology.key == first.key for s in self.systems[1:]):
+        first = self[0].topology
+        if self._shared or all(s.topology.key == first.key for s in self.systems[1:]):
             return np.broadcast_to(first.current_map, (len(self), self.dof, self.dof))
         return self._stacked("current_map")
 
@@ -158,7 +214,11 @@ class NodeStack(Sequence):
             return self
         index = np.asarray(rows, dtype=int)
         arrays = {k: v[index] for k, v in self._arrays.items()}
-        return NodeStack([self.systems[k] for k in rows], arrays, shared)
+        if self._row is None:
+            return NodeStack([self._rows[k] for k in rows], arrays, shared)
+        picked = self.lazy(lambda j: self[rows[j]], arrays, self.springs[index], shared)
+        picked._rows = [self._rows[k] for k in rows]        # the rows already made are shared
+        return picked
 
     def partition(self, by_inputs: bool = True) -> list[tuple[list[int], "NodeStack"]]:
         """Rows grouped into sub-stacks that share springs (all or none) and, with *by_inputs*, inputs.
@@ -168,7 +228,7 @@ class NodeStack(Sequence):
         by_inputs : bool
             Also split by topology, forces and t_stop (:attr:`~analogy.circuit.node_system.NodeCoordinates.inputs_key`).
         """
-        springs = [s.stiffness is not None for s in self.systems]
+        springs = self.springs.tolist()
         if all(springs) or not any(springs):
             if not by_inputs or self.shares_inputs:
                 return [(list(range(len(self))), self)]

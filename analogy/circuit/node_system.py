@@ -342,14 +342,14 @@ def node_systems(model, qs, *, parameters: Mapping[str, float] | None = None,
     arrays = {"mass": node_mass, "damping": node_damping, "initial_voltages": v0}
     if springy.all():
         arrays["stiffness"] = node_stiffness
-    out = []
-    for k, qk in enumerate(q):
+
+    def system(k: int) -> NodeSystem:     # made when the row is asked for: a batch reads the arrays
         stiff = kk[k] if springy[k] else None
         grav = stack.gravity[k] if loaded[k] else None
         ws = shared_forces if grav is None else \
             tuple(w + (Step(-x),) if x else w for w, x in zip(shared_forces, grav))
         joint = JointSpace.from_checked(m[k], b[k], stiff, grav)
-        item_info = first.provenance.at(dict(zip(coords, qk.tolist())), row(k) if varying else None)
-        out.append(NodeSystem.from_checked(joint, top, ws, r0.copy(), t_end, item_info, node_mass[k],
-                                           node_damping[k], None if stiff is None else node_stiffness[k]))
-    return NodeStack(out, arrays, shared_inputs=not loaded.any())
+        item_info = first.provenance.at(dict(zip(coords, q[k].tolist())), row(k) if varying else None)
+        return NodeSystem.from_checked(joint, top, ws, r0.copy(), t_end, item_info, node_mass[k],
+                                       node_damping[k], None if stiff is None else node_stiffness[k])
+    return NodeStack.lazy(system, arrays, springy, shared_inputs=not loaded.any())

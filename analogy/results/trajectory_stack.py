@@ -28,12 +28,13 @@ class TrajectoryStack(Sequence):
         The rows' node voltages and joint rates, shape (count, N, n), when solved as one.
     """
 
-    __slots__ = ("rows", "time", "_voltages", "_rates")
+    __slots__ = ("_rows", "time", "_voltages", "_rates", "_made")
 
     def __init__(self, rows: Sequence[Trajectory], time: np.ndarray | None = None,
                  voltages: np.ndarray | None = None, rates: np.ndarray | None = None):
-        self.rows = tuple(rows)
+        self._rows: list = list(rows)
         self.time, self._voltages, self._rates = time, voltages, rates
+        self._made: tuple | None = None     # (solver, stats) of rows made from the arrays when asked for
 
     @classmethod
     def solved_as_one(cls, solver: str, time: np.ndarray, voltages: np.ndarray, rates: np.ndarray,
@@ -51,8 +52,9 @@ class TrajectoryStack(Sequence):
         stats : SolverStats
             Statistics of each row (the shared run's time divided among them).
         """
-        rows = [Trajectory(solver, time, voltages[k], rates[k], stats=stats) for k in range(len(voltages))]
-        return cls(rows, time, voltages, rates)
+        obj = cls([None] * len(voltages), time, voltages, rates)
+        obj._made = (solver, stats)         # a row's Trajectory is made when it is asked for
+        return obj
 
     @classmethod
     def of(cls, rows: Sequence[Trajectory]) -> "TrajectoryStack":
@@ -66,7 +68,12 @@ class TrajectoryStack(Sequence):
         return rows if isinstance(rows, TrajectoryStack) else cls(rows)
 
     def __len__(self) -> int:
-        return len(self.rows)
+        return len(self._rows)
+
+    @property
+    def rows(self) -> tuple:
+        """Every row's :class:`Trajectory` (each made now if not yet)."""
+        return tuple(self[k] for k in range(len(self)))
 
     @overload
     def __getitem__(self, index: int) -> Trajectory: ...
@@ -77,14 +84,38 @@ class TrajectoryStack(Sequence):
     def __getitem__(self, index):
         if isinstance(index, slice):
             return self.take(range(len(self))[index])
-        return self.rows[index]
+        tr = self._rows[index]
+        if tr is None:
+            solver, stats = self._made
+            k = range(len(self._rows))[index]
+            tr = self._rows[k] = Trajectory(solver, self.time, self._voltages[k], self._rates[k], stats=stats)
+        return tr
 
     def __iter__(self) -> Iterator[Trajectory]:
-        return iter(self.rows)
+        return (self[k] for k in range(len(self)))
+
+    @property
+    def solver(self) -> str:
+        """The solver's name ("?" for an empty stack)."""
+        return self._made[0] if self._made is not None else self[0].solver if len(self) else "?"
+
+    @property
+    def successes(self) -> np.ndarray:
+        """Per row, whether its run succeeded."""
+        if self._made is not None:
+            return np.ones(len(self), dtype=bool)
+        return np.array([tr.success for tr in self._rows], dtype=bool)
+
+    @property
+    def run_times(self) -> np.ndarray:
+        """Per row, its seconds in the solver."""
+        if self._made is not None:
+            return np.full(len(self), self._made[1].wall_time)
+        return np.array([tr.run_time for tr in self._rows], dtype=float)
 
     def __repr__(self) -> str:
-        ok = sum(tr.success for tr in self.rows)
-        name = self.rows[0].solver if self.rows else "?"
+        ok = int(self.successes.sum())
+        name = self.solver
         grid = f", one grid of {self.time.size} points" if self.time is not None else ""
         return f"TrajectoryStack({name}: {ok} of {len(self)} succeeded{grid})"
 
@@ -104,11 +135,12 @@ class TrajectoryStack(Sequence):
         rows = list(rows)
         if rows == list(range(len(self))):
             return self
-        picked = [self.rows[k] for k in rows]
         if not self.whole:
-            return TrajectoryStack(picked)
+            return TrajectoryStack([self[k] for k in rows])
         index = np.asarray(rows, dtype=int)
-        return TrajectoryStack(picked, self.time, self._voltages[index], self._rates[index])
+        picked = TrajectoryStack([self._rows[k] for k in rows], self.time, self._voltages[index], self._rates[index])
+        picked._made = self._made
+        return picked
 
     @property
     def rates(self) -> np.ndarray:
@@ -126,10 +158,10 @@ class TrajectoryStack(Sequence):
 
     def by_grid(self) -> list[list[int]]:
         """Indices of the successful rows, grouped by equal time points (by value)."""
-        if self.whole and all(tr.success for tr in self.rows):
+        if self.whole and self.successes.all():
             return [list(range(len(self)))]
         groups: dict = {}
-        for k, tr in enumerate(self.rows):
+        for k, tr in enumerate(self):
             if tr.success:
                 groups.setdefault(tr.time.tobytes(), []).append(k)
         return list(groups.values())

@@ -349,7 +349,8 @@ class ExactSolver(Solver):
         positions : bool
             Also return node positions where the systems have springs (one by one).
         """
-        if positions or len(systems) == 1 or any(self.supports(s) for s in systems):
+        linear = isinstance(systems, NodeStack) or not any(self.supports(s) for s in systems)   # a stack is linear
+        if positions or len(systems) == 1 or not linear:
             return super()._solve_many(systems, times, preset, positions=positions)
         start = _time.perf_counter()
         t = self.grid(systems[0], times, preset)

@@ -41,6 +41,7 @@ from typing import Literal, Sequence
 
 import numpy as np
 
+from ..circuit.node_stack import NodeStack
 from ..errors import InputError, SimulationError
 from ..presets import Preset
 from ..presets import preset as get_preset
@@ -302,8 +303,11 @@ def stacked_trajectories(name: str, systems: Sequence, time: np.ndarray, voltage
         Shared statistics (the group's time per system).
     """
     groups: dict = {}
-    for k, s in enumerate(systems):
-        groups.setdefault(s.topology.key, []).append(k)
+    if isinstance(systems, NodeStack) and systems.shares_inputs:    # one topology: its rows are not made
+        groups[None] = [0]
+    else:
+        for k, s in enumerate(systems):
+            groups.setdefault(s.topology.key, []).append(k)
     if len(groups) == 1:
         rates = systems[0].joint_rates(voltages)
     else:

@@ -220,14 +220,17 @@ class SpiceSolver(Solver):
         positions : bool
             Unused.
         """
-        if len(systems) == 1 or save or times is not None or any(getattr(s, "realizable", False) for s in systems):
+        stack = systems if isinstance(systems, NodeStack) else None
+        if len(systems) == 1 or save or times is not None or (
+                stack.realizable if stack is not None else any(getattr(s, "realizable", False) for s in systems)):
             return super()._solve_many(systems, times, preset, save=save)
         scales = run_scales(systems)
         text = batch_netlist(systems, preset, scales)
         stats: dict = {}
-        ends = np.array([s.t_stop for s in systems])
+        ends = stack.t_stops if stack is not None else np.array([s.t_stop for s in systems])
         start = _time.perf_counter()
-        limit = _limit(scales, float(ends.max()), preset, run_size(x.dof for x in systems))
+        dofs = [stack.dof] * len(stack) if stack is not None else [x.dof for x in systems]
+        limit = _limit(scales, float(ends.max()), preset, run_size(dofs))
         try:
             # a short run in the quiet library: no line printed, so no callback waits for the GIL
             data = run_quietly(text, float(ends.max()), stats) if limit is None else \
@@ -236,12 +239,12 @@ class SpiceSolver(Solver):
             return super()._solve_many(systems, times, preset)
         elapsed = (_time.perf_counter() - start - stats.get("waited", 0.0)) / len(systems)
         time, prepended = _from_start(data["time"])
-        n = systems[0].dof
+        n = dofs[0]
         try:
             cut = {float(end): _until(time, float(end)) for end in np.unique(ends[ends < ends.max()])}
         except SimulationError:
             return super()._solve_many(systems, times, preset)
-        if any(s.dof != n for s in systems):
+        if any(d != n for d in dofs):
             out = []
             for k, s in enumerate(systems):
                 t, last = cut.get(s.t_stop, (time, time.size))

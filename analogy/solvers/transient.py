@@ -462,11 +462,13 @@ def batch_netlist(systems: Sequence, preset: str | Preset = "fast", scales: Scal
     if not systems:
         raise InputError("a batch needs at least one system")
     preset = get_preset(preset)
-    ends = sorted({s.t_stop for s in systems})
+    shared = isinstance(systems, NodeStack) and systems.shares_inputs       # its first row answers for all
+    alike = [systems[0]] if shared else systems
+    ends = sorted({s.t_stop for s in alike})
     scales = scales or run_scales(systems)
-    points = [s.breakpoints() for s in systems if s.forces is not systems[0].forces] + [systems[0].breakpoints()]
+    points = [s.breakpoints() for s in alike if s.forces is not systems[0].forces] + [systems[0].breakpoints()]
     settings = transient_settings(preset, ends[0], scales, breakpoints=np.concatenate(points),
-                                  custom=any(beyond_calibration(s) for s in systems),
+                                  custom=any(beyond_calibration(s) for s in alike),
                                   operations=point_operations(systems[0]) * len(systems))
     if len(ends) > 1:
         settings = replace(settings, stop=ends[-1], horizons=tuple(ends[:-1]))

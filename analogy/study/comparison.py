@@ -14,7 +14,8 @@ from ..presets import DEFAULT_SOLVERS, Preset
 from ..presets import preset as get_preset
 from ..solvers.registry import SOLVER_NAMES, solver
 from .estimate import MAX_REFINEMENTS, estimated_errors, refined_run
-from .measure import contact_outputs, measure
+from .comparisons import Comparisons
+from .measure import MeasuredErrors, contact_outputs, measure
 from .solver_record import SolverRecord
 from .stack_runs import StackRuns
 from .work import check_works
@@ -315,8 +316,9 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
                  save: Sequence[str] = (), positions: bool = False,
                  t_stop: float | None = None, forces=None,
                  progress: Callable[[str | None], None] | None = None, estimate: bool = False,
-                 refine: bool = False) -> list[Comparison]:
-    """:func:`compare` for many systems, each solver running them together where it can.
+                 refine: bool = False) -> Comparisons:
+    """:func:`compare` for many systems, each solver running them together where it can: their
+    :class:`~analogy.study.comparisons.Comparisons`, each system's :class:`Comparison` made when asked for.
 
     SPICE runs the systems as one circuit to the longest horizon, each system's output
     ending at its own; the exact solver stacks them; errors are measured stacked on shared grids.
@@ -358,7 +360,8 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
         meets the bound, or the finest tried (flagged). Its note says how many times.
     """
     if not systems:
-        return []
+        p = get_preset(preset)
+        return Comparisons(lambda k: None, {}, MeasuredErrors(0, ()), {}, None, p.name, p.bound)
     if t_stop is not None or forces is not None:
         systems = systems.driven(forces, t_stop) if isinstance(systems, NodeStack) else \
             [s.driven(forces, t_stop) for s in systems]
@@ -373,13 +376,14 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
         for name in order:
             tell(name)
             runs.run(name, save, positions)
-    estimates: list[dict] = [{} for _ in systems]
+    estimates: list[dict] = [{} for _ in range(len(systems))]
     unestimated: dict = {}
     if estimate or refine:
         estimates, unestimated = _estimates(runs, order, MAX_REFINEMENTS if refine else 0, save, positions, progress)
     measured = measure(systems, runs.shown, runs.own, ref_name, p, tuple(save), runs.resampled)
-    return [_comparison(k, system, runs, order, skipped, ref_name, measured[k], estimates[k], unestimated)
-            for k, system in enumerate(systems)]
+    return Comparisons(lambda k: _comparison(k, systems[k], runs, order, skipped, ref_name, measured[k],
+                                             estimates[k], unestimated),
+                       runs.shown, measured, skipped, ref_name if ref_name in runs.shown else None, p.name, p.bound)
 
 
 def _run_order(system, names: list[str], ref_name: str | None) -> tuple[list[str], dict[str, str]]:

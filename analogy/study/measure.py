@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Sequence
+from typing import Sequence, overload
 
 import numpy as np
 
@@ -16,7 +16,7 @@ from ..results.trajectory_stack import TrajectoryStack
 from ..solvers.registry import run_many
 from .grid import SUBSET_FROM, sufficient_points
 
-__all__ = ["measure", "sufficient", "subset", "contact_outputs"]
+__all__ = ["measure", "MeasuredErrors", "sufficient", "subset", "contact_outputs"]
 
 
 def subset(systems: Sequence, rows: list[int]) -> Sequence:
@@ -75,7 +75,90 @@ def _outputs(stack: TrajectoryStack, names: Sequence[str]) -> np.ndarray:
     return np.concatenate([stack.rates, currents], axis=2)
 
 
-def measure(systems, runs, native, ref_name, p, save=(), resampled=frozenset()) -> list[dict]:
+class MeasuredErrors(Sequence):
+    """Per system, each solver's :class:`OutputErrors`: kept as the arrays they were measured in,
+    a system's records made when it is asked for, and each solver's errors as one column.
+
+    Parameters
+    ----------
+    count : int
+        Systems measured.
+    names : tuple of str
+        The outputs (joint rates ``r1`` …, then currents and contact forces).
+    """
+
+    def __init__(self, count: int, names: tuple):
+        self.names = names
+        self._blocks: list[tuple] = []      # (solver, rows, absolute, relative, worst, per output, whole)
+        self._rows: list = [None] * count
+
+    def add(self, name: str, rows: list[int], absolute: np.ndarray, relative: np.ndarray, worst: np.ndarray,
+            per_output: np.ndarray, whole: np.ndarray) -> None:
+        """Solver *name*'s errors on systems *rows*: per row, its largest error, worst relative error, the
+        index of the output that has it, each output's relative error and the whole stack's.
+
+        Parameters
+        ----------
+        name : str
+            The solver.
+        rows : list of int
+            The systems.
+        absolute, relative, worst : ndarray, shape (len(rows),)
+            Per row: the largest error, the worst output's error over its peak, and that output's index.
+        per_output : ndarray, shape (len(rows), outputs)
+            Each output's error over its own peak.
+        whole : ndarray, shape (len(rows),)
+            Per row, the largest error over the largest output's peak.
+        """
+        self._blocks.append((name, rows, absolute, relative, worst, per_output, whole))
+        self._rows = [None] * len(self._rows)
+
+    def __len__(self) -> int:
+        return len(self._rows)
+
+    @overload
+    def __getitem__(self, index: int) -> dict: ...
+
+    @overload
+    def __getitem__(self, index: slice) -> list: ...
+
+    def __getitem__(self, index):
+        if isinstance(index, slice):
+            return [self[k] for k in range(len(self))[index]]
+        if self._rows[index] is None:
+            self._made()
+        return self._rows[index]
+
+    def _made(self) -> None:
+        """Every system's records, made once from the blocks (plain floats: one record per system)."""
+        out: list[dict] = [{} for _ in self._rows]
+        names = self.names
+        for name, rows, absolute, relative, worst, per_output, whole in self._blocks:
+            if absolute is None:            # the reference against itself
+                for k in rows:
+                    out[k][name] = OutputErrors.zero(names)
+                continue
+            for k, a, r, w, each, all_ in zip(rows, absolute.tolist(), relative.tolist(), worst.tolist(),
+                                               per_output.tolist(), whole.tolist()):
+                out[k][name] = OutputErrors(a, r, names[w], dict(zip(names, each)), all_)
+        self._rows = out
+
+    def relative(self, name: str) -> np.ndarray:
+        """Solver *name*'s worst error over each output's peak, per system (NaN where not measured).
+
+        Parameters
+        ----------
+        name : str
+            A solver.
+        """
+        out = np.full(len(self), np.nan)
+        for solver, rows, _, relative, *_ in self._blocks:
+            if solver == name:
+                out[rows] = 0.0 if relative is None else relative
+        return out
+
+
+def measure(systems, runs, native, ref_name, p, save=(), resampled=frozenset()) -> MeasuredErrors:
     """Per system and solver, its :class:`OutputErrors` against the reference, on its own points.
 
     Parameters
@@ -95,23 +178,24 @@ def measure(systems, runs, native, ref_name, p, save=(), resampled=frozenset()) 
     resampled : set of str
         Solvers whose reported points are not their own.
     """
-    out: list[dict] = [{} for _ in systems]
-    if ref_name is None:
-        return out
-    ref = runs[ref_name]
     n = systems[0].dof
     forces = contact_outputs(systems[0])        # measured like element currents, against their own peaks
     names = tuple(f"r{j + 1}" for j in range(n)) + tuple(f"i_{c}" for c in save) + forces
+    out = MeasuredErrors(len(systems), names)
+    if ref_name is None:
+        return out
+    ref = runs[ref_name]
+    succeeded = ref.successes
+    shared = isinstance(systems, NodeStack) and systems.shares_inputs    # one map: its first row's rounding
     measured = tuple(save) + forces
     for name, trs in runs.items():
         own = native.get(name, trs)
         for idx in own.by_grid():
-            ok = [k for k in idx if name == ref_name or ref[k].success]
+            ok = idx if name == ref_name or succeeded[idx].all() else [k for k in idx if succeeded[k]]
             if not ok:
                 continue
             if name == ref_name:
-                for k in ok:
-                    out[k][name] = OutputErrors.zero(names)
+                out.add(name, ok, None, None, None, None, None)
                 continue
             if name in resampled:      # measured on its own points, with the reference there
                 refs = run_many(ref_name, subset(systems, ok), own[ok[0]].time, p, positions=bool(save))
@@ -124,17 +208,17 @@ def measure(systems, runs, native, ref_name, p, save=(), resampled=frozenset()) 
             else:
                 refs = ref.take(ok)
             shapes: dict = {}
-            for j, k in enumerate(ok):
-                if refs[j].success:
-                    shapes.setdefault(own[k].rates.shape, []).append(j)
+            if own.whole and refs.whole and refs.successes.all():      # one grid, every reference run
+                shapes[None] = list(range(len(ok)))
+            else:
+                for j, k in enumerate(ok):
+                    if refs[j].success:
+                        shapes.setdefault(own[k].rates.shape, []).append(j)
             for at in shapes.values():
                 group = [ok[j] for j in at]
                 a, b = _outputs(own.take(group), measured), _outputs(refs.take(at), measured)
-                err, rel, whole = stack_errors(a, b, p.bound, [systems[k].topology.rounding for k in group])
-                whole = whole.tolist()
+                rounding = systems[0].topology.rounding if shared else [systems[k].topology.rounding for k in group]
+                err, rel, whole = stack_errors(a, b, p.bound, rounding)
                 worst = np.argmax(np.where(np.isnan(rel), -np.inf, rel), axis=1)
-                top, peaks, rows = np.max(err, axis=1).tolist(), rel[np.arange(len(group)), worst].tolist(), rel.tolist()
-                for row, k in enumerate(group):      # plain floats: one record per scene, built cheaply
-                    out[k][name] = OutputErrors(top[row], peaks[row], names[worst[row]],
-                                                dict(zip(names, rows[row])), whole[row])
+                out.add(name, group, np.max(err, axis=1), rel[np.arange(len(group)), worst], worst, rel, whole)
     return out

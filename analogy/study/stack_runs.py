@@ -8,11 +8,12 @@ from typing import Sequence
 import numpy as np
 
 from ..circuit.currents import trajectory_currents
+from ..circuit.node_stack import NodeStack
 from ..presets import Preset
 from ..results.trajectory import Trajectory
 from ..results.trajectory_stack import TrajectoryStack
 from ..solvers.registry import run_many, solver
-from .grid import output_grid
+from .grid import SUBSET_FROM, output_grid
 from .measure import subset, sufficient
 
 __all__ = ["StackRuns"]
@@ -77,7 +78,7 @@ class StackRuns:
         times : array_like or None
             Output times when no solver chooses its own and no step is given.
         """
-        ends = [s.t_stop for s in systems]
+        ends = systems.t_stops.tolist() if isinstance(systems, NodeStack) else [s.t_stop for s in systems]
         if step is None and times is None:
             return cls(systems, preset, False, ends, [None] * len(ends))
         given = {t: output_grid(t, step, preset.steps) if times is None else np.asarray(times, float)
@@ -109,16 +110,19 @@ class StackRuns:
         systems, p = self.systems, self.preset
         if solver(name).own_grid:
             trs = run_many(name, systems, None, p, save=save, positions=positions)
-            if not self.given:      # millions of own points: measured on their sufficient subset
+            short = trs.whole and trs.time.size <= SUBSET_FROM      # measured whole, as :func:`sufficient` would
+            if not self.given and not short:    # millions of own points: measured on their sufficient subset
                 trs = TrajectoryStack([sufficient(tr, systems[k], p) if tr.success and self.grids[k] is None
                                        else tr for k, tr in enumerate(trs)])
             self.own[name] = trs
-            if any(g is not None and tr.success for g, tr in zip(self.grids, trs)):
+            ok = trs.successes.tolist()
+            if any(g is not None and good for g, good in zip(self.grids, ok)):
                 self.resampled.add(name)
                 trs = TrajectoryStack([tr.resampled(self.grids[k], s.joint_rates, s.breakpoints())
                                        if tr.success and self.grids[k] is not None else tr
                                        for k, (tr, s) in enumerate(zip(trs, systems))])
-            self.grids = [tr.time if tr.success and g is None else g for g, tr in zip(self.grids, trs)]
+            self.grids = [(trs.time if trs.whole else trs[k].time) if good and g is None else g
+                          for k, (g, good) in enumerate(zip(self.grids, trs.successes.tolist()))]
         else:
             default = {t: self.preset.grid(t) for t in dict.fromkeys(self.ends)}    # one per horizon
             self.grids = [default[t] if g is None else g for g, t in zip(self.grids, self.ends)]
