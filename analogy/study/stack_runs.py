@@ -21,6 +21,8 @@ __all__ = ["StackRuns"]
 
 def _by_grid(grids: Sequence[np.ndarray]) -> list[list[int]]:
     """Indices grouped by equal time grids (by value)."""
+    if all(g is grids[0] for g in grids):       # one grid for all: its values need not be read
+        return [list(range(len(grids)))]
     groups: dict = {}
     for k, g in enumerate(grids):
         groups.setdefault(g.tobytes(), []).append(k)
