@@ -328,3 +328,58 @@ def test_the_batched_path_keeps_the_contract_of_solve(monkeypatch):
     assert "numerics broke down: Eigenvalues did not converge" in rows[1].message
     with pytest.raises(TypeError, match="implement _solve_many"):
         type("Rogue", (Solver,), {"solve_many": lambda self, *a, **k: []})
+
+
+@pytest.mark.ngspice
+def test_comparisons_read_as_columns_are_the_records_of_each_comparison():
+    """compare_many's figures read as arrays are, system by system, those of its Comparison: the
+    same floats, not recomputed; the reference has no error of its own; nothing failed."""
+    from analogy.study.comparison import compare_many
+    qs = np.column_stack([np.zeros(6), np.linspace(-2.5, 2.5, 6)])
+    stack = scene("default").systems(qs)
+    found = compare_many(stack, "fast", ["spice", "ode", "exact"])
+    assert len(found) == 6 and found.reference == "exact" and set(found.solvers) == {"spice", "ode", "exact"}
+    for name in found.solvers:
+        errors, seconds = found.errors(name), found.seconds(name)
+        assert found.failures(name) == {}
+        for k, c in enumerate(found):
+            record = c.records[name]
+            assert seconds[k] == record.trajectory.run_time
+            if name == "exact":
+                assert np.isnan(errors[k])
+            else:
+                assert errors[k] == record.errors.relative <= found.bound
+    frame = found.to_frame()
+    assert list(frame.columns) == [f"{kind}_{n}" for n in found.solvers for kind in ("error", "seconds")]
+    assert repr(found).startswith("<Comparisons of 6 systems at fast: worst error/peak spice ")
+    # a histogram per solver with an error (the reference has none), the bound beside them
+    legend = [t.get_text() for t in found.plot().axes[0].get_legend().get_texts()]
+    assert legend == [n for n in found.solvers if n != "exact"] + ["fast bound"]
+
+
+@pytest.mark.ngspice
+def test_a_batch_group_makes_no_system_or_trajectory_per_scene(monkeypatch):
+    """A family's group reads its stack's arrays and its solvers' stacks: of its hundred rows it makes
+    the first's system alone (its shared inputs), and no row's Trajectory or Comparison."""
+    from analogy.batch.plan import plan_groups, solve_group
+    from analogy.circuit.node_system import NodeSystem
+    from analogy.presets import preset
+    from analogy.results.trajectory import Trajectory
+    made = {"systems": 0, "trajectories": 0}
+    checked = NodeSystem.from_checked.__func__
+
+    def counted(cls, *args, **kwargs):
+        made["systems"] += 1
+        return checked(cls, *args, **kwargs)
+    monkeypatch.setattr(NodeSystem, "from_checked", classmethod(counted))
+    init = Trajectory.__init__
+
+    def counted_init(self, *args, **kwargs):
+        made["trajectories"] += 1
+        init(self, *args, **kwargs)
+    monkeypatch.setattr(Trajectory, "__init__", counted_init)
+    base = scene("default")
+    group, = plan_groups([base.replace(q=(0.0, x)) for x in np.linspace(-3.0, 3.0, 100)], 100)
+    result = solve_group(group, preset("fast"), ["spice"], "auto")
+    assert not result.failures and np.all(result.errors["spice"] <= preset("fast").bound)
+    assert made == {"systems": 1, "trajectories": 0}

@@ -216,6 +216,9 @@ def _summary(turns: _Turns, n: int, preset: str, group_size: int, workers: int, 
     def cpu_per(key):
         return f"CPU {statistics.median(cpus[key]) / n * 1e6:.0f} ms per 1,000 scenes"
 
+    # per turn, this process's CPU beyond the floor's on the same netlists: the Python a scene costs
+    share = statistics.median(o - f for o, f in zip(cpus["one"], cpus["floor"])) / n * 1e6
+
     def spread(key):
         return f"{med[key]:,.0f} scenes/s (runs {', '.join(f'{r:,.0f}' for r in rates[key])})"
 
@@ -225,7 +228,8 @@ def _summary(turns: _Turns, n: int, preset: str, group_size: int, workers: int, 
         f"  batched, {workers} workers, {group_size} scenes per ngspice run, {n} scenes: "
         f"{spread('batched')}, worst error/peak {worst['batched']:.2e}",
         f"  batched, 1 process ({PIPELINE} groups in flight on threads): {spread('one')}, "
-        f"{cpu_per('one')}, worst error/peak {worst['one']:.2e}",
+        f"{cpu_per('one')}: {share:.0f} us a scene beyond the floor's (Python's share), "
+        f"worst error/peak {worst['one']:.2e}",
         f"  one ngspice run per scene (1 process, {baseline_n} scenes): {spread('solo')}, "
         f"worst error/peak {worst['solo']:.2e}, median SPICE solve {statistics.median(solves) * 1e3:.3f} ms",
         f"  plain PySpice loop (Circuit + simulator().transient(), 1 process, {baseline_n} scenes): "

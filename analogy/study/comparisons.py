@@ -139,16 +139,21 @@ class Comparisons(Sequence, Tabular):
         from matplotlib.figure import Figure
         fig = Figure(figsize=(6, 3.5), layout="constrained")
         ax = fig.subplots()
+        logs = {}
         for name in self.solvers:
             e = self.errors(name)
-            e = e[np.isfinite(e) & (e > 0)]
-            if e.size:
-                ax.hist(np.log10(e), bins=40, alpha=0.6, label=name)
+            if (e := e[np.isfinite(e) & (e > 0)]).size:
+                logs[name] = np.log10(e)
+        edges = np.linspace(min([np.log10(self.bound)] + [x.min() for x in logs.values()]),
+                            max([np.log10(self.bound)] + [x.max() for x in logs.values()]), 61)
+        for name, x in logs.items():        # one set of bins: the solvers' bars compare
+            ax.hist(x, bins=edges, alpha=0.6, label=name)
         ax.axvline(np.log10(self.bound), color="k", linestyle="--", label=f"{self.preset} bound")
         ax.set_xlabel("log10(worst error / own peak)")
         ax.set_ylabel("systems")
         ax.legend(fontsize="small")
-        ax.set_title(f"{len(self)} systems at {self.preset}", fontsize="small")
+        against = f", against {self.reference}" if self.reference else ""
+        ax.set_title(f"{len(self)} systems at {self.preset}{against}", fontsize="small")
         if path is not None:
             write_figure(fig, path, dpi=110)
         return fig
