@@ -349,6 +349,8 @@ def test_comparisons_read_as_columns_are_the_records_of_each_comparison():
                 assert np.isnan(errors[k])
             else:
                 assert errors[k] == record.errors.relative <= found.bound
+    import pickle
+    np.testing.assert_array_equal(pickle.loads(pickle.dumps(found)).errors("spice"), found.errors("spice"))
     frame = found.to_frame()
     assert list(frame.columns) == [f"{kind}_{n}" for n in found.solvers for kind in ("error", "seconds")]
     assert repr(found).startswith("<Comparisons of 6 systems at fast: worst error/peak spice ")
@@ -383,3 +385,32 @@ def test_a_batch_group_makes_no_system_or_trajectory_per_scene(monkeypatch):
     result = solve_group(group, preset("fast"), ["spice"], "auto")
     assert not result.failures and np.all(result.errors["spice"] <= preset("fast").bound)
     assert made == {"systems": 1, "trajectories": 0}
+
+
+def test_a_lazy_stack_keeps_what_its_rows_were_built_from_and_pickles_with_them():
+    """Rows made after the caller changed its own parameter arrays still report the values the stack was
+    built with; a pickled stack is the same systems; a sub-stack's rows are its parent's objects."""
+    import pickle
+    from analogy.results.trajectory_stack import TrajectoryStack
+    from analogy.results.trajectory import SolverStats
+    b1 = np.array([0.5, 1.0, 2.0])
+    stack = node_systems(robot("serial2"), [[0.1, 0.2]] * 3, parameters={"b1": b1})
+    b1[:] = 99.0
+    assert [s.provenance.parameters["b1"] for s in stack] == [0.5, 1.0, 2.0]
+    again = pickle.loads(pickle.dumps(stack))
+    assert [s.provenance.parameters["b1"] for s in again] == [0.5, 1.0, 2.0]
+    np.testing.assert_array_equal(again.damping, stack.damping)
+    volts = np.zeros((3, 4, 2))
+    solved = TrajectoryStack.solved_as_one("exact", np.arange(4.0), volts, volts, SolverStats(0.0))
+    assert solved.take([2, 0])[0] is solved[2]
+
+
+def test_the_exact_solver_fails_only_the_nonlinear_row_of_a_stack():
+    """A stack of a linear and a nonlinear system: the exact solver takes the first and says why not the second."""
+    from analogy.circuit.node_stack import NodeStack
+    from analogy.presets import preset
+    from analogy.solvers.registry import run_many
+    linear = scene("default").system()
+    nonlinear = scene("default").replace(dynamics="nonlinear").system()
+    first, second = run_many("exact", NodeStack([linear, nonlinear]), None, preset("fast"))
+    assert first.success and not second.success and "applies only to linear systems" in second.message

@@ -70,6 +70,16 @@ class NodeStack(Sequence):
         obj._shared = shared_inputs or len(springs) == 1
         return obj
 
+    def __reduce__(self):
+        # a lazy stack's row function is local to the code that built it: pickled, its rows are made
+        return NodeStack, (self.systems, self._arrays, self._shared)
+
+    @property
+    def linear(self) -> bool:
+        """True when every row is linear (rows made by one function are alike: the first answers for all)."""
+        rows = [self[0]] if self._row is not None else self
+        return all(getattr(s, "kind", "linear") == "linear" for s in rows)
+
     @property
     def systems(self) -> tuple:
         """Every row's system (each made now if not yet)."""

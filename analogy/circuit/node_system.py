@@ -294,7 +294,9 @@ def node_systems(model, qs, *, parameters: Mapping[str, float] | None = None,
         raise InputError(f"node_systems needs a robot model, not a {type(model).__name__}")
     q = configuration_stack(model.name, [str(c) for c in model.coordinates], qs)
     kw = dict(topology=topology, forces=forces, initial_rates=initial_rates, t_stop=t_stop, info=info)
-    varying = {k: np.asarray(v, dtype=float) for k, v in (parameters or {}).items() if np.ndim(v)}
+    # copies: rows made later read them, whatever the caller does with its own meanwhile
+    parameters = None if parameters is None else dict(parameters)
+    varying = {k: np.array(v, dtype=float) for k, v in (parameters or {}).items() if np.ndim(v)}
     for name, v in varying.items():
         if v.shape != (len(q),):
             raise InputError(f"parameter {name!r} needs one value or {len(q)} (one per configuration), "

@@ -28,13 +28,14 @@ class TrajectoryStack(Sequence):
         The rows' node voltages and joint rates, shape (count, N, n), when solved as one.
     """
 
-    __slots__ = ("_rows", "time", "_voltages", "_rates", "_made")
+    __slots__ = ("_rows", "time", "_voltages", "_rates", "_made", "_parent")
 
     def __init__(self, rows: Sequence[Trajectory], time: np.ndarray | None = None,
                  voltages: np.ndarray | None = None, rates: np.ndarray | None = None):
         self._rows: list = list(rows)
         self.time, self._voltages, self._rates = time, voltages, rates
         self._made: tuple | None = None     # (solver, stats) of rows made from the arrays when asked for
+        self._parent: tuple | None = None   # (stack, its rows) whose rows these are, made there and shared
 
     @classmethod
     def solved_as_one(cls, solver: str, time: np.ndarray, voltages: np.ndarray, rates: np.ndarray,
@@ -86,9 +87,14 @@ class TrajectoryStack(Sequence):
             return self.take(range(len(self))[index])
         tr = self._rows[index]
         if tr is None:
-            solver, stats = self._made
             k = range(len(self._rows))[index]
-            tr = self._rows[k] = Trajectory(solver, self.time, self._voltages[k], self._rates[k], stats=stats)
+            if self._parent is not None:    # one object per row, whichever stack asks first
+                parent, rows = self._parent
+                tr = parent[rows[k]]
+            else:
+                solver, stats = self._made
+                tr = Trajectory(solver, self.time, self._voltages[k], self._rates[k], stats=stats)
+            self._rows[k] = tr
         return tr
 
     def __iter__(self) -> Iterator[Trajectory]:
@@ -140,6 +146,8 @@ class TrajectoryStack(Sequence):
         index = np.asarray(rows, dtype=int)
         picked = TrajectoryStack([self._rows[k] for k in rows], self.time, self._voltages[index], self._rates[index])
         picked._made = self._made
+        if self._made is not None:
+            picked._parent = (self, rows)
         return picked
 
     @property

@@ -349,7 +349,7 @@ class ExactSolver(Solver):
         positions : bool
             Also return node positions where the systems have springs (one by one).
         """
-        linear = isinstance(systems, NodeStack) or not any(self.supports(s) for s in systems)   # a stack is linear
+        linear = systems.linear if isinstance(systems, NodeStack) else not any(self.supports(s) for s in systems)
         if positions or len(systems) == 1 or not linear:
             return super()._solve_many(systems, times, preset, positions=positions)
         start = _time.perf_counter()

@@ -51,6 +51,11 @@ class Comparisons(Sequence, Tabular):
         self.solvers = tuple(self._runs)       # run order
         self.skipped, self.reference, self.preset, self.bound = dict(skipped), reference, preset, bound
 
+    def __reduce__(self):
+        # the row function is local to compare_many: pickled, every Comparison is made and kept
+        return _restored, (list(self), self._runs, self._measured, self.skipped, self.reference, self.preset,
+                           self.bound)
+
     def __len__(self) -> int:
         return len(self._made)
 
@@ -157,3 +162,10 @@ class Comparisons(Sequence, Tabular):
         if path is not None:
             write_figure(fig, path, dpi=110)
         return fig
+
+
+def _restored(rows: list, runs, measured, skipped, reference, preset, bound) -> Comparisons:
+    """A pickled :class:`Comparisons`, its rows already made."""
+    found = Comparisons(rows.__getitem__, runs, measured, skipped, reference, preset, bound)
+    found._made = list(rows)
+    return found
