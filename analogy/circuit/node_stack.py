@@ -31,7 +31,7 @@ class NodeStack(Sequence):
         The caller knows that every row has the same topology, forces and t_stop.
     """
 
-    __slots__ = ("_rows", "_row", "_arrays", "_shared", "_scales", "_springs")
+    __slots__ = ("_rows", "_row", "_arrays", "_shared", "_scales", "_springs", "checked")
 
     def __init__(self, systems: Sequence["NodeDynamics"], arrays: dict | None = None, shared_inputs: bool = False):
         rows = list(systems)
@@ -45,6 +45,8 @@ class NodeStack(Sequence):
         self._shared = shared_inputs or len(rows) == 1
         self._scales = None         # the combined scales of one circuit running them all (analogy.circuit.scales)
         self._springs: np.ndarray | None = None
+        #: What the work guard passed it under, (preset, spice), so that it is not estimated twice.
+        self.checked: tuple | None = None
 
     @classmethod
     def lazy(cls, row: Callable[[int], "NodeDynamics"], arrays: dict, springs: np.ndarray,
@@ -65,7 +67,7 @@ class NodeStack(Sequence):
         """
         obj = cls.__new__(cls)
         obj._rows = [None] * len(springs)
-        obj._row, obj._arrays, obj._scales = row, dict(arrays), None
+        obj._row, obj._arrays, obj._scales, obj.checked = row, dict(arrays), None, None
         obj._springs = np.asarray(springs, dtype=bool)
         obj._shared = shared_inputs or len(springs) == 1
         return obj

@@ -138,7 +138,9 @@ def check_works(systems: Sequence, preset: Preset, *, spice: bool = True) -> Non
         Whether SPICE is among the solvers (one circuit per stack).
     """
     if isinstance(systems, NodeStack) and len(systems) > 1 and systems.shares_inputs:
-        check_work(systems[0], preset, run_scales(systems), stacked=len(systems), spice=spice)
+        if systems.checked is None or systems.checked[0] is not preset or systems.checked[1] != spice:
+            check_work(systems[0], preset, run_scales(systems), stacked=len(systems), spice=spice)
+            systems.checked = (preset, spice)
         return
     groups: dict = {}
     for s in systems:
