@@ -232,22 +232,10 @@ class BatchReport:
         path : str or Path, optional
             Image file to write.
         """
-        from matplotlib.figure import Figure
-        fig = Figure(figsize=(6, 3.6), layout="constrained")
-        ax = fig.subplots()
-        for s in self.solvers:
-            e = self.frame[f"error_{s}"]
-            e = e[e > 0]
-            if len(e):
-                ax.hist(np.log10(e), bins=60, histtype="step", linewidth=1.5, label=s)
-        ax.set_xlabel("log10(max error / peak rate)")
-        ax.set_ylabel("scenes")
-        if self.solvers:
-            ax.legend(loc="upper left", frameon=False)
-        ax.set_title(f"{self.info.get('scene', '')}: {len(self.frame):,} scenes", fontsize="medium")
-        if path is not None:
-            write_figure(fig, path, dpi=110)
-        return fig
+        from ..results.plots import plot_error_histogram
+        return plot_error_histogram({s: self.frame[f"error_{s}"].to_numpy() for s in self.solvers},
+                                    f"{self.info.get('scene', '')}: {len(self.frame):,} scenes", self._bounds(),
+                                    "scenes", path)
 
     def plot_map(self, path=None, solver: str | None = None) -> "Figure | None":
         """The error over the first two numeric axes, as a coloured map (None with fewer than two).

@@ -10,7 +10,6 @@ from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
-from ..files import write_figure
 from ..errors import InputError
 from ..presets import Preset
 from ..presets import preset as get_preset
@@ -120,18 +119,8 @@ class BatchResult:
         path : str or Path, optional
             Image file to write.
         """
-        from matplotlib.figure import Figure
-        fig = Figure(figsize=(6, 3.5), layout="constrained")
-        ax = fig.subplots()
-        ok = self.errors[np.isfinite(self.errors) & (self.errors > 0)]
-        if ok.size:
-            ax.hist(np.log10(ok), bins=40)
-        ax.set_xlabel("log10(max error / peak)")
-        ax.set_ylabel("scenes")
-        ax.set_title(self.summary(), fontsize="small")
-        if path is not None:
-            write_figure(fig, path, dpi=110)
-        return fig
+        from ..results.plots import plot_error_histogram
+        return plot_error_histogram(self.solver_errors or {"spice": self.errors}, self.summary(), None, "scenes", path)
 
 
 def _solve(payload) -> GroupResult:

@@ -12,7 +12,8 @@ from .metrics import PEAK_FLOOR
 from .output import check_plot_path
 
 __all__ = ["save_figure", "solver_style", "shown_joints", "error_envelope", "plot_trajectory", "plot_comparison",
-           "plot_quantities", "plot_linear_horizon", "plot_bode", "MANY_JOINTS", "rate_labels"]
+           "plot_quantities", "plot_linear_horizon", "plot_bode", "plot_error_histogram", "MANY_JOINTS",
+           "rate_labels"]
 
 
 _STYLES = {"exact": dict(ls="-", lw=2.0, alpha=0.5), "spice": dict(ls="--", lw=1.2),
@@ -372,4 +373,43 @@ def plot_bode(response, reference=None, path=None) -> Figure:
     marks = "; grey lines: resonances" if len(response.resonances()) else "; no resonance in the band"
     mag.set_title(f"driving-point mobilities, {solvers}{marks}")
     mag.legend(fontsize="small", loc="center left", bbox_to_anchor=(1.0, 0.5))
+    return save_figure(fig, path)
+
+
+def plot_error_histogram(errors: dict, title: str, bounds: dict | None = None, counted: str = "scenes",
+                         path=None) -> Figure:
+    """Each solver's errors over many scenes as a histogram of log10(error / peak), on one set of bins
+    so that the solvers' bars compare, each preset's bound marked.
+
+    Parameters
+    ----------
+    errors : dict of str to array_like
+        Per solver, its error over each scene (NaN and 0 are left out: not measured, or exact).
+    title : str
+        The figure's title.
+    bounds : dict of str to float, optional
+        Per preset name, its bound.
+    counted : str
+        What the bars count.
+    path : str or Path, optional
+        Image file to write.
+    """
+    fig = Figure(figsize=(6, 3.6), layout="constrained")
+    ax = fig.subplots()
+    logs = {name: np.log10(e[np.isfinite(e) & (e > 0)]) for name, e in
+            ((name, np.asarray(e, dtype=float)) for name, e in errors.items())}
+    logs = {name: x for name, x in logs.items() if x.size}
+    marks = [np.log10(b) for b in (bounds or {}).values()]
+    ends = [x.min() for x in logs.values()] + [x.max() for x in logs.values()] + marks
+    if ends:
+        edges = np.linspace(min(ends), max(ends), 61) if max(ends) > min(ends) else 60
+        for name, x in logs.items():
+            ax.hist(x, bins=edges, histtype="step", linewidth=1.5, label=name)
+    for (name, bound), style in zip((bounds or {}).items(), ("--", ":", "-.")):
+        ax.axvline(np.log10(bound), color="k", linestyle=style, linewidth=1, label=f"{name} bound")
+    ax.set_xlabel("log10(worst error / own peak)")
+    ax.set_ylabel(counted)
+    if logs or bounds:
+        ax.legend(loc="best", frameon=False, fontsize="small")
+    ax.set_title(title, fontsize="medium" if len(title) <= 60 else "small")
     return save_figure(fig, path)

@@ -6,7 +6,6 @@ from typing import TYPE_CHECKING, Callable, Iterator, Mapping, Sequence, overloa
 
 import numpy as np
 
-from ..files import write_figure
 from ..results.output import Tabular
 
 if TYPE_CHECKING:
@@ -141,27 +140,11 @@ class Comparisons(Sequence, Tabular):
         path : str or Path, optional
             Image file to write.
         """
-        from matplotlib.figure import Figure
-        fig = Figure(figsize=(6, 3.5), layout="constrained")
-        ax = fig.subplots()
-        logs = {}
-        for name in self.solvers:
-            e = self.errors(name)
-            if (e := e[np.isfinite(e) & (e > 0)]).size:
-                logs[name] = np.log10(e)
-        edges = np.linspace(min([np.log10(self.bound)] + [x.min() for x in logs.values()]),
-                            max([np.log10(self.bound)] + [x.max() for x in logs.values()]), 61)
-        for name, x in logs.items():        # one set of bins: the solvers' bars compare
-            ax.hist(x, bins=edges, alpha=0.6, label=name)
-        ax.axvline(np.log10(self.bound), color="k", linestyle="--", label=f"{self.preset} bound")
-        ax.set_xlabel("log10(worst error / own peak)")
-        ax.set_ylabel("systems")
-        ax.legend(fontsize="small")
+        from ..results.plots import plot_error_histogram
         against = f", against {self.reference}" if self.reference else ""
-        ax.set_title(f"{len(self)} systems at {self.preset}{against}", fontsize="small")
-        if path is not None:
-            write_figure(fig, path, dpi=110)
-        return fig
+        return plot_error_histogram({n: self.errors(n) for n in self.solvers if n != self.reference},
+                                    f"{len(self)} systems at {self.preset}{against}", {self.preset: self.bound},
+                                    "systems", path)
 
 
 def _restored(rows: list, runs, measured, skipped, reference, preset, bound) -> Comparisons:
