@@ -123,7 +123,8 @@ elif [ "$task" = engine ]; then
     echo "setup: the SPICE tests against $("$PWD"/.engines/ngspice-46/bin/ngspice -v | grep -o 'ngspice-[0-9]*' | head -1)"
     ANALOGY_EXPECT_NGSPICE=46 PATH="$PWD/.engines/ngspice-46/bin:$PATH" NGSPICE_LIBRARY_PATH="$lib" \
         SPICE_SCRIPTS="$PWD/.engines/ngspice-46/usr/share/ngspice/scripts" \
-        exec .venv/bin/python -m pytest -q -m "ngspice and not deep" "$@"
+        exec .venv/bin/python -m pytest -q -n 2 -m "ngspice and not deep" "$@"
 else
-    exec .venv/bin/python -m pytest -q "$@"
+    # two processes (pytest-xdist): the suite's tests are independent; -n 0 runs them in one
+    exec .venv/bin/python -m pytest -q -n 2 "$@"
 fi

@@ -54,12 +54,16 @@ def pytest_collection_modifyitems(config, items):
             item.add_marker(skip)
 
 
-@pytest.fixture(scope="session", autouse=True)
-def contact_sheet_of_the_run(tmp_path_factory):
-    """After the run: test-output/contact_sheet.png tiles every picture the tests wrote."""
-    yield
+def pytest_sessionfinish(session):
+    """After the run: test-output/contact_sheet.png tiles every picture the tests wrote (in the process
+    that ran them, or with pytest-xdist in the controller, whose base folder holds each worker's)."""
+    if hasattr(session.config, "workerinput"):
+        return
+    factory = getattr(session.config, "_tmp_path_factory", None)
+    if factory is None:
+        return
     from contact_sheet import contact_sheet
-    pngs = sorted(tmp_path_factory.getbasetemp().rglob("*.png"))
+    pngs = sorted(factory.getbasetemp().rglob("*.png"))
     if pngs:
         target = Path(__file__).resolve().parent.parent / "test-output" / "contact_sheet.png"
         print(f"\ncontact sheet of {len(pngs)} pictures: {contact_sheet(pngs, target)}")
