@@ -124,6 +124,8 @@ elif [ "$task" = engine ]; then
     ANALOGY_EXPECT_NGSPICE=46 PATH="$PWD/.engines/ngspice-46/bin:$PATH" NGSPICE_LIBRARY_PATH="$lib" \
         SPICE_SCRIPTS="$PWD/.engines/ngspice-46/usr/share/ngspice/scripts" \
         exec .venv/bin/python -m pytest -q -n 2 -m "ngspice and not deep" "$@"
+elif [[ " $* " == *" deep"* ]]; then
+    exec .venv/bin/python -m pytest -q "$@"     # the deep checks one at a time: each is minutes of one core
 else
     # two processes (pytest-xdist): the suite's tests are independent; -n 0 runs them in one
     exec .venv/bin/python -m pytest -q -n 2 "$@"
