@@ -316,7 +316,7 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
                  save: Sequence[str] = (), positions: bool = False,
                  t_stop: float | None = None, forces=None,
                  progress: Callable[[str | None], None] | None = None, estimate: bool = False,
-                 refine: bool = False) -> Comparisons:
+                 refine: bool = False) -> Comparisons[Comparison]:
     """:func:`compare` for many systems, each solver running them together where it can: their
     :class:`~analogy.study.comparisons.Comparisons`, each system's :class:`Comparison` made when asked for.
 

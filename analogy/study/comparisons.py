@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Callable, Iterator, Mapping, Sequence, overload
+from typing import TYPE_CHECKING, Callable, Iterator, Mapping, Sequence, TypeVar, overload
 
 import numpy as np
 
@@ -12,13 +12,15 @@ if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
     from ..results.trajectory_stack import TrajectoryStack
-    from .comparison import Comparison
     from .measure import MeasuredErrors
 
 __all__ = ["Comparisons"]
 
+#: A system's comparison (:class:`~analogy.study.comparison.Comparison`, which makes these).
+_Row = TypeVar("_Row")
 
-class Comparisons(Sequence, Tabular):
+
+class Comparisons(Sequence[_Row], Tabular):
     """What :func:`~analogy.study.comparison.compare_many` found: a sequence of
     :class:`~analogy.study.comparison.Comparison`, one per system, each made when it is asked for,
     and each solver's errors, run times and failures over every system as arrays
@@ -42,7 +44,7 @@ class Comparisons(Sequence, Tabular):
         The preset's promised worst error / peak.
     """
 
-    def __init__(self, row: Callable[[int], "Comparison"], runs: Mapping[str, "TrajectoryStack"],
+    def __init__(self, row: Callable[[int], _Row], runs: Mapping[str, "TrajectoryStack"],
                  measured: "MeasuredErrors", skipped: Mapping[str, str], reference: str | None, preset: str,
                  bound: float):
         self._row, self._runs, self._measured = row, dict(runs), measured
@@ -59,7 +61,7 @@ class Comparisons(Sequence, Tabular):
         return len(self._made)
 
     @overload
-    def __getitem__(self, index: int) -> "Comparison": ...
+    def __getitem__(self, index: int) -> _Row: ...
 
     @overload
     def __getitem__(self, index: slice) -> list: ...
@@ -72,7 +74,7 @@ class Comparisons(Sequence, Tabular):
             self._made[k] = self._row(k)
         return self._made[k]
 
-    def __iter__(self) -> Iterator["Comparison"]:
+    def __iter__(self) -> Iterator[_Row]:
         return (self[k] for k in range(len(self)))
 
     def errors(self, name: str) -> np.ndarray:
