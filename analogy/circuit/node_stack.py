@@ -76,11 +76,15 @@ class NodeStack(Sequence):
         # a lazy stack's row function is local to the code that built it: pickled, its rows are made
         return NodeStack, (self.systems, self._arrays, self._shared)
 
+    def _alike(self) -> Sequence["NodeDynamics"]:
+        """The rows that answer for all in what is not stacked: the first alone where one function
+        made every row (:meth:`lazy`), else each."""
+        return [self[0]] if self._row is not None else self
+
     @property
     def linear(self) -> bool:
-        """True when every row is linear (rows made by one function are alike: the first answers for all)."""
-        rows = [self[0]] if self._row is not None else self
-        return all(getattr(s, "kind", "linear") == "linear" for s in rows)
+        """True when every row is linear."""
+        return all(getattr(s, "kind", "linear") == "linear" for s in self._alike())
 
     @property
     def systems(self) -> tuple:
@@ -141,10 +145,8 @@ class NodeStack(Sequence):
 
     @property
     def realizable(self) -> bool:
-        """True when some row is to be simulated as its realizable circuit (rows made by one
-        function are alike: the first answers for all)."""
-        return bool(getattr(self[0], "realizable", False)) if self._row is not None else \
-            any(getattr(s, "realizable", False) for s in self)
+        """True when some row is to be simulated as its realizable circuit."""
+        return any(getattr(s, "realizable", False) for s in self._alike())
 
     @property
     def t_stops(self) -> np.ndarray:

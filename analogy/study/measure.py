@@ -126,10 +126,10 @@ class MeasuredErrors(Sequence):
         if isinstance(index, slice):
             return [self[k] for k in range(len(self))[index]]
         if self._rows[index] is None:
-            self._made()
+            self._make_rows()
         return self._rows[index]
 
-    def _made(self) -> None:
+    def _make_rows(self) -> None:
         """Every system's records, made once from the blocks (plain floats: one record per system)."""
         out: list[dict] = [{} for _ in self._rows]
         names = self.names
