@@ -189,6 +189,21 @@ def test_a_shared_stack_is_written_from_its_columns_as_from_its_circuits(name, t
     assert (" x5_n1 0 " in text) and (name != "flexpar" or "\nLx0_" in text)
 
 
+def test_values_every_row_shares_are_written_as_each_circuit_writes_them():
+    """write_stack writes a value every row shares (the dampers, and v(0) = T·r0, as a serial T is
+    the same in every row) into its template once: the text is still write_batch's."""
+    base = scene("default")
+    qs = np.column_stack([np.zeros(5), np.linspace(-2.0, 2.0, 5)])
+    systems = node_systems(base.numeric_model(), qs, initial_rates=(0.3, -0.2), t_stop=2.0)
+    v0 = systems.initial_voltages
+    assert np.all(v0 == v0[0]) and np.all(v0 != 0)
+    settings = transient_settings(PRESETS["fast"], 2.0, combined_scales(stack_scales(systems)),
+                                  breakpoints=systems[0].breakpoints())
+    text = write_stack(systems, settings)
+    assert text == write_batch(circuits(systems), settings)
+    assert "v(x4_n1)=0.3 v(x4_n2)=0.09999999999999998" in text
+
+
 def test_rows_that_keep_different_elements_are_written_as_their_circuits():
     """Where M12 = 0 (q2 at its root) the floating capacitor is left out of that row alone:
     write_stack fills another template for it, and still writes write_batch's text."""
@@ -385,6 +400,44 @@ def test_a_batch_group_makes_no_system_or_trajectory_per_scene(monkeypatch):
     result = solve_group(group, preset("fast"), ["spice"], "auto")
     assert not result.failures and np.all(result.errors["spice"] <= preset("fast").bound)
     assert made == {"systems": 1, "trajectories": 0}
+
+
+@pytest.mark.ngspice
+def test_a_group_of_several_circuits_solves_each_as_a_group_of_its_own_would():
+    """Consecutive circuits of one family in one group (built and checked once): every scene's error and
+    failure is what it is when each circuit is a group of its own, as the same netlists run."""
+    from analogy.batch.plan import plan_groups, solve_group
+    from analogy.presets import preset
+    base = scene("default")
+    items = [base.replace(q=(0.0, x)) for x in np.linspace(-3.0, 3.0, 25)]
+    items[7] = items[7].replace(t_stop=6.0)     # another horizon within the spread: the first circuit's
+    fast = preset("fast")
+    block, = plan_groups(items, 10, circuits=3)
+    alone = plan_groups(items, 10)
+    assert block.runs == tuple(len(g.rows) for g in alone) and block.rows == sum((g.rows for g in alone), ())
+    together = solve_group(block, fast, ["spice", "ode"], "auto")
+    apart = [solve_group(g, fast, ["spice", "ode"], "auto") for g in alone]
+    for name in ("spice", "ode"):
+        np.testing.assert_array_equal(together.errors[name], np.concatenate([r.errors[name] for r in apart]))
+    assert not together.failures and np.all(together.errors["spice"] <= fast.bound)
+
+
+def test_a_take_of_a_stack_reads_its_rows_scales_as_made_for_the_whole_stack():
+    """run_scales of a sub-stack is made from the whole stack's row scales (made once), and equals the
+    scales of those rows as a stack of their own."""
+    from analogy.circuit.scales import run_scales
+    base = scene("default")
+    qs = np.column_stack([np.zeros(12), np.linspace(-3.0, 3.0, 12)])
+    whole = base.systems(qs)
+    part = whole.take([3, 1, 8])
+    own = base.systems(qs[[3, 1, 8]])
+    assert "scales" not in whole._rowwise
+    a, b = run_scales(part), run_scales(own)
+    assert "scales" in whole._rowwise        # made for the whole stack, for its other takes
+    assert (a.omega_max, a.peak_velocity, a.peak_position, a.charge) == (b.omega_max, b.peak_velocity,
+                                                                         b.peak_position, b.charge)
+    for x, y in ((a.decays, b.decays), (a.shares, b.shares), (a.phases, b.phases), (a.frequencies, b.frequencies)):
+        np.testing.assert_array_equal(x, y)
 
 
 def test_a_lazy_stack_keeps_what_its_rows_were_built_from_and_pickles_with_them():

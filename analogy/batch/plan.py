@@ -56,6 +56,9 @@ class Group:
         A family's parameter values per member, where they vary.
     horizons : ndarray or None
         A family's t_stop per member, where they vary.
+    runs : tuple of int
+        How many members each SPICE circuit holds, in order (empty: one circuit of all): a family's
+        consecutive circuits built and solved by one call.
     """
 
     rows: tuple
@@ -64,6 +67,7 @@ class Group:
     configurations: np.ndarray | None = None
     parameters: dict = field(default_factory=dict)
     horizons: np.ndarray | None = None
+    runs: tuple = ()
 
     def members(self) -> list:
         """The scenes or systems of the group, one by one."""
@@ -123,19 +127,23 @@ class GroupResult(NamedTuple):
     rates: list | None
 
 
-def plan_groups(items: Sequence, group_size: int) -> list[Group]:
-    """Split *items* (Scenes or NodeSystems) into groups of at most *group_size* that run together.
+def plan_groups(items: Sequence, group_size: int, circuits: int = 1) -> list[Group]:
+    """Split *items* (Scenes or NodeSystems) into circuits of at most *group_size* that run together.
 
     Scenes that differ only in their configuration, a robot's parameter values and t_stop
-    form one family, built as a stack. Scenes of different presets never share a group. A group's horizons lie within :data:`HORIZON_SPREAD`
-    of each other, so that one ngspice run serves them all.
+    form one family, built as a stack. Scenes of different presets never share a group. A circuit's
+    horizons lie within :data:`HORIZON_SPREAD` of each other, so that one ngspice run serves them all.
+    Up to *circuits* consecutive circuits of one family make one group (:attr:`Group.runs`): what a
+    group costs besides its members (building a stack, checking it) is then paid once for them all.
 
     Parameters
     ----------
     items : sequence of Scene or NodeSystem
         The batch.
     group_size : int
-        Most members per group.
+        Most members per SPICE circuit.
+    circuits : int
+        Most circuits of a family per group.
     """
     kinds: dict = {}
     for k, item in enumerate(items):
@@ -149,21 +157,29 @@ def plan_groups(items: Sequence, group_size: int) -> list[Group]:
         kinds.setdefault(key, []).append(k)
     groups = []
     for (kind, *_), idx in kinds.items():
-        for chunk in _chunks(idx, [items[k].t_stop for k in idx], group_size):
-            if kind != "family":
-                groups.append(Group(chunk, tuple(items[k] for k in chunk)))
-                continue
-            first = items[chunk[0]]
-            qs = np.array([items[k].q for k in chunk], dtype=float).reshape(len(chunk), -1)
-            params = {}
-            if first.model.robot is not None and first.parameters:
-                values = np.array([[v for _, v in items[k].parameters] for k in chunk], dtype=float)
-                params = {name: values[:, j] for j, (name, _) in enumerate(first.parameters)
-                          if np.any(values[:, j] != values[0, j])}
-            ends = np.array([items[k].t_stop for k in chunk], dtype=float)
-            groups.append(Group(chunk, base=first, configurations=qs, parameters=params,
-                                horizons=ends if np.any(ends != ends[0]) else None))
+        chunks = _chunks(idx, [items[k].t_stop for k in idx], group_size)
+        if kind != "family":
+            groups += [Group(chunk, tuple(items[k] for k in chunk)) for chunk in chunks]
+            continue
+        for j in range(0, len(chunks), max(circuits, 1)):
+            groups.append(_family(items, chunks[j:j + max(circuits, 1)]))
     return groups
+
+
+def _family(items: Sequence, chunks: list[tuple]) -> Group:
+    """The group of a family's circuits *chunks* (positions in *items*), one after another."""
+    rows = tuple(k for chunk in chunks for k in chunk)
+    first = items[rows[0]]
+    qs = np.array([items[k].q for k in rows], dtype=float).reshape(len(rows), -1)
+    params = {}
+    if first.model.robot is not None and first.parameters:
+        values = np.array([[v for _, v in items[k].parameters] for k in rows], dtype=float)
+        params = {name: values[:, j] for j, (name, _) in enumerate(first.parameters)
+                  if np.any(values[:, j] != values[0, j])}
+    ends = np.array([items[k].t_stop for k in rows], dtype=float)
+    return Group(rows, base=first, configurations=qs, parameters=params,
+                 horizons=ends if np.any(ends != ends[0]) else None,
+                 runs=tuple(len(chunk) for chunk in chunks) if len(chunks) > 1 else ())
 
 
 def _chunks(idx: list[int], ends: list[float], size: int) -> list[tuple]:
@@ -202,11 +218,25 @@ def solve_group(group: Group, preset: Preset, solvers: Sequence[str], reference:
     """
     built, failures = group.build()
     count = len(built)
-    invalid, refused = set(failures), set()
-    spice = "spice" in solvers
-    ok = [k for k in range(count) if k not in failures]     # a stack's rows are not made to be counted
+    out = GroupResult({name: np.full(count, np.nan) for name in solvers},
+                      {name: np.zeros(count) for name in solvers}, failures, set(failures), set(),
+                      [None] * count if keep else None)
+    ends = np.cumsum((0,) + (group.runs or (count,)))
+    for start, end in zip(ends[:-1].tolist(), ends[1:].tolist()):
+        _solve_run(built, [k for k in range(start, end) if k not in failures], preset, solvers, reference, out)
+    return out
+
+
+def _solve_run(built, ok: list[int], preset: Preset, solvers: Sequence[str], reference: str | None,
+               out: GroupResult) -> None:
+    """One SPICE circuit's members *ok* (positions in *built*) checked and compared, into *out*."""
+    if not ok:
+        return
+    failures, refused, spice = out.failures, out.refused, "spice" in solvers
+    stack = isinstance(built, NodeStack)
+    systems = built if stack and len(ok) == len(built) else built.take(ok) if stack else [built[k] for k in ok]
     try:
-        check_works(built if isinstance(built, NodeStack) else [built[k] for k in ok], preset, spice=spice)
+        check_works(systems, preset, spice=spice)       # a stack's rows are not made to be checked
     except InputError:                  # some member is past the work budget: find which, and refuse it alone
         for k in ok:
             try:
@@ -215,24 +245,19 @@ def solve_group(group: Group, preset: Preset, solvers: Sequence[str], reference:
                 failures[k] = str(exc)
                 refused.add(k)
         ok = [k for k in ok if k not in refused]
-    systems = built if len(ok) == count else \
-        built.take(ok) if isinstance(built, NodeStack) else [built[k] for k in ok]
-    errors = {name: np.full(count, np.nan) for name in solvers}
-    seconds = {name: np.zeros(count) for name in solvers}
-    rates: list = [None] * count
-    if not ok:
-        return GroupResult(errors, seconds, failures, invalid, refused, rates if keep else None)
+        if not ok:
+            return
+        systems = built.take(ok) if stack else [built[k] for k in ok]
     found = compare_many(systems, preset, solvers, reference=reference)      # read as columns: no row is made
     for name in found.solvers:          # a later solver's failure is the one said, as records come in run order
         for j, why in found.failures(name).items():
             failures[ok[j]] = f"{name}: {why}" if name != "spice" else why
-        if name in seconds:
-            seconds[name][ok], errors[name][ok] = found.seconds(name), found.errors(name)   # the yardstick's is NaN
-    if keep:
+        if name in out.seconds:
+            out.seconds[name][ok], out.errors[name][ok] = found.seconds(name), found.errors(name)   # the yardstick's is NaN
+    if out.rates is not None:
         for k, c in zip(ok, found):
             ran = {s: r.trajectory for s, r in c.records.items() if r.ran}
-            rates[k] = {s: (ran[s].time, ran[s].rates) for s in solvers if s in ran}
-    return GroupResult(errors, seconds, failures, invalid, refused, rates if keep else None)
+            out.rates[k] = {s: (ran[s].time, ran[s].rates) for s in solvers if s in ran}
 
 
 def solve_group_isolated(group: Group, preset: Preset, solvers: Sequence[str], reference: str | None,

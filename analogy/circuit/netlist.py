@@ -434,9 +434,12 @@ def write_stack(stack: NodeStack, settings, zero_tol: float = ZERO_TOL) -> str:
     kept = (np.array([column[4] for column in columns]) != 0.0).reshape(len(columns), count)
     used = kept.any(axis=1)         # a column no row keeps (a joint with no damper) is in no template
     columns, kept = [column for column, u in zip(columns, used.tolist()) if u], kept[used].T
-    devices = [f"{kind}{x}{a} {x}n{a} 0 %r" if b == 0 else f"{kind}{x}{a}_{b} {x}n{a} {x}n{b} %r"
-               for kind, a, b, _, _ in columns]
-    values = list(zip(*[column[3] for column in columns])) if columns else [()] * count
+    # a value every row shares (a damper, a start at rest) is written into the template once
+    fixed = _shared_columns([column[3] for column in columns], count)
+    devices = [(f"{kind}{x}{a} {x}n{a} 0 " if b == 0 else f"{kind}{x}{a}_{b} {x}n{a} {x}n{b} ")
+               + (repr(values[0]) if same else "%r") for (kind, a, b, values, _), same in zip(columns, fixed)]
+    varying = [values for (_, _, _, values, _), same in zip(columns, fixed) if not same]
+    values = list(zip(*varying)) if varying else [()] * count
     every = kept.all(axis=1).tolist()
     templates: dict = {}
     lines = [f"* analogy batch of {count} independent circuits"]
@@ -445,16 +448,30 @@ def write_stack(stack: NodeStack, settings, zero_tol: float = ZERO_TOL) -> str:
         template = templates.get(mask)
         if template is None:
             template = templates[mask] = "\n".join([d for d, m in zip(devices, mask) if m] + sources)
+        if not full:
+            row = tuple(v for v, m in zip(row, (m for m, same in zip(mask, fixed) if not same)) if m)
         if template:
-            lines.append((template % (row if full else tuple(v for v, m in zip(row, mask) if m))).replace(_ROW, str(k)))
+            lines.append((template % row).replace(_ROW, str(k)))
     v0 = stack.initial_voltages
     if not np.all(np.isfinite(v0)):
         _num(v0[~np.isfinite(v0)][0])           # its one sentence
-    per_row = " ".join(f"v({x}n{i + 1})=%r" for i in range(dof))
-    ic = " ".join([(per_row % tuple(row)).replace(_ROW, str(k)) for k, row in enumerate(v0.tolist())])
+    starts = v0.T.tolist()
+    fixed = _shared_columns(starts, count)
+    per_row = " ".join(f"v({x}n{i + 1})=" + (repr(start[0]) if same else "%r")
+                       for i, (start, same) in enumerate(zip(starts, fixed)))
+    rows = list(zip(*[start for start, same in zip(starts, fixed) if not same])) or [()] * count
+    ic = " ".join([(per_row % row).replace(_ROW, str(k)) for k, row in enumerate(rows)])
     save = " ".join(f"v(x{k}_n{i + 1})" for k in range(count) for i in range(dof))
     lines += first_step_lines(settings, "x0_n1")
     return "\n".join(lines + analysis_lines(settings, ic_text=ic, save_text=save) + [".end"]) + "\n"
+
+
+def _shared_columns(columns: list[list[float]], count: int) -> list[bool]:
+    """Per column of *count* values, whether every value is the first, bit for bit (so its text is too)."""
+    if not columns:
+        return []
+    bits = np.array(columns, dtype=float).reshape(len(columns), count).view(np.int64)
+    return (bits == bits[:, :1]).all(axis=1).tolist()
 
 
 def ac_netlist(system, joint: int, f_start: float, f_stop: float, per_decade: int,

@@ -31,7 +31,7 @@ class NodeStack(Sequence):
         The caller knows that every row has the same topology, forces and t_stop.
     """
 
-    __slots__ = ("_rows", "_row", "_arrays", "_shared", "_scales", "_springs", "checked")
+    __slots__ = ("_rows", "_row", "_arrays", "_shared", "_scales", "_springs", "_rowwise", "_parent", "checked")
 
     def __init__(self, systems: Sequence["NodeDynamics"], arrays: dict | None = None, shared_inputs: bool = False):
         rows = list(systems)
@@ -45,6 +45,8 @@ class NodeStack(Sequence):
         self._shared = shared_inputs or len(rows) == 1
         self._scales = None         # the combined scales of one circuit running them all (analogy.circuit.scales)
         self._springs: np.ndarray | None = None
+        self._rowwise: dict = {}
+        self._parent: tuple | None = None       # (stack, rows) of a take whose rows share their inputs
         #: What the work guard passed it under, (preset, spice), so that it is not estimated twice.
         self.checked: tuple | None = None
 
@@ -70,6 +72,7 @@ class NodeStack(Sequence):
         obj._row, obj._arrays, obj._scales, obj.checked = row, dict(arrays), None, None
         obj._springs = np.asarray(springs, dtype=bool)
         obj._shared = shared_inputs or len(springs) == 1
+        obj._rowwise, obj._parent = {}, None
         return obj
 
     def __reduce__(self):
@@ -229,10 +232,35 @@ class NodeStack(Sequence):
         index = np.asarray(rows, dtype=int)
         arrays = {k: v[index] for k, v in self._arrays.items()}
         if self._row is None:
-            return NodeStack([self._rows[k] for k in rows], arrays, shared)
-        picked = self.lazy(lambda j: self[rows[j]], arrays, self.springs[index], shared)
-        picked._rows = [self._rows[k] for k in rows]        # the rows already made are shared
+            picked = NodeStack([self._rows[k] for k in rows], arrays, shared)
+        else:
+            picked = self.lazy(lambda j: self[rows[j]], arrays, self.springs[index], shared)
+            picked._rows = [self._rows[k] for k in rows]        # the rows already made are shared
+        if shared:      # what rows sharing their inputs derive is made once, for the whole stack
+            picked._parent = (self, index)
         return picked
+
+    def rowwise(self, key: str, make: Callable[["NodeStack"], tuple]) -> tuple:
+        """``make(self)``, made once and kept under *key*: values derived row by row from a stack whose
+        rows share their inputs. Each array or list in it has one entry per row (anything else is
+        shared by all), so that a :meth:`take` of the stack reads its rows' entries of the whole stack's, made once.
+
+        Parameters
+        ----------
+        key : str
+            What the values are.
+        make : callable
+            Makes them from the stack.
+        """
+        value = self._rowwise.get(key)
+        if value is None:
+            if self._parent is None:
+                value = make(self)
+            else:               # made for the stack this was taken from, and kept there for its other takes
+                parent, index = self._parent
+                value = _rows_of(parent.rowwise(key, make), index, len(parent))
+            self._rowwise[key] = value
+        return value
 
     def partition(self, by_inputs: bool = True) -> list[tuple[list[int], "NodeStack"]]:
         """Rows grouped into sub-stacks that share springs (all or none) and, with *by_inputs*, inputs.
@@ -250,3 +278,14 @@ class NodeStack(Sequence):
         for k, s in enumerate(self.systems):
             groups.setdefault((springs[k], s.inputs_key if by_inputs else None), []).append(k)
         return [(rows, self._take(rows, by_inputs)) for rows in groups.values()]
+
+
+def _rows_of(value, index: np.ndarray, count: int):
+    """The entries of *index* in one of :meth:`NodeStack.rowwise`'s values (a tuple: in each of its items)."""
+    if isinstance(value, tuple):
+        return tuple(_rows_of(v, index, count) for v in value)
+    if isinstance(value, np.ndarray) and value.ndim and value.shape[0] == count:
+        return value[index]
+    if isinstance(value, list) and len(value) == count:
+        return [value[i] for i in index.tolist()]
+    return value

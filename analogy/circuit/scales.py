@@ -465,8 +465,11 @@ def run_scales(systems: Sequence) -> Scales:
     if kept is None:
         parts = None if stack is None or _kept(stack[0]) is not None else stack.partition()
         if parts is not None and len(parts) == 1:       # straight from the stack's arrays: no Scales per row
-            kept = _combined_rows(*_scale_arrays(stack[0], stack.mass, stack.damping, stack.stiffness,
-                                                 stack.initial_voltages), _row_capacitors(stack[0], stack.mass))
+            def rows_of(s):
+                return _scale_arrays(s[0], s.mass, s.damping, s.stiffness, s.initial_voltages)
+            # a linear row's scales are its own and its inputs'; a nonlinear one's read the first row's start
+            rows = stack.rowwise("scales", rows_of) if stack[0].kind == "linear" else rows_of(stack)
+            kept = _combined_rows(*rows, _row_capacitors(stack[0], stack.mass))
         else:
             kept = combined_scales(stack_scales(systems))
         if stack is not None:

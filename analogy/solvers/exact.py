@@ -68,6 +68,14 @@ def phi2(x: np.ndarray) -> np.ndarray:
     return out
 
 
+def _tau_phi1(lam, tau, em1):
+    """τ·φ₁(λτ) = (e^{λτ} − 1)/λ from *em1* = e^{λτ} − 1, and τ where λ = 0 (broadcast)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = em1 / lam
+    zero = lam == 0
+    return np.where(zero, tau, out) if zero.any() else out
+
+
 def _forced(lam, s, tau):
     """∫₀^τ e^{λ(τ−σ)}·e^{sσ} dσ, broadcast over λ and τ."""
     w = (s - lam) * tau
@@ -197,9 +205,11 @@ def _states(systems: NodeStack, t, n: int, springs: bool) -> np.ndarray:
     for t0, t1 in first.segments():
         last = t1 >= first.t_stop
         mask = (t >= t0) & ((t <= t1) if last else (t < t1))
-        tau = np.concatenate([t[mask] - t0, [t1 - t0]])
+        whole = bool(mask.all())
+        tau = np.concatenate([(t if whole else t[mask]) - t0, [t1 - t0]])
         x = lam_ * tau
-        zt = np.exp(x) * z[:, :, None]
+        em1 = _expm1(x)             # e^x − 1 once: e^x·z and τ·φ₁(x) both follow from it
+        zt = z[:, :, None] + em1 * z[:, :, None]
         a_coef, b_coef, exps = np.zeros((count, joints)), np.zeros((count, joints)), []
         for forces, idx in shared.values():
             pieces = [[w.piece(t0, t1) for w in ws] for ws in forces]
@@ -208,14 +218,18 @@ def _states(systems: NodeStack, t, n: int, springs: bool) -> np.ndarray:
             exps += [(idx, j, c, sv) for j, ps in enumerate(pieces) for p in ps for c, sv in zip(p.c, p.s)]
         # u(t0 + τ) = a + b·τ + Σ c·e^{sτ}, each term integrated exactly against e^{λτ}
         if np.any(a_coef):
-            zt = zt + np.einsum("smj,sj->sm", beta, a_coef)[:, :, None] * tau * phi1(x)
+            zt = zt + np.einsum("smj,sj->sm", beta, a_coef)[:, :, None] * _tau_phi1(lam_, tau, em1)
         if np.any(b_coef):
             zt = zt + np.einsum("smj,sj->sm", beta, b_coef)[:, :, None] * tau ** 2 * phi2(x)
         if exps and not np.iscomplexobj(zt):
             zt = zt.astype(complex)
         for idx, j, c, sv in exps:
             zt[idx] += (c * beta[idx, :, j])[:, :, None] * _forced(lam_[idx], sv, tau)
-        states[:, mask] = np.swapaxes((vec @ zt).real[:, :, :-1], 1, 2)
+        y = np.swapaxes((vec @ zt).real[:, :, :-1], 1, 2)
+        if whole:
+            states = y          # one segment: the states are a view, not a copy
+        else:
+            states[:, mask] = y
         z = zt[:, :, -1]
     return states
 
