@@ -156,12 +156,18 @@ def element_columns(stack: NodeStack, zero_tol: float = ZERO_TOL) -> list[tuple]
     zero_tol : float
         Relative tolerance under which an element is left out.
     """
-    table, dropped = element_table(stack.mass, stack.damping, None if stack.springless else stack.stiffness,
-                                   zero_tol, report=True)
-    columns = [(kind, a, b, spice_value(kind, c).tolist(), c.tolist()) for kind, a, b, c in table]
+    table, dropped = stack.rowwise(f"elements at {zero_tol!r}", lambda s: _element_rows(s, zero_tol))
+    columns = [(kind, a, b, values.tolist(), c.tolist()) for kind, a, b, values, c in table]
     for j in np.flatnonzero(dropped):       # a capacitor under the tolerance: is the rest singular?
         _check_dropped(stack[int(j)].mass, list(row_elements(columns, int(j))), zero_tol)
     return columns
+
+
+def _element_rows(stack: NodeStack, zero_tol: float) -> tuple:
+    """:func:`element_table` of *stack* with each position's SPICE values: arrays with one entry per row."""
+    table, dropped = element_table(stack.mass, stack.damping, None if stack.springless else stack.stiffness,
+                                   zero_tol, report=True)
+    return tuple((kind, a, b, spice_value(kind, c), c) for kind, a, b, c in table), dropped
 
 
 def row_elements(columns: list[tuple], row: int) -> tuple[Element, ...]:

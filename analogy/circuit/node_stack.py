@@ -254,13 +254,22 @@ class NodeStack(Sequence):
         """
         value = self._rowwise.get(key)
         if value is None:
-            if self._parent is None:
-                value = make(self)
-            else:               # made for the stack this was taken from, and kept there for its other takes
-                parent, index = self._parent
-                value = _rows_of(parent.rowwise(key, make), index, len(parent))
+            value = None if self._parent is None else self._parent[0]._whole(key, make)
+            # made for the stack this was taken from, and kept there for its other takes; where that
+            # failed, made for these rows alone, so that it fails only where they do
+            value = make(self) if value is None else _rows_of(value, self._parent[1], len(self._parent[0]))
             self._rowwise[key] = value
         return value
+
+    def _whole(self, key: str, make: Callable[["NodeStack"], tuple]) -> tuple | None:
+        """:meth:`rowwise` for a take of this stack: None where making it for the whole stack failed."""
+        if key in self._rowwise:
+            return self._rowwise[key]
+        try:
+            return self.rowwise(key, make)
+        except Exception:       # noqa: BLE001 - whatever it is, the take makes its own and meets it there
+            self._rowwise[key] = None
+            return None
 
     def partition(self, by_inputs: bool = True) -> list[tuple[list[int], "NodeStack"]]:
         """Rows grouped into sub-stacks that share springs (all or none) and, with *by_inputs*, inputs.

@@ -191,7 +191,9 @@ def _spring_state(m, k, mb):
 
 def _states(systems: NodeStack, t, n: int, springs: bool) -> np.ndarray:
     """States y(t) (x and v with springs, else v) of a stack sharing springs and breakpoints."""
-    lam, vec, z, beta = _modes(systems, n, springs)
+    # without springs each row's modes are its own: made once for the stack a group's circuits are taken from
+    lam, vec, z, beta = _modes(systems, n, springs) if springs else \
+        systems.rowwise("springless modes", lambda s: _modes(s, n, False))
     count, joints = len(systems), beta.shape[2]
     states = np.empty((count, t.size, vec.shape[1]))
     first = systems[0]
@@ -209,7 +211,6 @@ def _states(systems: NodeStack, t, n: int, springs: bool) -> np.ndarray:
         tau = np.concatenate([(t if whole else t[mask]) - t0, [t1 - t0]])
         x = lam_ * tau
         em1 = _expm1(x)             # e^x − 1 once: e^x·z and τ·φ₁(x) both follow from it
-        zt = z[:, :, None] + em1 * z[:, :, None]
         a_coef, b_coef, exps = np.zeros((count, joints)), np.zeros((count, joints)), []
         for forces, idx in shared.values():
             pieces = [[w.piece(t0, t1) for w in ws] for ws in forces]
@@ -217,8 +218,14 @@ def _states(systems: NodeStack, t, n: int, springs: bool) -> np.ndarray:
             b_coef[idx] = [sum(p.b for p in ps) for ps in pieces]
             exps += [(idx, j, c, sv) for j, ps in enumerate(pieces) for p in ps for c, sv in zip(p.c, p.s)]
         # u(t0 + τ) = a + b·τ + Σ c·e^{sτ}, each term integrated exactly against e^{λτ}
-        if np.any(a_coef):
-            zt = zt + np.einsum("smj,sj->sm", beta, a_coef)[:, :, None] * _tau_phi1(lam_, tau, em1)
+        drive = np.einsum("smj,sj->sm", beta, a_coef) if np.any(a_coef) else None
+        if np.all(lam != 0):
+            # z·e^x + d·(e^x − 1)/λ = z + (e^x − 1)·(z + d/λ): one pass over the times
+            zt = z[:, :, None] + em1 * (z if drive is None else z + drive / lam)[:, :, None]
+        else:
+            zt = z[:, :, None] + em1 * z[:, :, None]
+            if drive is not None:
+                zt = zt + drive[:, :, None] * _tau_phi1(lam_, tau, em1)
         if np.any(b_coef):
             zt = zt + np.einsum("smj,sj->sm", beta, b_coef)[:, :, None] * tau ** 2 * phi2(x)
         if exps and not np.iscomplexobj(zt):
