@@ -225,9 +225,8 @@ def point_operations(system) -> float:
     n = system.dof
     if system.kind != "linear":
         return NONLINEAR_POINT_COST * float(n) ** 3
-    pattern = np.eye(n, dtype=bool)
-    for x in (system.mass, system.damping, system.stiffness):
-        if x is not None:       # the floating elements the circuit keeps: rounding is no coupling
-            pattern |= laplacian_split(x)[1] != 0
-    couplings = pattern.sum(axis=1, dtype=float)
+    # the floating elements the circuit keeps (rounding is no coupling), of M', B' and K' split as one stack
+    floating = laplacian_split(np.stack([x for x in (system.mass, system.damping, system.stiffness)
+                                         if x is not None]))[1]
+    couplings = (np.eye(n, dtype=bool) | np.any(floating != 0, axis=0)).sum(axis=1, dtype=float)
     return float(couplings @ couplings)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 import re
 import unicodedata
 from typing import Iterable, Literal, Sequence
@@ -408,8 +409,8 @@ def write_stack(stack: NodeStack, settings, zero_tol: float = ZERO_TOL) -> str:
     """:func:`write_batch` of a stack's :func:`~analogy.circuit.description.circuits`, written
     from its element columns: the same text, with no object per row (a batch writes one per group).
 
-    Each row's lines are one template per pattern of kept elements, filled with ``%`` (``%r`` of a
-    float is its repr, as everywhere else), the row's number put in last.
+    Each row's lines are one template per pattern of kept elements, split where the row's number
+    goes, joined with it and filled with ``%`` (``%r`` of a float is its repr, as everywhere else).
 
     Parameters
     ----------
@@ -447,11 +448,11 @@ def write_stack(stack: NodeStack, settings, zero_tol: float = ZERO_TOL) -> str:
         mask = (True,) * len(devices) if full else tuple(kept[k].tolist())
         template = templates.get(mask)
         if template is None:
-            template = templates[mask] = "\n".join([d for d, m in zip(devices, mask) if m] + sources)
+            template = templates[mask] = "\n".join([d for d, m in zip(devices, mask) if m] + sources).split(_ROW)
         if not full:
             row = tuple(v for v, m in zip(row, (m for m, same in zip(mask, fixed) if not same)) if m)
-        if template:
-            lines.append((template % row).replace(_ROW, str(k)))
+        if template != [""]:
+            lines.append(str(k).join(template) % row)
     v0 = stack.initial_voltages
     if not np.all(np.isfinite(v0)):
         _num(v0[~np.isfinite(v0)][0])           # its one sentence
@@ -460,10 +461,16 @@ def write_stack(stack: NodeStack, settings, zero_tol: float = ZERO_TOL) -> str:
     per_row = " ".join(f"v({x}n{i + 1})=" + (repr(start[0]) if same else "%r")
                        for i, (start, same) in enumerate(zip(starts, fixed)))
     rows = list(zip(*[start for start, same in zip(starts, fixed) if not same])) or [()] * count
-    ic = " ".join([(per_row % row).replace(_ROW, str(k)) for k, row in enumerate(rows)])
-    save = " ".join(f"v(x{k}_n{i + 1})" for k in range(count) for i in range(dof))
+    pieces = per_row.split(_ROW)
+    ic = " ".join([str(k).join(pieces) % row for k, row in enumerate(rows)])
     lines += first_step_lines(settings, "x0_n1")
-    return "\n".join(lines + analysis_lines(settings, ic_text=ic, save_text=save) + [".end"]) + "\n"
+    return "\n".join(lines + analysis_lines(settings, ic_text=ic, save_text=_saved(count, dof)) + [".end"]) + "\n"
+
+
+@lru_cache(maxsize=64)
+def _saved(count: int, dof: int) -> str:
+    """The ``.save`` text of *count* sub-circuits of *dof* nodes (the same for every batch of that shape)."""
+    return " ".join(f"v(x{k}_n{i + 1})" for k in range(count) for i in range(dof))
 
 
 def _shared_columns(columns: list[list[float]], count: int) -> list[bool]:
