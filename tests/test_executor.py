@@ -83,12 +83,12 @@ def test_sigterm_in_this_process_stops_the_loop_and_keeps_every_finished_group(t
     assert signal.getsignal(signal.SIGTERM) is before       # the caller's handler is back
 
 
-def test_sigterm_whose_exception_is_swallowed_still_stops_the_loop(tmp_path, monkeypatch):
+def test_sigterm_whose_exception_is_swallowed_still_stops_the_loop(tmp_path):
     """The handler's exception can be lost; its record is not: the loop stops at its next look,
     after the group it was running, and the record is consumed (a later batch runs whole). The
     handler runs in the thread that runs the group only without the pipeline's threads."""
-    monkeypatch.setattr(executor, "PIPELINE", 1)
-    results, died, interrupted = _run(tmp_path, 5 + 3, work=square_swallowing_sigterm, workers=1, in_process=True)
+    results, died, interrupted = _run(tmp_path, 5 + 3, work=square_swallowing_sigterm, workers=1, in_process=True,
+                                      pipeline=1)
     assert interrupted and results == {n: n * n for n in range(6)} and died == []
     results, died, interrupted = _run(tmp_path, 3, workers=1, in_process=True)
     assert not interrupted and results == {n: n * n for n in range(3)}

@@ -129,14 +129,15 @@ class _Loop:
     """One run of :func:`execute`: the pool, the groups in flight and their attempts."""
 
     def __init__(self, groups: Iterable, payload: Callable, work: Callable, done: Callable, died: Callable,
-                 workers: int, executor: Executor | None, in_process: bool, stored: Callable[[], str]) -> None:
+                 workers: int, executor: Executor | None, in_process: bool, stored: Callable[[], str],
+                 pipeline: int = PIPELINE) -> None:
         self.payload, self.work, self.done, self.died, self.stored = payload, work, done, died, stored
         self.own = executor is None
         self.local = self.own and (workers > 1 or not in_process)
         self.threads = self.own and not self.local          # groups on threads of this process
-        self.workers = workers
+        self.workers, self.pipeline = workers, max(pipeline, 1)
         self.pool = self._new_pool() if self.own else executor
-        self.limit = 4 * workers if self.local else PIPELINE if self.own else 64
+        self.limit = 4 * workers if self.local else self.pipeline if self.own else 64
         self.pending = enumerate(groups)         # numbered: a retried group keeps its number
         self.inflight: dict = {}
         self.attempts: dict = {}
@@ -147,7 +148,8 @@ class _Loop:
     def _new_pool(self):
         if self.local:
             return worker_pool(self.workers)
-        return ThreadPoolExecutor(PIPELINE, thread_name_prefix="analogy-group") if PIPELINE > 1 else InlineExecutor()
+        return ThreadPoolExecutor(self.pipeline, thread_name_prefix="analogy-group") if self.pipeline > 1 \
+            else InlineExecutor()
 
     def _renew(self) -> None:
         _end_pool(self.pool)
@@ -238,12 +240,12 @@ def _on_sigterm() -> object:
 
 def execute(groups: Iterable, payload: Callable, work: Callable, done: Callable, died: Callable, *,
             workers: int = 2, executor: Executor | None = None, in_process: bool = False,
-            stored: Callable[[], str] = lambda: "", pass_signals: bool = False) -> bool:
+            stored: Callable[[], str] = lambda: "", pass_signals: bool = False, pipeline: int = PIPELINE) -> bool:
     """Run ``work(payload(group))`` for every group and hand each result to ``done(group, result)``.
 
     Groups are submitted lazily, a few per worker, and each result is handed over as it
     arrives. Without *executor*, *workers* local processes run them (one: this process).
-    With *in_process*, one worker is this process itself, with :data:`PIPELINE` groups in
+    With *in_process*, one worker is this process itself, with *pipeline* groups in
     flight on threads; otherwise every group runs in a worker process, so that a crash in one
     is that group's own. A group whose worker died is retried, then given to ``died(group)``.
     SIGINT and SIGTERM stop the loop cleanly: what was handed over stays (in this process,
@@ -273,17 +275,19 @@ def execute(groups: Iterable, payload: Callable, work: Callable, done: Callable,
         What is kept so far and how to resume, for the message of an executor that failed.
     pass_signals : bool
         After the clean stop, pass SIGINT or SIGTERM on instead of returning True.
+    pipeline : int
+        Groups in flight on threads where they run in this process (1: one at a time, no thread).
 
     Returns
     -------
     bool
         True when SIGINT or SIGTERM stopped the loop before the end.
     """
-    loop = _Loop(groups, payload, work, done, died, workers, executor, in_process, stored)
+    loop = _Loop(groups, payload, work, done, died, workers, executor, in_process, stored, pipeline)
     old_term = _on_sigterm()
     switched = False
     try:
-        if loop.threads and PIPELINE > 1:
+        if loop.threads and loop.pipeline > 1:
             _short_switches(True)
             switched = True
         loop.run()

@@ -139,23 +139,26 @@ def _preset_of(group: Group) -> Preset:
 CIRCUITS_PER_GROUP = 10
 
 
-def _circuits(count: int, group_size: int, workers: int) -> int:
+def _circuits(count: int, group_size: int, workers: int, threads: int) -> int:
     """Circuits per group: at most :data:`CIRCUITS_PER_GROUP`, and few enough that each of *workers*
-    processes, and each of their :data:`PIPELINE` threads, still gets two groups."""
-    return max(1, min(CIRCUITS_PER_GROUP, -(-count // group_size) // (2 * workers * PIPELINE)))
+    processes, and each of their *threads*, still gets two groups."""
+    return max(1, min(CIRCUITS_PER_GROUP, -(-count // group_size) // (2 * workers * threads)))
 
 
 def run_batch(systems: Sequence, preset=None, *, solvers: Sequence[str] = ("spice",),
               group_size: int = 100, workers: int = 2, executor: Executor | None = None,
-              compare_exact: bool = True, keep_rates: bool = False, progress: bool = False) -> BatchResult:
-    """Simulate many systems: groups of *group_size* run together through :func:`compare_many`.
+              compare_exact: bool = True, keep_rates: bool = False, progress: bool = False,
+              threads: int = PIPELINE) -> BatchResult:
+    """Simulate many systems: circuits of *group_size* run together through :func:`compare_many`.
 
     *systems* holds NodeSystems or Scenes. Scenes are built in the workers; those that
     differ only in q, parameters and t_stop are built as one stack
     (:func:`analogy.circuit.node_system.node_systems`), and a built-in model is derived and
-    compiled once per worker process. A group's horizons lie within
+    compiled once per worker process. A circuit's horizons lie within
     :data:`~analogy.batch.plan.HORIZON_SPREAD` of each other, so that one ngspice run to the
-    longest serves them all. Groups are spread over *workers* processes (or any
+    longest serves them all. A group holds up to :data:`CIRCUITS_PER_GROUP` circuits of one
+    family, built and checked once (fewer where the workers would otherwise go short of
+    groups); each circuit is still its own ngspice run. Groups are spread over *workers* processes (or any
     ``concurrent.futures.Executor``, e.g. a Dask client's ``get_executor()``) by the
     same loop as :func:`~analogy.batch.runner.run_sweep`: a group whose worker died is
     retried. SIGINT and SIGTERM end the workers cleanly, then reach the caller as
@@ -169,9 +172,9 @@ def run_batch(systems: Sequence, preset=None, *, solvers: Sequence[str] = ("spic
         Accuracy preset for every member. None: each Scene's own preset, and ``accurate``
         (a Scene's default) for a NodeSystem.
     solvers : sequence of str
-        Solvers to run on every scene (SPICE runs each group as one circuit).
+        Solvers to run on every scene (SPICE runs each circuit as one netlist).
     group_size : int
-        Scenes per group.
+        Scenes per SPICE circuit.
     workers : int
         Worker processes (1: in this process).
     executor : Executor, optional
@@ -182,15 +185,19 @@ def run_batch(systems: Sequence, preset=None, *, solvers: Sequence[str] = ("spic
         Keep every scene's time points and joint rates.
     progress : bool
         Show a progress bar.
+    threads : int
+        Groups in flight on threads where the batch runs in this process (*workers* 1): one group's
+        Python work goes on while another's circuit runs in ngspice. 1: one group at a time, which
+        takes the least CPU time where the two cores slow each other.
     """
     fixed = None if preset is None else get_preset(preset)
     names = list(dict.fromkeys(solvers))
-    if group_size < 1 or workers < 1:
-        raise InputError("group_size and workers must be at least 1")
+    if group_size < 1 or workers < 1 or threads < 1:
+        raise InputError("group_size, workers and threads must be at least 1")
     if not names:
         raise InputError("a batch needs at least one solver")
     start = _time.perf_counter()
-    groups = plan_groups(systems, group_size, _circuits(len(systems), group_size, workers))
+    groups = plan_groups(systems, group_size, _circuits(len(systems), group_size, workers, threads))
     reference = "auto" if compare_exact else None
     errors = {name: np.full(len(systems), np.nan) for name in names}
     seconds = {name: 0.0 for name in names}
@@ -223,7 +230,7 @@ def run_batch(systems: Sequence, preset=None, *, solvers: Sequence[str] = ("spic
     try:
         interrupted = execute(groups, lambda g: (g, fixed or _preset_of(g), names, reference, keep_rates), _solve, done, died,
                               workers=workers if spread else 1, executor=executor, in_process=True,
-                              pass_signals=True)
+                              pass_signals=True, pipeline=threads)
     finally:
         if bar is not None:
             bar.close()

@@ -139,11 +139,11 @@ class _Turns:
     """What the turns of every path measured: scenes per second, CPU seconds, worst errors."""
 
     processes: int
-    rates: dict = field(default_factory=lambda: {k: [] for k in ("batched", "one", "solo", "pyspice", "floor",
-                                                                  "floors")})
-    cpus: dict = field(default_factory=lambda: {"one": [], "floor": []})
-    worst: dict = field(default_factory=lambda: dict.fromkeys(("batched", "one", "solo", "pyspice", "floor",
-                                                              "floors"), 0.0))
+    rates: dict = field(default_factory=lambda: {k: [] for k in ("batched", "one", "thread", "solo", "pyspice",
+                                                                  "floor", "floors")})
+    cpus: dict = field(default_factory=lambda: {"one": [], "thread": [], "floor": []})
+    worst: dict = field(default_factory=lambda: dict.fromkeys(("batched", "one", "thread", "solo", "pyspice",
+                                                              "floor", "floors"), 0.0))
     solves: list = field(default_factory=list)
     failed: int = 0
     late: int = 0
@@ -156,13 +156,13 @@ def _take_turns(turns: _Turns, n: int, preset: str, group_size: int, workers: in
     q2 = np.random.default_rng(seed).uniform(-np.pi, np.pi, n)
     items = [base.replace(q=(0.0, float(x))) for x in q2]
     rates, cpus, worst = turns.rates, turns.cpus, turns.worst
-    bar = Progress((5 + (workers > 1)) * repeats, unit="path run", enabled=progress, every=0.0)
+    bar = Progress((6 + (workers > 1)) * repeats, unit="path run", enabled=progress, every=0.0)
 
-    def batch(key: str, pool: int) -> None:
+    def batch(key: str, pool: int, threads: int = PIPELINE) -> None:
         cpu = _time.process_time()
-        res = run_batch(items, preset, group_size=group_size, workers=pool)
-        if key == "one":            # this process's CPU, its threads and ngspice's included
-            cpus["one"].append(_time.process_time() - cpu)
+        res = run_batch(items, preset, group_size=group_size, workers=pool, threads=threads)
+        if key in cpus:            # this process's CPU, its threads and ngspice's included
+            cpus[key].append(_time.process_time() - cpu)
         rates[key].append(res.throughput)
         # a run with no finite error (all failed) makes the worst error NaN, not hidden
         ok = res.errors[np.isfinite(res.errors)]
@@ -193,6 +193,7 @@ def _take_turns(turns: _Turns, n: int, preset: str, group_size: int, workers: in
         cpus["floor"].append(cpu)
         bar.update(1)
         batch("one", 1)
+        batch("thread", 1, threads=1)
         if workers > 1:         # a fresh worker was ready after (ready - asked): twice that is lead enough
             together = _floor_together(items, preset, group_size, workers, 2 * (ready - asked) + 0.5)
             rates["floors"].append(together.rate)
@@ -216,8 +217,8 @@ def _summary(turns: _Turns, n: int, preset: str, group_size: int, workers: int, 
     def cpu_per(key):
         return f"CPU {statistics.median(cpus[key]) / n * 1e6:.0f} ms per 1,000 scenes"
 
-    # per turn, this process's CPU beyond the floor's on the same netlists: the Python a scene costs
-    share = statistics.median(o - f for o, f in zip(cpus["one"], cpus["floor"])) / n * 1e6
+    def share(key):         # per turn, this process's CPU beyond the floor's on the same netlists, a scene
+        return statistics.median(o - f for o, f in zip(cpus[key], cpus["floor"])) / n * 1e6
 
     def spread(key):
         return f"{med[key]:,.0f} scenes/s (runs {', '.join(f'{r:,.0f}' for r in rates[key])})"
@@ -228,8 +229,11 @@ def _summary(turns: _Turns, n: int, preset: str, group_size: int, workers: int, 
         f"  batched, {workers} workers, {group_size} scenes per ngspice run, {n} scenes: "
         f"{spread('batched')}, worst error/peak {worst['batched']:.2e}",
         f"  batched, 1 process ({PIPELINE} groups in flight on threads): {spread('one')}, "
-        f"{cpu_per('one')}: {share:.0f} us a scene beyond the floor's (Python's share), "
-        f"worst error/peak {worst['one']:.2e}",
+        f"{cpu_per('one')}: {share('one'):.0f} us a scene beyond the floor's (Python's, and the two cores "
+        f"slowing each other), worst error/peak {worst['one']:.2e}",
+        f"  batched, 1 process, one group at a time: {spread('thread')}, {cpu_per('thread')}: "
+        f"{share('thread'):.0f} us a scene beyond the floor's (Python's share), "
+        f"worst error/peak {worst['thread']:.2e}",
         f"  one ngspice run per scene (1 process, {baseline_n} scenes): {spread('solo')}, "
         f"worst error/peak {worst['solo']:.2e}, median SPICE solve {statistics.median(solves) * 1e3:.3f} ms",
         f"  plain PySpice loop (Circuit + simulator().transient(), 1 process, {baseline_n} scenes): "
@@ -260,7 +264,9 @@ def throughput(n: int = 10_000, preset: str = "fast", group_size: int = 100, wor
     run on *baseline_n* scenes in a fresh worker process each (timed after a warm-up
     pass); the batched path is timed whole, worker start-up included, on *workers*
     processes, and on one, this one, after a warm-up group (whose threads keep a group's
-    Python going while ngspice runs another: its CPU time is printed beside the floor's). The
+    Python going while ngspice runs another: its CPU time is printed beside the floor's), and on
+    this one again with one group at a time: its CPU beyond the floor's is Python's share alone,
+    where with threads it also holds what the two busy cores cost each other. The
     floor is ngspice alone loading and running the same batch netlists in one process, written
     beforehand: the batched path on one process is reported as a share of it. With more than one worker the floor also runs on
     that many processes at once, each with every other netlist (their timed parts started together),
