@@ -209,24 +209,27 @@ def _states(systems: NodeStack, t, n: int, springs: bool) -> np.ndarray:
         mask = (t >= t0) & ((t <= t1) if last else (t < t1))
         whole = bool(mask.all())
         tau = np.concatenate([(t if whole else t[mask]) - t0, [t1 - t0]])
-        x = lam_ * tau
-        em1 = _expm1(x)             # e^x − 1 once: e^x·z and τ·φ₁(x) both follow from it
         a_coef, b_coef, exps = np.zeros((count, joints)), np.zeros((count, joints)), []
         for forces, idx in shared.values():
             pieces = [[w.piece(t0, t1) for w in ws] for ws in forces]
             a_coef[idx] = [sum(p.a for p in ps) for ps in pieces]
             b_coef[idx] = [sum(p.b for p in ps) for ps in pieces]
             exps += [(idx, j, c, sv) for j, ps in enumerate(pieces) for p in ps for c, sv in zip(p.c, p.s)]
+        x = lam_ * tau
+        ramp = np.any(b_coef)           # φ₂(x) reads x: otherwise e^x − 1 is written over it
+        em1 = np.expm1(x, out=x) if not ramp and not np.iscomplexobj(x) else _expm1(x)
         # u(t0 + τ) = a + b·τ + Σ c·e^{sτ}, each term integrated exactly against e^{λτ}
         drive = np.einsum("smj,sj->sm", beta, a_coef) if np.any(a_coef) else None
         if np.all(lam != 0):
-            # z·e^x + d·(e^x − 1)/λ = z + (e^x − 1)·(z + d/λ): one pass over the times
-            zt = z[:, :, None] + em1 * (z if drive is None else z + drive / lam)[:, :, None]
+            # z·e^x + d·(e^x − 1)/λ = z + (e^x − 1)·(z + d/λ): one pass over the times, in e^x − 1's place
+            zt = np.multiply(em1, (z if drive is None else z + drive / lam)[:, :, None],
+                             out=em1 if em1.dtype == np.result_type(em1, z, lam) else None)
+            zt += z[:, :, None]
         else:
             zt = z[:, :, None] + em1 * z[:, :, None]
             if drive is not None:
                 zt = zt + drive[:, :, None] * _tau_phi1(lam_, tau, em1)
-        if np.any(b_coef):
+        if ramp:
             zt = zt + np.einsum("smj,sj->sm", beta, b_coef)[:, :, None] * tau ** 2 * phi2(x)
         if exps and not np.iscomplexobj(zt):
             zt = zt.astype(complex)
