@@ -440,6 +440,23 @@ def test_a_take_of_a_stack_reads_its_rows_scales_as_made_for_the_whole_stack():
         np.testing.assert_array_equal(x, y)
 
 
+def test_a_take_reads_no_row_values_from_a_stack_whose_rows_differ_in_springs():
+    """K(q) vanishes at q1 = 0: a stack sharing its inputs (no gravity) holds rows with and without
+    springs, whose element table and scales leave K' out. Its sprung rows' take makes its own, with
+    their inductors, as a stack of those rows alone does."""
+    from analogy.circuit.description import element_columns
+    from analogy.circuit.scales import run_scales
+    qs = np.array([[0.0, 0.2], [0.5, 0.2], [0.0, 0.4], [0.7, 0.1]])
+    mixed = node_systems(sprung_model(), qs, forces=(1.0, 0.0), parameters={"g": 0.0})
+    assert mixed.shares_inputs and mixed.springs.tolist() == [False, True, False, True]
+    run_scales(mixed.take([0, 2]))          # the springless rows: made for themselves too
+    sprung, alone = mixed.take([1, 3]), node_systems(sprung_model(), qs[[1, 3]], forces=(1.0, 0.0),
+                                                     parameters={"g": 0.0})
+    assert [c[0] for c in element_columns(sprung)] == [c[0] for c in element_columns(alone)]
+    assert "L" in [c[0] for c in element_columns(sprung)] and not mixed._rowwise
+    assert run_scales(sprung).omega_max == run_scales(alone).omega_max > 0
+
+
 def test_a_lazy_stack_keeps_what_its_rows_were_built_from_and_pickles_with_them():
     """Rows made after the caller changed its own parameter arrays still report the values the stack was
     built with; a pickled stack is the same systems; a sub-stack's rows are its parent's objects."""

@@ -236,13 +236,15 @@ class NodeStack(Sequence):
         else:
             picked = self.lazy(lambda j: self[rows[j]], arrays, self.springs[index], shared)
             picked._rows = [self._rows[k] for k in rows]        # the rows already made are shared
-        if shared:      # what rows sharing their inputs derive is made once, for the whole stack
+        springs = self.springs
+        if shared and self.shares_inputs and (springs.all() or not springs.any()):
+            # what rows sharing their inputs and springs derive is made once, for the whole stack
             picked._parent = (self, index)
         return picked
 
     def rowwise(self, key: str, make: Callable[["NodeStack"], tuple]) -> tuple:
         """``make(self)``, made once and kept under *key*: values derived row by row from a stack whose
-        rows share their inputs. Each array or list in it has one entry per row (anything else is
+        rows share their inputs and springs (all or none). Each array or list in it has one entry per row (anything else is
         shared by all), so that a :meth:`take` of the stack reads its rows' entries of the whole stack's, made once.
 
         Parameters
