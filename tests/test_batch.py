@@ -157,6 +157,28 @@ def test_a_scene_whose_build_raises_anything_fails_alone(monkeypatch):
 
 
 
+@pytest.mark.ngspice
+def test_a_group_whose_worker_dies_is_run_again_circuit_by_circuit(monkeypatch):
+    """A circuit that kills its worker on every attempt (ngspice crashing on it, say; the loop's retries
+    are tests/test_executor.py's) loses its own scenes alone: the group of several circuits it came in is
+    run again one circuit a group, and the others are solved."""
+    import analogy.batch.run as run
+    passes = []
+
+    def dying(groups, payload, work, done, died, **kwargs):     # the loop, with the culprit's worker dying
+        passes.append([len(g.runs) for g in groups])
+        for g in groups:
+            died(g) if 77 in g.rows else done(g, work(payload(g)))
+        return False
+    monkeypatch.setattr(run, "execute", dying)
+    items = [scene("default").replace(q=(0.0, float(x)), t_stop=1.0) for x in np.linspace(-3.0, 0.5, 80)]
+    res = run_batch(items, "fast", group_size=5, workers=1)
+    assert passes == [[4] * 4, [0] * 4]         # four groups of four circuits, then the dead one's four
+    assert sorted(res.failures) == list(range(75, 80))
+    assert all("the worker process died" in why for why in res.failures.values())
+    assert np.all(res.errors[:75] <= preset("fast").bound)
+
+
 def test_groups_hold_horizons_within_the_spread_and_families_span_them():
     """The planner sorts horizons into runs whose longest is at most HORIZON_SPREAD times the shortest."""
     from analogy.batch.plan import HORIZON_SPREAD, plan_groups

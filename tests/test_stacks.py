@@ -410,7 +410,6 @@ def test_a_group_of_several_circuits_solves_each_as_a_group_of_its_own_would():
     from analogy.presets import preset
     base = scene("default")
     items = [base.replace(q=(0.0, x)) for x in np.linspace(-3.0, 3.0, 25)]
-    items[7] = items[7].replace(t_stop=6.0)     # another horizon within the spread: the first circuit's
     fast = preset("fast")
     block, = plan_groups(items, 10, circuits=3)
     alone = plan_groups(items, 10)
@@ -420,6 +419,64 @@ def test_a_group_of_several_circuits_solves_each_as_a_group_of_its_own_would():
     for name in ("spice", "ode"):
         np.testing.assert_array_equal(together.errors[name], np.concatenate([r.errors[name] for r in apart]))
     assert not together.failures and np.all(together.errors["spice"] <= fast.bound)
+
+
+@pytest.mark.ngspice
+def test_a_bug_met_in_one_circuit_of_a_group_is_that_circuits_alone(monkeypatch):
+    """An exception in one circuit's comparison sends only that circuit's members to be solved one by one:
+    the group's other circuits keep the errors of their shared runs."""
+    import analogy.batch.plan as plan
+    from analogy.batch.plan import plan_groups, solve_group_isolated
+    from analogy.presets import preset
+    real = plan.compare_many
+
+    def buggy(systems, *args, **kwargs):
+        if len(systems) > 1 and any(s.provenance.configuration["q2"] == 2.5 for s in systems):
+            raise RuntimeError("a bug met by the circuit holding q2 = 2.5")
+        return real(systems, *args, **kwargs)
+    monkeypatch.setattr(plan, "compare_many", buggy)
+    base = scene("default").replace(t_stop=2.0)
+    items = [base.replace(q=(0.0, float(x))) for x in np.linspace(-3.0, 2.5, 30)]
+    fast = preset("fast")
+    block, = plan_groups(items, 10, circuits=3)
+    together = solve_group_isolated(block, fast, ["spice"], "auto")
+    apart = [solve_group_isolated(g, fast, ["spice"], "auto") for g in plan_groups(items, 10)]
+    np.testing.assert_array_equal(together.errors["spice"], np.concatenate([r.errors["spice"] for r in apart]))
+    assert not together.failures and np.all(together.errors["spice"] <= fast.bound)
+
+
+@pytest.mark.ngspice
+def test_a_row_that_does_not_build_makes_only_its_circuit_build_row_by_row(monkeypatch):
+    """A configuration of a closed chain that does not assemble fails the group's stack: each circuit is then
+    built as a stack of its own, and only the one holding it is built row by row; every other scene's error
+    is what a group of one circuit gives."""
+    import analogy.batch.plan as plan
+    from analogy.batch.plan import plan_groups, solve_group
+    from analogy.presets import preset
+    base = scene("parallel2").replace(t_stop=2.0)
+    qs = [(2.1 + a, 0.9 + b) for a, b in np.random.default_rng(0).uniform(-0.2, 0.2, (30, 2))]
+    qs[25] = (0.0, np.pi)
+    items = [base.replace(q=q) for q in qs]
+    fast = preset("fast")
+    block, = plan_groups(items, 10, circuits=3)
+    alone = plan_groups(items, 10)
+    one_by_one = []
+    build = plan.as_system
+    monkeypatch.setattr(plan, "as_system", lambda item: one_by_one.append(item.q) or build(item))
+    together = solve_group(block, fast, ["spice"], "auto")
+    assert sorted(one_by_one) == sorted(qs[20:30])          # the third circuit's, and only once
+    apart = [solve_group(g, fast, ["spice"], "auto") for g in alone]
+    np.testing.assert_array_equal(together.errors["spice"], np.concatenate([r.errors["spice"] for r in apart]))
+    assert list(together.failures) == [25] and together.invalid == {25} and "does not assemble" in together.failures[25]
+
+
+def test_circuits_of_different_horizons_are_not_one_group():
+    """A stack over several horizons makes every row's system, so a group holds circuits of one horizon."""
+    from analogy.batch.plan import plan_groups
+    base = scene("default")
+    items = [base.replace(q=(0.0, 0.01 * k), t_stop=1.0 if k < 20 else 1.5) for k in range(40)]
+    groups = plan_groups(items, 10, circuits=4)
+    assert [(len(g.rows), g.runs, g.horizons is None) for g in groups] == [(20, (10, 10), True)] * 2
 
 
 def test_a_take_of_a_stack_reads_its_rows_scales_as_made_for_the_whole_stack():

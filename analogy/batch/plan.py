@@ -79,6 +79,21 @@ class Group:
                              parameters={**dict(base.parameters), **{k: float(v[i]) for k, v in self.parameters.items()}})
                 for i, row in enumerate(np.asarray(self.configurations).tolist())]
 
+    def circuits(self) -> list["Group"]:
+        """The group as one group per SPICE circuit (itself where it is one)."""
+        if not self.runs:
+            return [self]
+        ends = np.cumsum((0,) + self.runs).tolist()
+        return [Group(self.rows[a:b], base=self.base, configurations=self.configurations[a:b],
+                      parameters={k: v[a:b] for k, v in self.parameters.items()},
+                      horizons=None if self.horizons is None else self.horizons[a:b])
+                for a, b in zip(ends[:-1], ends[1:])]
+
+    def stack(self) -> NodeStack:
+        """A family's members as one stack; raises :class:`~analogy.errors.AnalogyError` where a row does not build."""
+        stack = self.base.systems(self.configurations, parameters=self.parameters)
+        return stack if self.horizons is None else stack.driven(None, self.horizons)
+
     def build(self) -> tuple[list, dict]:
         """The members' node systems (None where a build failed) and the failures (position to reason).
 
@@ -86,8 +101,7 @@ class Group:
         """
         if self.base is not None:
             try:
-                stack = self.base.systems(self.configurations, parameters=self.parameters)
-                return (stack if self.horizons is None else stack.driven(None, self.horizons)), {}
+                return self.stack(), {}
             except AnalogyError:
                 pass
         systems, failures = [], {}
@@ -161,8 +175,15 @@ def plan_groups(items: Sequence, group_size: int, circuits: int = 1) -> list[Gro
         if kind != "family":
             groups += [Group(chunk, tuple(items[k] for k in chunk)) for chunk in chunks]
             continue
-        for j in range(0, len(chunks), max(circuits, 1)):
-            groups.append(_family(items, chunks[j:j + max(circuits, 1)]))
+        # consecutive circuits of one horizon share a group: a stack over several horizons makes every row
+        ends = [{items[k].t_stop for k in chunk} for chunk in chunks]
+        j = 0
+        while j < len(chunks):
+            last = j + 1
+            while last < min(j + circuits, len(chunks)) and len(ends[j]) == 1 and ends[last] == ends[j]:
+                last += 1
+            groups.append(_family(items, chunks[j:last]))
+            j = last
     return groups
 
 
@@ -198,10 +219,12 @@ def _chunks(idx: list[int], ends: list[float], size: int) -> list[tuple]:
 
 def solve_group(group: Group, preset: Preset, solvers: Sequence[str], reference: str | None,
                 keep: bool = False) -> GroupResult:
-    """Build a group's systems and compare them through :func:`compare_many` in one go.
+    """Build a group's systems and compare each of its circuits through :func:`compare_many`.
 
-    SPICE runs the group as one circuit; if that run fails, each member runs alone, so
-    that one member's failure is its own. A member past the work budget is refused alone.
+    SPICE runs each circuit (:attr:`Group.runs`) as one netlist; if that run fails, each member
+    runs alone, so that one member's failure is its own. A member past the work budget is refused
+    alone. A family's rows are built as one stack for all its circuits; where a row does not build,
+    each circuit is built and solved as a group of its own.
 
     Parameters
     ----------
@@ -216,7 +239,13 @@ def solve_group(group: Group, preset: Preset, solvers: Sequence[str], reference:
     keep : bool
         Keep every member's time points and joint rates.
     """
-    built, failures = group.build()
+    if group.runs:
+        try:
+            built, failures = group.stack(), {}
+        except AnalogyError:        # only the circuit holding the bad row is built row by row
+            return _joined([solve_group(g, preset, solvers, reference, keep) for g in group.circuits()])
+    else:
+        built, failures = group.build()
     count = len(built)
     out = GroupResult({name: np.full(count, np.nan) for name in solvers},
                       {name: np.zeros(count) for name in solvers}, failures, set(failures), set(),
@@ -280,7 +309,8 @@ def solve_group_isolated(group: Group, preset: Preset, solvers: Sequence[str], r
     try:
         return solve_group(group, preset, solvers, reference, keep)
     except Exception:       # noqa: BLE001 - one member's bug must not lose the group's others
-        pass
+        if group.runs:      # each circuit on its own first: the others keep their shared runs
+            return _joined([solve_group_isolated(g, preset, solvers, reference, keep) for g in group.circuits()])
     items = group.members()
     count = len(items)
     errors = {name: np.full(count, np.nan) for name in solvers}
@@ -301,3 +331,18 @@ def solve_group_isolated(group: Group, preset: Preset, solvers: Sequence[str], r
         if one.rates is not None:
             rates[k] = one.rates[0]
     return GroupResult(errors, seconds, failures, invalid, refused, rates if keep else None)
+
+
+def _joined(parts: list[GroupResult]) -> GroupResult:
+    """The results of a group's circuits, solved one after another, as the group's."""
+    offsets = np.cumsum([0] + [len(next(iter(p.errors.values()))) for p in parts]).tolist()
+
+    def moved(index: dict | set, at: int):
+        return {k + at: v for k, v in index.items()} if isinstance(index, dict) else {k + at for k in index}
+    kept = all(p.rates is not None for p in parts)
+    return GroupResult({name: np.concatenate([p.errors[name] for p in parts]) for name in parts[0].errors},
+                       {name: np.concatenate([p.seconds[name] for p in parts]) for name in parts[0].seconds},
+                       {k: v for p, at in zip(parts, offsets) for k, v in moved(p.failures, at).items()},
+                       set().union(*(moved(p.invalid, at) for p, at in zip(parts, offsets))),
+                       set().union(*(moved(p.refused, at) for p, at in zip(parts, offsets))),
+                       [r for p in parts for r in p.rates] if kept else None)

@@ -139,10 +139,13 @@ def _preset_of(group: Group) -> Preset:
 CIRCUITS_PER_GROUP = 10
 
 
-def _circuits(count: int, group_size: int, workers: int, threads: int) -> int:
+def _circuits(count: int, group_size: int, workers: int, threads: int, executor: Executor | None) -> int:
     """Circuits per group: at most :data:`CIRCUITS_PER_GROUP`, and few enough that each of *workers*
-    processes, and each of their *threads*, still gets two groups."""
-    return max(1, min(CIRCUITS_PER_GROUP, -(-count // group_size) // (2 * workers * threads)))
+    processes (or, in this process, each of its *threads*) still gets two groups; one with an
+    *executor*, whose workers are not known here."""
+    if executor is not None:
+        return 1
+    return max(1, min(CIRCUITS_PER_GROUP, -(-count // group_size) // (2 * (workers if workers > 1 else threads))))
 
 
 def run_batch(systems: Sequence, preset=None, *, solvers: Sequence[str] = ("spice",),
@@ -157,8 +160,9 @@ def run_batch(systems: Sequence, preset=None, *, solvers: Sequence[str] = ("spic
     compiled once per worker process. A circuit's horizons lie within
     :data:`~analogy.batch.plan.HORIZON_SPREAD` of each other, so that one ngspice run to the
     longest serves them all. A group holds up to :data:`CIRCUITS_PER_GROUP` circuits of one
-    family, built and checked once (fewer where the workers would otherwise go short of
-    groups); each circuit is still its own ngspice run. Groups are spread over *workers* processes (or any
+    family and one horizon, built and checked once (fewer where the workers would otherwise go
+    short of groups; one with an *executor*); each circuit is still its own ngspice run, and a
+    group whose worker died is run again circuit by circuit. Groups are spread over *workers* processes (or any
     ``concurrent.futures.Executor``, e.g. a Dask client's ``get_executor()``) by the
     same loop as :func:`~analogy.batch.runner.run_sweep`: a group whose worker died is
     retried. SIGINT and SIGTERM end the workers cleanly, then reach the caller as
@@ -186,9 +190,8 @@ def run_batch(systems: Sequence, preset=None, *, solvers: Sequence[str] = ("spic
     progress : bool
         Show a progress bar.
     threads : int
-        Groups in flight on threads where the batch runs in this process (*workers* 1): one group's
-        Python work goes on while another's circuit runs in ngspice. 1: one group at a time, which
-        takes the least CPU time where the two cores slow each other.
+        Groups in flight on threads where the batch runs in this process (*workers* 1), one's Python
+        beside another's ngspice run; 1: one at a time, the least CPU where two busy cores slow each other.
     """
     fixed = None if preset is None else get_preset(preset)
     names = list(dict.fromkeys(solvers))
@@ -197,7 +200,7 @@ def run_batch(systems: Sequence, preset=None, *, solvers: Sequence[str] = ("spic
     if not names:
         raise InputError("a batch needs at least one solver")
     start = _time.perf_counter()
-    groups = plan_groups(systems, group_size, _circuits(len(systems), group_size, workers, threads))
+    groups = plan_groups(systems, group_size, _circuits(len(systems), group_size, workers, threads, executor))
     reference = "auto" if compare_exact else None
     errors = {name: np.full(len(systems), np.nan) for name in names}
     seconds = {name: 0.0 for name in names}
@@ -219,18 +222,23 @@ def run_batch(systems: Sequence, preset=None, *, solvers: Sequence[str] = ("spic
         if bar is not None:
             bar.update(len(idx))
 
-    def died(group) -> None:
-        failures.update((k, f"the worker process died while solving this group ({ATTEMPTS} attempts)")
-                        for k in group.rows)
+    split: list = []
+
+    def died(group) -> None:    # a group of circuits runs again one circuit a group: only the culprit is lost
+        split.extend(group.circuits()) if group.runs else failures.update(
+            (k, f"the worker process died while solving this group ({ATTEMPTS} attempts)") for k in group.rows)
 
     spread = executor is None and workers > 1 and len(groups) > 1
     if spread:
         for name in names + ["exact"]:
             solver(name)            # imported once here, so that forked workers start with it
     try:
-        interrupted = execute(groups, lambda g: (g, fixed or _preset_of(g), names, reference, keep_rates), _solve, done, died,
-                              workers=workers if spread else 1, executor=executor, in_process=True,
-                              pass_signals=True, pipeline=threads)
+        for todo in (groups, split):
+            interrupted = execute(todo, lambda g: (g, fixed or _preset_of(g), names, reference, keep_rates), _solve,
+                                  done, died, workers=workers if spread else 1, executor=executor, in_process=True,
+                                  pass_signals=True, pipeline=threads)
+            if interrupted:
+                break
     finally:
         if bar is not None:
             bar.close()

@@ -25,7 +25,8 @@ def store_throughput(sweep: Sweep, directory, sample: int = 20_000, workers: int
     """Scenes per second of the whole sweep into its store, against :func:`run_batch` in memory.
 
     The in-memory path builds the first *sample* scenes as a list and runs them with
-    :func:`run_batch` (same groups, workers and solvers); then the sweep runs into
+    :func:`run_batch` (the same circuits, workers and solvers; :func:`run_batch` builds up to
+    ten of a family's circuits a group, where the sweep stores each as its own); then the sweep runs into
     *directory* (resuming whatever is stored there). Peak resident memory is read
     from ``getrusage``: this process, and the largest worker.
 

@@ -139,10 +139,10 @@ class _Turns:
     """What the turns of every path measured: scenes per second, CPU seconds, worst errors."""
 
     processes: int
-    rates: dict = field(default_factory=lambda: {k: [] for k in ("batched", "one", "thread", "solo", "pyspice",
+    rates: dict = field(default_factory=lambda: {k: [] for k in ("batched", "one", "sequential", "solo", "pyspice",
                                                                   "floor", "floors")})
-    cpus: dict = field(default_factory=lambda: {"one": [], "thread": [], "floor": []})
-    worst: dict = field(default_factory=lambda: dict.fromkeys(("batched", "one", "thread", "solo", "pyspice",
+    cpus: dict = field(default_factory=lambda: {"one": [], "sequential": [], "floor": []})
+    worst: dict = field(default_factory=lambda: dict.fromkeys(("batched", "one", "sequential", "solo", "pyspice",
                                                               "floor", "floors"), 0.0))
     solves: list = field(default_factory=list)
     failed: int = 0
@@ -193,7 +193,7 @@ def _take_turns(turns: _Turns, n: int, preset: str, group_size: int, workers: in
         cpus["floor"].append(cpu)
         bar.update(1)
         batch("one", 1)
-        batch("thread", 1, threads=1)
+        batch("sequential", 1, threads=1)
         if workers > 1:         # a fresh worker was ready after (ready - asked): twice that is lead enough
             together = _floor_together(items, preset, group_size, workers, 2 * (ready - asked) + 0.5)
             rates["floors"].append(together.rate)
@@ -231,9 +231,9 @@ def _summary(turns: _Turns, n: int, preset: str, group_size: int, workers: int, 
         f"  batched, 1 process ({PIPELINE} groups in flight on threads): {spread('one')}, "
         f"{cpu_per('one')}: {share('one'):.0f} us a scene beyond the floor's (Python's, and the two cores "
         f"slowing each other), worst error/peak {worst['one']:.2e}",
-        f"  batched, 1 process, one group at a time: {spread('thread')}, {cpu_per('thread')}: "
-        f"{share('thread'):.0f} us a scene beyond the floor's (Python's share), "
-        f"worst error/peak {worst['thread']:.2e}",
+        f"  batched, 1 process, one group at a time: {spread('sequential')}, {cpu_per('sequential')}: "
+        f"{share('sequential'):.0f} us a scene beyond the floor's (Python's share), "
+        f"worst error/peak {worst['sequential']:.2e}",
         f"  one ngspice run per scene (1 process, {baseline_n} scenes): {spread('solo')}, "
         f"worst error/peak {worst['solo']:.2e}, median SPICE solve {statistics.median(solves) * 1e3:.3f} ms",
         f"  plain PySpice loop (Circuit + simulator().transient(), 1 process, {baseline_n} scenes): "
