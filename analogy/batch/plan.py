@@ -147,8 +147,9 @@ def plan_groups(items: Sequence, group_size: int, circuits: int = 1) -> list[Gro
     Scenes that differ only in their configuration, a robot's parameter values and t_stop
     form one family, built as a stack. Scenes of different presets never share a group. A circuit's
     horizons lie within :data:`HORIZON_SPREAD` of each other, so that one ngspice run serves them all.
-    Up to *circuits* consecutive circuits of one family make one group (:attr:`Group.runs`): what a
-    group costs besides its members (building a stack, checking it) is then paid once for them all.
+    Up to *circuits* consecutive circuits of one family and one horizon make one group
+    (:attr:`Group.runs`): what a group costs besides its members (building a stack, checking it) is
+    then paid once for them all.
 
     Parameters
     ----------
