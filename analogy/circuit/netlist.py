@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import math
-from functools import lru_cache
 import re
 import unicodedata
+from functools import lru_cache
 from typing import Iterable, Literal, Sequence
 
 import numpy as np

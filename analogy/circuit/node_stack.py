@@ -46,7 +46,7 @@ class NodeStack(Sequence):
         self._scales = None         # the combined scales of one circuit running them all (analogy.circuit.scales)
         self._springs: np.ndarray | None = None
         self._rowwise: dict = {}
-        self._parent: tuple | None = None       # (stack, rows) of a take whose rows share their inputs
+        self._parent: tuple | None = None       # (stack, rows) of a take whose rows share inputs and springs
         #: What the work guard passed it under, (preset, spice), so that it is not estimated twice.
         self.checked: tuple | None = None
 
@@ -243,9 +243,9 @@ class NodeStack(Sequence):
         return picked
 
     def rowwise(self, key: str, make: Callable[["NodeStack"], tuple]) -> tuple:
-        """``make(self)``, made once and kept under *key*: values derived row by row from a stack whose
-        rows share their inputs and springs (all or none). Each array or list in it has one entry per row (anything else is
-        shared by all), so that a :meth:`take` of the stack reads its rows' entries of the whole stack's, made once.
+        """``make(self)``, made once and kept under *key*: values derived row by row. Each array or list
+        in it has one entry per row (anything else is shared by all). A :meth:`take` of a stack whose rows
+        share their inputs and springs (all or none) reads its rows' entries of the whole stack's, made once.
 
         Parameters
         ----------
