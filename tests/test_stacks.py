@@ -9,7 +9,8 @@ from analogy.batch import run_batch
 from analogy.circuit.description import circuit
 from analogy.circuit.elements import element_table, elements
 from analogy.circuit.description import circuits
-from analogy.circuit.netlist import circuit_lines, write_batch, write_stack
+from analogy.circuit.netlist import circuit_lines, write_batch
+from analogy.circuit.stack_netlist import write_stack
 from analogy.circuit.scales import combined_scales, stack_scales
 from analogy.presets import PRESETS
 from analogy.solvers.transient import transient_settings
@@ -512,6 +513,25 @@ def test_a_take_reads_no_row_values_from_a_stack_whose_rows_differ_in_springs():
     assert [c[0] for c in element_columns(sprung)] == [c[0] for c in element_columns(alone)]
     assert "L" in [c[0] for c in element_columns(sprung)] and not mixed._rowwise
     assert run_scales(sprung).omega_max == run_scales(alone).omega_max > 0
+
+
+def test_takes_of_a_stack_share_what_their_inputs_derive_and_write_their_circuits_text():
+    """The takes of a stack sharing its inputs read them from one system (the stack's first row), and
+    each row's point operations and elements from the whole stack's, made once: a take's netlist is
+    still write_batch's of its own circuits, and its first row's operations are point_operations'."""
+    from analogy.circuit.elements import first_point_operations, point_operations
+    base = scene("default")
+    qs = np.column_stack([np.zeros(12), np.linspace(-3.0, 3.0, 12)])
+    whole = base.systems(qs)
+    parts = [whole.take([3, 1, 8]), whole.take([11, 0]), whole.take([5])]
+    assert all(part.inputs_row is whole[0] for part in parts)
+    assert "point operations" not in whole._rowwise
+    assert [first_point_operations(part) for part in parts] == [point_operations(part[0]) for part in parts]
+    assert "point operations" in whole._rowwise
+    for part in parts:
+        settings = transient_settings(PRESETS["fast"], part[0].t_stop, combined_scales(stack_scales(part)),
+                                      breakpoints=part[0].breakpoints())
+        assert write_stack(part, settings) == write_batch(circuits(part), settings)
 
 
 def test_a_lazy_stack_keeps_what_its_rows_were_built_from_and_pickles_with_them():

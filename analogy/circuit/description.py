@@ -23,7 +23,7 @@ from .parts import (
 )
 
 __all__ = ["CurrentSource", "Coupling", "ChargeCapacitor", "BehaviouralCurrent", "BehaviouralVoltage", "Integrator",
-           "Circuit", "circuit", "circuits", "element_columns", "row_elements", "current_sources", "describe_forces",
+           "Circuit", "circuit", "circuits", "element_columns", "element_arrays", "row_elements", "current_sources", "describe_forces",
            "comments"]
 
 
@@ -156,18 +156,38 @@ def element_columns(stack: NodeStack, zero_tol: float = ZERO_TOL) -> list[tuple]
     zero_tol : float
         Relative tolerance under which an element is left out.
     """
-    table, dropped = stack.rowwise(f"elements at {zero_tol!r}", lambda s: _element_rows(s, zero_tol))
-    columns = [(kind, a, b, values.tolist(), c.tolist()) for kind, a, b, values, c in table]
-    for j in np.flatnonzero(dropped):       # a capacitor under the tolerance: is the rest singular?
-        _check_dropped(stack[int(j)].mass, list(row_elements(columns, int(j))), zero_tol)
-    return columns
+    places, values, coefs = element_arrays(stack, zero_tol)
+    return [(kind, a, b, v, c) for (kind, a, b), v, c in zip(places, values.T.tolist(), coefs.T.tolist())]
+
+
+def element_arrays(stack: NodeStack, zero_tol: float = ZERO_TOL) -> tuple[tuple, np.ndarray, np.ndarray]:
+    """:func:`element_columns` as arrays: the positions (kind, a, b) in netlist order, and each row's
+    SPICE values and coefficients, shape (count, positions). A row whose capacitors, without those
+    under the tolerance, are singular is refused.
+
+    Parameters
+    ----------
+    stack : NodeStack
+        Systems of one size, all with springs or none.
+    zero_tol : float
+        Relative tolerance under which an element is left out.
+    """
+    places, values, coefs, dropped = stack.rowwise(f"elements at {zero_tol!r}", lambda s: _element_rows(s, zero_tol))
+    for j in np.flatnonzero(dropped).tolist():      # a capacitor under the tolerance: is the rest singular?
+        kept = [Element(kind, a, b, v, c) for (kind, a, b), v, c in zip(places, values[j].tolist(), coefs[j].tolist())
+                if c != 0.0]
+        _check_dropped(stack[j].mass, kept, zero_tol)
+    return places, values, coefs
 
 
 def _element_rows(stack: NodeStack, zero_tol: float) -> tuple:
-    """:func:`element_table` of *stack* with each position's SPICE values: arrays with one entry per row."""
+    """:func:`element_table` of *stack*: positions, SPICE values and coefficients (one row per system)."""
     table, dropped = element_table(stack.mass, stack.damping, None if stack.springless else stack.stiffness,
                                    zero_tol, report=True)
-    return tuple((kind, a, b, spice_value(kind, c), c) for kind, a, b, c in table), dropped
+    places = tuple((kind, a, b) for kind, a, b, _ in table)
+    coefs = np.stack([c for *_, c in table], axis=1) if table else np.zeros((len(stack), 0))
+    values = np.stack([spice_value(kind, c) for kind, _, _, c in table], axis=1) if table else coefs
+    return places, values, coefs, dropped
 
 
 def row_elements(columns: list[tuple], row: int) -> tuple[Element, ...]:

@@ -8,7 +8,7 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["Element", "ElementKind", "ELEMENT_KINDS", "elements", "element_table", "spice_value", "mp_capacitance", "laplacian_split", "point_operations", "NONLINEAR_POINT_COST",
+__all__ = ["Element", "ElementKind", "ELEMENT_KINDS", "elements", "element_table", "spice_value", "mp_capacitance", "laplacian_split", "point_operations", "first_point_operations", "NONLINEAR_POINT_COST",
            "ZERO_TOL"]
 
 #: Default relative tolerance below which an element value counts as zero.
@@ -230,3 +230,25 @@ def point_operations(system) -> float:
                                          if x is not None]))[1]
     couplings = (np.eye(n, dtype=bool) | np.any(floating != 0, axis=0)).sum(axis=1, dtype=float)
     return float(couplings @ couplings)
+
+
+def first_point_operations(systems) -> float:
+    """:func:`point_operations` of the first of *systems*; of a linear stack whose rows share springs
+    (all or none), read from every row's, made at once for the stack it was taken from.
+
+    Parameters
+    ----------
+    systems : sequence of node systems, or NodeStack
+        The systems of one circuit.
+    """
+    springs = getattr(systems, "springs", None)
+    if springs is None or systems.inputs_row.kind != "linear" or (springs.any() and not springs.all()):
+        return point_operations(systems[0])
+    return float(systems.rowwise("point operations", _row_operations)[0][0])
+
+
+def _row_operations(stack) -> tuple[np.ndarray]:
+    """:func:`point_operations` of each row of a linear stack whose rows share springs (all or none)."""
+    floating = laplacian_split(np.stack([stack.mass, stack.damping] + ([] if stack.springless else [stack.stiffness])))[1]
+    couplings = (np.eye(stack.dof, dtype=bool) | np.any(floating != 0, axis=0)).sum(axis=-1, dtype=float)
+    return (np.einsum("si,si->s", couplings, couplings),)

@@ -1,14 +1,11 @@
-"""SPICE text of circuit descriptions and the spice solver's settings: the only SPICE writer, which only formats."""
+"""SPICE text of circuit descriptions and the spice solver's settings, which only formats (a stack's: stack_netlist)."""
 
 from __future__ import annotations
 
 import math
 import re
 import unicodedata
-from functools import lru_cache
 from typing import Iterable, Literal, Sequence
-
-import numpy as np
 
 from ..errors import InputError
 from .description import (
@@ -17,18 +14,15 @@ from .description import (
     ChargeCapacitor,
     Circuit,
     Integrator,
-    current_sources,
-    element_columns,
 )
 from .description import circuit as describe
 from .elements import ZERO_TOL
 from .ltspice import ltspice_netlist
-from .node_stack import NodeStack
 from .source_values import source_values
 from .spice_numbers import spice_text as _num
 from .step_sources import first_step_lines
 
-__all__ = ["Dialect", "DIALECTS", "NETLIST_FORMATS", "write_netlist", "write_batch", "write_stack", "ac_netlist", "circuit_lines",
+__all__ = ["Dialect", "DIALECTS", "NETLIST_FORMATS", "write_netlist", "write_batch", "ac_netlist", "circuit_lines",
            "analysis_lines", "save_vectors", "comment_text", "spice_expression", "gnucap_lines",
            "gnucap_size_note", "coupled_nodes", "GNUCAP_NODES"]
 
@@ -88,10 +82,6 @@ _NODE_REFERENCE = re.compile(r"\bv\(([nxe]\d+|m\d+_\d+)\)")
 def _prefixed(expression: str, prefix: str) -> str:
     """*expression* with its node references v(n1), v(x1) given the sub-circuit's prefix."""
     return _NODE_REFERENCE.sub(lambda m: f"v({prefix}{m.group(1)})", expression) if prefix else expression
-
-
-#: Stands for a row's number in :func:`write_stack`'s templates: no netlist text holds it.
-_ROW = "\x00"
 
 
 def _node(k: int, prefix: str = "") -> str:
@@ -403,82 +393,6 @@ def write_batch(described: Sequence[Circuit], settings) -> str:
         save += [f"v({prefix}{n})" for n in c.node_names]
     lines += first_step_lines(settings, "x0_n1")
     return "\n".join(lines + analysis_lines(settings, ic, save) + [".end"]) + "\n"
-
-
-def write_stack(stack: NodeStack, settings, zero_tol: float = ZERO_TOL) -> str:
-    """:func:`write_batch` of a stack's :func:`~analogy.circuit.description.circuits`, written
-    from its element columns: the same text, with no object per row (a batch writes one per group).
-
-    Each row's lines are one template per pattern of kept elements, split where the row's number
-    goes, joined with it and filled with ``%`` (``%r`` of a float is its repr, as everywhere else).
-
-    Parameters
-    ----------
-    stack : NodeStack
-        Systems sharing their inputs and springs (one part of :meth:`NodeStack.partition`).
-    settings : TransientSettings
-        Their shared transient settings.
-    zero_tol : float
-        Relative tolerance under which an element is left out.
-    """
-    if len(stack.partition()) != 1:
-        raise ValueError("write_stack needs systems that share their inputs and springs: use write_batch")
-    columns = element_columns(stack, zero_tol)
-    first = stack[0]
-    count, dof, x = len(stack), stack.dof, f"x{_ROW}_"
-    sources = []
-    for name, a, b, v, terms in source_values(current_sources(first, zero_tol), first.t_stop, None):
-        if terms:
-            sources.append(_summed_comment(f"I{x}{name[1:]}", a, terms))
-        sources.append(f"I{x}{name[1:]} {_node(b, x)} {_node(a, x)} {v}")
-    sources = [line.replace("%", "%%") for line in sources]         # text of a template: no % of its own
-    kept = (np.array([column[4] for column in columns]) != 0.0).reshape(len(columns), count)
-    used = kept.any(axis=1)         # a column no row keeps (a joint with no damper) is in no template
-    columns, kept = [column for column, u in zip(columns, used.tolist()) if u], kept[used].T
-    # a value every row shares (a damper, a start at rest) is written into the template once
-    fixed = _shared_columns([column[3] for column in columns], count)
-    devices = [(f"{kind}{x}{a} {x}n{a} 0 " if b == 0 else f"{kind}{x}{a}_{b} {x}n{a} {x}n{b} ")
-               + (repr(values[0]) if same else "%r") for (kind, a, b, values, _), same in zip(columns, fixed)]
-    varying = [values for (_, _, _, values, _), same in zip(columns, fixed) if not same]
-    values = list(zip(*varying)) if varying else [()] * count
-    every = kept.all(axis=1).tolist()
-    templates: dict = {}
-    lines = [f"* analogy batch of {count} independent circuits"]
-    for k, (row, full) in enumerate(zip(values, every)):
-        mask = (True,) * len(devices) if full else tuple(kept[k].tolist())
-        template = templates.get(mask)
-        if template is None:
-            template = templates[mask] = "\n".join([d for d, m in zip(devices, mask) if m] + sources).split(_ROW)
-        if not full:
-            row = tuple(v for v, m in zip(row, (m for m, same in zip(mask, fixed) if not same)) if m)
-        if template != [""]:
-            lines.append(str(k).join(template) % row)
-    v0 = stack.initial_voltages
-    if not np.all(np.isfinite(v0)):
-        _num(v0[~np.isfinite(v0)][0])           # its one sentence
-    starts = v0.T.tolist()
-    fixed = _shared_columns(starts, count)
-    per_row = " ".join(f"v({x}n{i + 1})=" + (repr(start[0]) if same else "%r")
-                       for i, (start, same) in enumerate(zip(starts, fixed)))
-    rows = list(zip(*[start for start, same in zip(starts, fixed) if not same])) or [()] * count
-    pieces = per_row.split(_ROW)
-    ic = " ".join([str(k).join(pieces) % row for k, row in enumerate(rows)])
-    lines += first_step_lines(settings, "x0_n1")
-    return "\n".join(lines + analysis_lines(settings, ic_text=ic, save_text=_saved(count, dof)) + [".end"]) + "\n"
-
-
-@lru_cache(maxsize=64)
-def _saved(count: int, dof: int) -> str:
-    """The ``.save`` text of *count* sub-circuits of *dof* nodes (the same for every batch of that shape)."""
-    return " ".join(f"v(x{k}_n{i + 1})" for k in range(count) for i in range(dof))
-
-
-def _shared_columns(columns: list[list[float]], count: int) -> list[bool]:
-    """Per column of *count* values, whether every value is the first, bit for bit (so its text is too)."""
-    if not columns:
-        return []
-    bits = np.array(columns, dtype=float).reshape(len(columns), count).view(np.int64)
-    return (bits == bits[:, :1]).all(axis=1).tolist()
 
 
 def ac_netlist(system, joint: int, f_start: float, f_stop: float, per_decade: int,

@@ -135,6 +135,13 @@ class NodeStack(Sequence):
         return mass.shape[1] if mass is not None else self[0].dof
 
     @property
+    def inputs_row(self) -> "NodeDynamics":
+        """A system with the inputs (topology, forces, t_stop) every row shares: for a :meth:`take` of a
+        stack whose rows share them, that stack's first row, one system for all its takes, so that what
+        the inputs derive (breakpoints, sources) is derived once. Only for a stack that :attr:`shares_inputs`."""
+        return self._parent[0][0] if self._parent is not None else self[0]
+
+    @property
     def springs(self) -> np.ndarray:
         """Per row, whether it has springs."""
         if self._springs is None:

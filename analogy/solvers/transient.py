@@ -4,16 +4,18 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from functools import lru_cache
 from typing import Iterable, Sequence
 
 import numpy as np
 
 from ..circuit.description import Circuit, circuits
 from ..circuit.description import circuit as describe
-from ..circuit.elements import ZERO_TOL, point_operations
-from ..circuit.netlist import Dialect, write_batch, write_netlist, write_stack
+from ..circuit.elements import ZERO_TOL, first_point_operations, point_operations
+from ..circuit.netlist import Dialect, write_batch, write_netlist
 from ..circuit.node_stack import NodeStack
 from ..circuit.scales import Scales, run_scales, system_scales
+from ..circuit.stack_netlist import write_stack
 from ..circuit.subcircuit import joint_ports, subcircuit_name, write_subcircuit
 from ..errors import InputError, SimulationError
 from .error_constants import (CALIBRATED_MAX_STEPS, CALIBRATED_TOPOLOGIES, FLOOR_LIMIT, SAFETY, SERIAL_NODE_LIMIT,
@@ -55,7 +57,13 @@ _SCALE_NAMES = {"abstol": "current scale [A]", "vntol": "velocity scale [V]", "c
 
 def _shortest_gap(breakpoints: np.ndarray, t_stop: float) -> float:
     """The shortest interval between force breakpoints (ngspice cuts its step to a tenth of it)."""
-    t = np.unique(np.concatenate([[0.0], np.asarray(breakpoints, float), [t_stop]]))
+    return _gap(tuple(np.asarray(breakpoints, float).tolist()), float(t_stop))
+
+
+@lru_cache(maxsize=256)
+def _gap(breakpoints: tuple, t_stop: float) -> float:
+    """:func:`_shortest_gap`, kept: a batch's circuits share their breakpoints."""
+    t = np.unique(np.concatenate([[0.0], breakpoints, [t_stop]]))
     gaps = np.diff(t)
     gaps = gaps[gaps > 1e-12 * t_stop]
     return float(np.min(gaps)) if gaps.size else t_stop
@@ -462,14 +470,15 @@ def batch_netlist(systems: Sequence, preset: str | Preset = "fast", scales: Scal
     if not systems:
         raise InputError("a batch needs at least one system")
     preset = get_preset(preset)
-    shared = isinstance(systems, NodeStack) and systems.shares_inputs       # its first row answers for all
-    alike = [systems[0]] if shared else systems
+    shared = isinstance(systems, NodeStack) and systems.shares_inputs       # one row answers for all
+    first = systems.inputs_row if shared else systems[0]
+    alike = [first] if shared else systems
     ends = sorted({s.t_stop for s in alike})
     scales = scales or run_scales(systems)
-    points = [s.breakpoints() for s in alike if s.forces is not systems[0].forces] + [systems[0].breakpoints()]
+    points = [s.breakpoints() for s in alike if s.forces is not first.forces] + [first.breakpoints()]
     settings = transient_settings(preset, ends[0], scales, breakpoints=np.concatenate(points),
                                   custom=any(beyond_calibration(s) for s in alike),
-                                  operations=point_operations(systems[0]) * len(systems))
+                                  operations=first_point_operations(systems) * len(systems))
     if len(ends) > 1:
         settings = replace(settings, stop=ends[-1], horizons=tuple(ends[:-1]))
     if isinstance(systems, NodeStack) and len(systems.partition()) == 1:

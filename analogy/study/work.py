@@ -7,7 +7,7 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
-from ..circuit.elements import NONLINEAR_POINT_COST, point_operations
+from ..circuit.elements import NONLINEAR_POINT_COST, first_point_operations, point_operations
 from ..circuit.node_stack import NodeStack
 from ..circuit.scales import run_scales, system_scales
 from ..errors import InputError
@@ -30,7 +30,7 @@ class WorkEstimate(NamedTuple):
     operations: float = 0.0     # of the SPICE circuit: points × point_operations, summed over a stack
 
 
-def estimate_work(system, preset: Preset, scales=None, stacked: int = 1) -> WorkEstimate:
+def estimate_work(system, preset: Preset, scales=None, stacked: int = 1, operations: float | None = None) -> WorkEstimate:
     """The time points and force segments a solver run of *system* needs at *preset*.
 
     The points follow the fastest rate the preset resolves (one step per
@@ -50,6 +50,8 @@ def estimate_work(system, preset: Preset, scales=None, stacked: int = 1) -> Work
         The system's scales, or the combined scales of a stack it stands for.
     stacked : int
         How many systems like it one SPICE circuit holds.
+    operations : float, optional
+        One time point's operations of one system's circuit, where known (default :func:`point_operations`).
     """
     segments = len(system.breakpoints())
     scales = system_scales(system) if scales is None else scales
@@ -64,7 +66,8 @@ def estimate_work(system, preset: Preset, scales=None, stacked: int = 1) -> Work
         points = system.t_stop * scales.lasting(preset.bound, system.t_stop) / phase
     points = max(points, _fewest(system, preset, reltol is not None)) + _POINTS_PER_SEGMENT * segments
     points = points if math.isfinite(points) else math.inf
-    return WorkEstimate(points, segments, rate, points * stacked * point_operations(system))
+    each = point_operations(system) if operations is None else operations
+    return WorkEstimate(points, segments, rate, points * stacked * each)
 
 
 def _reltol(system, preset: Preset, scales) -> float | None:
@@ -82,7 +85,8 @@ def _fewest(system, preset: Preset, calibrated: bool | None = None) -> int:
     return max(CALIBRATED_MAX_STEPS if calibrated else preset.spice.max_steps, 2 * preset.steps)
 
 
-def check_work(system, preset: Preset, scales=None, *, stacked: int = 1, spice: bool = True) -> WorkEstimate:
+def check_work(system, preset: Preset, scales=None, *, stacked: int = 1, spice: bool = True,
+               operations: float | None = None) -> WorkEstimate:
     """:func:`estimate_work`, refused in one sentence past ``preset.budget.points``, ``preset.budget.segments``
     or, where SPICE runs, ``preset.budget.operations``.
 
@@ -98,8 +102,10 @@ def check_work(system, preset: Preset, scales=None, *, stacked: int = 1, spice: 
         How many systems like it one SPICE circuit holds.
     spice : bool
         Whether SPICE is among the solvers, so that the circuit's operations count.
+    operations : float, optional
+        One time point's operations of one system's circuit, where known (default :func:`point_operations`).
     """
-    work = estimate_work(system, preset, scales, stacked)
+    work = estimate_work(system, preset, scales, stacked, operations)
     if work.segments > preset.budget.segments:
         raise InputError(f"the forces have {work.segments:,} segments between breakpoints (pwl points, pulse "
                          f"edges), more than the budget of {preset.budget.segments:,}: use fewer, or raise "
@@ -139,7 +145,9 @@ def check_works(systems: Sequence, preset: Preset, *, spice: bool = True) -> Non
     """
     if isinstance(systems, NodeStack) and len(systems) > 1 and systems.shares_inputs:
         if systems.checked is None or systems.checked[0] is not preset or systems.checked[1] != spice:
-            check_work(systems[0], preset, run_scales(systems), stacked=len(systems), spice=spice)
+            # the inputs' row answers for the inputs, the first row for the circuit's pattern
+            check_work(systems.inputs_row, preset, run_scales(systems), stacked=len(systems), spice=spice,
+                       operations=first_point_operations(systems))
             systems.checked = (preset, spice)
         return
     groups: dict = {}
