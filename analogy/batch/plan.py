@@ -206,7 +206,7 @@ def _family(items: Sequence, chunks: list[tuple]) -> Group:
 
 def _chunks(idx: list[int], ends: list[float], size: int) -> list[tuple]:
     """*idx* in runs of at most *size* whose horizons lie within :data:`HORIZON_SPREAD`, in batch order within each."""
-    order = sorted(range(len(idx)), key=lambda j: ends[j])
+    order = sorted(range(len(idx)), key=ends.__getitem__)
     chunks, current = [], []
     for j in order:
         if current and (len(current) == size or ends[j] > HORIZON_SPREAD * ends[current[0]]):

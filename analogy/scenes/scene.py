@@ -266,11 +266,15 @@ class Scene:
         when the scene is not built that way: nonlinear dynamics, a static equilibrium
         first, or a q that is not a flat tuple of real numbers.
         """
-        if self.dynamics != "linear" or self.equilibrium or not all(
-                isinstance(x, (int, float)) and not isinstance(x, bool) for x in self.q):
+        if self.dynamics != "linear" or self.equilibrium or not (set(map(type, self.q)) <= _PLAIN_REALS or all(
+                isinstance(x, (int, float)) and not isinstance(x, bool) for x in self.q)):
             return None
         shared = tuple(k for k, _ in self.parameters) if self.model.robot is not None else self.parameters
         return (self.model, shared, self.topology, self.forces, self.initial_rates, len(self.q))
+
+
+#: The types of a q whose values are plainly real numbers (their subclasses, bool excepted, are checked one by one).
+_PLAIN_REALS = frozenset((int, float))
 
 
 def _canonical(value):

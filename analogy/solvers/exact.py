@@ -199,8 +199,10 @@ def _states(systems: NodeStack, t, n: int, springs: bool) -> np.ndarray:
     first = systems.inputs_row if systems.shares_inputs else systems[0]
     lam_ = lam[:, :, None]          # time runs along the last axis: long inner loops
     shared: dict = {}               # the pieces of equal forces are derived once
+    drives: dict = {}               # and, for rows sharing their inputs, once for every take of their stack
     if systems.shares_inputs:
         shared[None] = (first.forces, list(range(count)))
+        drives, = systems.rowwise("segment drives", lambda s: ({},))
     else:
         for i, s in enumerate(systems):
             shared.setdefault(s.inputs_key[1], (s.forces, []))[1].append(i)
@@ -211,15 +213,14 @@ def _states(systems: NodeStack, t, n: int, springs: bool) -> np.ndarray:
         tau = np.concatenate([(t if whole else t[mask]) - t0, [t1 - t0]])
         a_coef, b_coef, exps = np.zeros((count, joints)), np.zeros((count, joints)), []
         for forces, idx in shared.values():
-            pieces = [[w.piece(t0, t1) for w in ws] for ws in forces]
-            a_coef[idx] = [sum(p.a for p in ps) for ps in pieces]
-            b_coef[idx] = [sum(p.b for p in ps) for ps in pieces]
-            exps += [(idx, j, c, sv) for j, ps in enumerate(pieces) for p in ps for c, sv in zip(p.c, p.s)]
+            a, b, terms = drives.get((t0, t1)) or drives.setdefault((t0, t1), _segment_drive(forces, t0, t1))
+            a_coef[idx], b_coef[idx] = a, b
+            exps += [(idx, j, c, sv) for j, c, sv in terms]
         x = lam_ * tau
-        ramp = np.any(b_coef)           # φ₂(x) reads x: otherwise e^x − 1 is written over it
+        ramp = b_coef.any()             # φ₂(x) reads x: otherwise e^x − 1 is written over it
         em1 = np.expm1(x, out=x) if not ramp and not np.iscomplexobj(x) else _expm1(x)
         # u(t0 + τ) = a + b·τ + Σ c·e^{sτ}, each term integrated exactly against e^{λτ}
-        drive = np.einsum("smj,sj->sm", beta, a_coef) if np.any(a_coef) else None
+        drive = (beta @ a_coef[:, :, None])[:, :, 0] if a_coef.any() else None
         if np.all(lam != 0):
             # z·e^x + d·(e^x − 1)/λ = z + (e^x − 1)·(z + d/λ): one pass over the times, in e^x − 1's place
             zt = np.multiply(em1, (z if drive is None else z + drive / lam)[:, :, None],
@@ -242,6 +243,13 @@ def _states(systems: NodeStack, t, n: int, springs: bool) -> np.ndarray:
             states[:, mask] = y
         z = zt[:, :, -1]
     return states
+
+
+def _segment_drive(forces, t0: float, t1: float) -> tuple[list[float], list[float], list[tuple]]:
+    """The joint forces' closed forms on [t0, t1]: per joint, a and b of a + b·τ, and the terms (joint, c, s) of c·e^{sτ}."""
+    pieces = [[w.piece(t0, t1) for w in ws] for ws in forces]
+    return ([sum(p.a for p in ps) for ps in pieces], [sum(p.b for p in ps) for ps in pieces],
+            [(j, c, sv) for j, ps in enumerate(pieces) for p in ps for c, sv in zip(p.c, p.s)])
 
 
 def _solve(systems, t) -> np.ndarray | list[np.ndarray]:
