@@ -142,6 +142,11 @@ class NodeStack(Sequence):
         return self._parent[0][0] if self._parent is not None else self[0]
 
     @property
+    def first_made(self) -> "NodeDynamics | None":
+        """The first row's system if it has been made, else None (a lazy stack's rows are made when asked for)."""
+        return self._rows[0]
+
+    @property
     def springs(self) -> np.ndarray:
         """Per row, whether it has springs."""
         if self._springs is None:

@@ -463,13 +463,17 @@ def run_scales(systems: Sequence) -> Scales:
     stack = systems if isinstance(systems, NodeStack) else None
     kept = None if stack is None else stack._scales
     if kept is None:
-        parts = None if stack is None or _kept(stack[0]) is not None else stack.partition()
+        # a row not yet made has no scales kept of its own
+        made = None if stack is None else stack.first_made
+        parts = None if stack is None or made is not None and _kept(made) is not None else stack.partition()
         if parts is not None and len(parts) == 1:       # straight from the stack's arrays: no Scales per row
-            def rows_of(s):
-                return _scale_arrays(s[0], s.mass, s.damping, s.stiffness, s.initial_voltages)
+            def rows_of(s, first):
+                return _scale_arrays(first, s.mass, s.damping, s.stiffness, s.initial_voltages)
             # a linear row's scales are its own and its inputs'; a nonlinear one's read the first row's start
-            rows = stack.rowwise("scales", rows_of) if stack[0].kind == "linear" else rows_of(stack)
-            kept = _combined_rows(*rows, _row_capacitors(stack[0], stack.mass))
+            first = stack.inputs_row
+            rows = stack.rowwise("scales", lambda s: rows_of(s, s.inputs_row)) if first.kind == "linear" else \
+                rows_of(stack, stack[0])
+            kept = _combined_rows(*rows, _row_capacitors(first, stack.mass))
         else:
             kept = combined_scales(stack_scales(systems))
         if stack is not None:

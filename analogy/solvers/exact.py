@@ -212,8 +212,14 @@ def _states(systems: NodeStack, t, n: int, springs: bool) -> np.ndarray:
         whole = bool(mask.all())
         tau = np.concatenate([(t if whole else t[mask]) - t0, [t1 - t0]])
         a_coef, b_coef, exps = np.zeros((count, joints)), np.zeros((count, joints)), []
-        for forces, idx in shared.values():
-            a, b, terms = drives.get((t0, t1)) or drives.setdefault((t0, t1), _segment_drive(forces, t0, t1))
+        for key, (forces, idx) in shared.items():
+            # rows sharing their inputs (key None) keep their stack's; rows of other forces derive their own
+            got = drives.get((t0, t1)) if key is None else None
+            if got is None:
+                got = _segment_drive(forces, t0, t1)
+                if key is None:
+                    drives[(t0, t1)] = got
+            a, b, terms = got
             a_coef[idx], b_coef[idx] = a, b
             exps += [(idx, j, c, sv) for j, c, sv in terms]
         x = lam_ * tau
