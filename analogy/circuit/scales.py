@@ -6,7 +6,7 @@ import math
 import threading
 import weakref
 from dataclasses import dataclass, field, replace
-from typing import Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 
@@ -15,7 +15,7 @@ from .joint_forces import joint_forces
 from .node_stack import NodeStack
 from .topology import symmetric_part
 
-__all__ = ["Scales", "system_scales", "stack_scales", "combined_scales", "run_scales"]
+__all__ = ["Scales", "system_scales", "stack_scales", "combined_scales", "run_scales", "whitened_damping"]
 
 #: Each system's scales, for as long as the system lives (a copy under other forces has its own).
 _KEPT: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
@@ -357,12 +357,13 @@ def _row_capacitors(first, m: np.ndarray) -> int | None:
     return int(np.max(np.count_nonzero(m, axis=-1)))
 
 
-def _scale_arrays(first, m, b, k, v0) -> tuple:
-    """The fields of :func:`_stack_scales`, one row per system: arrays, and *current* (shared)."""
+def _scale_arrays(first, m, b, k, v0, whitened: Callable[[], tuple] | None = None) -> tuple:
+    """The fields of :func:`_stack_scales`, one row per system: arrays, and *current* (shared); *whitened*
+    gives :func:`whitened_damping` of the same rows where they are kept."""
     # Estimates only: a scale past 1e308 is inf, which the solvers' own checks then meet.
     try:
         with np.errstate(over="ignore", invalid="ignore"):
-            return _estimated_scales(first, m, b, k, v0)
+            return _estimated_scales(first, m, b, k, v0, whitened)
     except np.linalg.LinAlgError:       # K' or B' against M' past 1e308: eigh cannot converge
         raise InputError("the system's rates (K' and B' against M') leave the floating-point range: "
                          "rescale the masses, dampers or springs") from None
@@ -378,16 +379,31 @@ def _starting_load(system) -> np.ndarray | None:
     return load if np.all(np.isfinite(load)) and np.any(load > 0) else None
 
 
-def _estimated_scales(first, m, b, k, v0) -> tuple:
-    count, n = m.shape[0], m.shape[1]
+def whitened_damping(m: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """L and L⁻¹·B'·L⁻ᵀ, with M' = L·Lᵀ its Cholesky factor, of a stack: the modal solution and the
+    scales both read them (:meth:`~analogy.circuit.node_stack.NodeStack.rowwise` key ``"whitened damping"``).
+
+    Parameters
+    ----------
+    m, b : ndarray, shape (count, n, n)
+        M' and B' of each row.
+    """
     chol = np.linalg.cholesky(m)
-    def whiten(a):
-        half = np.linalg.solve(chol, a)
-        return np.linalg.solve(chol, np.swapaxes(half, 1, 2))
-    kt = np.zeros_like(m) if k is None else whiten(k)
+    return chol, _whiten(chol, b)
+
+
+def _whiten(chol: np.ndarray, a: np.ndarray) -> np.ndarray:
+    """L⁻¹·A·L⁻ᵀ of a stack."""
+    return np.linalg.solve(chol, np.swapaxes(np.linalg.solve(chol, a), 1, 2))
+
+
+def _estimated_scales(first, m, b, k, v0, whitened: Callable[[], tuple] | None = None) -> tuple:
+    count, n = m.shape[0], m.shape[1]
+    chol, wb = whitened_damping(m, b) if whitened is None else whitened()
+    kt = np.zeros_like(m) if k is None else _whiten(chol, k)
     mu, psi = np.linalg.eigh(symmetric_part(kt))
     phi = np.linalg.solve(np.swapaxes(chol, 1, 2), psi)          # M'-orthonormal mode shapes
-    beta = np.einsum("sik,sij,sjk->sk", psi, whiten(b), psi)      # modal damping rates
+    beta = np.einsum("sik,sij,sjk->sk", psi, wb, psi)             # modal damping rates
     omega = np.sqrt(np.abs(mu))
     peaks, sine = _force_peaks(first)
     drive = np.abs(np.swapaxes(phi, 1, 2) @ first.current_map) @ peaks
@@ -468,7 +484,8 @@ def run_scales(systems: Sequence) -> Scales:
         parts = None if stack is None or made is not None and _kept(made) is not None else stack.partition()
         if parts is not None and len(parts) == 1:       # straight from the stack's arrays: no Scales per row
             def rows_of(s, first):
-                return _scale_arrays(first, s.mass, s.damping, s.stiffness, s.initial_voltages)
+                return _scale_arrays(first, s.mass, s.damping, s.stiffness, s.initial_voltages,
+                                     lambda: s.rowwise("whitened damping", lambda x: whitened_damping(x.mass, x.damping)))
             # a linear row's scales are its own and its inputs'; a nonlinear one's read the first row's start
             first = stack.inputs_row
             rows = stack.rowwise("scales", lambda s: rows_of(s, s.inputs_row)) if first.kind == "linear" else \

@@ -8,6 +8,7 @@ from typing import Sequence
 import numpy as np
 
 from ..circuit.node_stack import NodeStack
+from ..circuit.scales import whitened_damping
 from ..circuit.topology import symmetric_part
 from ..errors import InputError, SimulationError
 from ..presets import Preset
@@ -95,9 +96,7 @@ def _modes(systems, n: int, springs: bool):
     """
     m, b, cmap, v0 = systems.mass, systems.damping, systems.current_map, systems.initial_voltages
     if not springs:
-        chol = np.linalg.cholesky(m)
-        half = np.linalg.solve(chol, b)
-        sym = np.linalg.solve(chol, np.swapaxes(half, 1, 2))
+        chol, sym = systems.rowwise("whitened damping", lambda s: whitened_damping(s.mass, s.damping))
         mu, psi = np.linalg.eigh(symmetric_part(sym))
         vec = np.linalg.solve(np.swapaxes(chol, 1, 2), psi)
         z = np.einsum("sji,sjk,sk->si", vec, m, v0)

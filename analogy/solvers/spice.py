@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 import time as _time
 from dataclasses import replace
+from functools import lru_cache
 
 import numpy as np
 
@@ -251,10 +252,8 @@ class SpiceSolver(Solver):
                 v = np.column_stack([data[f"x{k}_{m}"] for m in s.nodes])[:last - prepended]
                 out.append(_trajectory(s, t, prepended, v, {}, stats, elapsed))
             return out
-        nodes = systems[0].nodes
         count = len(systems)
-        volts = np.stack([data[f"x{k}_{node}"] for k in range(count) for node in nodes])
-        volts = volts.reshape(count, n, -1).transpose(0, 2, 1)
+        volts = np.concatenate([data[key] for key in _node_keys(count, n)]).reshape(count, n, -1).transpose(0, 2, 1)
         if prepended:
             v0 = NodeStack.of(systems).initial_voltages[:, None, :]
             volts = np.concatenate([v0, volts], axis=1)
@@ -269,6 +268,12 @@ class SpiceSolver(Solver):
             for k, tr in zip(idx, stacked_trajectories(self.name, stack.take(idx), t, volts[idx, :last], info)):
                 rows[k] = tr
         return TrajectoryStack(rows)
+
+
+@lru_cache(maxsize=64)
+def _node_keys(count: int, dof: int) -> tuple[str, ...]:
+    """The vectors of a batch's node voltages, sub-circuit by sub-circuit, as :meth:`NgspiceSession.run` keys them."""
+    return tuple(f"x{k}_n{i + 1}" for k in range(count) for i in range(dof))
 
 
 def _until(time: np.ndarray, t_stop: float) -> tuple[np.ndarray, int]:
