@@ -113,3 +113,19 @@ def test_a_stack_combines_its_scales_straight_from_its_arrays_as_from_its_rows(n
         assert getattr(together, field) == getattr(rows, field), field
     for field in ("velocity", "position", "decays", "shares", "phases"):
         assert np.array_equal(getattr(together, field), getattr(rows, field), equal_nan=True), field
+
+
+@pytest.mark.parametrize("name", ["default", "random10", "serial3"])
+def test_springless_scales_are_those_of_zero_springs_to_the_bit(name):
+    """Without springs the scales take K' = 0's eigenproblem as solved, (μ, ψ) = (0, I): the same
+    numbers, to the bit, as solving it (LAPACK returns exactly that for a zero matrix)."""
+    from analogy.circuit.scales import _scale_arrays
+    base = scene(name)
+    qs = np.tile(np.array(base.q, dtype=float), (4, 1))
+    qs[:, :2] += 0.3 * np.random.default_rng(5).uniform(-1, 1, qs[:, :2].shape)
+    stack = base.systems(qs)
+    assert stack.springless
+    m, b, v0 = stack.mass, stack.damping, stack.initial_voltages
+    skipped, solved = _scale_arrays(stack[0], m, b, None, v0), _scale_arrays(stack[0], m, b, np.zeros_like(m), v0)
+    for a, c in zip(skipped, solved):
+        assert np.array_equal(np.asarray(a), np.asarray(c), equal_nan=True)

@@ -400,8 +400,10 @@ def _whiten(chol: np.ndarray, a: np.ndarray) -> np.ndarray:
 def _estimated_scales(first, m, b, k, v0, whitened: Callable[[], tuple] | None = None) -> tuple:
     count, n = m.shape[0], m.shape[1]
     chol, wb = whitened_damping(m, b) if whitened is None else whitened()
-    kt = np.zeros_like(m) if k is None else _whiten(chol, k)
-    mu, psi = np.linalg.eigh(symmetric_part(kt))
+    if k is None:       # no springs: eigh of zeros, which is (0, I) exactly
+        mu, psi = np.zeros((count, n)), np.broadcast_to(np.eye(n), (count, n, n))
+    else:
+        mu, psi = np.linalg.eigh(symmetric_part(_whiten(chol, k)))
     phi = np.linalg.solve(np.swapaxes(chol, 1, 2), psi)          # M'-orthonormal mode shapes
     beta = np.einsum("sik,sij,sjk->sk", psi, wb, psi)             # modal damping rates
     omega = np.sqrt(np.abs(mu))
