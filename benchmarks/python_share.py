@@ -1,0 +1,99 @@
+"""Python's share of a batch group beside ngspice's own work: this tree against another, in turns.
+
+    python benchmarks/python_share.py [--baseline TREE] [--turns 4] [--repeats 15]
+
+A batch group of ten circuits of 100 default 2-DOF scenes at random q2 (``solve_group``, one
+group at a time on one thread, as ``run_batch(threads=1)`` runs it) costs ngspice's runs of its
+ten netlists and the Python around them: planning, building the stack, its scales, the netlists,
+the exact solution and the errors. Each turn runs, in a fresh process, the group and then ngspice
+alone on the same ten netlists in the same quiet library, REPEATS times each, and takes the CPU
+time of each; Python's share is the group's CPU beyond ngspice's, a scene, from the minima over
+the repeats (the machine's noise only adds) and from the medians. With ``--baseline``, a tree
+(a checkout of another commit) takes every other turn, so that both meet the machine alike; the
+last lines are the medians over the turns and their ratio.
+"""
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import time
+
+SCENES, CIRCUITS = 1000, 10
+
+
+def measure(repeats: int) -> dict:
+    """One turn in this process: CPU seconds a scene of the group and of ngspice alone, each repeat."""
+    import numpy as np
+
+    from analogy.batch.plan import as_system, plan_groups, solve_group
+    from analogy.circuit.scales import run_scales
+    from analogy.heap import retain_freed_memory
+    from analogy.presets import preset
+    from analogy.scenes.builtin import scene
+    from analogy.solvers.quiet_ngspice import quiet_session
+    from analogy.solvers.transient import batch_netlist
+
+    retain_freed_memory()       # as the analogy command does for its own process
+    base = scene("default")
+    items = [base.replace(q=(0.0, float(x))) for x in np.random.default_rng(0).uniform(-np.pi, np.pi, SCENES)]
+    fast, size = preset("fast"), SCENES // CIRCUITS
+    systems = [as_system(item) for item in items]
+    texts = [batch_netlist(systems[k:k + size], "fast", run_scales(systems[k:k + size])) for k in range(0, SCENES, size)]
+    session = quiet_session()
+    session.run(texts[0], None, {})
+    solve_group(plan_groups(items, size, CIRCUITS)[0], fast, ["spice"], "auto")     # a warm-up
+    group, floor = [], []
+    for _ in range(repeats):
+        start = time.process_time()
+        for text in texts:
+            session.run(text, None, {})
+        floor.append((time.process_time() - start) / SCENES)
+        start = time.process_time()
+        solve_group(plan_groups(items, size, CIRCUITS)[0], fast, ["spice"], "auto")
+        group.append((time.process_time() - start) / SCENES)
+    return {"group": group, "floor": floor}
+
+
+def _turn(tree: str, repeats: int) -> dict:
+    env = dict(os.environ, PYTHONPATH=tree, OPENBLAS_NUM_THREADS="1")
+    out = subprocess.run([sys.executable, __file__, "--measure", "--repeats", str(repeats)], env=env, cwd=tree,
+                         capture_output=True, text=True, check=True).stdout
+    return json.loads(out.splitlines()[-1])
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--baseline", help="another tree (a checkout) to take turns with")
+    parser.add_argument("--turns", type=int, default=4)
+    parser.add_argument("--repeats", type=int, default=15)
+    parser.add_argument("--measure", action="store_true", help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.measure:
+        print(json.dumps(measure(args.repeats)))
+        return
+    here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    trees = {"this tree": here} | ({"baseline": os.path.abspath(args.baseline)} if args.baseline else {})
+    shares: dict = {name: [] for name in trees}
+    print(f"Python's share of a group of {CIRCUITS} circuits of {SCENES // CIRCUITS} default scenes, one group at a time, "
+          f"us a scene: CPU beyond ngspice alone on the same netlists (minima, then medians, of {args.repeats} repeats)")
+    for turn in range(args.turns):
+        for name, tree in trees.items():
+            got = _turn(tree, args.repeats)
+            group, floor = (1e6 * min(got[k]) for k in ("group", "floor"))
+            median = 1e6 * (statistics.median(got["group"]) - statistics.median(got["floor"]))
+            shares[name].append(group - floor)
+            print(f"  turn {turn + 1}, {name}: group {group:.1f}, ngspice alone {floor:.1f}, share {group - floor:.1f} "
+                  f"(medians: {median:.1f})")
+    for name, values in shares.items():
+        print(f"{name}: median share {statistics.median(values):.1f} us a scene over {len(values)} turns")
+    if args.baseline:
+        ratios = [a / b for a, b in zip(shares["this tree"], shares["baseline"])]
+        print(f"this tree / baseline, turn by turn: {', '.join(f'{r:.2f}' for r in ratios)}; "
+              f"median {statistics.median(ratios):.2f}")
+
+
+if __name__ == "__main__":
+    main()
