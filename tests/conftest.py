@@ -1,5 +1,6 @@
 """Shared fixtures; tests marked ``ngspice`` need the ngspice library and executable."""
 
+import atexit
 import ctypes.util
 import os
 import shutil
@@ -8,8 +9,11 @@ from pathlib import Path
 
 import pytest
 
-# Compiled models go to a cache of the test run's own, never the user's.
-os.environ.setdefault("ANALOGY_CACHE_DIR", tempfile.mkdtemp(prefix="analogy-test-cache-"))
+# Compiled models go to a cache of the test run's own, never the user's, removed when the run ends
+# (pytest-xdist's workers inherit the controller's, which outlives them).
+if "ANALOGY_CACHE_DIR" not in os.environ:
+    os.environ["ANALOGY_CACHE_DIR"] = tempfile.mkdtemp(prefix="analogy-test-cache-")
+    atexit.register(shutil.rmtree, os.environ["ANALOGY_CACHE_DIR"], ignore_errors=True)
 
 HAVE_LIBRARY = bool(os.environ.get("NGSPICE_LIBRARY_PATH") or ctypes.util.find_library("ngspice"))
 HAVE_EXECUTABLE = shutil.which("ngspice") is not None
