@@ -44,6 +44,8 @@ def checked_options(opts: dict) -> dict:
             ok = str(value) == ""
         elif key.lower() in _OPTION_WORDS:
             ok = text.lower() in _OPTION_WORDS[key.lower()]
+        elif type(value) is float:      # its str is a SPICE number where it is finite
+            ok = math.isfinite(value)
         else:
             try:
                 ok = math.isfinite(spice_number(text))
