@@ -219,6 +219,10 @@ def test_rows_that_keep_different_elements_are_written_as_their_circuits():
     text = write_stack(systems, settings)
     assert text == write_batch(circuits(systems), settings)
     assert [f"Cx{k}_1_2 " in text for k in range(5)] == [True, False, True, False, True]
+    # each row's point operations, made for the whole stack, are its own (the damper R12 still couples
+    # the nodes where C12 is left out)
+    from analogy.circuit.elements import first_point_operations, point_operations
+    assert [first_point_operations(systems.take([k])) for k in range(5)] == [point_operations(systems[k]) for k in range(5)]
 
 
 @pytest.mark.ngspice
