@@ -147,3 +147,21 @@ def test_every_calibration_circuit_keeps_the_bound_its_tolerance_chose_a_reltol_
         rates = system.joint_rates(np.column_stack([data[n] for n in system.nodes]))
         assert np.max(output_errors(rates, solve_exact(system, data["time"]).rates, p.bound)[1]) <= p.bound, label
         assert compare(system, p, ["spice", "exact"]).errors()["spice"][1] <= p.bound, label
+
+def test_a_recalibration_is_read_by_the_calibrated_reltol_at_once(tmp_path, monkeypatch):
+    """write_constants clears every answer kept from the calibration it replaces: calibrated_reltol
+    gives the new constants' reltol in the same process, as spice_reltol does."""
+    import shutil
+    import analogy.solvers.error_constants as ec
+    path = tmp_path / "calibration.csv"
+    shutil.copy(ec.CALIBRATION, path)
+    monkeypatch.setattr(ec, "CALIBRATION", path)
+    for cached in (ec.error_constants, ec._shipped_reltol, ec._shipped_calibrated):
+        cached.cache_clear()
+    before = ec.calibrated_reltol(1e-3, 0.0)
+    ec.write_constants([ec.ErrorConstant(r.reltol, r.c0 * 50, r.circuits, r.worst) for r in ec.error_constants()], path)
+    after = ec.calibrated_reltol(1e-3, 0.0)
+    assert after == ec.spice_reltol(1e-3) == ec.calibrated_reltol(1e-3, 0.0, ec.error_constants()) != before
+    monkeypatch.undo()
+    for cached in (ec.error_constants, ec._shipped_reltol, ec._shipped_calibrated):
+        cached.cache_clear()

@@ -164,3 +164,25 @@ def test_sigterm_stops_a_long_spice_run_at_once():
     finally:
         proc.kill()
         proc.wait()
+
+
+def test_a_take_refused_past_the_operation_budget_is_worded_from_its_own_first_row():
+    """A take of a stack is checked on the inputs its rows share, but a refusal is said of the take's
+    first row: whether a shorter t_stop would help reads that row's own scales. parallel3 with a soft
+    first spring is calibrated at accurate where the stiffer rows ring, so the stack's first row and
+    the take's would word it differently."""
+    from analogy.circuit.scales import run_scales
+    from analogy.scenes.builtin import scene
+    from analogy.study.work import _fewest, check_works
+    p3 = scene("parallel3")
+    k = np.array([0.01, 0.1, 0.1, 0.1])
+    stack = p3.systems(np.tile(p3.q, (4, 1)), parameters={"k1": k, "k2": k, "k3": k})
+    assert stack.shares_inputs
+    take, acc = stack.take([1, 2, 3]), PRESETS["accurate"]
+    assert _fewest(take[0], acc) != _fewest(stack[0], acc)     # the hint would differ
+    tight = replace(acc, budget=replace(acc.budget, operations=1e6))
+    with pytest.raises(InputError) as refused:
+        check_works(take, tight)
+    with pytest.raises(InputError) as alone:        # the same rows as a stack of their own
+        check_work(take[0], tight, run_scales(take), stacked=3)
+    assert str(refused.value) == str(alone.value)

@@ -127,6 +127,7 @@ def write_constants(rows, path) -> Path:
             out.writerow([f"{r.reltol:.3g}", f"{r.c0:.4g}", r.circuits, r.worst])
     error_constants.cache_clear()
     _shipped_reltol.cache_clear()
+    _shipped_calibrated.cache_clear()
     return path
 
 

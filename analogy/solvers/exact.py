@@ -225,7 +225,7 @@ def _states(systems: NodeStack, t, n: int, springs: bool) -> np.ndarray:
         ramp = b_coef.any()             # φ₂(x) reads x: otherwise e^x − 1 is written over it
         em1 = np.expm1(x, out=x) if not ramp and not np.iscomplexobj(x) else _expm1(x)
         # u(t0 + τ) = a + b·τ + Σ c·e^{sτ}, each term integrated exactly against e^{λτ}
-        drive = (beta @ a_coef[:, :, None])[:, :, 0] if a_coef.any() else None
+        drive = np.einsum("smj,sj->sm", beta, a_coef) if a_coef.any() else None
         if np.all(lam != 0):
             # z·e^x + d·(e^x − 1)/λ = z + (e^x − 1)·(z + d/λ): one pass over the times, in e^x − 1's place
             zt = np.multiply(em1, (z if drive is None else z + drive / lam)[:, :, None],

@@ -146,8 +146,12 @@ def check_works(systems: Sequence, preset: Preset, *, spice: bool = True) -> Non
     if isinstance(systems, NodeStack) and len(systems) > 1 and systems.shares_inputs:
         if systems.checked is None or systems.checked[0] is not preset or systems.checked[1] != spice:
             # the inputs' row answers for the inputs, the first row for the circuit's pattern
-            check_work(systems.inputs_row, preset, run_scales(systems), stacked=len(systems), spice=spice,
-                       operations=first_point_operations(systems))
+            scales, operations = run_scales(systems), first_point_operations(systems)
+            try:
+                check_work(systems.inputs_row, preset, scales, stacked=len(systems), spice=spice, operations=operations)
+            except InputError:      # refused: said of the first row, whose own scales word the sentence
+                check_work(systems[0], preset, scales, stacked=len(systems), spice=spice, operations=operations)
+                raise
             systems.checked = (preset, spice)
         return
     groups: dict = {}
