@@ -379,15 +379,20 @@ def _starting_load(system) -> np.ndarray | None:
     return load if np.all(np.isfinite(load)) and np.any(load > 0) else None
 
 
-def whitened_damping(m: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """L and L⁻¹·B'·L⁻ᵀ, with M' = L·Lᵀ its Cholesky factor, of a stack: the modal solution and the
-    scales both read them (:meth:`~analogy.circuit.node_stack.NodeStack.rowwise` key ``"whitened damping"``).
+def whitened_damping(stack: NodeStack) -> tuple[np.ndarray, np.ndarray]:
+    """L and L⁻¹·B'·L⁻ᵀ of each row, with M' = L·Lᵀ its Cholesky factor, made once for the stack
+    (:meth:`~analogy.circuit.node_stack.NodeStack.rowwise`): its scales and its modal solution both read them.
 
     Parameters
     ----------
-    m, b : ndarray, shape (count, n, n)
-        M' and B' of each row.
+    stack : NodeStack
+        Systems of one size.
     """
+    return stack.rowwise("whitened damping", lambda s: _whitened(s.mass, s.damping))
+
+
+def _whitened(m: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`whitened_damping` of stacked M' and B'."""
     chol = np.linalg.cholesky(m)
     return chol, _whiten(chol, b)
 
@@ -399,7 +404,7 @@ def _whiten(chol: np.ndarray, a: np.ndarray) -> np.ndarray:
 
 def _estimated_scales(first, m, b, k, v0, whitened: Callable[[], tuple] | None = None) -> tuple:
     count, n = m.shape[0], m.shape[1]
-    chol, wb = whitened_damping(m, b) if whitened is None else whitened()
+    chol, wb = _whitened(m, b) if whitened is None else whitened()
     if k is None:       # no springs: eigh of zeros, which is (0, I) exactly
         mu, psi = np.zeros((count, n)), np.broadcast_to(np.eye(n), (count, n, n))
     else:
@@ -487,7 +492,7 @@ def run_scales(systems: Sequence) -> Scales:
         if parts is not None and len(parts) == 1:       # straight from the stack's arrays: no Scales per row
             def rows_of(s, first):
                 return _scale_arrays(first, s.mass, s.damping, s.stiffness, s.initial_voltages,
-                                     lambda: s.rowwise("whitened damping", lambda x: whitened_damping(x.mass, x.damping)))
+                                     lambda: whitened_damping(s))
             # a linear row's scales are its own and its inputs'; a nonlinear one's read the first row's start
             first = stack.inputs_row
             rows = stack.rowwise("scales", lambda s: rows_of(s, s.inputs_row)) if first.kind == "linear" else \

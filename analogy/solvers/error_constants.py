@@ -216,18 +216,19 @@ def calibrated_reltol(tol: float, ringing: float, rungs=None) -> float | None:
     """
     if ringing > RINGING_LIMIT:
         return None
-    if rungs is None:
-        return _shipped_calibrated(float(tol))
+    return _shipped_calibrated(float(tol)) if rungs is None else _calibrated(tol, rungs)
+
+
+def _calibrated(tol: float, rungs) -> float | None:
+    """:func:`calibrated_reltol` of a circuit that does not ring."""
     r = spice_reltol(tol, rungs)
     return r if predicted_error(r, rungs) <= tol / SAFETY else None
 
 
 @lru_cache(maxsize=64)
 def _shipped_calibrated(tol: float) -> float | None:
-    """:func:`calibrated_reltol` of a circuit that does not ring, on the shipped calibration: a batch asks it
-    twice per circuit."""
-    r = _shipped_reltol(tol)
-    return r if predicted_error(r) <= tol / SAFETY else None
+    """:func:`_calibrated` on the shipped calibration, kept: a batch asks it twice per circuit."""
+    return _calibrated(tol, None)
 
 
 def step_phase(reltol: float) -> float:

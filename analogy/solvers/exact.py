@@ -96,7 +96,7 @@ def _modes(systems, n: int, springs: bool):
     """
     m, b, cmap, v0 = systems.mass, systems.damping, systems.current_map, systems.initial_voltages
     if not springs:
-        chol, sym = systems.rowwise("whitened damping", lambda s: whitened_damping(s.mass, s.damping))
+        chol, sym = whitened_damping(systems)
         mu, psi = np.linalg.eigh(symmetric_part(sym))
         vec = np.linalg.solve(np.swapaxes(chol, 1, 2), psi)
         z = np.einsum("sji,sjk,sk->si", vec, m, v0)
