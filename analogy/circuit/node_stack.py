@@ -241,13 +241,16 @@ class NodeStack(Sequence):
     def _take(self, rows: list[int], shared: bool) -> "NodeStack":
         if rows == list(range(len(self))):
             return self
-        index = np.asarray(rows, dtype=int)
-        arrays = {k: v[index] for k, v in self._arrays.items()}
+        # consecutive rows (a batch's circuits) are read as views, which the take may not write into
+        index = slice(rows[0], rows[0] + len(rows)) if rows and rows == list(range(rows[0], rows[0] + len(rows))) \
+            else np.asarray(rows, dtype=int)
+        arrays = {k: _read_only(v[index]) for k, v in self._arrays.items()}
+        made = self._rows[index] if isinstance(index, slice) else [self._rows[k] for k in rows]
         if self._row is None:
-            picked = NodeStack([self._rows[k] for k in rows], arrays, shared)
+            picked = NodeStack(made, arrays, shared)
         else:
             picked = self.lazy(lambda j: self[rows[j]], arrays, self.springs[index], shared)
-            picked._rows = [self._rows[k] for k in rows]        # the rows already made are shared
+            picked._rows = made         # the rows already made are shared
         springs = self.springs
         if shared and self.shares_inputs and (springs.all() or not springs.any()):
             # what rows sharing their inputs and springs derive is made once, for the whole stack
@@ -303,12 +306,19 @@ class NodeStack(Sequence):
         return [(rows, self._take(rows, by_inputs)) for rows in groups.values()]
 
 
-def _rows_of(value, index: np.ndarray, count: int):
+def _rows_of(value, index: np.ndarray | slice, count: int):
     """The entries of *index* in one of :meth:`NodeStack.rowwise`'s values (a tuple: in each of its items)."""
     if isinstance(value, tuple):
         return tuple(_rows_of(v, index, count) for v in value)
     if isinstance(value, np.ndarray) and value.ndim and value.shape[0] == count:
-        return value[index]
+        return _read_only(value[index])
     if isinstance(value, list) and len(value) == count:
-        return [value[i] for i in index.tolist()]
+        return value[index] if isinstance(index, slice) else [value[i] for i in index.tolist()]
     return value
+
+
+def _read_only(rows: np.ndarray) -> np.ndarray:
+    """*rows* of a stack's array, marked read-only where they are a view of it."""
+    if rows.base is not None:
+        rows.flags.writeable = False
+    return rows

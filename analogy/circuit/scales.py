@@ -11,6 +11,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from ..errors import InputError
+from ..small_linalg import axis_max, axis_sum, cholesky, eigh, matmul, solve_lower, solve_lower_transposed
 from .joint_forces import joint_forces
 from .node_stack import NodeStack
 from .topology import symmetric_part
@@ -364,7 +365,7 @@ def _scale_arrays(first, m, b, k, v0, whitened: Callable[[], tuple] | None = Non
     try:
         with np.errstate(over="ignore", invalid="ignore"):
             return _estimated_scales(first, m, b, k, v0, whitened)
-    except np.linalg.LinAlgError:       # K' or B' against M' past 1e308: eigh cannot converge
+    except np.linalg.LinAlgError:       # K' against M' past 1e308, or eigh cannot converge
         raise InputError("the system's rates (K' and B' against M') leave the floating-point range: "
                          "rescale the masses, dampers or springs") from None
 
@@ -393,13 +394,13 @@ def whitened_damping(stack: NodeStack) -> tuple[np.ndarray, np.ndarray]:
 
 def _whitened(m: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """:func:`whitened_damping` of stacked M' and B'."""
-    chol = np.linalg.cholesky(m)
+    chol = cholesky(m)
     return chol, _whiten(chol, b)
 
 
 def _whiten(chol: np.ndarray, a: np.ndarray) -> np.ndarray:
     """L⁻¹·A·L⁻ᵀ of a stack."""
-    return np.linalg.solve(chol, np.swapaxes(np.linalg.solve(chol, a), 1, 2))
+    return solve_lower(chol, np.swapaxes(solve_lower(chol, a), 1, 2))
 
 
 def _estimated_scales(first, m, b, k, v0, whitened: Callable[[], tuple] | None = None) -> tuple:
@@ -408,16 +409,20 @@ def _estimated_scales(first, m, b, k, v0, whitened: Callable[[], tuple] | None =
     if k is None:       # no springs: eigh of zeros, which is (0, I) exactly
         mu, psi = np.zeros((count, n)), np.broadcast_to(np.eye(n), (count, n, n))
     else:
-        mu, psi = np.linalg.eigh(symmetric_part(_whiten(chol, k)))
-    phi = np.linalg.solve(np.swapaxes(chol, 1, 2), psi)          # M'-orthonormal mode shapes
-    beta = np.einsum("sik,sij,sjk->sk", psi, wb, psi)             # modal damping rates
+        whitened_k = _whiten(chol, k)
+        if not np.all(np.isfinite(whitened_k)):
+            raise np.linalg.LinAlgError("K' against M' leaves the floating-point range")
+        mu, psi = eigh(symmetric_part(whitened_k))
+    phi = solve_lower_transposed(chol, psi)                       # M'-orthonormal mode shapes
+    beta = axis_sum(psi * matmul(wb, psi), 1)                      # modal damping rates
     omega = np.sqrt(np.abs(mu))
     peaks, sine = _force_peaks(first)
-    drive = np.abs(np.swapaxes(phi, 1, 2) @ first.current_map) @ peaks
+    phi_t = np.swapaxes(phi, 1, 2)
+    drive = matmul(np.abs(matmul(phi_t, first.current_map)), peaks[:, None])[..., 0]
     load = _starting_load(first)
     if load is not None:            # gravity and contacts drive a nonlinear motion as its forces do
-        drive = drive + np.abs(np.swapaxes(phi, 1, 2)) @ load
-    start = np.abs(np.einsum("sik,sij,sj->sk", phi, m, v0))
+        drive = drive + matmul(np.abs(phi_t), load[..., None])[..., 0]
+    start = np.abs(matmul(phi_t, matmul(m, v0[..., None]))[..., 0])
     t_stop = float(first.t_stop)
     with np.errstate(divide="ignore"):
         span = np.minimum.reduce([np.full(mu.shape, t_stop), np.where(mu > 0, 1 / omega, np.inf),
@@ -426,23 +431,25 @@ def _estimated_scales(first, m, b, k, v0, whitened: Callable[[], tuple] | None =
         reach = np.minimum.reduce([np.full(mu.shape, t_stop ** 2), np.where(mu > 0, 1 / np.abs(mu), np.inf),
                                    np.where(beta > 0, t_stop / np.abs(beta), np.inf)])
     growth = np.exp(np.minimum(np.where(mu < 0, omega, 0.0) * t_stop, 700.0))
-    velocity = np.einsum("sik,sk->si", np.abs(phi), (drive * span + start) * growth)
-    position = np.einsum("sik,sk->si", np.abs(phi), (drive * reach + start * span) * growth)
+    size = np.abs(phi)
+    velocity = matmul(size, ((drive * span + start) * growth)[..., None])[..., 0]
+    position = matmul(size, ((drive * reach + start * span) * growth)[..., None])[..., 0]
     with np.errstate(invalid="ignore", over="ignore"):      # (β/2)² past 1e308 only means overdamped
         damped = np.where(mu > 0, np.sqrt(np.maximum(mu - (beta / 2) ** 2, 0.0)), 0.0)
     current = float(np.max(np.abs(first.current_map) @ peaks)) if peaks.size else 0.0
     if load is not None:
         current = max(current, float(np.max(load, initial=0.0)))
-    top = np.max(velocity, axis=1) if n else np.zeros(count)
+    top = axis_max(velocity, 1) if n else np.zeros(count)
     still = ~(np.isfinite(top) & (top > 0))               # nothing moves: any unit scale serves
     velocity[still], position[still] = 1.0, t_stop
-    velocity = np.maximum(velocity, 1e-12 * np.max(velocity, axis=1, keepdims=True))
-    position = np.maximum(position, 1e-12 * np.max(position, axis=1, keepdims=True))
-    fastest = np.maximum(np.max(damped, axis=1) if n else np.zeros(count), sine)
-    charge = np.max(np.diagonal(m, axis1=1, axis2=2), axis=1) * np.max(velocity, axis=1)
+    velocity = np.maximum(velocity, 1e-12 * axis_max(velocity, 1)[:, None])
+    position = np.maximum(position, 1e-12 * axis_max(position, 1)[:, None])
+    fastest = np.maximum(axis_max(damped, 1) if n else np.zeros(count), sine)
+    top = axis_max(velocity, 1) if n else np.ones(count)
+    charge = axis_max(np.diagonal(m, axis1=1, axis2=2), 1) * top
     current = current if current > 0 else 1.0
     # overdamped or free modes decay at up to β_k; their share of the peak velocity
-    share = np.max(np.abs(phi), axis=1) * (drive * span + start) * growth / np.max(velocity, axis=1, keepdims=True)
+    share = axis_max(size, 1) * (drive * span + start) * growth / top[:, None]
     decays = np.where((beta > 0) & (beta >= 2 * np.sqrt(np.maximum(mu, 0.0))), beta, 0.0)
     # a mode's phase error grows as t while its amplitude falls as e^(-β·t/2): their product peaks at 2/β
     lives = np.minimum(t_stop, np.where(beta > 0, 2 / np.maximum(np.abs(beta), 1e-300), np.inf))
@@ -450,8 +457,8 @@ def _estimated_scales(first, m, b, k, v0, whitened: Callable[[], tuple] | None =
     # a mode that grows at σ (an unstable equilibrium) carries its relative error as a phase does: σ·t_stop
     phases = np.where(mu < 0, omega * t_stop, phases)
     turns = np.where(mu < 0, omega, damped)
-    tops = np.max(velocity, axis=1).tolist() if n else [1.0] * count
-    reaches = np.max(position, axis=1).tolist() if n else [t_stop] * count
+    tops = top.tolist() if n else [1.0] * count
+    reaches = axis_max(position, 1).tolist() if n else [t_stop] * count
     return fastest, velocity, position, current, charge, decays, share, phases, tops, reaches, turns
 
 

@@ -103,8 +103,19 @@ class Topology:
         """
         v = np.asarray(node_voltages, dtype=float)
         if self.exact_inverse:
-            return v @ self.inverse.T
+            terms = self._rate_terms
+            return v @ self.inverse.T if terms is None else _sparse_rows(v, terms)
         return np.linalg.solve(self.matrix, v.reshape(-1, self.dof).T).T.reshape(v.shape)
+
+    @cached_property
+    def _rate_terms(self) -> tuple | None:
+        """Per joint, the (node, coefficient) of T⁻¹'s nonzero entries in its row, for a few joints
+        (serial and parallel maps have one or two, each ±1); None past 8 joints, where one product is cheaper."""
+        if self.dof > 8:
+            return None
+        # a +1 term first: copied, then the others added or subtracted in place
+        return tuple(tuple(sorted(((k, float(c)) for k, c in enumerate(row) if c != 0), key=lambda t: t[1] != 1.0))
+                     for row in self.inverse.tolist())
 
     def describe(self) -> str:
         if self.name == "serial":
@@ -298,3 +309,22 @@ def topology(spec, n: int, matrices: tuple | None = None) -> Topology:
     if top.dof != n:
         raise InputError(f"topology is {top.dof}x{top.dof} but the robot has {n} joints")
     return top
+
+
+def _sparse_rows(v: np.ndarray, terms: tuple) -> np.ndarray:
+    """``v @ Aᵀ`` for A given by its rows' nonzero (column, coefficient) *terms*: one pass over the
+    times per term, not a product with every zero (the same numbers: unit coefficients are exact)."""
+    out = np.empty(v.shape[:-1] + (len(terms),))
+    for i, row in enumerate(terms):
+        at = out[..., i]
+        if not row:
+            at[...] = 0.0
+        for j, (k, c) in enumerate(row):
+            x = v[..., k]
+            if c == 1.0:
+                np.add(at, x, out=at) if j else np.copyto(at, x)
+            elif c == -1.0:
+                np.subtract(at, x, out=at) if j else np.negative(x, out=at)
+            else:
+                np.add(at, c * x, out=at) if j else np.multiply(x, c, out=at)
+    return out

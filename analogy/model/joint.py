@@ -7,6 +7,7 @@ from typing import Mapping, NamedTuple, Sequence
 import numpy as np
 
 from ..errors import InputError, concerning
+from ..small_linalg import axis_max, cholesky, eigvalsh
 
 __all__ = ["JointSpace", "unstable_stiffness", "JointStack", "check_square_symmetric", "check_node_form",
            "check_vector", "evaluation_arguments", "stack_arguments", "configuration_stack", "evaluate_entries",
@@ -403,14 +404,14 @@ def stack_fault(stack: JointStack, node_mass: np.ndarray | None = None) -> bool:
         if x is not None and not np.array_equal(x, np.swapaxes(x, 1, 2)):
             return True         # rare (rounding in a model's own expressions): checked one by one
     try:
-        np.linalg.cholesky(m)
+        cholesky(m)
         if node_mass is not None:
-            np.linalg.cholesky(node_mass)
+            cholesky(node_mass)
     except np.linalg.LinAlgError:
         return True
     for x in (b,):
         if x is not None:
-            floor = -1e-12 * np.maximum(np.abs(x).max(axis=(1, 2)), 1.0)
-            if np.any(np.linalg.eigvalsh(x)[:, 0] < floor):
+            floor = -1e-12 * np.maximum(axis_max(np.abs(x).reshape(len(x), -1), 1), 1.0)
+            if np.any(eigvalsh(x)[:, 0] < floor):
                 return True
     return False
