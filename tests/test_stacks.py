@@ -538,6 +538,35 @@ def test_takes_of_a_stack_share_what_their_inputs_derive_and_write_their_circuit
         assert write_stack(part, settings) == write_batch(circuits(part), settings)
 
 
+def test_a_take_of_consecutive_rows_reads_the_stacks_values_without_copying_and_cannot_write_them():
+    """A batch's circuits are consecutive rows of its group's stack: their take's matrices and row values
+    are views of the stack's, read-only, and equal to a take of the same rows in another order's."""
+    from analogy.circuit.scales import whitened_damping
+    base = scene("default")
+    whole = base.systems(np.column_stack([np.zeros(12), np.linspace(-3.0, 3.0, 12)]))
+    part, picked = whole.take(range(4, 9)), whole.take([4, 5, 6, 8, 7])
+    chol, wb = whitened_damping(part)
+    assert np.shares_memory(part.mass, whole.mass) and np.shares_memory(chol, whitened_damping(whole)[0])
+    with pytest.raises(ValueError):
+        part.mass[0, 0, 0] = 1.0
+    with pytest.raises(ValueError):
+        wb[0] = 0.0
+    order = [0, 1, 2, 4, 3]
+    np.testing.assert_array_equal(part.mass[order], picked.mass)
+    np.testing.assert_array_equal(wb[order], whitened_damping(picked)[1])
+
+
+def test_joint_rates_are_the_inverse_maps_product_bit_for_bit():
+    """R = T⁻¹·v, taken from T⁻¹'s nonzero entries (serial and parallel maps: ±1), is the full product's."""
+    rng = np.random.default_rng(5)
+    for name in ("serial2", "parallel3", "serial3", "parallel2"):
+        item = scene(name)
+        topology = item.systems([item.q])[0].topology
+        v = rng.standard_normal((7, 33, topology.dof))
+        assert topology.exact_inverse and topology._rate_terms is not None
+        np.testing.assert_array_equal(topology.joint_rates(v), v @ topology.inverse.T)
+
+
 def test_a_lazy_stack_keeps_what_its_rows_were_built_from_and_pickles_with_them():
     """Rows made after the caller changed its own parameter arrays still report the values the stack was
     built with; a pickled stack is the same systems; a sub-stack's rows are its parent's objects."""

@@ -306,10 +306,13 @@ class NodeStack(Sequence):
         return [(rows, self._take(rows, by_inputs)) for rows in groups.values()]
 
 
-def _rows_of(value, index: np.ndarray | slice, count: int):
-    """The entries of *index* in one of :meth:`NodeStack.rowwise`'s values (a tuple: in each of its items)."""
-    if isinstance(value, tuple):
-        return tuple(_rows_of(v, index, count) for v in value)
+def _rows_of(value: tuple, index: np.ndarray | slice, count: int) -> tuple:
+    """The entries of *index* in each item of one of :meth:`NodeStack.rowwise`'s values."""
+    return tuple([_item_rows(v, index, count) for v in value])
+
+
+def _item_rows(value, index: np.ndarray | slice, count: int):
+    """The entries of *index* in one item of a :meth:`NodeStack.rowwise` value (itself where it is shared)."""
     if isinstance(value, np.ndarray) and value.ndim and value.shape[0] == count:
         return _read_only(value[index])
     if isinstance(value, list) and len(value) == count:

@@ -216,7 +216,7 @@ def _states(systems: NodeStack, t, n: int, springs: bool) -> np.ndarray:
     lam, vec, z, beta = _modes(systems, n, springs) if springs else \
         systems.rowwise("springless modes", lambda s: _modes(s, n, False))
     count, joints = len(systems), beta.shape[2]
-    states = np.empty((count, t.size, vec.shape[1]))
+    states = np.empty((count, vec.shape[1], t.size)).transpose(0, 2, 1)     # times contiguous, as SPICE's
     first = systems.inputs_row if systems.shares_inputs else systems[0]
     lam_ = lam[:, :, None]          # time runs along the last axis: long inner loops
     shared: dict = {}               # the pieces of equal forces are derived once

@@ -255,10 +255,14 @@ class SpiceSolver(Solver):
                 out.append(_trajectory(s, t, prepended, v, {}, stats, elapsed))
             return out
         count = len(systems)
-        volts = np.concatenate([data[key] for key in _node_keys(count, n)]).reshape(count, n, -1).transpose(0, 2, 1)
-        if prepended:
-            v0 = NodeStack.of(systems).initial_voltages[:, None, :]
-            volts = np.concatenate([v0, volts], axis=1)
+        # (rows, nodes, times) in memory, read as (rows, times, nodes): each output's times stay contiguous
+        keys = _node_keys(count, n)
+        if prepended:           # each node's start before its points: one copy in all
+            starts = NodeStack.of(systems).initial_voltages.reshape(-1, 1)
+            parts = [x for k, key in enumerate(keys) for x in (starts[k], data[key])]
+        else:
+            parts = [data[key] for key in keys]
+        volts = np.concatenate(parts).reshape(count, n, -1).transpose(0, 2, 1)
         if not cut:
             info = SolverStats(elapsed, time.size - 1, stats.get("rejected"), stats.get("iterations"))
             return stacked_trajectories(self.name, systems, time, volts, info)
