@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["SMALL", "matmul", "cholesky", "solve_lower", "solve_lower_transposed", "eigh", "eigvalsh", "axis_sum",
-           "axis_max"]
+__all__ = ["SMALL", "matmul", "cholesky", "solve_lower", "solve_lower_transposed", "whiten", "eigh", "eigvalsh",
+           "axis_sum", "axis_max"]
 
 #: Up to this size, a stack's products, Cholesky factors and triangular solves are loops over the
 #: entries, each one numpy pass over the stack. numpy's stacked ``linalg`` calls LAPACK once per
@@ -27,7 +27,7 @@ def matmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
         Right factors.
     """
     (n, k), m = a.shape[-2:], b.shape[-1]
-    if max(n, k, m) > SMALL or k == 0:
+    if max(n, k, m) > SMALL or k == 0:     # long rows (a state over time): numpy's own loop is faster
         return a @ b
     out = np.empty(np.broadcast_shapes(a.shape[:-2], b.shape[:-2]) + (n, m), dtype=np.result_type(a, b))
     for i in range(n):
@@ -136,6 +136,19 @@ def solve_lower_transposed(low: np.ndarray, b: np.ndarray) -> np.ndarray:
         Right-hand sides.
     """
     return _substituted(low, b, True)
+
+
+def whiten(low: np.ndarray, a: np.ndarray) -> np.ndarray:
+    """L⁻¹·A·L⁻ᵀ of a stack of symmetric A: A in the frame where L·Lᵀ is the identity (M' whitened).
+
+    Parameters
+    ----------
+    low : ndarray, shape (..., n, n)
+        Lower-triangular factors with nonzero diagonals.
+    a : ndarray, shape (..., n, n)
+        Symmetric matrices.
+    """
+    return solve_lower(low, np.swapaxes(solve_lower(low, a), -1, -2))
 
 
 def _substituted(low: np.ndarray, b: np.ndarray, transposed: bool) -> np.ndarray:

@@ -193,6 +193,31 @@ def test_groups_hold_horizons_within_the_spread_and_families_span_them():
         assert [s.t_stop for s in g.build()[0]] == spans
 
 
+def test_scenes_sharing_their_parts_plan_as_scenes_rebuilt_from_scratch():
+    """A scene made from the last by replace(q=…) is planned by the identity of its parts, with no family key
+    made: the groups are those of the same scenes each rebuilt from plain values, interleaved with another
+    family, a subclass of float in q (checked value by value) and a nonlinear scene (a single)."""
+    from dataclasses import fields
+    from analogy.batch.plan import plan_groups
+    from analogy.scenes.scene import Scene
+    base, other = scene("default"), scene("serial2")
+    made = [base.replace(q=(0.0, 0.1 * k)) for k in range(7)] + [other.replace(q=(0.2, 0.1 * k)) for k in range(3)]
+    made += [base.replace(q=(0.0, np.float64(0.9))), base.replace(dynamics="nonlinear"), base.replace(q=(0.0, 1.1))]
+    thawed = ("q", "forces", "initial_rates", "parameters", "solvers")        # what Scene.of freezes
+    rebuilt = [Scene.of(s.name, s.model.robot, **{f.name: _thawed(getattr(s, f.name)) if f.name in thawed
+                                                  else getattr(s, f.name) for f in fields(s)[2:]}) for s in made]
+    assert made[1].forces is made[0].forces and rebuilt[1].forces is not rebuilt[0].forces
+    assert rebuilt == made
+    for size, circuits in ((3, 1), (4, 2), (100, 1)):
+        assert [(g.rows, g.runs) for g in plan_groups(made, size, circuits)] == \
+            [(g.rows, g.runs) for g in plan_groups(rebuilt, size, circuits)]
+
+
+def _thawed(value):
+    """*value* with its tuples as new lists: equal content, no object shared."""
+    return [_thawed(v) for v in value] if isinstance(value, tuple) else value
+
+
 @pytest.mark.ngspice
 def test_a_sweep_over_horizons_keeps_each_scenes_bound():
     """Scenes of one family with different t_stop run together, each judged over its own horizon."""

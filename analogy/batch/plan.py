@@ -10,7 +10,7 @@ import numpy as np
 from ..circuit.node_stack import NodeStack
 from ..errors import AnalogyError, InputError
 from ..presets import Preset
-from ..scenes.scene import Scene
+from ..scenes.scene import _PLAIN_REALS, Scene
 from ..study.comparison import compare_many
 from ..study.work import check_work, check_works
 
@@ -161,15 +161,23 @@ def plan_groups(items: Sequence, group_size: int, circuits: int = 1) -> list[Gro
         Most circuits of a family per group.
     """
     kinds: dict = {}
+    last: tuple = (None, None)          # the last scene of a family and its key's members
     for k, item in enumerate(items):
         if getattr(item, "estimate", False) or getattr(item, "refine", False):
             raise InputError("a batch measures errors against the reference and does not estimate them: "
                              "run a scene with estimate = true or refine = true by itself (analogy run)")
-        family = item.family() if isinstance(item, Scene) else None
-        preset = item.preset if isinstance(item, Scene) else None      # a group runs at one preset
+        scene = isinstance(item, Scene)
+        if scene and _same_family(item, last[0]):       # made from the last by replace(q=…, t_stop=…): its key
+            last[1].append(k)
+            continue
+        family = item.family() if scene else None
+        preset = item.preset if scene else None      # a group runs at one preset
         key = ("family", family, preset) if family is not None else \
-            ("single", item.dynamics if isinstance(item, Scene) else item.kind, preset)
-        kinds.setdefault(key, []).append(k)
+            ("single", item.dynamics if scene else item.kind, preset)
+        members = kinds.setdefault(key, [])
+        members.append(k)
+        if family is not None:
+            last = (item, members)
     groups = []
     for (kind, *_), idx in kinds.items():
         chunks = _chunks(idx, [items[k].t_stop for k in idx], group_size)
@@ -186,6 +194,15 @@ def plan_groups(items: Sequence, group_size: int, circuits: int = 1) -> list[Gro
             groups.append(_family(items, chunks[j:last]))
             j = last
     return groups
+
+
+def _same_family(item: Scene, last: Scene | None) -> bool:
+    """Whether *item* holds what :meth:`Scene.family` and the preset read of *last* as the same objects, and
+    a q of plain reals of its length: then its family and preset are *last*'s, with no key made or hashed."""
+    return last is not None and len(item.q) == len(last.q) and _PLAIN_REALS.issuperset(map(type, item.q)) and \
+        item.model is last.model and item.parameters is last.parameters and item.topology is last.topology and \
+        item.forces is last.forces and item.initial_rates is last.initial_rates and \
+        item.dynamics is last.dynamics and item.equilibrium is last.equilibrium and item.preset is last.preset
 
 
 def _family(items: Sequence, chunks: list[tuple]) -> Group:

@@ -7,6 +7,7 @@ from typing import Literal, NamedTuple
 import numpy as np
 
 from ..errors import InputError
+from ..small_linalg import axis_max, axis_sum
 
 __all__ = ["Element", "ElementKind", "ELEMENT_KINDS", "elements", "element_table", "spice_value", "mp_capacitance", "laplacian_split", "point_operations", "first_point_operations", "NONLINEAR_POINT_COST",
            "ZERO_TOL"]
@@ -89,20 +90,21 @@ def laplacian_split(matrix: np.ndarray, zero_tol: float = ZERO_TOL,
     x = np.asarray(matrix, dtype=float)
     n = x.shape[-1]
     with np.errstate(over="ignore"):        # a row sum past 1.8e308 is refused by the circuit's checks
-        grounded = x.sum(axis=-1)
+        grounded = axis_sum(x, -1)
     floating = -x
     floating[..., range(n), range(n)] = 0.0
     # Row-relative: a value is rounding only against the entries it was summed from, so a node
     # whose own scale is far below the largest (a soft spring beside a stiff one) keeps its elements.
     with np.errstate(over="ignore", invalid="ignore"):      # past the float range is refused later
-        rows = np.abs(x).sum(axis=-1)
+        rows = axis_sum(np.abs(x), -1)
         root = np.sqrt(rows)                                  # √a·√b: no overflow where a·b would
         floor_g = zero_tol * rows
         floor_f = zero_tol * root[..., :, None] * root[..., None, :]
     small_g = np.abs(grounded) <= floor_g
     small_f = np.abs(floating) <= floor_f
     if report:
-        dropped = np.any(small_g & (grounded != 0), axis=-1) | np.any(small_f & (floating != 0), axis=(-2, -1))
+        dropped = axis_max(small_g & (grounded != 0), -1) | \
+            axis_max((small_f & (floating != 0)).reshape(x.shape[:-2] + (n * n,)), -1)
     grounded[small_g] = 0.0
     floating[small_f] = 0.0
     return (grounded, floating, dropped) if report else (grounded, floating)

@@ -11,7 +11,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from ..errors import InputError
-from ..small_linalg import axis_max, axis_sum, cholesky, eigh, matmul, solve_lower, solve_lower_transposed
+from ..small_linalg import axis_max, axis_sum, cholesky, eigh, matmul, solve_lower_transposed, whiten
 from .joint_forces import joint_forces
 from .node_stack import NodeStack
 from .topology import symmetric_part
@@ -395,12 +395,7 @@ def whitened_damping(stack: NodeStack) -> tuple[np.ndarray, np.ndarray]:
 def _whitened(m: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """:func:`whitened_damping` of stacked M' and B'."""
     chol = cholesky(m)
-    return chol, _whiten(chol, b)
-
-
-def _whiten(chol: np.ndarray, a: np.ndarray) -> np.ndarray:
-    """L⁻¹·A·L⁻ᵀ of a stack."""
-    return solve_lower(chol, np.swapaxes(solve_lower(chol, a), 1, 2))
+    return chol, whiten(chol, b)
 
 
 def _estimated_scales(first, m, b, k, v0, whitened: Callable[[], tuple] | None = None) -> tuple:
@@ -409,7 +404,7 @@ def _estimated_scales(first, m, b, k, v0, whitened: Callable[[], tuple] | None =
     if k is None:       # no springs: eigh of zeros, which is (0, I) exactly
         mu, psi = np.zeros((count, n)), np.broadcast_to(np.eye(n), (count, n, n))
     else:
-        whitened_k = _whiten(chol, k)
+        whitened_k = whiten(chol, k)
         if not np.all(np.isfinite(whitened_k)):
             raise np.linalg.LinAlgError("K' against M' leaves the floating-point range")
         mu, psi = eigh(symmetric_part(whitened_k))

@@ -8,6 +8,7 @@ from functools import cached_property, lru_cache
 import numpy as np
 
 from ..errors import InputError
+from ..small_linalg import matmul
 
 __all__ = ["Topology", "serial", "parallel", "custom", "modal", "topology", "default_topology", "TOPOLOGIES",
            "TOPOLOGY_NAMES", "DENSE_NODE_LIMIT", "congruence", "symmetric_part"]
@@ -75,7 +76,7 @@ class Topology:
         """
         if self.exact_inverse:      # products with an exact inverse: no solves, same numbers
             with np.errstate(over="ignore", invalid="ignore"):   # overflow is named by the callers
-                z = self.inverse.T @ np.asarray(joint_matrix, dtype=float) @ self.inverse
+                z = matmul(matmul(self.inverse.T, np.asarray(joint_matrix, dtype=float)), self.inverse)
             return symmetric_part(z)
         z = congruence(joint_matrix, self.matrix)
         return _without_rounding(z, self.rounding) if self.name == "modal" and isinstance(z, np.ndarray) else z

@@ -25,7 +25,10 @@ def freeze(value) -> object:
         A value, or a list or tuple of values.
     """
     if isinstance(value, (list, tuple)):
-        return tuple(freeze(v) for v in value)
+        items = [freeze(v) for v in value]
+        if type(value) is tuple and all(a is b for a, b in zip(items, value)):
+            return value        # frozen already: the same object, so scenes made by replace share it
+        return tuple(items)
     return value
 
 

@@ -230,8 +230,10 @@ class SpiceSolver(Solver):
         stats: dict = {}
         ends = stack.t_stops if stack is not None else np.array([s.t_stop for s in systems])
         start = _time.perf_counter()
-        dofs = [stack.dof] * len(stack) if stack is not None else [x.dof for x in systems]
-        limit = _limit(scales, float(ends.max()), preset, run_size(dofs))
+        dofs = None if stack is not None else [x.dof for x in systems]       # a stack's rows are of one size
+        n = stack.dof if stack is not None else dofs[0]
+        mixed = dofs is not None and any(d != n for d in dofs)
+        limit = _limit(scales, float(ends.max()), preset, run_size(dofs) if mixed else len(systems) * run_size([n]))
         try:
             # a short run in the quiet library: no line printed, so no callback waits for the GIL
             data = run_quietly(text, float(ends.max()), stats) if limit is None else \
@@ -240,14 +242,13 @@ class SpiceSolver(Solver):
             return super()._solve_many(systems, times, preset)
         elapsed = (_time.perf_counter() - start - stats.get("waited", 0.0)) / len(systems)
         time, prepended = _from_start(data["time"])
-        n = dofs[0]
         try:
             # each shorter horizon's points (none where the rows share one, as a family's circuit does)
             cut = {} if ends.min() == ends.max() else \
                 {float(end): _until(time, float(end)) for end in np.unique(ends[ends < ends.max()])}
         except SimulationError:
             return super()._solve_many(systems, times, preset)
-        if any(d != n for d in dofs):
+        if mixed:
             out = []
             for k, s in enumerate(systems):
                 t, last = cut.get(s.t_stop, (time, time.size))
