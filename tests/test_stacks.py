@@ -556,6 +556,21 @@ def test_a_take_of_consecutive_rows_reads_the_stacks_values_without_copying_and_
     np.testing.assert_array_equal(wb[order], whitened_damping(picked)[1])
 
 
+@pytest.mark.ngspice
+def test_a_circuit_taken_from_a_group_stack_is_compared_with_no_row_of_it_made():
+    """What a circuit's rows share (kind, size, topology, inputs, horizon) is read from its group stack's
+    inputs row: comparing a take makes none of its rows, and its errors are those of its rows built alone."""
+    from analogy.study.comparison import compare_many
+    base = scene("default")
+    qs = np.column_stack([np.zeros(30), np.linspace(-3.0, 3.0, 30)])
+    whole = base.systems(qs)
+    part = whole.take(range(10, 20))
+    found = compare_many(part, "fast", ["spice"], reference="exact")
+    assert [k for k, row in enumerate(whole._rows) if row is not None] == [0]
+    alone = compare_many(base.systems(qs[10:20]), "fast", ["spice"], reference="exact")
+    np.testing.assert_array_equal(found.errors("spice"), alone.errors("spice"))
+
+
 def test_joint_rates_are_the_inverse_maps_product_bit_for_bit():
     """R = T⁻¹·v, taken from T⁻¹'s nonzero entries (serial and parallel maps: ±1), is the full product's."""
     rng = np.random.default_rng(5)

@@ -9,7 +9,7 @@ import numpy as np
 if TYPE_CHECKING:
     from ..model.dynamics import NodeDynamics
 
-__all__ = ["NodeStack"]
+__all__ = ["NodeStack", "shared_row"]
 
 
 class NodeStack(Sequence):
@@ -80,9 +80,9 @@ class NodeStack(Sequence):
         return NodeStack, (self.systems, self._arrays, self._shared)
 
     def _alike(self) -> Sequence["NodeDynamics"]:
-        """The rows that answer for all in what is not stacked: the first alone where one function
-        made every row (:meth:`lazy`), else each."""
-        return [self[0]] if self._row is not None else self
+        """The rows that answer for all in what is not stacked: one alone where one function made every
+        row (:meth:`lazy`; :func:`shared_row`), else each."""
+        return [shared_row(self)] if self._row is not None else self
 
     @property
     def linear(self) -> bool:
@@ -166,7 +166,7 @@ class NodeStack(Sequence):
     @property
     def t_stops(self) -> np.ndarray:
         """Per row, its t_stop."""
-        return np.full(len(self), self[0].t_stop) if self._shared else np.array([s.t_stop for s in self])
+        return np.full(len(self), self.inputs_row.t_stop) if self._shared else np.array([s.t_stop for s in self])
 
     @property
     def shares_inputs(self) -> bool:
@@ -205,7 +205,7 @@ class NodeStack(Sequence):
     @property
     def current_map(self) -> np.ndarray:
         """T⁻ᵀ of every row, shape (count, n, n) (a broadcast view when the rows share T)."""
-        first = self[0].topology
+        first = shared_row(self).topology
         if self._shared or all(s.topology.key == first.key for s in self.systems[1:]):
             return np.broadcast_to(first.current_map, (len(self), self.dof, self.dof))
         return self._stacked("current_map")
@@ -325,3 +325,16 @@ def _read_only(rows: np.ndarray) -> np.ndarray:
     if rows.base is not None:
         rows.flags.writeable = False
     return rows
+
+
+def shared_row(systems: Sequence["NodeDynamics"]) -> "NodeDynamics":
+    """A system that answers for what all of *systems* share (kind, size, topology, inputs): a stack's
+    :attr:`~NodeStack.inputs_row` where its rows share their inputs, so that no row of a take is made
+    for it, else the first.
+
+    Parameters
+    ----------
+    systems : sequence of NodeDynamics
+        Systems solved together.
+    """
+    return systems.inputs_row if isinstance(systems, NodeStack) and systems._shared else systems[0]

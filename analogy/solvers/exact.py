@@ -7,7 +7,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ..circuit.node_stack import NodeStack
+from ..circuit.node_stack import NodeStack, shared_row
 from ..circuit.scales import whitened_damping
 from ..circuit.topology import symmetric_part
 from ..errors import InputError, SimulationError
@@ -412,14 +412,15 @@ class ExactSolver(Solver):
         if positions or len(systems) == 1 or not linear:
             return super()._solve_many(systems, times, preset, positions=positions)
         start = _time.perf_counter()
-        t = self.grid(systems[0], times, preset)
+        first = shared_row(systems)
+        t = self.grid(first, times, preset)
         try:
             states = _solve(systems, t)
         except SimulationError:             # one by one, so that only a system it cannot take fails
             return [self._one(s, t) for s in systems]
         each = SolverStats((_time.perf_counter() - start) / len(systems))
         if isinstance(states, np.ndarray):  # one stack: voltages are a view of it
-            return stacked_trajectories(self.name, systems, t, states[:, :, -systems[0].dof:], each)
+            return stacked_trajectories(self.name, systems, t, states[:, :, -first.dof:], each)
         return [Trajectory("exact", t, y[:, -s.dof:], s.joint_rates(y[:, -s.dof:]), stats=each)
                 for s, y in zip(systems, states)]
 

@@ -41,7 +41,7 @@ from typing import Literal, Sequence
 
 import numpy as np
 
-from ..circuit.node_stack import NodeStack
+from ..circuit.node_stack import NodeStack, shared_row
 from ..errors import InputError, SimulationError
 from ..presets import Preset
 from ..presets import preset as get_preset
@@ -251,7 +251,7 @@ class Solver:
             return Solver._solve_many(self, systems, times, preset, save=save, positions=positions)
         if isinstance(rows, TrajectoryStack) and rows.whole:
             finite = np.isfinite(rows.voltages).all(axis=(1, 2))
-            if finite.all() and rows.time[0] == 0.0 and rows.voltages.shape[2] == systems[0].dof:
+            if finite.all() and rows.time[0] == 0.0 and rows.voltages.shape[2] == shared_row(systems).dof:
                 return rows         # the contract, checked for the whole stack at once
         out: list = []
         for tr, s in zip(rows, systems):
@@ -309,7 +309,7 @@ def stacked_trajectories(name: str, systems: Sequence, time: np.ndarray, voltage
         for k, s in enumerate(systems):
             groups.setdefault(s.topology.key, []).append(k)
     if len(groups) == 1:
-        rates = systems[0].joint_rates(voltages)
+        rates = shared_row(systems).joint_rates(voltages)
     else:
         rates = np.empty_like(voltages)
         for idx in groups.values():

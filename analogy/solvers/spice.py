@@ -257,12 +257,10 @@ class SpiceSolver(Solver):
             return out
         count = len(systems)
         # (rows, nodes, times) in memory, read as (rows, times, nodes): each output's times stay contiguous
-        keys = _node_keys(count, n)
-        if prepended:           # each node's start before its points: one copy in all
-            starts = NodeStack.of(systems).initial_voltages.reshape(-1, 1)
-            parts = [x for k, key in enumerate(keys) for x in (starts[k], data[key])]
-        else:
-            parts = [data[key] for key in keys]
+        parts = [data[key] for key in _node_keys(count, n)]
+        if prepended:           # each node's start before its points: still one copy
+            parts, points = [None] * (2 * len(parts)), parts
+            parts[::2], parts[1::2] = list(NodeStack.of(systems).initial_voltages.reshape(-1, 1)), points
         volts = np.concatenate(parts).reshape(count, n, -1).transpose(0, 2, 1)
         if not cut:
             info = SolverStats(elapsed, time.size - 1, stats.get("rejected"), stats.get("iterations"))

@@ -22,7 +22,7 @@ from .work import check_works
 from ..results.metrics import OutputErrors, peak
 from ..results.output import Tabular, html_table
 from ..results.trajectory import Trajectory
-from ..circuit.node_stack import NodeStack
+from ..circuit.node_stack import NodeStack, shared_row
 from ..model.assembly import SINGULAR_CONDITION
 
 if TYPE_CHECKING:
@@ -368,9 +368,10 @@ def compare_many(systems: Sequence, preset: str | Preset = "accurate",
     p = get_preset(preset)
     names = _names(solvers)
     check_works(systems, p, spice="spice" in names)     # a run past the budget is refused before any starts
-    ref_name = _reference(systems[0], names, reference)
-    order, skipped = _run_order(systems[0], names, ref_name)
-    positions = positions or bool(save) or systems[0].kind != "linear"     # the energy balance needs positions
+    first = shared_row(systems)
+    ref_name = _reference(first, names, reference)
+    order, skipped = _run_order(first, names, ref_name)
+    positions = positions or bool(save) or first.kind != "linear"     # the energy balance needs positions
     runs = StackRuns.start(systems, p, step, times)
     with _announced(progress) as tell:
         for name in order:

@@ -7,7 +7,7 @@ from typing import Sequence, overload
 import numpy as np
 
 from ..circuit.currents import trajectory_currents
-from ..circuit.node_stack import NodeStack
+from ..circuit.node_stack import NodeStack, shared_row
 from ..circuit.scales import system_scales
 from ..presets import Preset
 from ..results.metrics import OutputErrors, stack_errors
@@ -178,8 +178,9 @@ def measure(systems, runs, native, ref_name, p, save=(), resampled=frozenset()) 
     resampled : set of str
         Solvers whose reported points are not their own.
     """
-    n = systems[0].dof
-    forces = contact_outputs(systems[0])        # measured like element currents, against their own peaks
+    first = shared_row(systems)
+    n = first.dof
+    forces = contact_outputs(first)        # measured like element currents, against their own peaks
     names = tuple(f"r{j + 1}" for j in range(n)) + tuple(f"i_{c}" for c in save) + forces
     out = MeasuredErrors(len(systems), names)
     if ref_name is None:
@@ -217,7 +218,7 @@ def measure(systems, runs, native, ref_name, p, save=(), resampled=frozenset()) 
             for at in shapes.values():
                 group = [ok[j] for j in at]
                 a, b = _outputs(own.take(group), measured), _outputs(refs.take(at), measured)
-                rounding = systems[0].topology.rounding if shared else [systems[k].topology.rounding for k in group]
+                rounding = first.topology.rounding if shared else [systems[k].topology.rounding for k in group]
                 err, rel, whole = stack_errors(a, b, p.bound, rounding)
                 worst = np.argmax(np.where(np.isnan(rel), -np.inf, rel), axis=1)
                 out.add(name, group, np.max(err, axis=1), rel[np.arange(len(group)), worst], worst, rel, whole)
