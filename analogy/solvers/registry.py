@@ -250,9 +250,9 @@ class Solver:
         except _BROKEN:             # each alone: only a system whose numbers leave the range fails
             return Solver._solve_many(self, systems, times, preset, save=save, positions=positions)
         if isinstance(rows, TrajectoryStack) and rows.whole:
-            finite = np.isfinite(rows.voltages).all(axis=(1, 2))
-            if finite.all() and rows.time[0] == 0.0 and rows.voltages.shape[2] == shared_row(systems).dof:
-                return rows         # the contract, checked for the whole stack at once
+            if rows.time[0] == 0.0 and rows.voltages.shape[2] == shared_row(systems).dof and \
+                    np.isfinite(rows.voltages).all():
+                return rows         # the contract, checked for the whole stack at once (else row by row)
         out: list = []
         for tr, s in zip(rows, systems):
             try:
