@@ -355,7 +355,7 @@ def _row_capacitors(first, m: np.ndarray) -> int | None:
     x = 0 may have zeros that other poses fill)."""
     if first.kind != "linear" or not m.size:
         return None
-    return int(np.max(np.count_nonzero(m, axis=-1)))
+    return int(np.max(axis_sum((m != 0).view(np.int8), -1)))      # counts (numpy widens a long axis's sum)
 
 
 def _scale_arrays(first, m, b, k, v0, whitened: Callable[[], tuple] | None = None) -> tuple:

@@ -126,8 +126,9 @@ class StackRuns:
             self.grids = [(trs.time if trs.whole else trs[k].time) if good and g is None else g
                           for k, (g, good) in enumerate(zip(self.grids, trs.successes.tolist()))]
         else:
-            default = {t: self.preset.grid(t) for t in dict.fromkeys(self.ends)}    # one per horizon
-            self.grids = [default[t] if g is None else g for g, t in zip(self.grids, self.ends)]
+            if any(g is None for g in self.grids):      # rows no solver has set points for: the preset's
+                default = {t: self.preset.grid(t) for t in dict.fromkeys(self.ends)}    # one per horizon
+                self.grids = [default[t] if g is None else g for g, t in zip(self.grids, self.ends)]
             groups = _by_grid(self.grids)
             if len(groups) == 1:
                 trs = run_many(name, systems, self.grids[0], p, save=save, positions=positions)
