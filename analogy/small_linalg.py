@@ -59,7 +59,7 @@ def axis_sum(x: np.ndarray, axis: int) -> np.ndarray:
     out = x[_index(axis, 0, x.ndim)]
     for j in range(1, size):
         out = out + x[_index(axis, j, x.ndim)]
-    return out
+    return out if size > 1 else out.copy()     # a new array, never a view of x
 
 
 def axis_max(x: np.ndarray, axis: int) -> np.ndarray:
@@ -78,7 +78,7 @@ def axis_max(x: np.ndarray, axis: int) -> np.ndarray:
     out = x[_index(axis, 0, x.ndim)]
     for j in range(1, size):
         out = np.maximum(out, x[_index(axis, j, x.ndim)])
-    return out
+    return out if size > 1 else out.copy()     # a new array, never a view of x
 
 
 def cholesky(a: np.ndarray) -> np.ndarray:

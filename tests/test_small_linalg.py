@@ -39,6 +39,8 @@ def test_products_sums_and_maxima_are_numpys(n):
         assert np.all(np.abs(sl.matmul(a, right) - a @ right) <= n * EPS * (np.abs(a) @ np.abs(right)))
     assert np.array_equal(sl.axis_max(a, 1), a.max(axis=1))
     assert np.allclose(sl.axis_sum(a, 2), a.sum(axis=2), rtol=n * EPS, atol=0)
+    # like numpy's, a reduction is a new array, even over an axis of one entry
+    assert not np.shares_memory(sl.axis_sum(a, 2), a) and not np.shares_memory(sl.axis_max(a, 1), a)
 
 
 def test_a_matrix_that_is_not_positive_definite_is_refused_as_lapack_refuses_it():

@@ -222,7 +222,7 @@ def _states(systems: NodeStack, t, n: int, springs: bool) -> np.ndarray:
     shared: dict = {}               # the pieces of equal forces are derived once
     drives: dict = {}               # and, for rows sharing their inputs, once for every take of their stack
     if systems.shares_inputs:
-        shared[None] = (first.forces, list(range(count)))
+        shared[None] = (first.forces, slice(None))        # every row
         drives, = systems.rowwise("segment drives", lambda s: ({},))
     else:
         for i, s in enumerate(systems):
