@@ -31,7 +31,7 @@ def _expm1(x: np.ndarray) -> np.ndarray:
 
 
 def _decay_minus_one(x: np.ndarray, reach: np.ndarray) -> np.ndarray:
-    """eˣ − 1 of real *x* (rows, modes, times; x may be overwritten); *reach* is each mode's λ·(t1 − t0).
+    """eˣ − 1 of real *x* (rows, modes, times), written over it; *reach* is each mode's λ·(t1 − t0).
 
     Where a mode changes by a factor e or more over the segment (|reach| ≥ 1), eˣ − 1 is taken as
     fl(eˣ) − 1, which errs by at most 1.5·ε·max(1, eˣ) absolutely. The term it multiplies, z + d/λ, is
@@ -43,11 +43,12 @@ def _decay_minus_one(x: np.ndarray, reach: np.ndarray) -> np.ndarray:
     slow = np.abs(reach) < 1
     if slow.all():
         return np.expm1(x, out=x)
-    out = np.exp(x)
-    out -= 1.0
-    if slow.any():
-        out[slow] = np.expm1(x[slow])
-    return out
+    kept = np.expm1(x[slow]) if slow.any() else None
+    np.exp(x, out=x)
+    x -= 1.0
+    if kept is not None:
+        x[slow] = kept
+    return x
 
 
 def phi1(x: np.ndarray) -> np.ndarray:

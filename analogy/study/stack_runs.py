@@ -123,7 +123,8 @@ class StackRuns:
                 trs = TrajectoryStack([tr.resampled(self.grids[k], s.joint_rates, s.breakpoints())
                                        if tr.success and self.grids[k] is not None else tr
                                        for k, (tr, s) in enumerate(zip(trs, systems))])
-            self.grids = [(trs.time if trs.whole else trs[k].time) if good and g is None else g
+            whole = trs.whole           # one grid for every row that ran: the same array for each
+            self.grids = [(trs.time if whole else trs[k].time) if good and g is None else g
                           for k, (g, good) in enumerate(zip(self.grids, trs.successes.tolist()))]
         else:
             if any(g is None for g in self.grids):      # rows no solver has set points for: the preset's
