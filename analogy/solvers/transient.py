@@ -198,9 +198,8 @@ def transient_settings(preset: Preset, t_stop: float, scales: Scales | None, *,
     if scales is not None:
         first, tmax = _step_limits(preset, t_stop, scales, first, tmax, calibrated, not (behavioural or coupled),
                                    operations)
-        if clock:           # the cap the motion's clock does not set (none without a clock)
-            unclocked = _step_limits(preset, t_stop, scales, first, unclocked, calibrated,
-                                     not (behavioural or coupled), operations)[1]
+        unclocked = _step_limits(preset, t_stop, scales, first, unclocked, calibrated, not (behavioural or coupled),
+                                 operations)[1] if clock else unclocked       # the cap a clock does not set
         shortest = min(first, 0.1 * _shortest_gap(np.zeros(0) if breakpoints is None else breakpoints, t_stop))
         if clock:       # after a near corner ngspice steps a tenth of a last step about a quarter of its gap
             shortest = min(shortest, 0.025 * float(np.min(np.diff(np.concatenate([[0.0], clock])))))
