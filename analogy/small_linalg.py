@@ -4,8 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["SMALL", "matmul", "cholesky", "solve_lower", "solve_lower_transposed", "whiten", "eigh", "eigvalsh",
-           "axis_sum", "axis_max"]
+__all__ = ["SMALL", "matmul", "cholesky", "solve_lower", "whiten", "eigh", "eigvalsh", "axis_sum", "axis_max"]
 
 #: Up to this size, a stack's products, Cholesky factors and triangular solves are loops over the
 #: entries, each one numpy pass over the stack. numpy's stacked ``linalg`` calls LAPACK once per
@@ -39,10 +38,6 @@ def matmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return out
 
 
-def _index(axis: int, j: int, ndim: int) -> tuple:
-    return (slice(None),) * (axis % ndim) + (j,)
-
-
 def axis_sum(x: np.ndarray, axis: int) -> np.ndarray:
     """``x.sum(axis)``, added slice by slice where that axis is short.
 
@@ -53,13 +48,7 @@ def axis_sum(x: np.ndarray, axis: int) -> np.ndarray:
     axis : int
         The axis summed over.
     """
-    size = x.shape[axis]
-    if size > SMALL or size == 0:
-        return x.sum(axis=axis)
-    out = x[_index(axis, 0, x.ndim)]
-    for j in range(1, size):
-        out = out + x[_index(axis, j, x.ndim)]
-    return out if size > 1 else out.copy()     # a new array, never a view of x
+    return _by_slices(x, axis, np.add) if 0 < x.shape[axis] <= SMALL else x.sum(axis=axis)
 
 
 def axis_max(x: np.ndarray, axis: int) -> np.ndarray:
@@ -72,13 +61,16 @@ def axis_max(x: np.ndarray, axis: int) -> np.ndarray:
     axis : int
         The axis maximised over.
     """
-    size = x.shape[axis]
-    if size > SMALL or size == 0:
-        return x.max(axis=axis)
-    out = x[_index(axis, 0, x.ndim)]
-    for j in range(1, size):
-        out = np.maximum(out, x[_index(axis, j, x.ndim)])
-    return out if size > 1 else out.copy()     # a new array, never a view of x
+    return _by_slices(x, axis, np.maximum) if 0 < x.shape[axis] <= SMALL else x.max(axis=axis)
+
+
+def _by_slices(x: np.ndarray, axis: int, ufunc: np.ufunc) -> np.ndarray:
+    """*ufunc* folded over the slices of *x* along *axis*: always a new array, never a view of x."""
+    index = (slice(None),) * (axis % x.ndim)
+    out = x[index + (0,)]
+    for j in range(1, x.shape[axis]):
+        out = ufunc(out, x[index + (j,)])
+    return out if x.shape[axis] > 1 else out.copy()
 
 
 def cholesky(a: np.ndarray) -> np.ndarray:
@@ -112,8 +104,8 @@ def cholesky(a: np.ndarray) -> np.ndarray:
     return low
 
 
-def solve_lower(low: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """X with L·X = B, by forward substitution, for lower-triangular L.
+def solve_lower(low: np.ndarray, b: np.ndarray, transposed: bool = False) -> np.ndarray:
+    """X with L·X = B by forward substitution, or with Lᵀ·X = B by back substitution, for lower-triangular L.
 
     Parameters
     ----------
@@ -121,21 +113,21 @@ def solve_lower(low: np.ndarray, b: np.ndarray) -> np.ndarray:
         Lower-triangular factors with nonzero diagonals.
     b : ndarray, shape (..., n, m)
         Right-hand sides.
+    transposed : bool
+        Solve with Lᵀ.
     """
-    return _substituted(low, b, False)
-
-
-def solve_lower_transposed(low: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """X with Lᵀ·X = B, by back substitution, for lower-triangular L.
-
-    Parameters
-    ----------
-    low : ndarray, shape (..., n, n)
-        Lower-triangular factors with nonzero diagonals.
-    b : ndarray, shape (..., n, m)
-        Right-hand sides.
-    """
-    return _substituted(low, b, True)
+    n, m = low.shape[-1], b.shape[-1]
+    if max(n, m) > SMALL:
+        return np.linalg.solve(np.swapaxes(low, -1, -2) if transposed else low, b)
+    out = np.empty(np.broadcast_shapes(low.shape[:-2], b.shape[:-2]) + (n, m), dtype=np.result_type(low, b))
+    order = range(n - 1, -1, -1) if transposed else range(n)
+    for j in range(m):
+        for i in order:
+            entry = b[..., i, j]
+            for k in (range(i + 1, n) if transposed else range(i)):
+                entry = entry - (low[..., k, i] if transposed else low[..., i, k]) * out[..., k, j]
+            out[..., i, j] = entry / low[..., i, i]
+    return out
 
 
 def whiten(low: np.ndarray, a: np.ndarray) -> np.ndarray:
@@ -149,21 +141,6 @@ def whiten(low: np.ndarray, a: np.ndarray) -> np.ndarray:
         Symmetric matrices.
     """
     return solve_lower(low, np.swapaxes(solve_lower(low, a), -1, -2))
-
-
-def _substituted(low: np.ndarray, b: np.ndarray, transposed: bool) -> np.ndarray:
-    n, m = low.shape[-1], b.shape[-1]
-    if max(n, m) > SMALL:
-        return np.linalg.solve(np.swapaxes(low, -1, -2) if transposed else low, b)
-    out = np.empty(np.broadcast_shapes(low.shape[:-2], b.shape[:-2]) + (n, m), dtype=np.result_type(low, b))
-    order = range(n - 1, -1, -1) if transposed else range(n)
-    for j in range(m):
-        for i in order:
-            entry = b[..., i, j]
-            for k in (range(i + 1, n) if transposed else range(i)):
-                entry = entry - (low[..., k, i] if transposed else low[..., i, k]) * out[..., k, j]
-            out[..., i, j] = entry / low[..., i, i]
-    return out
 
 
 def eigh(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

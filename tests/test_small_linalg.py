@@ -25,7 +25,7 @@ def test_cholesky_and_substitutions_are_lapacks_to_rounding(n):
     assert np.all(np.triu(low, 1) == 0)
     cond = np.linalg.cond(low)[:, None, None]
     for got, want in ((sl.solve_lower(low, b), np.linalg.solve(low, b)),
-                      (sl.solve_lower_transposed(low, b), np.linalg.solve(np.swapaxes(low, 1, 2), b))):
+                      (sl.solve_lower(low, b, transposed=True), np.linalg.solve(np.swapaxes(low, 1, 2), b))):
         # two backward-stable solves differ by up to n·ε·cond(L) of the solution
         assert np.all(np.abs(got - want) <= 4 * n * EPS * cond * np.abs(want).max(axis=(1, 2))[:, None, None])
 

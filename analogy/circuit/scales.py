@@ -11,7 +11,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from ..errors import InputError
-from ..small_linalg import axis_max, axis_sum, cholesky, eigh, matmul, solve_lower_transposed, whiten
+from ..small_linalg import axis_max, axis_sum, cholesky, eigh, matmul, solve_lower, whiten
 from .joint_forces import joint_forces
 from .node_stack import NodeStack
 from .topology import symmetric_part
@@ -408,7 +408,7 @@ def _estimated_scales(first, m, b, k, v0, whitened: Callable[[], tuple] | None =
         if not np.all(np.isfinite(whitened_k)):
             raise np.linalg.LinAlgError("K' against M' leaves the floating-point range")
         mu, psi = eigh(symmetric_part(whitened_k))
-    phi = solve_lower_transposed(chol, psi)                       # M'-orthonormal mode shapes
+    phi = solve_lower(chol, psi, transposed=True)                       # M'-orthonormal mode shapes
     beta = axis_sum(psi * matmul(wb, psi), 1)                      # modal damping rates
     omega = np.sqrt(np.abs(mu))
     peaks, sine = _force_peaks(first)

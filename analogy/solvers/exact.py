@@ -14,7 +14,7 @@ from ..errors import InputError, SimulationError
 from ..presets import Preset
 from ..results.frequency import FrequencyResponse
 from ..results.trajectory import SolverStats, Trajectory
-from ..small_linalg import eigh, matmul, solve_lower_transposed
+from ..small_linalg import eigh, matmul, solve_lower
 from .registry import Solver, stacked_trajectories
 
 __all__ = ["solve_exact", "solve_exact_many", "exact_mobility", "phi1", "phi2", "ExactSolver", "SOLVER"]
@@ -120,7 +120,7 @@ def _modes(systems, n: int, springs: bool):
     if not springs:
         chol, sym = whitened_damping(systems)
         mu, psi = eigh(symmetric_part(sym))
-        vec = solve_lower_transposed(chol, psi)
+        vec = solve_lower(chol, psi, transposed=True)
         vec_t = np.swapaxes(vec, 1, 2)
         z = matmul(vec_t, matmul(m, v0[..., None]))[..., 0]
         beta = matmul(vec_t, cmap)
