@@ -39,7 +39,8 @@ def matmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def axis_sum(x: np.ndarray, axis: int) -> np.ndarray:
-    """``x.sum(axis)``, added slice by slice where that axis is short.
+    """``x.sum(axis)``, added slice by slice where that axis is short (of numbers: booleans would add as
+    logical or, and small integers keep their type, so count in a wide enough one).
 
     Parameters
     ----------
@@ -163,8 +164,8 @@ def eigh(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return np.linalg.eigh(a)
     p, q, r = a[..., 0, 0], a[..., 1, 0], a[..., 1, 1]
     coupled = q != 0
-    with np.errstate(invalid="ignore", divide="ignore"):
-        tau = (r - p) / (2 * np.where(coupled, q, 1.0))
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        tau = (0.5 * r - 0.5 * p) / np.where(coupled, q, 1.0)         # halves first: r − p may overflow
         # the smaller root of t² + 2τ·t − 1 = 0; hypot, since τ² may overflow
         t = np.where(coupled, np.where(tau >= 0, 1.0, -1.0) / (np.abs(tau) + np.hypot(1.0, tau)), 0.0)
     c = 1 / np.hypot(1.0, t)

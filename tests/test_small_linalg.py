@@ -58,11 +58,12 @@ def test_two_by_two_eigenpairs_hold_the_eigen_equation_to_rounding():
     a = rng.standard_normal((2000, 2, 2)) * 10.0 ** rng.uniform(-8, 8, (2000, 1, 1))
     a = a + np.swapaxes(a, 1, 2)
     edge = np.array([[[1.0, 0.0], [0.0, 2.0]], [[2.0, 0.0], [0.0, 1.0]], [[3.0, 1.0], [1.0, 3.0]],
-                     [[1.0, 1e-300], [1e-300, 1.0]], [[1e300, 1.0], [1.0, -1e300]], [[0.0, 0.0], [0.0, 0.0]]])
+                     [[1.0, 1e-300], [1e-300, 1.0]], [[1e300, 1.0], [1.0, -1e300]], [[0.0, 0.0], [0.0, 0.0]],
+                     [[-1e308, 1e308], [1e308, 1e308]], [[1.0, 1e-309], [1e-309, 2.0]]])
     a = np.concatenate([a, edge])
     values, vectors = sl.eigh(a)
     norm = np.abs(a).max(axis=(1, 2))[:, None, None]
-    assert np.all(np.diff(values, axis=1) >= 0)
+    assert np.all(values[:, 0] <= values[:, 1])
     # one Jacobi rotation: residual and orthonormality at a few ε·‖A‖ and ε, as LAPACK's
     assert np.all(np.abs(a @ vectors - vectors * values[:, None, :]) <= 8 * EPS * norm)
     assert np.all(np.abs(np.swapaxes(vectors, 1, 2) @ vectors - np.eye(2)) <= 8 * EPS)

@@ -554,6 +554,11 @@ def test_a_take_of_consecutive_rows_reads_the_stacks_values_without_copying_and_
     order = [0, 1, 2, 4, 3]
     np.testing.assert_array_equal(part.mass[order], picked.mass)
     np.testing.assert_array_equal(wb[order], whitened_damping(picked)[1])
+    # rows counted from the end, or past it, are taken as numpy takes them, never as an empty slice
+    np.testing.assert_array_equal(whole.take([-1]).mass, whole.mass[[-1]])
+    np.testing.assert_array_equal(whole.take([-1, 0]).mass, whole.mass[[-1, 0]])
+    with pytest.raises(IndexError):
+        whole.take([11, 12])
 
 
 @pytest.mark.ngspice
@@ -580,6 +585,8 @@ def test_joint_rates_are_the_inverse_maps_product_bit_for_bit():
         v = rng.standard_normal((7, 33, topology.dof))
         assert topology.exact_inverse and topology._rate_terms is not None
         np.testing.assert_array_equal(topology.joint_rates(v), v @ topology.inverse.T)
+        with pytest.raises(ValueError):
+            topology.joint_rates(np.ones((3, topology.dof + 1)))
 
 
 def test_a_lazy_stack_keeps_what_its_rows_were_built_from_and_pickles_with_them():

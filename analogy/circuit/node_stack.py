@@ -242,8 +242,8 @@ class NodeStack(Sequence):
         if rows == list(range(len(self))):
             return self
         # consecutive rows (a batch's circuits) are read as views, which the take may not write into
-        index = slice(rows[0], rows[0] + len(rows)) if rows and rows == list(range(rows[0], rows[0] + len(rows))) \
-            else np.asarray(rows, dtype=int)
+        consecutive = rows and 0 <= rows[0] and rows[-1] < len(self) and rows == list(range(rows[0], rows[-1] + 1))
+        index = slice(rows[0], rows[-1] + 1) if consecutive else np.asarray(rows, dtype=int)
         arrays = {k: _read_only(v[index]) for k, v in self._arrays.items()}
         made = self._rows[index] if isinstance(index, slice) else [self._rows[k] for k in rows]
         if self._row is None:

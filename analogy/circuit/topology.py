@@ -103,6 +103,8 @@ class Topology:
             Node velocities v.
         """
         v = np.asarray(node_voltages, dtype=float)
+        if v.shape[-1:] != (self.dof,):
+            raise ValueError(f"node voltages of shape {v.shape} for a map of {self.dof} nodes")
         if self.exact_inverse:
             terms = self._rate_terms
             return v @ self.inverse.T if terms is None else _sparse_rows(v, terms)
