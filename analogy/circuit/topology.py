@@ -317,8 +317,8 @@ def topology(spec, n: int, matrices: tuple | None = None) -> Topology:
 def _sparse_rows(v: np.ndarray, terms: tuple) -> np.ndarray:
     """``v @ Aᵀ`` for A given by its rows' nonzero (column, coefficient) *terms*: one pass over the
     times per term, not a product with every zero (the same numbers: unit coefficients are exact)."""
-    # in v's own memory order: rates of (rows, nodes, times) memory stay time-contiguous, as the errors read them
-    out = np.empty_like(v) if v.shape[-1] == len(terms) else np.empty(v.shape[:-1] + (len(terms),))
+    # in v's own memory order (A is square): rates of (rows, nodes, times) memory stay time-contiguous
+    out = np.empty_like(v)
     for i, row in enumerate(terms):
         at = out[..., i]
         if not row:
